@@ -1,0 +1,61 @@
+//! Forward kinematics: every joint frame and the tool pose in one pass from the base.
+
+use crate::{Chain, JointKind, Pose, Real};
+use nalgebra::{SMatrix, SVector, Vector3};
+
+/// World poses of every joint frame (after its motion) and of the tool, for one joint vector.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Frames<T: Real, const N: usize> {
+    /// Frame of joint k after its motion, in the base frame.
+    pub joints: [Pose<T>; N],
+    /// Tool frame in the base frame.
+    pub tool: Pose<T>,
+}
+
+impl<T: Real, const N: usize> Chain<T, N> {
+    /// Forward kinematics: O(N), two 3x3 products per joint.
+    pub fn forward(&self, q: &SVector<T, N>) -> Frames<T, N> {
+        let mut current = Pose::identity();
+        let joints = core::array::from_fn(|k| {
+            let joint = &self.joints()[k];
+            current = current.compose(&joint.origin).compose(&joint.motion(q[k]));
+            current
+        });
+        Frames { joints, tool: current.compose(self.tool()) }
+    }
+
+    /// Tool pose only.
+    pub fn tool_pose(&self, q: &SVector<T, N>) -> Pose<T> {
+        self.forward(q).tool
+    }
+
+    /// Geometric Jacobian of the tool frame at `q`: rows linear x, y, z then angular x, y, z (base
+    /// frame); column k is `[a_k x (p_tool - p_k); a_k]` for a revolute joint, `[a_k; 0]` for a
+    /// prismatic one, where `a_k` is the joint axis and `p_k` its origin in the base frame.
+    pub fn jacobian(&self, q: &SVector<T, N>) -> SMatrix<T, 6, N> {
+        self.jacobian_of(&self.forward(q))
+    }
+
+    /// The Jacobian from frames already computed (the IK solvers reuse the FK of their last step).
+    pub fn jacobian_of(&self, frames: &Frames<T, N>) -> SMatrix<T, 6, N> {
+        self.point_jacobian(frames, N, &frames.tool.translation)
+    }
+
+    /// Jacobian of a point fixed to the frame of joint `upto - 1` (or to the tool when `upto == N`),
+    /// given in the base frame: only the first `upto` joints move it, so later columns are zero.
+    pub fn point_jacobian(&self, frames: &Frames<T, N>, upto: usize, point: &Vector3<T>) -> SMatrix<T, 6, N> {
+        let mut j = SMatrix::<T, 6, N>::zeros();
+        for (k, (joint, frame)) in self.joints().iter().zip(frames.joints.iter()).enumerate().take(upto) {
+            let axis = frame.rotation * joint.axis;
+            let linear = match joint.kind {
+                JointKind::Prismatic => axis,
+                JointKind::Revolute | JointKind::Continuous => axis.cross(&(point - frame.translation)),
+            };
+            j.fixed_view_mut::<3, 1>(0, k).copy_from(&linear);
+            if joint.kind != JointKind::Prismatic {
+                j.fixed_view_mut::<3, 1>(3, k).copy_from(&axis);
+            }
+        }
+        j
+    }
+}

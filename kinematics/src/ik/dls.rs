@@ -1,0 +1,109 @@
+//! Damped least squares with adaptive damping (Levenberg-Marquardt), the default solver.
+//!
+//! Step: `dq = J^T (J J^T + lambda I)^-1 e` when the task has no more rows than joints, otherwise the
+//! equivalent `(J^T J + lambda I)^-1 J^T e`, so the system solved by Cholesky is always the smaller
+//! one (3x3 or 6x6 for a 6-joint arm, NxN for a short chain). `lambda = mu * cost + floor`: damping
+//! proportional to the remaining error (Sugihara 2011) gives quadratic convergence near the
+//! solution and short, safe steps far from it or near singularities; `mu` adapts: a step is kept
+//! only if the error falls, otherwise it is retried with ten times the damping.
+
+use super::{Descent, DescentEnd, ErrorTerms, IkMethod, Residual};
+use crate::linalg::cholesky_solve;
+use crate::{Chain, Frames, Real};
+use nalgebra::SVector;
+
+/// The default solver. Stateless: all tuning lives in [`super::IkConfig`].
+#[derive(Clone, Copy, Debug, Default)]
+pub struct DampedLeastSquares;
+
+impl<T: Real, const N: usize> IkMethod<T, N> for DampedLeastSquares {
+    fn descend(&self, chain: &Chain<T, N>, residual: &Residual<T>, start: SVector<T, N>, budget: u32) -> Descent<T, N> {
+        if residual.rows() == 3 {
+            descend_task::<T, N, 3>(chain, residual, start, budget)
+        } else {
+            descend_task::<T, N, 6>(chain, residual, start, budget)
+        }
+    }
+}
+
+/// Consecutive iterations without a 1% fall in cost after which an attempt counts as stalled.
+const PATIENCE: u32 = 8;
+
+fn descend_task<T: Real, const N: usize, const M: usize>(
+    chain: &Chain<T, N>,
+    residual: &Residual<T>,
+    start: SVector<T, N>,
+    budget: u32,
+) -> Descent<T, N> {
+    let mut q = start;
+    let mut frames = chain.forward(&q);
+    let mut error = residual.error(&frames.tool);
+    // Below sqrt(eps) relative to unit-scale J J^T the damping no longer matters for accuracy but
+    // still keeps the system positive definite at exact singularities.
+    let floor = T::EPSILON.sqrt() * T::of(1e-3);
+    let (mu_min, mu_max) = (T::of(1e-5), T::of(1e8));
+    let mut mu = T::of(1e-2);
+    let mut unproductive = 0;
+    for iteration in 0..budget {
+        if residual.converged(&error) {
+            return done(q, error, iteration, DescentEnd::Converged);
+        }
+        let lambda = mu * error.cost + floor;
+        let trial = damped_step::<T, N, M>(chain, residual, &frames, &error, lambda)
+            .map(|dq| chain.step(&q, &dq))
+            .map(|q_new| {
+                let f = chain.forward(&q_new);
+                (q_new, f, residual.error(&f.tool))
+            });
+        match trial {
+            Some((q_new, f, e)) if e.cost < error.cost => {
+                unproductive = if e.cost > error.cost * T::of(0.99) { unproductive + 1 } else { 0 };
+                (q, frames, error) = (q_new, f, e);
+                mu = (mu * T::of(0.1)).max(mu_min);
+            }
+            _ => {
+                unproductive += 1;
+                mu *= T::of(10.0);
+            }
+        }
+        if mu > mu_max || unproductive >= PATIENCE {
+            let end = if residual.converged(&error) { DescentEnd::Converged } else { DescentEnd::Stalled };
+            return done(q, error, iteration + 1, end);
+        }
+    }
+    let end = if residual.converged(&error) { DescentEnd::Converged } else { DescentEnd::OutOfBudget };
+    done(q, error, budget, end)
+}
+
+/// The damped step, or `None` if the system is not positive definite (non-finite values).
+fn damped_step<T: Real, const N: usize, const M: usize>(
+    chain: &Chain<T, N>,
+    residual: &Residual<T>,
+    frames: &Frames<T, N>,
+    error: &ErrorTerms<T>,
+    lambda: T,
+) -> Option<SVector<T, N>> {
+    let (j, e) = residual.task::<M, N>(chain, frames, error);
+    if N >= M {
+        let mut a = j * j.transpose();
+        for i in 0..M {
+            a[(i, i)] += lambda;
+        }
+        cholesky_solve(&a, &e).map(|y| j.transpose() * y)
+    } else {
+        let mut a = j.transpose() * j;
+        for i in 0..N {
+            a[(i, i)] += lambda;
+        }
+        cholesky_solve(&a, &(j.transpose() * e))
+    }
+}
+
+pub(super) fn done<T: Real, const N: usize>(
+    q: SVector<T, N>,
+    error: ErrorTerms<T>,
+    iterations: u32,
+    end: DescentEnd,
+) -> Descent<T, N> {
+    Descent { q, error, iterations, end }
+}

@@ -1,0 +1,142 @@
+//! One joint of a serial chain, as URDF describes it: a fixed origin from the parent frame, then a
+//! motion about (or along) an axis given in the joint's own frame.
+
+use crate::{Pose, Real};
+use nalgebra::Vector3;
+
+/// How a joint moves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum JointKind {
+    /// Rotation about the axis, kept within `[lower, upper]`.
+    Revolute,
+    /// Rotation about the axis without limits; values wrap to (-pi, pi].
+    Continuous,
+    /// Translation along the axis, kept within `[lower, upper]` (metres).
+    Prismatic,
+}
+
+/// Position limits of a joint (radians or metres).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Limits<T: Real> {
+    /// Lowest allowed value.
+    pub lower: T,
+    /// Highest allowed value.
+    pub upper: T,
+}
+
+impl<T: Real> Limits<T> {
+    /// Limits `[lower, upper]`.
+    pub fn new(lower: T, upper: T) -> Self {
+        Self { lower, upper }
+    }
+
+    /// Symmetric limits `[-m, m]`.
+    pub fn symmetric(m: T) -> Self {
+        Self { lower: -m, upper: m }
+    }
+
+    /// The middle of the range: the conventional IK seed.
+    pub fn middle(&self) -> T {
+        (self.lower + self.upper) * T::of(0.5)
+    }
+
+    /// Width of the range.
+    pub fn span(&self) -> T {
+        self.upper - self.lower
+    }
+
+    /// True if `v` lies within the limits.
+    pub fn contains(&self, v: T) -> bool {
+        v >= self.lower && v <= self.upper
+    }
+}
+
+/// A joint: parent-to-joint origin, unit axis in the joint frame, kind and limits.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Joint<T: Real> {
+    /// Transform from the parent (previous joint's moving frame, or the base) to this joint's frame
+    /// at zero joint value.
+    pub origin: Pose<T>,
+    /// Motion axis in the joint frame (normalised by [`crate::Chain::new`]).
+    pub axis: Vector3<T>,
+    /// Revolute, continuous or prismatic.
+    pub kind: JointKind,
+    /// Position limits; ignored for continuous joints.
+    pub limits: Limits<T>,
+}
+
+impl<T: Real> Joint<T> {
+    /// A revolute joint.
+    pub fn revolute(origin: Pose<T>, axis: [T; 3], limits: Limits<T>) -> Self {
+        Self { origin, axis: Vector3::from(axis), kind: JointKind::Revolute, limits }
+    }
+
+    /// A continuous (unlimited revolute) joint.
+    pub fn continuous(origin: Pose<T>, axis: [T; 3]) -> Self {
+        let pi = T::pi();
+        Self { origin, axis: Vector3::from(axis), kind: JointKind::Continuous, limits: Limits::symmetric(pi) }
+    }
+
+    /// A prismatic joint.
+    pub fn prismatic(origin: Pose<T>, axis: [T; 3], limits: Limits<T>) -> Self {
+        Self { origin, axis: Vector3::from(axis), kind: JointKind::Prismatic, limits }
+    }
+
+    /// The joint's motion for value `q` (rotation about or translation along the axis).
+    #[inline]
+    pub fn motion(&self, q: T) -> Pose<T> {
+        match self.kind {
+            JointKind::Prismatic => Pose::from_translation(self.axis * q),
+            JointKind::Revolute | JointKind::Continuous => Pose::from_axis_angle(&self.axis, q),
+        }
+    }
+
+    /// Brings `q` into the joint's range without changing the pose it produces where possible:
+    /// continuous joints wrap to (-pi, pi]; a revolute value outside its limits is first shifted by
+    /// whole turns (same pose) and only clamped when no turn lands inside.
+    #[inline]
+    pub fn normalise(&self, q: T) -> T {
+        let two_pi = T::two_pi();
+        match self.kind {
+            JointKind::Continuous => wrap_angle(q),
+            JointKind::Prismatic => clamp(q, self.limits),
+            JointKind::Revolute => {
+                if self.limits.contains(q) {
+                    return q;
+                }
+                // The turn count that brings q closest to the middle of the range.
+                let turns = ((self.limits.middle() - q) / two_pi).round();
+                let shifted = q + turns * two_pi;
+                if self.limits.contains(shifted) {
+                    shifted
+                } else {
+                    clamp(q, self.limits)
+                }
+            }
+        }
+    }
+
+    /// True if `q` is an admissible value for this joint (continuous joints admit any finite value).
+    pub fn admits(&self, q: T) -> bool {
+        match self.kind {
+            JointKind::Continuous => q.finite(),
+            _ => self.limits.contains(q),
+        }
+    }
+}
+
+fn clamp<T: Real>(q: T, l: Limits<T>) -> T {
+    q.max(l.lower).min(l.upper)
+}
+
+/// Wraps an angle to (-pi, pi].
+pub fn wrap_angle<T: Real>(q: T) -> T {
+    let two_pi = T::two_pi();
+    let pi = T::pi();
+    let mut w = q - two_pi * ((q + pi) / two_pi).floor();
+    // floor puts -pi exactly at -pi; map it to +pi so the interval is half-open at the bottom.
+    if w <= -pi {
+        w += two_pi;
+    }
+    w
+}

@@ -1,0 +1,44 @@
+//! The scalar the kinematics is generic over: `f32` on the microcontroller, `f64` on the host.
+
+use nalgebra::RealField;
+
+/// A floating-point scalar usable by every algorithm in this crate.
+///
+/// `RealField` (through nalgebra's `libm` feature) supplies `sin`, `cos`, `atan2`, `sqrt` without
+/// `std`; this trait adds the few constants the solvers need to pick scale-aware thresholds.
+pub trait Real: RealField + Copy + core::fmt::Debug + Default {
+    /// Machine epsilon of the type.
+    const EPSILON: Self;
+    /// Converts an `f64` literal or measurement (rounding to the nearest value for `f32`).
+    fn of(x: f64) -> Self;
+    /// Widens to `f64` (exact for both implementations).
+    fn to_f64(self) -> f64;
+    /// True unless NaN or infinite.
+    fn finite(self) -> bool;
+}
+
+impl Real for f32 {
+    const EPSILON: Self = f32::EPSILON;
+    fn of(x: f64) -> Self {
+        x as f32
+    }
+    fn to_f64(self) -> f64 {
+        f64::from(self)
+    }
+    fn finite(self) -> bool {
+        self.is_finite()
+    }
+}
+
+impl Real for f64 {
+    const EPSILON: Self = f64::EPSILON;
+    fn of(x: f64) -> Self {
+        x
+    }
+    fn to_f64(self) -> f64 {
+        self
+    }
+    fn finite(self) -> bool {
+        self.is_finite()
+    }
+}
