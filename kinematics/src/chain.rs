@@ -150,10 +150,7 @@ fn dh_joint<T: Real>(origin: Pose<T>, row: &DhRow<T>) -> Joint<T> {
 fn standard_link<T: Real>(row: &DhRow<T>) -> Pose<T> {
     let (st, ct) = row.theta.sin_cos();
     let rz = Matrix3::new(ct, -st, T::zero(), st, ct, T::zero(), T::zero(), T::zero(), T::one());
-    Pose {
-        rotation: rz * rx(row.alpha),
-        translation: Vector3::new(row.a * ct, row.a * st, row.d),
-    }
+    Pose { rotation: rz * rx(row.alpha), translation: Vector3::new(row.a * ct, row.a * st, row.d) }
 }
 
 /// `Rx(alpha) Tx(a) Rz(theta) Tz(d)` as one transform.
@@ -161,10 +158,7 @@ fn modified_link<T: Real>(row: &DhRow<T>) -> Pose<T> {
     let (st, ct) = row.theta.sin_cos();
     let (sa, ca) = row.alpha.sin_cos();
     let rz = Matrix3::new(ct, -st, T::zero(), st, ct, T::zero(), T::zero(), T::zero(), T::one());
-    Pose {
-        rotation: rx(row.alpha) * rz,
-        translation: Vector3::new(row.a, -row.d * sa, row.d * ca),
-    }
+    Pose { rotation: rx(row.alpha) * rz, translation: Vector3::new(row.a, -row.d * sa, row.d * ca) }
 }
 
 fn rx<T: Real>(alpha: T) -> Matrix3<T> {

@@ -14,6 +14,8 @@ pub fn cholesky_solve<T: Real, const K: usize>(a: &SMatrix<T, K, K>, b: &SVector
         for k in 0..j {
             d -= l[(j, k)] * l[(j, k)];
         }
+        // Written so that NaN also fails: a NaN pivot is not positive definite.
+        #[allow(clippy::neg_cmp_op_on_partial_ord)]
         if !(d > T::zero()) {
             return None;
         }
@@ -60,6 +62,8 @@ pub fn symmetric_eigen<T: Real, const K: usize>(a: &SMatrix<T, K, K>) -> (SVecto
             }
         }
         let scale = a.norm_squared();
+        // NaN stops the sweeps too (no comparison with NaN is true).
+        #[allow(clippy::neg_cmp_op_on_partial_ord)]
         if !(off > T::EPSILON * T::EPSILON * scale) {
             break;
         }

@@ -57,6 +57,8 @@ impl<T: Real> Pose<T> {
     pub fn rotation_from_quaternion_wxyz(q: [T; 4]) -> Option<Matrix3<T>> {
         let v = Vector4::new(q[0], q[1], q[2], q[3]);
         let n = v.norm();
+        // NaN norms fail the comparison and are rejected with the zero quaternion.
+        #[allow(clippy::neg_cmp_op_on_partial_ord)]
         if !(n > T::EPSILON) || !n.finite() {
             return None;
         }

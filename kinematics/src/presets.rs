@@ -82,7 +82,9 @@ pub fn iiwa14<T: Real>() -> Result<Chain<T, 7>, ChainError> {
 
 /// SO-101 (TheRobotStudio SO-ARM100, `so101_new_calib.urdf`): `base_link` to `gripper_frame_link`
 /// through shoulder_pan, shoulder_lift, elbow_flex, wrist_flex and wrist_roll, values copied from the
-/// URDF (the host's URDF importer reproduces this chain from the file; a test checks it).
+/// URDF (the host's URDF importer reproduces this chain from the file; a test checks it). The
+/// file rounds pi to 3.14159 and pi/2 to 1.5708; the preset keeps the file's numbers exactly.
+#[allow(clippy::approx_constant)]
 pub fn so101<T: Real>() -> Result<Chain<T, 5>, ChainError> {
     let z = [0.0, 0.0, 1.0];
     let joints = [

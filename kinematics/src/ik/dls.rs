@@ -42,19 +42,19 @@ fn descend_task<T: Real, const N: usize, const M: usize>(
     // still keeps the system positive definite at exact singularities.
     let floor = T::EPSILON.sqrt() * T::of(1e-3);
     let (mu_min, mu_max) = (T::of(1e-5), T::of(1e8));
-    let mut mu = T::of(1e-2);
+    let mut mu = T::of(1.0);
     let mut unproductive = 0;
     for iteration in 0..budget {
         if residual.converged(&error) {
             return done(q, error, iteration, DescentEnd::Converged);
         }
         let lambda = mu * error.cost + floor;
-        let trial = damped_step::<T, N, M>(chain, residual, &frames, &error, lambda)
-            .map(|dq| chain.step(&q, &dq))
-            .map(|q_new| {
+        let trial = damped_step::<T, N, M>(chain, residual, &frames, &error, lambda).map(|dq| chain.step(&q, &dq)).map(
+            |q_new| {
                 let f = chain.forward(&q_new);
                 (q_new, f, residual.error(&f.tool))
-            });
+            },
+        );
         match trial {
             Some((q_new, f, e)) if e.cost < error.cost => {
                 unproductive = if e.cost > error.cost * T::of(0.99) { unproductive + 1 } else { 0 };

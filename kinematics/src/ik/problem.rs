@@ -65,7 +65,7 @@ impl<T: Real> Default for IkConfig<T> {
             orientation_tolerance: T::of(if single { 1e-3 } else { 1e-5 }),
             orientation_weight: T::one(),
             max_iterations: 1000,
-            attempt_iterations: 60,
+            attempt_iterations: 150,
             max_restarts: 40,
             rng_seed: 0x5EED,
         }

@@ -62,12 +62,7 @@ impl<T: Real> Residual<T> {
         let mut vector = SVector::<T, 6>::zeros();
         vector.fixed_rows_mut::<3>(0).copy_from(&dp);
         vector.fixed_rows_mut::<3>(3).copy_from(&(dw * self.weight));
-        ErrorTerms {
-            vector,
-            position: dp.norm(),
-            orientation: dw.norm(),
-            cost: vector.norm_squared() * T::of(0.5),
-        }
+        ErrorTerms { vector, position: dp.norm(), orientation: dw.norm(), cost: vector.norm_squared() * T::of(0.5) }
     }
 
     /// True if the error is within both tolerances.

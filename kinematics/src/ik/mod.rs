@@ -1,0 +1,155 @@
+//! Inverse kinematics: one problem type ([`IkProblem`]), one result type ([`IkSolution`]), several
+//! local methods, and one driver that validates input, restarts stalled attempts from seeded random
+//! joint vectors, keeps the closest pose found, and decides the status by forward kinematics on the
+//! joint values it returns (so "converged" is never claimed for values that do not reach).
+
+mod ccd;
+mod dls;
+mod gradient;
+mod newton;
+mod problem;
+mod regularised;
+mod residual;
+mod transpose;
+
+pub use ccd::CyclicCoordinateDescent;
+pub use dls::DampedLeastSquares;
+pub use gradient::{GradientDescent, Handle};
+pub use newton::PseudoinverseNewton;
+pub use problem::{IkConfig, IkProblem, IkSolution, IkStatus, InvalidInput, Target};
+pub use regularised::Regularised;
+pub use residual::{ErrorTerms, Residual};
+pub use transpose::JacobianTranspose;
+
+use crate::{Chain, Real, SplitMix64};
+use nalgebra::SVector;
+
+/// How one local descent ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DescentEnd {
+    /// Within tolerance.
+    Converged,
+    /// No further progress from here (a local minimum, a limit, or a singularity).
+    Stalled,
+    /// Used the iterations it was given while still making progress.
+    OutOfBudget,
+}
+
+/// The outcome of one local descent.
+#[derive(Clone, Copy, Debug)]
+pub struct Descent<T: Real, const N: usize> {
+    /// Where it ended (within limits).
+    pub q: SVector<T, N>,
+    /// The error there.
+    pub error: ErrorTerms<T>,
+    /// Iterations used.
+    pub iterations: u32,
+    /// Why it ended.
+    pub end: DescentEnd,
+}
+
+/// A local IK method: descends from a start point for at most `budget` iterations, keeping every
+/// iterate within the joint limits.
+pub trait IkMethod<T: Real, const N: usize> {
+    /// One descent from `start` (already within limits).
+    fn descend(&self, chain: &Chain<T, N>, residual: &Residual<T>, start: SVector<T, N>, budget: u32) -> Descent<T, N>;
+
+    /// Whether a stalled descent should be retried from a random seed. False for methods whose
+    /// answer is defined by the seed (the regularised objective).
+    fn restarts(&self) -> bool {
+        true
+    }
+}
+
+impl<T: Real, const N: usize> Chain<T, N> {
+    /// Solves with the default method, damped least squares with adaptive damping.
+    pub fn solve(&self, problem: &IkProblem<T, N>) -> IkSolution<T, N> {
+        self.solve_with(&DampedLeastSquares, problem)
+    }
+
+    /// Solves with any [`IkMethod`], with the shared validation, restarts and final check.
+    pub fn solve_with<M: IkMethod<T, N>>(&self, method: &M, problem: &IkProblem<T, N>) -> IkSolution<T, N> {
+        if let Err(reason) = problem.validate() {
+            return IkSolution {
+                q: problem.seed,
+                status: IkStatus::InvalidInput(reason),
+                iterations: 0,
+                restarts: 0,
+                position_error: T::zero(),
+                orientation_error: T::zero(),
+            };
+        }
+        let config = &problem.config;
+        let residual = Residual::new(problem.target, config);
+        let mut rng = SplitMix64::new(config.rng_seed);
+        let mut start = problem.seed;
+        self.normalise(&mut start);
+
+        let mut remaining = config.max_iterations;
+        let mut restarts = 0;
+        let mut best: Option<Descent<T, N>> = None;
+        loop {
+            let budget = if method.restarts() { remaining.min(config.attempt_iterations) } else { remaining };
+            let descent = method.descend(self, &residual, start, budget);
+            remaining = remaining.saturating_sub(descent.iterations);
+            if best.as_ref().is_none_or(|b| descent.error.cost < b.error.cost) {
+                best = Some(descent);
+            }
+            let done = descent.end == DescentEnd::Converged
+                || remaining == 0
+                || !method.restarts()
+                || restarts >= config.max_restarts;
+            if done {
+                break;
+            }
+            restarts += 1;
+            start = self.random_configuration(&mut rng);
+        }
+        // `best` is always set: the loop runs at least once.
+        let best = best.unwrap_or(Descent {
+            q: start,
+            error: residual.error(&self.tool_pose(&start)),
+            iterations: 0,
+            end: DescentEnd::Stalled,
+        });
+
+        // The status comes from FK on exactly the values returned, not from the method's claim.
+        let mut q = best.q;
+        self.normalise(&mut q);
+        let error = residual.error(&self.tool_pose(&q));
+        let status = if residual.converged(&error) && self.admits(&q) {
+            IkStatus::Converged
+        } else if best.end == DescentEnd::OutOfBudget {
+            // The closest pose came from an attempt cut off while still approaching.
+            IkStatus::IterationLimit
+        } else {
+            IkStatus::BestEffort
+        };
+        IkSolution {
+            q,
+            status,
+            iterations: config.max_iterations - remaining,
+            restarts,
+            position_error: error.position,
+            orientation_error: error.orientation,
+        }
+    }
+
+    /// A joint vector drawn uniformly within the limits (continuous joints over a full turn).
+    pub fn random_configuration(&self, rng: &mut SplitMix64) -> SVector<T, N> {
+        SVector::from_fn(|i, _| {
+            let j = &self.joints()[i];
+            match j.kind {
+                crate::JointKind::Continuous => rng.uniform(-T::pi(), T::pi()),
+                _ => rng.uniform(j.limits.lower, j.limits.upper),
+            }
+        })
+    }
+
+    /// Takes the step `dq` from `q` and brings the result back within the limits.
+    pub(crate) fn step(&self, q: &SVector<T, N>, dq: &SVector<T, N>) -> SVector<T, N> {
+        let mut next = q + dq;
+        self.normalise(&mut next);
+        next
+    }
+}
