@@ -1,0 +1,443 @@
+//! The project's own arm file (TOML), for people who build arms.
+//!
+//! ```toml
+//! name = "my-arm"
+//! convention = "urdf"      # or "dh" (standard, distal) or "modified-dh" (Craig, proximal); default "urdf"
+//! angles = "degrees"       # or "radians" (the default); lengths are always metres
+//!
+//! [[joint]]
+//! name = "base_yaw"        # optional, default joint1, joint2, ...
+//! type = "revolute"        # "revolute", "continuous" or "prismatic"
+//! xyz = [0, 0, 0.05]       # origin from the previous joint frame, optional (default zero)
+//! rpy = [0, 0, 0]          # fixed-axis roll, pitch, yaw as in URDF, optional (default zero)
+//! axis = [0, 0, 1]         # motion axis in the joint frame
+//! limits = [-170, 170]     # [lower, upper]; required except for continuous joints
+//!
+//! [tool]                   # optional: tool frame after the last joint
+//! xyz = [0.1, 0, 0]
+//! rpy = [0, 0, 0]
+//! ```
+//!
+//! With `convention = "dh"` or `"modified-dh"` each `[[joint]]` holds a DH row instead of
+//! `xyz`/`rpy`/`axis`: `a`, `alpha`, `d` and `theta` (the joint-angle offset, default 0), plus
+//! `type` and `limits`. A standard-DH `[tool]` follows the last DH frame; a modified-DH one follows
+//! the last joint frame (as in [`kinematics::Chain::from_dh_standard`] and
+//! [`kinematics::Chain::from_dh_modified`], which do the conversion). Unknown keys are errors, and
+//! every error is one line that names the line of the file and the joint or key at fault.
+
+use super::{ArmSpec, JointSpec};
+use anyhow::{anyhow, bail, Result};
+use kinematics::{Chain, DhRow, JointKind, Limits, Pose};
+use serde::Deserialize;
+use toml::Spanned;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ArmFile {
+    name: String,
+    #[serde(default)]
+    convention: Convention,
+    #[serde(default)]
+    angles: AngleUnit,
+    #[serde(rename = "joint", default)]
+    joints: Vec<Spanned<JointEntry>>,
+    tool: Option<Spanned<ToolEntry>>,
+}
+
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "kebab-case")]
+enum Convention {
+    #[default]
+    Urdf,
+    Dh,
+    ModifiedDh,
+}
+
+impl Convention {
+    fn name(self) -> &'static str {
+        match self {
+            Convention::Urdf => "urdf",
+            Convention::Dh => "dh",
+            Convention::ModifiedDh => "modified-dh",
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "kebab-case")]
+enum AngleUnit {
+    #[default]
+    Radians,
+    Degrees,
+}
+
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "kebab-case")]
+enum Kind {
+    Revolute,
+    Continuous,
+    Prismatic,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct JointEntry {
+    name: Option<String>,
+    #[serde(rename = "type")]
+    kind: Kind,
+    limits: Option<[f64; 2]>,
+    // convention = "urdf"
+    xyz: Option<[f64; 3]>,
+    rpy: Option<[f64; 3]>,
+    axis: Option<[f64; 3]>,
+    // convention = "dh" | "modified-dh"
+    a: Option<f64>,
+    alpha: Option<f64>,
+    d: Option<f64>,
+    theta: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ToolEntry {
+    xyz: Option<[f64; 3]>,
+    rpy: Option<[f64; 3]>,
+}
+
+/// Reads an arm file.
+pub fn parse(text: &str) -> Result<ArmSpec> {
+    let file: ArmFile = toml::from_str(text).map_err(|e| {
+        let message = e.message().trim().replace('\n', "; ");
+        match e.span() {
+            Some(span) => anyhow!("{}: {message}", position(text, span.start)),
+            None => anyhow!("{message}"),
+        }
+    })?;
+    let angle = match file.angles {
+        AngleUnit::Radians => 1.0,
+        AngleUnit::Degrees => core::f64::consts::PI / 180.0,
+    };
+    let convention = file.convention;
+
+    let mut joints = Vec::with_capacity(file.joints.len());
+    // Standard DH: the constant part of row i is the origin of joint i + 1 (and of the tool).
+    let mut previous_link = Pose::identity();
+    for (i, entry) in file.joints.iter().enumerate() {
+        let j = entry.get_ref();
+        let name = j.name.clone().unwrap_or_else(|| format!("joint{}", i + 1));
+        let at = format!("{}: joint {name}", position(text, entry.span().start));
+        let kind = match j.kind {
+            Kind::Revolute => JointKind::Revolute,
+            Kind::Continuous => JointKind::Continuous,
+            Kind::Prismatic => JointKind::Prismatic,
+        };
+        // Limits: radians (or degrees) for rotations, metres for prismatic joints.
+        let (lower, upper) = match (kind, j.limits) {
+            (JointKind::Continuous, Some(_)) => {
+                bail!("{at} is continuous and has no limits: remove `limits` or make it revolute")
+            }
+            (JointKind::Continuous, None) => (-core::f64::consts::PI, core::f64::consts::PI),
+            (_, None) => bail!("{at}: `limits = [lower, upper]` is required for a {} joint", kind_name(kind)),
+            (JointKind::Prismatic, Some([l, u])) => (l, u),
+            (_, Some([l, u])) => (l * angle, u * angle),
+        };
+        finite(&at, "limits", &[lower, upper])?;
+        if lower > upper {
+            bail!("{at}: `limits` lower {lower} is above upper {upper}");
+        }
+
+        let dh_keys = [("a", j.a), ("alpha", j.alpha), ("d", j.d), ("theta", j.theta)];
+        let urdf_keys = [("xyz", j.xyz.is_some()), ("rpy", j.rpy.is_some()), ("axis", j.axis.is_some())];
+        let spec = match convention {
+            Convention::Urdf => {
+                if let Some((key, _)) = dh_keys.iter().find(|(_, v)| v.is_some()) {
+                    bail!("{at}: `{key}` is a DH parameter: set convention = \"dh\" or \"modified-dh\", or use xyz/rpy/axis");
+                }
+                let xyz = j.xyz.unwrap_or([0.0; 3]);
+                let rpy = j.rpy.unwrap_or([0.0; 3]).map(|v| v * angle);
+                let axis = j.axis.ok_or_else(|| anyhow!("{at}: `axis = [x, y, z]` is required"))?;
+                finite(&at, "xyz", &xyz)?;
+                finite(&at, "rpy", &rpy)?;
+                finite(&at, "axis", &axis)?;
+                JointSpec { name, kind, origin: Pose::from_xyz_rpy(xyz, rpy), axis, lower, upper }
+            }
+            Convention::Dh | Convention::ModifiedDh => {
+                if let Some((key, _)) = urdf_keys.iter().find(|(_, present)| *present) {
+                    bail!(
+                        "{at}: `{key}` does not belong in a {} table: give a, alpha, d and theta, or set convention = \
+                         \"urdf\"",
+                        convention.name()
+                    );
+                }
+                let required =
+                    |key: &str, v: Option<f64>| v.ok_or_else(|| anyhow!("{at}: DH parameter `{key}` is missing"));
+                let row = DhRow {
+                    a: required("a", j.a)?,
+                    alpha: required("alpha", j.alpha)? * angle,
+                    d: required("d", j.d)?,
+                    theta: j.theta.unwrap_or(0.0) * angle,
+                    kind,
+                    limits: Limits::new(lower, upper),
+                };
+                finite(&at, "a, alpha, d and theta", &[row.a, row.alpha, row.d, row.theta])?;
+                let origin = if convention == Convention::Dh {
+                    core::mem::replace(&mut previous_link, standard_link(&row))
+                } else {
+                    modified_link(&row)
+                };
+                JointSpec { name, kind, origin, axis: [0.0, 0.0, 1.0], lower, upper }
+            }
+        };
+        joints.push(spec);
+    }
+
+    let tool = match &file.tool {
+        None => Pose::identity(),
+        Some(tool) => {
+            let at = format!("{}: [tool]", position(text, tool.span().start));
+            let xyz = tool.get_ref().xyz.unwrap_or([0.0; 3]);
+            let rpy = tool.get_ref().rpy.unwrap_or([0.0; 3]).map(|v| v * angle);
+            finite(&at, "xyz", &xyz)?;
+            finite(&at, "rpy", &rpy)?;
+            Pose::from_xyz_rpy(xyz, rpy)
+        }
+    };
+    let tool = if convention == Convention::Dh { previous_link.compose(&tool) } else { tool };
+    Ok(ArmSpec { name: file.name, joints, tool })
+}
+
+/// Standard DH `Rz(theta) Tz(d) Tx(a) Rx(alpha)`, computed by the kinematics crate: a one-row
+/// chain's tool frame is its row's link transform.
+fn standard_link(row: &DhRow<f64>) -> Pose<f64> {
+    match Chain::<f64, 1>::from_dh_standard([link_only(row)], Pose::identity()) {
+        Ok(chain) => *chain.tool(),
+        // Unreachable: the parameters are finite and the limits valid.
+        Err(_) => Pose::identity(),
+    }
+}
+
+/// Modified DH `Rx(alpha) Tx(a) Rz(theta) Tz(d)`, computed by the kinematics crate: a one-row
+/// chain's joint origin is its row's link transform.
+fn modified_link(row: &DhRow<f64>) -> Pose<f64> {
+    match Chain::<f64, 1>::from_dh_modified([link_only(row)], Pose::identity()) {
+        Ok(chain) => chain.joints()[0].origin,
+        // Unreachable: the parameters are finite and the limits valid.
+        Err(_) => Pose::identity(),
+    }
+}
+
+/// The row with limits that always validate (the link transform does not depend on them).
+fn link_only(row: &DhRow<f64>) -> DhRow<f64> {
+    DhRow { kind: JointKind::Revolute, limits: Limits::new(0.0, 0.0), ..*row }
+}
+
+fn kind_name(kind: JointKind) -> &'static str {
+    match kind {
+        JointKind::Revolute => "revolute",
+        JointKind::Continuous => "continuous",
+        JointKind::Prismatic => "prismatic",
+    }
+}
+
+fn finite(at: &str, key: &str, values: &[f64]) -> Result<()> {
+    if values.iter().all(|v| v.is_finite()) {
+        Ok(())
+    } else {
+        bail!("{at}: `{key}` must be finite numbers (no nan or inf)")
+    }
+}
+
+/// "line L, column C" of byte offset `offset` (both from 1).
+fn position(text: &str, offset: usize) -> String {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    format!("line {line}, column {column}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use kinematics::nalgebra::{SVector, Vector3};
+    use kinematics::SplitMix64;
+
+    const MY_ARM: &str = include_str!("../../examples/arms/my-arm.toml");
+    const UR5E: &str = include_str!("../../examples/arms/ur5e-dh.toml");
+
+    fn error(text: &str) -> String {
+        let e = parse(text).err().unwrap_or_else(|| panic!("accepted:\n{text}"));
+        let message = format!("{e:#}");
+        assert!(!message.contains('\n'), "error is not one line: {message}");
+        message
+    }
+
+    fn assert_close(a: &Pose<f64>, b: &Pose<f64>, tolerance: f64) {
+        assert!((a.translation - b.translation).amax() <= tolerance, "{a:?}\n{b:?}");
+        assert!((a.rotation - b.rotation).amax() <= tolerance, "{a:?}\n{b:?}");
+    }
+
+    #[test]
+    fn ur5e_file_matches_the_preset() {
+        let spec = parse(UR5E).unwrap();
+        assert_eq!(spec.name, "ur5e-dh");
+        let file = spec.chain::<f64, 6>().unwrap();
+        let preset = kinematics::presets::ur5e::<f64>().unwrap();
+        // Same joint origins as Chain::from_dh_standard builds, not only the same FK.
+        for (a, b) in file.joints().iter().zip(preset.joints()) {
+            assert_close(&a.origin, &b.origin, 1e-12);
+            assert_eq!((a.limits, a.axis, a.kind), (b.limits, b.axis, b.kind));
+        }
+        let mut rng = SplitMix64::new(5);
+        for _ in 0..20 {
+            let q = SVector::<f64, 6>::from_fn(|_, _| rng.uniform(-3.0, 3.0));
+            assert_close(&file.tool_pose(&q), &preset.tool_pose(&q), 1e-12);
+        }
+    }
+
+    #[test]
+    fn my_arm_example_loads() {
+        let spec = parse(MY_ARM).unwrap();
+        assert_eq!(spec.dof(), 4);
+        assert_eq!(spec.joints[0].name, "base_yaw");
+        // Degrees in the file, radians in the spec.
+        assert!((spec.joints[0].upper - 170f64.to_radians()).abs() < 1e-15);
+        let chain = spec.chain::<f64, 4>().unwrap();
+        // Straight up at zero: 0.05 + 0.04 + 0.15 + 0.13 + tool 0.07.
+        let p = chain.tool_pose(&SVector::zeros()).translation;
+        assert!((p - Vector3::new(0.0, 0.0, 0.44)).amax() < 1e-12, "{p}");
+        // Shoulder forward 90 degrees: the arm lies along +x at shoulder height.
+        let p = chain.tool_pose(&SVector::from([0.0, core::f64::consts::FRAC_PI_2, 0.0, 0.0])).translation;
+        assert!((p - Vector3::new(0.35, 0.0, 0.09)).amax() < 1e-12, "{p}");
+    }
+
+    #[test]
+    fn modified_dh_matches_hand_computation() {
+        // Base yaw, a shoulder whose axis is tilted by alpha = 90 degrees, a 0.3 m upper arm and a
+        // 0.2 m forearm to the tool.
+        let text = r#"
+            name = "craig"
+            convention = "modified-dh"
+            angles = "degrees"
+            [[joint]]
+            type = "revolute"
+            a = 0
+            alpha = 0
+            d = 0.1
+            limits = [-180, 180]
+            [[joint]]
+            type = "revolute"
+            a = 0
+            alpha = 90
+            d = 0
+            limits = [-180, 180]
+            [[joint]]
+            type = "revolute"
+            a = 0.3
+            alpha = 0
+            d = 0
+            limits = [-180, 180]
+            [tool]
+            xyz = [0.2, 0, 0]
+        "#;
+        let chain = parse(text).unwrap().chain::<f64, 3>().unwrap();
+        let h = core::f64::consts::FRAC_PI_2;
+        let cases = [
+            // Reach out along x at height d1.
+            ([0.0, 0.0, 0.0], [0.5, 0.0, 0.1]),
+            // Base yaw turns the reach onto y.
+            ([h, 0.0, 0.0], [0.0, 0.5, 0.1]),
+            // Rx(90) Rz(90) carries x onto z: the arm points straight up.
+            ([0.0, h, 0.0], [0.0, 0.0, 0.6]),
+            // Elbow at 90: the upper arm along x, the forearm along y of frame 2 = z of the base.
+            ([0.0, 0.0, h], [0.3, 0.0, 0.3]),
+        ];
+        for (q, p) in cases {
+            let got = chain.tool_pose(&SVector::from(q)).translation;
+            assert!((got - Vector3::from(p)).amax() < 1e-12, "q = {q:?}: {got} vs {p:?}");
+        }
+        // Joint frames: modified DH puts joint 2's origin at Rx(alpha1) Tx(a1) Tz(d2).
+        let o = chain.joints()[1].origin;
+        assert!((o.rotation * Vector3::z() - Vector3::new(0.0, -1.0, 0.0)).amax() < 1e-12);
+    }
+
+    #[test]
+    fn prismatic_dh_joint_slides_along_z() {
+        let text = r#"
+            name = "lift"
+            convention = "dh"
+            [[joint]]
+            type = "prismatic"
+            a = 0.1
+            alpha = 0
+            d = 0.2
+            limits = [0, 0.5]
+        "#;
+        let chain = parse(text).unwrap().chain::<f64, 1>().unwrap();
+        let p = chain.tool_pose(&SVector::from([0.25])).translation;
+        assert!((p - Vector3::new(0.1, 0.0, 0.45)).amax() < 1e-12, "{p}");
+    }
+
+    #[test]
+    fn errors_say_what_is_wrong() {
+        let arm = |joint: &str| format!("name = \"x\"\n[[joint]]\nname = \"elbow\"\n{joint}\n");
+        let cases: Vec<(String, &str)> = vec![
+            (
+                arm("type = \"revolute\"\naxis = [0, 0, 1]"),
+                "line 2, column 1: joint elbow: `limits = [lower, upper]` is required for a revolute joint",
+            ),
+            (arm("type = \"prismatic\"\naxis = [0, 0, 1]"), "required for a prismatic joint"),
+            (
+                arm("type = \"hinge\"\naxis = [0, 0, 1]"),
+                "unknown variant `hinge`, expected one of `revolute`, `continuous`, `prismatic`",
+            ),
+            (arm("type = \"revolute\"\naxis = [0, 0, 1]\nlimits = [-1, 1x]"), "line 6"),
+            (arm("type = \"revolute\"\naxis = [0, 0, \"1\"]\nlimits = [-1, 1]"), "line 5"),
+            (arm("type = \"revolute\"\naxis = [0, 1]\nlimits = [-1, 1]"), "invalid length 2"),
+            (arm("type = \"revolute\"\naxis = [0, 0, 1]\nlimits = [-1, 1]\nlenght = 3"), "unknown field `lenght`"),
+            (
+                arm("type = \"revolute\"\naxis = [0, 0, 1]\nlimits = [1, -1]"),
+                "joint elbow: `limits` lower 1 is above upper -1",
+            ),
+            (arm("type = \"revolute\"\naxis = [0, 0, nan]\nlimits = [-1, 1]"), "joint elbow: `axis` must be finite"),
+            (arm("type = \"revolute\"\nlimits = [-1, 1]"), "joint elbow: `axis = [x, y, z]` is required"),
+            (
+                arm("type = \"continuous\"\naxis = [0, 0, 1]\nlimits = [-1, 1]"),
+                "joint elbow is continuous and has no limits",
+            ),
+            (arm("type = \"revolute\"\naxis = [0, 0, 1]\nlimits = [-1, 1]\na = 0.1"), "`a` is a DH parameter"),
+            (arm("axis = [0, 0, 1]\nlimits = [-1, 1]"), "missing field `type`"),
+            (
+                format!("convention = \"dh\"\n{}", arm("type = \"revolute\"\na = 0\nd = 0\nlimits = [-1, 1]")),
+                "joint elbow: DH parameter `alpha` is missing",
+            ),
+            (
+                format!(
+                    "convention = \"modified-dh\"\n{}",
+                    arm("type = \"revolute\"\nxyz = [0, 0, 1]\nlimits = [-1, 1]")
+                ),
+                "`xyz` does not belong in a modified-dh table",
+            ),
+            (
+                "name = \"x\"\nconvention = \"craig\"".into(),
+                "unknown variant `craig`, expected one of `urdf`, `dh`, `modified-dh`",
+            ),
+            ("name = \"x\"\nunits = \"mm\"".into(), "line 2, column 1: unknown field `units`"),
+            ("name = \"x\"\n[tool]\nxyz = [0, 0, 1]\nrpy = [0, 0]".into(), "invalid length 2"),
+            ("name = \"x\"\n[tool]\nquat = [1, 0, 0, 0]".into(), "unknown field `quat`"),
+            ("[[joint]]\ntype = \"continuous\"\naxis = [0, 0, 1]".into(), "missing field `name`"),
+        ];
+        for (text, expected) in cases {
+            let message = error(&text);
+            assert!(message.contains(expected), "expected {expected:?} in {message:?}\n{text}");
+        }
+    }
+
+    #[test]
+    fn zero_axis_is_reported_by_chain() {
+        let text =
+            "name = \"x\"\n[[joint]]\nname = \"wrist\"\ntype = \"revolute\"\naxis = [0, 0, 0]\nlimits = [-1, 1]\n";
+        let spec = parse(text).unwrap();
+        let e = spec.chain::<f64, 1>().unwrap_err().to_string();
+        assert!(e.contains("zero") && e.contains("wrist"), "{e}");
+    }
+}

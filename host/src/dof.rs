@@ -1,0 +1,238 @@
+//! From run-time joint counts to the kinematics crate's const-generic chains.
+//!
+//! The kinematics is fixed-size (`Chain<T, N>`) so that the firmware needs no heap; the host reads
+//! arms whose joint count it learns at run time. [`build`] matches that count once, for 0 to
+//! [`MAX_JOINTS`], and hides the chain behind the object-safe [`DynArm`], so the rest of the host
+//! is written once.
+
+use crate::arm::ArmSpec;
+use anyhow::{anyhow, bail, Result};
+use kinematics::ik::{
+    CyclicCoordinateDescent, DampedLeastSquares, GradientDescent, IkConfig, IkProblem, IkStatus, JacobianTranspose,
+    PseudoinverseNewton, Regularised, Target,
+};
+use kinematics::nalgebra::SVector;
+use kinematics::{Chain, Pose, Real, SplitMix64};
+use std::time::{Duration, Instant};
+
+/// The largest joint count the host dispatches (the kinematics itself has no limit).
+pub const MAX_JOINTS: usize = 32;
+
+/// Scalar the solver runs in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Scalar {
+    /// Single precision, as on the firmware.
+    F32,
+    /// Double precision.
+    F64,
+}
+
+/// The IK methods by name.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum SolverName {
+    /// Damped least squares with adaptive damping (Levenberg-Marquardt), the default.
+    Dls,
+    /// Newton steps with the pseudoinverse.
+    Newton,
+    /// Jacobian transpose with Buss's step length.
+    Transpose,
+    /// Cyclic coordinate descent.
+    Ccd,
+    /// Gradient descent (the tool as the one handle).
+    Gradient,
+    /// The regularised objective alpha |e|^2 + |q|^2 (alpha = 10).
+    Regularised,
+}
+
+/// One IK request in host terms.
+#[derive(Clone, Debug)]
+pub struct IkRequest {
+    /// Target tool position (m, base frame).
+    pub position: [f64; 3],
+    /// Target orientation, w first; `None` for a position-only target.
+    pub quaternion_wxyz: Option<[f64; 4]>,
+    /// Seed joint values; `None` for the middle of the limits.
+    pub seed: Option<Vec<f64>>,
+    /// Method.
+    pub solver: SolverName,
+    /// Tolerances and budgets (converted to the scalar).
+    pub config: IkConfig<f64>,
+    /// Scalar the solver runs in.
+    pub scalar: Scalar,
+}
+
+/// The answer, in f64 whatever the scalar.
+#[derive(Clone, Debug)]
+pub struct IkOutcome {
+    /// Joint values.
+    pub q: Vec<f64>,
+    /// What happened.
+    pub status: IkStatus,
+    /// Iterations over all attempts.
+    pub iterations: u32,
+    /// Restarts drawn.
+    pub restarts: u32,
+    /// Tool position error at `q` (m).
+    pub position_error: f64,
+    /// Tool orientation error at `q` (rad).
+    pub orientation_error: f64,
+    /// Time spent in the solver alone.
+    pub solve_time: Duration,
+}
+
+/// An arm of any joint count, for the host's commands.
+pub trait DynArm {
+    /// The description it was built from.
+    fn spec(&self) -> &ArmSpec;
+    /// Tool pose at `q`.
+    fn tool_pose(&self, q: &[f64]) -> Result<Pose<f64>>;
+    /// Every joint frame (after its motion) at `q`.
+    fn joint_frames(&self, q: &[f64]) -> Result<Vec<Pose<f64>>>;
+    /// The 6 x N geometric Jacobian at `q`, row by row.
+    fn jacobian(&self, q: &[f64]) -> Result<Vec<Vec<f64>>>;
+    /// The middle of every joint range.
+    fn middle(&self) -> Vec<f64>;
+    /// A joint vector drawn uniformly within the limits.
+    fn random_configuration(&self, rng: &mut SplitMix64) -> Vec<f64>;
+    /// True if `q` is within every joint's limits.
+    fn admits(&self, q: &[f64]) -> bool;
+    /// Solves an IK request. Errors only for a request that cannot be posed (seed length, zero
+    /// quaternion); everything else is in the outcome's status.
+    fn solve(&self, request: &IkRequest) -> Result<IkOutcome>;
+}
+
+struct Arm<const N: usize> {
+    spec: ArmSpec,
+    f64: Chain<f64, N>,
+    f32: Chain<f32, N>,
+}
+
+impl<const N: usize> Arm<N> {
+    fn vector(&self, q: &[f64]) -> Result<SVector<f64, N>> {
+        if q.len() != N {
+            bail!("arm {} has {N} joints but {} joint values were given", self.spec.name, q.len());
+        }
+        Ok(SVector::from_column_slice(q))
+    }
+}
+
+impl<const N: usize> DynArm for Arm<N> {
+    fn spec(&self) -> &ArmSpec {
+        &self.spec
+    }
+
+    fn tool_pose(&self, q: &[f64]) -> Result<Pose<f64>> {
+        Ok(self.f64.tool_pose(&self.vector(q)?))
+    }
+
+    fn joint_frames(&self, q: &[f64]) -> Result<Vec<Pose<f64>>> {
+        Ok(self.f64.forward(&self.vector(q)?).joints.to_vec())
+    }
+
+    fn jacobian(&self, q: &[f64]) -> Result<Vec<Vec<f64>>> {
+        let j = self.f64.jacobian(&self.vector(q)?);
+        Ok((0..6).map(|r| j.row(r).iter().copied().collect()).collect())
+    }
+
+    fn middle(&self) -> Vec<f64> {
+        self.f64.middle().iter().copied().collect()
+    }
+
+    fn random_configuration(&self, rng: &mut SplitMix64) -> Vec<f64> {
+        self.f64.random_configuration(rng).iter().copied().collect()
+    }
+
+    fn admits(&self, q: &[f64]) -> bool {
+        self.vector(q).map(|v| self.f64.admits(&v)).unwrap_or(false)
+    }
+
+    fn solve(&self, request: &IkRequest) -> Result<IkOutcome> {
+        let seed = match &request.seed {
+            Some(s) => self.vector(s)?,
+            None => self.f64.middle(),
+        };
+        match request.scalar {
+            Scalar::F64 => solve_in(&self.f64, request, seed),
+            Scalar::F32 => solve_in(&self.f32, request, seed),
+        }
+    }
+}
+
+fn solve_in<T: Real, const N: usize>(
+    chain: &Chain<T, N>,
+    request: &IkRequest,
+    seed: SVector<f64, N>,
+) -> Result<IkOutcome> {
+    let position = request.position.map(T::of);
+    let target = match request.quaternion_wxyz {
+        None => Target::Position(position.into()),
+        Some(quat) => Target::pose_wxyz(position, quat.map(T::of))
+            .ok_or_else(|| anyhow!("the target quaternion must be finite and non-zero"))?,
+    };
+    let c = &request.config;
+    let config = IkConfig {
+        position_tolerance: T::of(c.position_tolerance),
+        orientation_tolerance: T::of(c.orientation_tolerance),
+        orientation_weight: T::of(c.orientation_weight),
+        max_iterations: c.max_iterations,
+        attempt_iterations: c.attempt_iterations,
+        max_restarts: c.max_restarts,
+        rng_seed: c.rng_seed,
+    };
+    let problem = IkProblem { target, seed: seed.map(T::of), config };
+    let started = Instant::now();
+    let solution = match request.solver {
+        SolverName::Dls => chain.solve_with(&DampedLeastSquares, &problem),
+        SolverName::Newton => chain.solve_with(&PseudoinverseNewton, &problem),
+        SolverName::Transpose => chain.solve_with(&JacobianTranspose, &problem),
+        SolverName::Ccd => chain.solve_with(&CyclicCoordinateDescent, &problem),
+        SolverName::Gradient => chain.solve_with(&GradientDescent::default(), &problem),
+        SolverName::Regularised => chain.solve_with(&Regularised::default(), &problem),
+    };
+    let solve_time = started.elapsed();
+    Ok(IkOutcome {
+        q: solution.q.iter().map(|v| v.to_f64()).collect(),
+        status: solution.status,
+        iterations: solution.iterations,
+        restarts: solution.restarts,
+        position_error: solution.position_error.to_f64(),
+        orientation_error: solution.orientation_error.to_f64(),
+        solve_time,
+    })
+}
+
+fn build_n<const N: usize>(spec: ArmSpec) -> Result<Box<dyn DynArm>> {
+    let f64 = spec.chain::<f64, N>()?;
+    let f32 = spec.chain::<f32, N>()?;
+    Ok(Box::new(Arm { spec, f64, f32 }))
+}
+
+fn planar_n<const N: usize>() -> Result<ArmSpec> {
+    let chain = kinematics::presets::planar::<f64, N>().map_err(|e| anyhow!("planar:{N}: {e}"))?;
+    Ok(ArmSpec::from_chain(&format!("planar:{N}"), &chain))
+}
+
+/// Calls `$f::<N>($args)` for the run-time count `$n`, or fails beyond [`MAX_JOINTS`].
+macro_rules! dispatch {
+    ($n:expr, $f:ident ( $($arg:expr),* )) => {
+        dispatch!(@arms $n, $f, ($($arg),*), 0 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23
+            24 25 26 27 28 29 30 31 32)
+    };
+    (@arms $n:expr, $f:ident, $args:tt, $($k:literal)*) => {
+        match $n {
+            $($k => dispatch!(@call $f, $k, $args),)*
+            n => Err(anyhow!("{n} joints: armctl handles chains of at most {MAX_JOINTS} joints")),
+        }
+    };
+    (@call $f:ident, $k:literal, ($($arg:expr),*)) => { $f::<$k>($($arg),*) };
+}
+
+/// The arm of `spec` as a [`DynArm`]; fails for an invalid description or too many joints.
+pub fn build(spec: ArmSpec) -> Result<Box<dyn DynArm>> {
+    dispatch!(spec.dof(), build_n(spec))
+}
+
+/// The `planar:N` preset's description.
+pub fn planar_spec(n: usize) -> Result<ArmSpec> {
+    dispatch!(n, planar_n())
+}

@@ -1,0 +1,10 @@
+//! The host side of the servo-arm project: the `armctl` command-line tool as a library, so that
+//! integration tests run exactly the code the binary runs.
+#![warn(missing_docs)]
+
+pub mod arm;
+pub mod bench;
+pub mod cli;
+pub mod dof;
+pub mod kcompare;
+pub mod parse;
