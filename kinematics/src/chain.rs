@@ -63,6 +63,40 @@ pub struct DhRow<T: Real> {
 pub struct Chain<T: Real, const N: usize> {
     joints: [Joint<T>; N],
     tool: Pose<T>,
+    /// Per-joint constants that let FK apply origin and motion in one product (see `fk.rs`).
+    pub(crate) motion: [JointMotion<T>; N],
+}
+
+/// A joint's `origin * motion(q)` split into constant parts:
+/// rotation `c * cos_part + s * sin_part + fixed_part` (Rodrigues' formula pre-multiplied by the
+/// origin rotation), translation `origin.translation + q * slide` (`slide` is zero for a revolute
+/// joint).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct JointMotion<T: Real> {
+    pub(crate) cos_part: Matrix3<T>,
+    pub(crate) sin_part: Matrix3<T>,
+    pub(crate) fixed_part: Matrix3<T>,
+    pub(crate) slide: Vector3<T>,
+}
+
+impl<T: Real> JointMotion<T> {
+    fn of(joint: &Joint<T>) -> Self {
+        let r = joint.origin.rotation;
+        let a = joint.axis;
+        let u = r * a;
+        match joint.kind {
+            // Rot(a, q) = cos q (I - a a^T) + sin q [a]x + a a^T
+            JointKind::Revolute | JointKind::Continuous => Self {
+                cos_part: r - u * a.transpose(),
+                sin_part: r * a.cross_matrix(),
+                fixed_part: u * a.transpose(),
+                slide: Vector3::zeros(),
+            },
+            JointKind::Prismatic => {
+                Self { cos_part: Matrix3::zeros(), sin_part: Matrix3::zeros(), fixed_part: r, slide: u }
+            }
+        }
+    }
 }
 
 impl<T: Real, const N: usize> Chain<T, N> {
@@ -87,7 +121,8 @@ impl<T: Real, const N: usize> Chain<T, N> {
         if !frame_is_valid(&tool) {
             return Err(ChainError::BadFrame { joint: None });
         }
-        Ok(Self { joints, tool })
+        let motion = joints.map(|j| JointMotion::of(&j));
+        Ok(Self { joints, tool, motion })
     }
 
     /// Standard (distal) DH: `T_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i)`, the joint moving about

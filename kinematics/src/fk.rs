@@ -13,12 +13,26 @@ pub struct Frames<T: Real, const N: usize> {
 }
 
 impl<T: Real, const N: usize> Chain<T, N> {
-    /// Forward kinematics: O(N), two 3x3 products per joint.
+    /// Forward kinematics: O(N), one 3x3 product per joint (origin and motion are pre-combined,
+    /// see `JointMotion`), and no sine or cosine for prismatic joints.
     pub fn forward(&self, q: &SVector<T, N>) -> Frames<T, N> {
         let mut current = Pose::identity();
         let joints = core::array::from_fn(|k| {
             let joint = &self.joints()[k];
-            current = current.compose(&joint.origin).compose(&joint.motion(q[k]));
+            let m = &self.motion[k];
+            let local = match joint.kind {
+                JointKind::Prismatic => {
+                    Pose { rotation: m.fixed_part, translation: joint.origin.translation + m.slide * q[k] }
+                }
+                JointKind::Revolute | JointKind::Continuous => {
+                    let (s, c) = q[k].sin_cos();
+                    Pose {
+                        rotation: m.cos_part * c + m.sin_part * s + m.fixed_part,
+                        translation: joint.origin.translation,
+                    }
+                }
+            };
+            current = current.compose(&local);
             current
         });
         Frames { joints, tool: current.compose(self.tool()) }

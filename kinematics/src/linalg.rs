@@ -5,14 +5,19 @@
 use crate::Real;
 use nalgebra::{SMatrix, SVector};
 
-/// Solves `a x = b` for a symmetric positive definite `a` by Cholesky (`a = L L^T`).
-/// Returns `None` if `a` is not numerically positive definite or the result is not finite.
+/// Solves `a x = b` for a symmetric positive definite `a` by Cholesky (`a = L L^T`), reading only
+/// the lower triangle of `a`. Returns `None` if `a` is not numerically positive definite or the
+/// result is not finite.
+///
+/// Plain arrays rather than nalgebra indexing: this runs every IK iteration, and the fixed-size
+/// array loops compile without bounds checks.
 pub fn cholesky_solve<T: Real, const K: usize>(a: &SMatrix<T, K, K>, b: &SVector<T, K>) -> Option<SVector<T, K>> {
-    let mut l = SMatrix::<T, K, K>::zeros();
+    let mut l = [[T::zero(); K]; K];
+    let mut inv_diag = [T::zero(); K];
     for j in 0..K {
         let mut d = a[(j, j)];
         for k in 0..j {
-            d -= l[(j, k)] * l[(j, k)];
+            d -= l[j][k] * l[j][k];
         }
         // Written so that NaN also fails: a NaN pivot is not positive definite.
         #[allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -20,32 +25,33 @@ pub fn cholesky_solve<T: Real, const K: usize>(a: &SMatrix<T, K, K>, b: &SVector
             return None;
         }
         let d = d.sqrt();
-        l[(j, j)] = d;
+        l[j][j] = d;
+        inv_diag[j] = T::one() / d;
         for i in j + 1..K {
             let mut s = a[(i, j)];
             for k in 0..j {
-                s -= l[(i, k)] * l[(j, k)];
+                s -= l[i][k] * l[j][k];
             }
-            l[(i, j)] = s / d;
+            l[i][j] = s * inv_diag[j];
         }
     }
     // Forward then backward substitution.
-    let mut y = *b;
+    let mut y = [T::zero(); K];
     for i in 0..K {
-        let mut s = y[i];
+        let mut s = b[i];
         for k in 0..i {
-            s -= l[(i, k)] * y[k];
+            s -= l[i][k] * y[k];
         }
-        y[i] = s / l[(i, i)];
+        y[i] = s * inv_diag[i];
     }
     for i in (0..K).rev() {
         let mut s = y[i];
         for k in i + 1..K {
-            s -= l[(k, i)] * y[k];
+            s -= l[k][i] * y[k];
         }
-        y[i] = s / l[(i, i)];
+        y[i] = s * inv_diag[i];
     }
-    y.iter().all(|v| v.finite()).then_some(y)
+    y.iter().all(|v| v.finite()).then(|| SVector::from(y))
 }
 
 /// Eigen-decomposition of a symmetric matrix by cyclic Jacobi rotations: returns the eigenvalues
