@@ -130,9 +130,10 @@ where
                 let _ = write!(out, "{e}");
                 return 0;
             }
-            // clap's own rendering spans several lines; its first line says what is wrong.
+            // clap's own rendering spans several lines; its first paragraph (joined into one line
+            // here, as it lists missing arguments on lines of their own) says what is wrong.
             let text = e.to_string();
-            let first = text.lines().find(|l| !l.trim().is_empty()).unwrap_or("invalid arguments");
+            let first = text.split("\n\n").next().unwrap_or_default().split_whitespace().collect::<Vec<_>>().join(" ");
             let _ = writeln!(err, "{first} (see armctl --help)");
             return 2;
         }

@@ -10,7 +10,8 @@ use nalgebra::{SMatrix, SVector};
 /// result is not finite.
 ///
 /// Plain arrays rather than nalgebra indexing: this runs every IK iteration, and the fixed-size
-/// array loops compile without bounds checks.
+/// array loops compile without bounds checks. Index loops mirror the textbook algorithm.
+#[allow(clippy::needless_range_loop)]
 pub fn cholesky_solve<T: Real, const K: usize>(a: &SMatrix<T, K, K>, b: &SVector<T, K>) -> Option<SVector<T, K>> {
     let mut l = [[T::zero(); K]; K];
     let mut inv_diag = [T::zero(); K];
