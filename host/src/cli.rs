@@ -130,6 +130,11 @@ where
                 let _ = write!(out, "{e}");
                 return 0;
             }
+            if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
+                // `armctl` alone: the help is the answer, but it is still not a command.
+                let _ = write!(err, "{}", e.render());
+                return 2;
+            }
             // clap's own rendering spans several lines; its first paragraph (joined into one line
             // here, as it lists missing arguments on lines of their own) says what is wrong.
             let text = e.to_string();
@@ -191,10 +196,13 @@ fn run(command: Command, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32
             for s in &report.solvers {
                 writeln!(
                     err,
-                    "{}: {} {:?}: {}/{} solved ({:.2}%), mean {:.2} us, median {:.2} us, p99 {:.2} us per solve",
+                    "{} ({} protocol, {:e} m / {:e} rad): {}: {}/{} solved ({:.2}%), mean {:.2} us, median {:.2} us, \
+                     p99 {:.2} us per solve",
                     report.arm,
+                    report.scalar,
+                    report.position_tolerance,
+                    report.orientation_tolerance,
                     s.solver,
-                    scalar,
                     s.solved,
                     s.targets,
                     s.success_percent,

@@ -1,0 +1,406 @@
+//! The `armctl` binary end to end: real processes, real arguments, JSON on stdout, one-line errors
+//! on stderr and the exit codes scripts rely on.
+
+use serde_json::Value;
+use std::io::Write;
+use std::path::PathBuf;
+use std::process::{Command, Stdio};
+
+/// What one run of the binary did.
+struct Run {
+    code: i32,
+    stdout: String,
+    stderr: String,
+}
+
+impl Run {
+    /// The single JSON line on stdout of a successful run.
+    fn json(&self) -> Value {
+        assert_eq!(self.code, 0, "exit code; stderr: {}", self.stderr);
+        let lines: Vec<&str> = self.stdout.lines().collect();
+        assert_eq!(lines.len(), 1, "expected one stdout line, got {:?}", self.stdout);
+        serde_json::from_str(lines[0]).unwrap_or_else(|e| panic!("not JSON ({e}): {}", lines[0]))
+    }
+
+    /// Every stdout line as JSON.
+    fn json_lines(&self) -> Vec<Value> {
+        self.stdout.lines().map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("not JSON ({e}): {l}"))).collect()
+    }
+}
+
+fn armctl_with_input(args: &[&str], input: Option<&str>) -> Run {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_armctl"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .stdin(if input.is_some() { Stdio::piped() } else { Stdio::null() })
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("armctl starts");
+    if let Some(text) = input {
+        // Written from a thread so a large output cannot dead-lock against a full input pipe.
+        let mut stdin = child.stdin.take().unwrap();
+        let text = text.to_string();
+        std::thread::spawn(move || stdin.write_all(text.as_bytes()).unwrap());
+    }
+    let output = child.wait_with_output().expect("armctl runs");
+    Run {
+        code: output.status.code().expect("armctl exits normally"),
+        stdout: String::from_utf8(output.stdout).expect("UTF-8 stdout"),
+        stderr: String::from_utf8(output.stderr).expect("UTF-8 stderr"),
+    }
+}
+
+fn armctl(args: &[&str]) -> Run {
+    armctl_with_input(args, None)
+}
+
+/// Asserts a failed run: non-zero exit, nothing on stdout, exactly one stderr line, which contains
+/// every one of `needles`.
+fn assert_fails(args: &[&str], needles: &[&str]) {
+    let run = armctl(args);
+    assert_ne!(run.code, 0, "{args:?} should fail; stdout: {}", run.stdout);
+    assert!(run.stdout.is_empty(), "{args:?}: stdout should be empty, got {:?}", run.stdout);
+    assert!(run.stderr.ends_with('\n'), "{args:?}: stderr {:?}", run.stderr);
+    let lines: Vec<&str> = run.stderr.lines().collect();
+    assert_eq!(lines.len(), 1, "{args:?}: expected one stderr line, got {:?}", run.stderr);
+    assert!(lines[0].starts_with("error:"), "{args:?}: {}", lines[0]);
+    for needle in needles {
+        assert!(lines[0].contains(needle), "{args:?}: {:?} does not mention {needle:?}", lines[0]);
+    }
+}
+
+fn numbers(v: &Value) -> Vec<f64> {
+    v.as_array().unwrap_or_else(|| panic!("not an array: {v}")).iter().map(|x| x.as_f64().unwrap()).collect()
+}
+
+fn join(values: &[f64]) -> String {
+    values.iter().map(|v| v.to_string()).collect::<Vec<_>>().join(",")
+}
+
+/// Tool position and quaternion of `arm` at `q`, from `armctl fk`.
+fn fk(arm: &str, q: &[f64]) -> ([f64; 3], [f64; 4]) {
+    let v = armctl(&["fk", "--arm", arm, "--q", &join(q)]).json();
+    let p = numbers(&v["position"]);
+    let w = numbers(&v["quaternion_wxyz"]);
+    ([p[0], p[1], p[2]], [w[0], w[1], w[2], w[3]])
+}
+
+fn distance(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>().sqrt()
+}
+
+/// Angle between the rotations of two unit quaternions w, x, y, z (q and -q are the same rotation),
+/// from the relative rotation conj(a) * b as 2 atan2(|vector part|, |scalar part|).
+fn angle(a: &[f64; 4], b: &[f64; 4]) -> f64 {
+    let [aw, ax, ay, az] = *a;
+    let [bw, bx, by, bz] = *b;
+    let w = aw * bw + ax * bx + ay * by + az * bz;
+    let x = aw * bx - ax * bw - ay * bz + az * by;
+    let y = aw * by + ax * bz - ay * bw - az * bx;
+    let z = aw * bz - ax * by + ay * bx - az * bw;
+    2.0 * (x * x + y * y + z * z).sqrt().atan2(w.abs())
+}
+
+/// A file in the temp directory, removed when dropped.
+struct TempFile(PathBuf);
+
+impl TempFile {
+    fn new(tag: &str, contents: &str) -> Self {
+        let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap().as_nanos();
+        let path = std::env::temp_dir().join(format!("armctl-cli-test-{}-{tag}-{nanos}.jsonl", std::process::id()));
+        std::fs::write(&path, contents).unwrap();
+        Self(path)
+    }
+
+    fn path(&self) -> &str {
+        self.0.to_str().unwrap()
+    }
+}
+
+impl Drop for TempFile {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.0);
+    }
+}
+
+/// A path in the temp directory that does not exist.
+fn missing_path(name: &str) -> String {
+    let path = std::env::temp_dir().join(format!("armctl-cli-test-{}-does-not-exist", std::process::id())).join(name);
+    assert!(!path.exists());
+    path.to_str().unwrap().to_string()
+}
+
+const UR5E_Q: [f64; 6] = [0.3, -1.2, 1.0, -0.5, 1.1, 0.2];
+
+#[test]
+fn fk_ur5e_at_zero() {
+    let v = armctl(&["fk", "--arm", "ur5e", "--q", "0,0,0,0,0,0"]).json();
+    assert_eq!(v["arm"], "ur5e");
+    // Standard DH at zero: (a2 + a3, -(d4 + d6), d1 - d5).
+    let expected = [-0.425 - 0.3922, -(0.1333 + 0.0996), 0.1625 - 0.0997];
+    let position = numbers(&v["position"]);
+    assert_eq!(position.len(), 3);
+    for (p, e) in position.iter().zip(expected) {
+        assert!((p - e).abs() <= 1e-9, "position {position:?}, expected {expected:?}");
+    }
+    assert!((expected[0] + 0.8172).abs() < 1e-12 && (expected[1] + 0.2329).abs() < 1e-12);
+    assert!((expected[2] - 0.0628).abs() < 1e-12);
+    let quaternion = numbers(&v["quaternion_wxyz"]);
+    assert_eq!(quaternion.len(), 4);
+    assert!((quaternion.iter().map(|x| x * x).sum::<f64>().sqrt() - 1.0).abs() <= 1e-12, "{quaternion:?}");
+    let rotation = v["rotation"].as_array().unwrap();
+    assert_eq!(rotation.len(), 3);
+    let frames = v["frames"].as_array().unwrap();
+    assert_eq!(frames.len(), 6);
+    for (i, frame) in frames.iter().enumerate() {
+        assert_eq!(frame["joint"], format!("joint{}", i + 1));
+        assert_eq!(numbers(&frame["position"]).len(), 3);
+        assert_eq!(numbers(&frame["quaternion_wxyz"]).len(), 4);
+    }
+}
+
+#[test]
+fn jacobian_planar2() {
+    let v = armctl(&["jacobian", "--arm", "planar:2", "--q", "0,0"]).json();
+    let rows = v["jacobian"].as_array().unwrap();
+    assert_eq!(rows.len(), 6);
+    for row in rows {
+        assert_eq!(numbers(row).len(), 2, "{row}");
+    }
+    // Two unit links along x, both joints about z: d(tip y)/dq = (2, 1), angular z = (1, 1).
+    assert_eq!(numbers(&rows[1]), [2.0, 1.0]);
+    assert_eq!(numbers(&rows[5]), [1.0, 1.0]);
+}
+
+#[test]
+fn ik_reaches_a_pose_from_fk() {
+    let (position, quaternion) = fk("ur5e", &UR5E_Q);
+    let v = armctl(&["ik", "--arm", "ur5e", "--target", &join(&position), "--quat", &join(&quaternion)]).json();
+    assert_eq!(v["status"], "converged", "{v}");
+    assert!(v["position_error"].as_f64().unwrap() <= 1e-5, "{v}");
+    assert!(v["orientation_error"].as_f64().unwrap() <= 1e-5, "{v}");
+    let q = numbers(&v["q"]);
+    assert_eq!(q.len(), 6);
+    let (reached, reached_quaternion) = fk("ur5e", &q);
+    assert!(distance(&reached, &position) <= 1e-5 + 1e-12, "{reached:?} vs {position:?}");
+    assert!(angle(&reached_quaternion, &quaternion) <= 1e-5 + 1e-9, "{reached_quaternion:?} vs {quaternion:?}");
+}
+
+#[test]
+fn ik_position_only_has_no_orientation_error() {
+    let q = [0.2, -0.4, 0.6, 0.3, -0.5];
+    let (position, _) = fk("so101", &q);
+    let v = armctl(&["ik", "--arm", "so101", "--target", &join(&position)]).json();
+    assert_eq!(v["status"], "converged", "{v}");
+    assert!(v["orientation_error"].is_null(), "{v}");
+    assert!(v["position_error"].as_f64().unwrap() <= 1e-5, "{v}");
+    let (reached, _) = fk("so101", &numbers(&v["q"]));
+    assert!(distance(&reached, &position) <= 1e-5 + 1e-12, "{reached:?} vs {position:?}");
+}
+
+#[test]
+fn ik_in_f32() {
+    let (position, quaternion) = fk("ur5e", &UR5E_Q);
+    let v =
+        armctl(&["ik", "--arm", "ur5e", "--target", &join(&position), "--quat", &join(&quaternion), "--scalar", "f32"])
+            .json();
+    assert_eq!(v["status"], "converged", "{v}");
+    // The f32 defaults: 1e-4 m and 1e-3 rad.
+    assert!(v["position_error"].as_f64().unwrap() <= 1e-4, "{v}");
+    assert!(v["orientation_error"].as_f64().unwrap() <= 1e-3, "{v}");
+    let (reached, reached_quaternion) = fk("ur5e", &numbers(&v["q"]));
+    assert!(distance(&reached, &position) <= 2e-4, "{reached:?} vs {position:?}");
+    assert!(angle(&reached_quaternion, &quaternion) <= 2e-3, "{reached_quaternion:?} vs {quaternion:?}");
+}
+
+#[test]
+fn ik_runs_every_solver() {
+    let (position, quaternion) = fk("ur5e", &UR5E_Q);
+    for solver in ["dls", "newton", "transpose", "ccd", "gradient", "regularised"] {
+        let run = armctl(&[
+            "ik",
+            "--arm",
+            "ur5e",
+            "--target",
+            &join(&position),
+            "--quat",
+            &join(&quaternion),
+            "--solver",
+            solver,
+        ]);
+        let v = run.json();
+        let status = v["status"].as_str().unwrap_or_else(|| panic!("{solver}: {v}"));
+        assert!(["converged", "best_effort", "iteration_limit"].contains(&status), "{solver}: {v}");
+        let q = numbers(&v["q"]);
+        assert_eq!(q.len(), 6, "{solver}: {v}");
+        assert!(q.iter().all(|x| x.is_finite()), "{solver}: {v}");
+        // The reported errors are those of the returned q.
+        let (reached, reached_quaternion) = fk("ur5e", &q);
+        let position_error = v["position_error"].as_f64().unwrap();
+        let orientation_error = v["orientation_error"].as_f64().unwrap();
+        assert!((distance(&reached, &position) - position_error).abs() <= 1e-9, "{solver}: {v}");
+        assert!((angle(&reached_quaternion, &quaternion) - orientation_error).abs() <= 1e-6, "{solver}: {v}");
+        if status == "converged" {
+            assert!(position_error <= 1e-5 && orientation_error <= 1e-5, "{solver}: {v}");
+        }
+    }
+}
+
+#[test]
+fn errors_are_one_line_on_stderr() {
+    let so101_urdf = "tests/data/so101_new_calib.urdf";
+    let (missing_urdf, missing_toml) = (missing_path("arm.urdf"), missing_path("arm.toml"));
+    let cases: Vec<(Vec<&str>, Vec<&str>)> = vec![
+        (vec!["fk", "--arm", "no-such-arm", "--q", "0"], vec!["unknown arm", "no-such-arm"]),
+        (vec!["fk", "--arm", "ur5e", "--q", "0,0"], vec!["6 joints", "2 joint values"]),
+        (vec!["jacobian", "--arm", "planar:2", "--q", "0,0,0"], vec!["2 joints", "3 joint values"]),
+        (vec!["fk", "--arm", "ur5e", "--q", "1,x"], vec!["--q", "\"x\"", "not a number"]),
+        (vec!["fk", "--arm", "ur5e", "--q", "nan,0,0,0,0,0"], vec!["--q", "not a finite number"]),
+        (vec!["ik", "--arm", "ur5e", "--target", "0.3,0.1,0.4", "--quat", "0,0,0,0"], vec!["quaternion"]),
+        (vec!["ik", "--arm", "ur5e", "--target", "0.3,0.1"], vec!["--target", "expected 3"]),
+        (vec!["ik", "--arm", "ur5e", "--target", "0.3,0.1,0.4", "--seed", "0,0"], vec!["6 joints", "2 joint values"]),
+        (vec!["fk", "--arm", &missing_urdf, "--q", "0"], vec!["cannot read URDF", &missing_urdf]),
+        (vec!["fk", "--arm", &missing_toml, "--q", "0"], vec!["cannot read arm file", &missing_toml]),
+        (vec!["fk", "--arm", so101_urdf, "--q", "0,0,0,0,0"], vec!["--tip", "gripper_frame_link"]),
+        (vec!["ik", "--arm", "ur5e", "--batch", &missing_toml], vec!["cannot open batch file"]),
+        (vec!["frobnicate"], vec!["frobnicate"]),
+        (vec!["fk", "--arm", "ur5e"], vec!["--q"]),
+        (vec!["ik", "--arm", "ur5e"], vec!["--target"]),
+        (vec!["jacobian", "--q", "0"], vec!["--arm"]),
+        (vec!["ik", "--arm", "ur5e", "--target", "0,0,0", "--batch", "-"], vec!["--batch"]),
+        (vec!["ik", "--arm", "ur5e", "--target", "0,0,0", "--solver", "magic"], vec!["magic"]),
+        (vec!["bench", "ik", "--arm", "ur5e", "--n", "0"], vec!["--n"]),
+    ];
+    for (args, needles) in &cases {
+        assert_fails(args, needles);
+    }
+}
+
+#[test]
+fn urdf_with_tip_works() {
+    let v = armctl(&[
+        "fk",
+        "--arm",
+        "tests/data/so101_new_calib.urdf",
+        "--tip",
+        "gripper_frame_link",
+        "--q",
+        "0.2,-0.4,0.6,0.3,-0.5",
+    ])
+    .json();
+    let (preset, _) = fk("so101", &[0.2, -0.4, 0.6, 0.3, -0.5]);
+    assert!(distance(&numbers(&v["position"]), &preset) <= 1e-9, "{v}");
+}
+
+/// Batch lines for UR5e: four good targets (1-4), a blank line (5), then three bad ones (6-8).
+fn batch_input() -> (String, Vec<[f64; 3]>) {
+    let qs = [UR5E_Q, [-0.7, -1.9, 1.6, 0.4, -0.8, 1.3], [1.2, -0.9, -1.1, 0.8, 0.6, -0.4]];
+    let poses: Vec<([f64; 3], [f64; 4])> = qs.iter().map(|q| fk("ur5e", q)).collect();
+    let pose_line =
+        |(p, w): &([f64; 3], [f64; 4])| serde_json::json!({"position": p, "quaternion_wxyz": w}).to_string();
+    let seed: Vec<f64> = qs[2].iter().map(|v| v + 0.05).collect();
+    let lines = [
+        pose_line(&poses[0]),
+        pose_line(&poses[1]),
+        serde_json::json!({"position": poses[1].0}).to_string(),
+        serde_json::json!({"position": poses[2].0, "quaternion_wxyz": poses[2].1, "seed": seed}).to_string(),
+        "   ".to_string(),
+        r#"{"position": [0.1, 0.2"#.to_string(),
+        serde_json::json!({"position": poses[0].0, "seed": [0.0, 0.0]}).to_string(),
+        serde_json::json!({"position": poses[0].0, "speed": 1}).to_string(),
+    ];
+    let targets = vec![poses[0].0, poses[1].0, poses[1].0, poses[2].0];
+    (lines.join("\n") + "\n", targets)
+}
+
+fn check_batch(run: &Run, targets: &[[f64; 3]], source: &str) {
+    assert_eq!(run.code, 1, "bad lines give exit code 1; stderr: {}", run.stderr);
+    let out = run.json_lines();
+    assert_eq!(out.len(), 7, "one line per non-blank input line: {}", run.stdout);
+    let numbers_seen: Vec<u64> = out.iter().map(|v| v["line"].as_u64().unwrap()).collect();
+    assert_eq!(numbers_seen, [1, 2, 3, 4, 6, 7, 8]);
+    for (v, target) in out[..4].iter().zip(targets) {
+        assert_eq!(v["status"], "converged", "{v}");
+        assert!(v.get("error").is_none(), "{v}");
+        assert!(v["position_error"].as_f64().unwrap() <= 1e-5, "{v}");
+        let (reached, _) = fk("ur5e", &numbers(&v["q"]));
+        assert!(distance(&reached, target) <= 1e-5 + 1e-12, "{v}");
+    }
+    assert!(out[0]["orientation_error"].as_f64().unwrap() <= 1e-5);
+    assert!(out[2]["orientation_error"].is_null(), "position-only line: {}", out[2]);
+    for (v, (line, needle)) in out[4..].iter().zip([(6, ""), (7, "2 joint values"), (8, "speed")]) {
+        let error = v["error"].as_str().unwrap_or_else(|| panic!("no error for line {line}: {v}"));
+        assert!(error.contains(&format!("line {line}")), "{v}");
+        assert!(error.contains(needle), "{v}");
+        assert!(v.get("q").is_none() && v.get("status").is_none(), "{v}");
+    }
+    let stderr: Vec<&str> = run.stderr.lines().collect();
+    assert_eq!(stderr.len(), 4, "three bad-line errors and the summary: {}", run.stderr);
+    for (message, line) in stderr[..3].iter().zip([6, 7, 8]) {
+        assert!(message.starts_with("error:") && message.contains(source), "{message}");
+        assert!(message.contains(&format!("line {line}")), "{message}");
+    }
+    let summary = stderr[3];
+    assert!(summary.contains("4/7 converged") && summary.contains("3 rejected"), "{summary}");
+}
+
+#[test]
+fn batch_file() {
+    let (input, targets) = batch_input();
+    let file = TempFile::new("mixed", &input);
+    let run = armctl(&["ik", "--arm", "ur5e", "--batch", file.path()]);
+    check_batch(&run, &targets, file.path());
+}
+
+#[test]
+fn batch_from_stdin() {
+    let (input, targets) = batch_input();
+    let run = armctl_with_input(&["ik", "--arm", "ur5e", "--batch", "-"], Some(&input));
+    check_batch(&run, &targets, "-");
+}
+
+#[test]
+fn batch_of_good_lines_exits_zero() {
+    let (input, _) = batch_input();
+    let good: Vec<&str> = input.lines().take(4).collect();
+    let file = TempFile::new("good", &(good.join("\n") + "\n"));
+    let run = armctl(&["ik", "--arm", "ur5e", "--batch", file.path()]);
+    assert_eq!(run.code, 0, "stderr: {}", run.stderr);
+    let out = run.json_lines();
+    assert_eq!(out.len(), 4);
+    for (i, v) in out.iter().enumerate() {
+        assert_eq!(v["line"], i + 1);
+        assert_eq!(v["status"], "converged", "{v}");
+    }
+    let stderr: Vec<&str> = run.stderr.lines().collect();
+    assert_eq!(stderr.len(), 1, "{}", run.stderr);
+    assert!(stderr[0].contains("4/4 converged") && stderr[0].contains("0 rejected"), "{}", stderr[0]);
+}
+
+#[test]
+fn bench_ik_without_k() {
+    let run = armctl(&["bench", "ik", "--arm", "ur5e", "--n", "50", "--no-k"]);
+    let v = run.json();
+    let solvers = v["solvers"].as_array().unwrap();
+    assert_eq!(solvers.len(), 1, "{v}");
+    assert_eq!(solvers[0]["targets"], 50);
+    assert!(solvers[0]["success_percent"].as_f64().unwrap() >= 98.0, "{v}");
+    assert_eq!(solvers[0]["false_claims"], 0);
+    assert_eq!(run.stderr.lines().count(), 1, "{}", run.stderr);
+}
+
+#[test]
+fn bench_ik_with_k() {
+    let run = armctl(&["bench", "ik", "--arm", "ur5e", "--n", "20"]);
+    let v = run.json();
+    let solvers = v["solvers"].as_array().unwrap();
+    assert_eq!(solvers.len(), 2, "{v}");
+    for s in solvers {
+        assert_eq!(s["targets"], 20, "{v}");
+    }
+    assert_eq!(solvers[0]["false_claims"], 0, "{v}");
+    assert!(solvers[0]["success_percent"].as_f64().unwrap() >= 95.0, "{v}");
+    assert!(solvers[1]["solver"].as_str().unwrap().starts_with('k'), "{v}");
+    assert_eq!(run.stderr.lines().count(), 2, "{}", run.stderr);
+}
