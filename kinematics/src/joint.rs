@@ -30,6 +30,27 @@ impl<T: Real> Limits<T> {
         Self { lower, upper }
     }
 
+    /// Limits given in f64 (a file, a table), rounded *inward* to `T`: a value within the `T`
+    /// limits is then within the f64 ones too, so narrowing to f32 never admits a joint value the
+    /// arm's description forbids.
+    pub fn from_f64(lower: f64, upper: f64) -> Self {
+        let inward = |v: f64, up: bool| {
+            let t = T::of(v);
+            let widened = if up { t.to_f64() < v } else { t.to_f64() > v };
+            if !widened {
+                return t;
+            }
+            // One rounding step inward; T::EPSILON * |t| is at least one ulp of t.
+            let step = t.abs().max(T::EPSILON) * T::EPSILON;
+            if up {
+                t + step
+            } else {
+                t - step
+            }
+        };
+        Self { lower: inward(lower, true), upper: inward(upper, false) }
+    }
+
     /// Symmetric limits `[-m, m]`.
     pub fn symmetric(m: T) -> Self {
         Self { lower: -m, upper: m }
@@ -96,21 +117,28 @@ impl<T: Real> Joint<T> {
     /// whole turns (same pose) and only clamped when no turn lands inside.
     #[inline]
     pub fn normalise(&self, q: T) -> T {
+        self.saturate(q).0
+    }
+
+    /// [`Joint::normalise`], also telling whether the value had to be clamped to a limit (which,
+    /// unlike a wrap or a whole-turn shift, changes the pose).
+    #[inline]
+    pub fn saturate(&self, q: T) -> (T, bool) {
         let two_pi = T::two_pi();
         match self.kind {
-            JointKind::Continuous => wrap_angle(q),
-            JointKind::Prismatic => clamp(q, self.limits),
+            JointKind::Continuous => (wrap_angle(q), false),
+            JointKind::Prismatic => (clamp(q, self.limits), !self.limits.contains(q)),
             JointKind::Revolute => {
                 if self.limits.contains(q) {
-                    return q;
+                    return (q, false);
                 }
                 // The turn count that brings q closest to the middle of the range.
                 let turns = ((self.limits.middle() - q) / two_pi).round();
                 let shifted = q + turns * two_pi;
                 if self.limits.contains(shifted) {
-                    shifted
+                    (shifted, false)
                 } else {
-                    clamp(q, self.limits)
+                    (clamp(q, self.limits), true)
                 }
             }
         }

@@ -13,7 +13,7 @@ fn origin<T: Real>(x: [f64; 3], rpy: [f64; 3]) -> Pose<T> {
 }
 
 fn revolute<T: Real>(origin: Pose<T>, axis: [f64; 3], lower: f64, upper: f64) -> Joint<T> {
-    Joint::revolute(origin, axis.map(T::of), Limits::new(T::of(lower), T::of(upper)))
+    Joint::revolute(origin, axis.map(T::of), Limits::from_f64(lower, upper))
 }
 
 fn dh_revolute<T: Real>(a: f64, alpha: f64, d: f64, limit: f64) -> DhRow<T> {
@@ -23,7 +23,7 @@ fn dh_revolute<T: Real>(a: f64, alpha: f64, d: f64, limit: f64) -> DhRow<T> {
         d: T::of(d),
         theta: T::zero(),
         kind: JointKind::Revolute,
-        limits: Limits::symmetric(T::of(limit)),
+        limits: Limits::from_f64(-limit, limit),
     }
 }
 

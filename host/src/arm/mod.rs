@@ -56,7 +56,7 @@ impl ArmSpec {
                 origin: cast_pose(&j.origin),
                 axis: j.axis.map(T::of).into(),
                 kind: j.kind,
-                limits: Limits::new(T::of(j.lower), T::of(j.upper)),
+                limits: Limits::from_f64(j.lower, j.upper),
             }
         });
         Chain::new(joints, cast_pose(&self.tool)).map_err(|e| {
