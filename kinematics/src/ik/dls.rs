@@ -10,7 +10,7 @@
 use super::{Descent, DescentEnd, ErrorTerms, IkMethod, Residual};
 use crate::linalg::cholesky_solve;
 use crate::{Chain, Frames, Real};
-use nalgebra::SVector;
+use nalgebra::{SMatrix, SVector};
 
 /// The default solver. Stateless: all tuning lives in [`super::IkConfig`].
 #[derive(Clone, Copy, Debug, Default)]
@@ -18,22 +18,44 @@ pub struct DampedLeastSquares;
 
 impl<T: Real, const N: usize> IkMethod<T, N> for DampedLeastSquares {
     fn descend(&self, chain: &Chain<T, N>, residual: &Residual<T>, start: SVector<T, N>, budget: u32) -> Descent<T, N> {
-        if residual.rows() == 3 {
-            descend_task::<T, N, 3>(chain, residual, start, budget)
-        } else {
-            descend_task::<T, N, 6>(chain, residual, start, budget)
-        }
+        descend_with(chain, residual, start, budget, T::of(ATTEMPT_PROGRESS))
+    }
+
+    fn polish(&self, chain: &Chain<T, N>, residual: &Residual<T>, start: SVector<T, N>, budget: u32) -> Descent<T, N> {
+        descend_with(chain, residual, start, budget, T::EPSILON.sqrt())
     }
 }
 
-/// Consecutive iterations without a 1% fall in cost after which an attempt counts as stalled.
-const PATIENCE: u32 = 8;
+/// An attempt counts as stalled after this many consecutive iterations that each lower the cost
+/// by less than the required fraction (a rejected step lowers it by nothing), plus one per four
+/// joints: a long chain's error falls more slowly through its many coupled joints.
+const PATIENCE: u32 = 5;
+
+/// The fraction of the cost an iteration must remove to count as progress during an attempt: an
+/// attempt creeping along at less than 1% per iteration is in the wrong basin, and a restart is
+/// cheaper. Polishing the final best-effort answer only asks for a numerically visible fall.
+const ATTEMPT_PROGRESS: f64 = 0.01;
+
+fn descend_with<T: Real, const N: usize>(
+    chain: &Chain<T, N>,
+    residual: &Residual<T>,
+    start: SVector<T, N>,
+    budget: u32,
+    progress: T,
+) -> Descent<T, N> {
+    if residual.rows() == 3 {
+        descend_task::<T, N, 3>(chain, residual, start, budget, progress)
+    } else {
+        descend_task::<T, N, 6>(chain, residual, start, budget, progress)
+    }
+}
 
 fn descend_task<T: Real, const N: usize, const M: usize>(
     chain: &Chain<T, N>,
     residual: &Residual<T>,
     start: SVector<T, N>,
     budget: u32,
+    progress: T,
 ) -> Descent<T, N> {
     let mut q = start;
     let mut frames = chain.forward(&q);
@@ -49,15 +71,15 @@ fn descend_task<T: Real, const N: usize, const M: usize>(
             return done(q, error, iteration, DescentEnd::Converged);
         }
         let lambda = mu * error.cost + floor;
-        let trial = damped_step::<T, N, M>(chain, residual, &frames, &error, lambda).map(|dq| chain.step(&q, &dq)).map(
-            |q_new| {
+        let trial = damped_step::<T, N, M>(chain, residual, &frames, &error, &q, lambda)
+            .map(|dq| chain.step(&q, &dq))
+            .map(|q_new| {
                 let f = chain.forward(&q_new);
                 (q_new, f, residual.error(&f.tool))
-            },
-        );
+            });
         match trial {
             Some((q_new, f, e)) if e.cost < error.cost => {
-                unproductive = if e.cost > error.cost * T::of(0.99) { unproductive + 1 } else { 0 };
+                unproductive = if e.cost > error.cost * (T::one() - progress) { unproductive + 1 } else { 0 };
                 (q, frames, error) = (q_new, f, e);
                 mu = (mu * T::of(0.1)).max(mu_min);
             }
@@ -66,7 +88,7 @@ fn descend_task<T: Real, const N: usize, const M: usize>(
                 mu *= T::of(10.0);
             }
         }
-        if mu > mu_max || unproductive >= PATIENCE {
+        if mu > mu_max || unproductive >= PATIENCE + N as u32 / 4 {
             let end = if residual.converged(&error) { DescentEnd::Converged } else { DescentEnd::Stalled };
             return done(q, error, iteration + 1, end);
         }
@@ -76,20 +98,60 @@ fn descend_task<T: Real, const N: usize, const M: usize>(
 }
 
 /// The damped step, or `None` if the system is not positive definite (non-finite values).
+///
+/// Joint limits by an active set (the clamping loop of SNS-style solvers): a joint the step would
+/// push past a limit is moved exactly to that limit, its motion is taken out of the error, its
+/// column is removed, and the rest of the step is solved again by the other joints. Projecting
+/// the full step instead (clamp afterwards) wastes most of it when the solution lies near a limit,
+/// which is where a redundant arm's last millimetres are.
 fn damped_step<T: Real, const N: usize, const M: usize>(
     chain: &Chain<T, N>,
     residual: &Residual<T>,
     frames: &Frames<T, N>,
     error: &ErrorTerms<T>,
+    q: &SVector<T, N>,
     lambda: T,
 ) -> Option<SVector<T, N>> {
-    let (j, e) = residual.task::<M, N>(chain, frames, error);
+    let (mut j, mut e) = residual.task::<M, N>(chain, frames, error);
+    let mut at_limit = SVector::<T, N>::zeros();
+    let mut frozen = [false; N];
+    // Each round freezes at least one more joint, so N + 1 rounds always end.
+    for _round in 0..=N {
+        let dq = solve_damped::<T, N, M>(&j, &e, lambda)?;
+        let mut froze = false;
+        for (k, joint) in chain.joints().iter().enumerate() {
+            if frozen[k] {
+                continue;
+            }
+            let (value, clamped) = joint.saturate(q[k] + dq[k]);
+            if clamped {
+                at_limit[k] = value - q[k];
+                e -= j.column(k) * at_limit[k];
+                j.column_mut(k).fill(T::zero());
+                frozen[k] = true;
+                froze = true;
+            }
+        }
+        if !froze {
+            return Some(dq + at_limit);
+        }
+    }
+    Some(at_limit)
+}
+
+/// `J^T (J J^T + lambda I)^-1 e`, or the equal `(J^T J + lambda I)^-1 J^T e` when that system is
+/// the smaller one.
+fn solve_damped<T: Real, const N: usize, const M: usize>(
+    j: &SMatrix<T, M, N>,
+    e: &SVector<T, M>,
+    lambda: T,
+) -> Option<SVector<T, N>> {
     if N >= M {
         let mut a = j * j.transpose();
         for i in 0..M {
             a[(i, i)] += lambda;
         }
-        cholesky_solve(&a, &e).map(|y| j.transpose() * y)
+        cholesky_solve(&a, e).map(|y| j.transpose() * y)
     } else {
         let mut a = j.transpose() * j;
         for i in 0..N {

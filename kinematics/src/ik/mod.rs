@@ -59,6 +59,13 @@ pub trait IkMethod<T: Real, const N: usize> {
     fn restarts(&self) -> bool {
         true
     }
+
+    /// A last, patient descent from the closest pose found when every attempt fell short: for an
+    /// unreachable target it settles the closest pose precisely instead of where an attempt gave
+    /// up. By default the same as [`IkMethod::descend`].
+    fn polish(&self, chain: &Chain<T, N>, residual: &Residual<T>, start: SVector<T, N>, budget: u32) -> Descent<T, N> {
+        self.descend(chain, residual, start, budget)
+    }
 }
 
 impl<T: Real, const N: usize> Chain<T, N> {
@@ -92,7 +99,13 @@ impl<T: Real, const N: usize> Chain<T, N> {
             let budget = if method.restarts() { remaining.min(config.attempt_iterations) } else { remaining };
             let descent = method.descend(self, &residual, start, budget);
             remaining = remaining.saturating_sub(descent.iterations);
-            if best.as_ref().is_none_or(|b| descent.error.cost < b.error.cost) {
+            // A converged attempt wins outright: a stalled one can have the lower weighted cost
+            // while missing one of the two tolerances.
+            let better = best.as_ref().is_none_or(|b| {
+                descent.end == DescentEnd::Converged
+                    || (b.end != DescentEnd::Converged && descent.error.cost < b.error.cost)
+            });
+            if better {
                 best = Some(descent);
             }
             let done = descent.end == DescentEnd::Converged
@@ -106,12 +119,23 @@ impl<T: Real, const N: usize> Chain<T, N> {
             start = self.random_configuration(&mut rng);
         }
         // `best` is always set: the loop runs at least once.
-        let best = best.unwrap_or(Descent {
+        let mut best = best.unwrap_or(Descent {
             q: start,
             error: residual.error(&self.tool_pose(&start)),
             iterations: 0,
             end: DescentEnd::Stalled,
         });
+        if best.end != DescentEnd::Converged && remaining > 0 && method.restarts() {
+            let polished = method.polish(self, &residual, best.q, remaining.min(config.attempt_iterations));
+            remaining = remaining.saturating_sub(polished.iterations);
+            if polished.end == DescentEnd::Converged {
+                best = polished;
+            } else if polished.error.cost < best.error.cost {
+                // Refinement of a verdict already reached: the attempts stalled, so it stays
+                // BestEffort even if the polish was still creeping when its budget ran out.
+                best = Descent { end: best.end, ..polished };
+            }
+        }
 
         // The status comes from FK on exactly the values returned, not from the method's claim.
         let mut q = best.q;
