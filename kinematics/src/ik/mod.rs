@@ -6,6 +6,7 @@
 mod ccd;
 mod dls;
 mod gradient;
+mod line_search;
 mod newton;
 mod problem;
 mod regularised;

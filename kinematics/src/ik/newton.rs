@@ -10,11 +10,11 @@
 //! nearly singular direction swamps the useful part of the step and the descent stalls short of the
 //! closest pose, which is the case damped least squares exists for.
 
-use super::dls::done;
-use super::{Descent, DescentEnd, IkMethod, Residual};
+use super::line_search::{self, Patience, StepDirection};
+use super::{Descent, IkMethod, Residual};
 use crate::linalg::pseudoinverse_solve;
 use crate::{Chain, Real};
-use nalgebra::SVector;
+use nalgebra::{SMatrix, SVector};
 
 /// Newton's method with the pseudoinverse and backtracking. Stateless.
 #[derive(Clone, Copy, Debug, Default)]
@@ -22,70 +22,24 @@ pub struct PseudoinverseNewton;
 
 impl<T: Real, const N: usize> IkMethod<T, N> for PseudoinverseNewton {
     fn descend(&self, chain: &Chain<T, N>, residual: &Residual<T>, start: SVector<T, N>, budget: u32) -> Descent<T, N> {
-        if residual.rows() == 3 {
-            descend_task::<T, N, 3>(chain, residual, start, budget)
-        } else {
-            descend_task::<T, N, 6>(chain, residual, start, budget)
-        }
+        // 30 halvings: near a singularity the full step can be thousands of radians, and only a
+        // tiny fraction of it is still inside the region where the linear model holds. Stalled
+        // after 8 iterations each removing less than 1% of the cost.
+        let patience = Patience { halvings: 30, iterations: 8, slow: 0.01 };
+        line_search::descend(self, patience, chain, residual, start, budget)
     }
 }
 
-/// Halvings tried before a step counts as failed (the last trial is 2^-30 of the Newton step: near
-/// a singularity the full step can be thousands of radians, and only a tiny fraction of it is
-/// still inside the region where the linear model holds).
-const HALVINGS: u32 = 30;
-/// Consecutive iterations without a 1% fall in cost after which an attempt counts as stalled.
-const PATIENCE: u32 = 8;
-
-fn descend_task<T: Real, const N: usize, const M: usize>(
-    chain: &Chain<T, N>,
-    residual: &Residual<T>,
-    start: SVector<T, N>,
-    budget: u32,
-) -> Descent<T, N> {
-    let rcond = T::EPSILON.sqrt();
-    let mut q = start;
-    let mut frames = chain.forward(&q);
-    let mut error = residual.error(&frames.tool);
-    let mut unproductive = 0;
-    for iteration in 0..budget {
-        if residual.converged(&error) {
-            return done(q, error, iteration, DescentEnd::Converged);
-        }
-        let (j, e) = residual.task::<M, N>(chain, &frames, &error);
-        let mut dq = pseudoinverse_solve(&j, &e, rcond);
-        if !dq.iter().all(|v| v.finite()) {
-            return done(q, error, iteration, DescentEnd::Stalled);
-        }
-        let mut accepted = None;
-        for _ in 0..=HALVINGS {
-            let q_new = chain.step(&q, &dq);
-            let f = chain.forward(&q_new);
-            let e_new = residual.error(&f.tool);
-            if e_new.cost < error.cost {
-                accepted = Some((q_new, f, e_new));
-                break;
-            }
-            dq *= T::of(0.5);
-        }
-        let Some((q_new, f, e_new)) = accepted else {
-            return done(q, error, iteration + 1, DescentEnd::Stalled);
-        };
-        unproductive = if e_new.cost > error.cost * T::of(0.99) { unproductive + 1 } else { 0 };
-        (q, frames, error) = (q_new, f, e_new);
-        if unproductive >= PATIENCE {
-            let end = if residual.converged(&error) { DescentEnd::Converged } else { DescentEnd::Stalled };
-            return done(q, error, iteration + 1, end);
-        }
+impl<T: Real, const N: usize> StepDirection<T, N> for PseudoinverseNewton {
+    fn direction<const M: usize>(&self, j: &SMatrix<T, M, N>, e: &SVector<T, M>) -> Option<SVector<T, N>> {
+        Some(pseudoinverse_solve(j, e, T::EPSILON.sqrt()))
     }
-    let end = if residual.converged(&error) { DescentEnd::Converged } else { DescentEnd::OutOfBudget };
-    done(q, error, budget, end)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ik::{IkConfig, IkProblem, IkStatus, Target};
+    use crate::ik::{DescentEnd, IkConfig, IkProblem, IkStatus, Target};
     use crate::{presets, SplitMix64};
     use nalgebra::Vector3;
 

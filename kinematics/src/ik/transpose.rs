@@ -7,10 +7,10 @@
 //! linearised model; because the model is only linear, a step that does not lower the true cost is
 //! halved a bounded number of times, so every accepted iterate is better than the last.
 
-use super::dls::done;
-use super::{Descent, DescentEnd, IkMethod, Residual};
+use super::line_search::{self, Patience, StepDirection};
+use super::{Descent, IkMethod, Residual};
 use crate::{Chain, Real};
-use nalgebra::SVector;
+use nalgebra::{SMatrix, SVector};
 
 /// The Jacobian transpose method with Buss's step length. Stateless.
 #[derive(Clone, Copy, Debug, Default)]
@@ -18,76 +18,28 @@ pub struct JacobianTranspose;
 
 impl<T: Real, const N: usize> IkMethod<T, N> for JacobianTranspose {
     fn descend(&self, chain: &Chain<T, N>, residual: &Residual<T>, start: SVector<T, N>, budget: u32) -> Descent<T, N> {
-        if residual.rows() == 3 {
-            descend_task::<T, N, 3>(chain, residual, start, budget)
-        } else {
-            descend_task::<T, N, 6>(chain, residual, start, budget)
-        }
+        // Linear convergence is expected, so the bar for "slow" is far lower than the 1% of the
+        // second-order methods: only a descent that has practically stopped gives up.
+        let patience = Patience { halvings: 20, iterations: 8, slow: 1e-4 };
+        line_search::descend(self, patience, chain, residual, start, budget)
     }
 }
 
-/// Halvings tried before a step counts as failed.
-const HALVINGS: u32 = 20;
-/// Consecutive iterations in which the cost falls by less than [`SLOW`] (relative) after which an
-/// attempt counts as stalled. Linear convergence is expected, so the bar is far lower than the 1%
-/// of the second-order methods: only a descent that has practically stopped gives up.
-const PATIENCE: u32 = 8;
-const SLOW: f64 = 1e-4;
-
-fn descend_task<T: Real, const N: usize, const M: usize>(
-    chain: &Chain<T, N>,
-    residual: &Residual<T>,
-    start: SVector<T, N>,
-    budget: u32,
-) -> Descent<T, N> {
-    let mut q = start;
-    let mut frames = chain.forward(&q);
-    let mut error = residual.error(&frames.tool);
-    let mut unproductive = 0;
-    for iteration in 0..budget {
-        if residual.converged(&error) {
-            return done(q, error, iteration, DescentEnd::Converged);
-        }
-        let (j, e) = residual.task::<M, N>(chain, &frames, &error);
+impl<T: Real, const N: usize> StepDirection<T, N> for JacobianTranspose {
+    fn direction<const M: usize>(&self, j: &SMatrix<T, M, N>, e: &SVector<T, M>) -> Option<SVector<T, N>> {
         let g = j.transpose() * e;
         let jg = j * g;
         let alpha = e.dot(&jg) / jg.norm_squared();
         // alpha is NaN or infinite exactly when J J^T e vanishes: e is in the null space of J^T,
         // a stationary point (a local minimum or a singular pose) that this method cannot leave.
-        if !(alpha.finite() && alpha > T::zero() && g.iter().all(|v| v.finite())) {
-            return done(q, error, iteration, DescentEnd::Stalled);
-        }
-        let mut dq = g * alpha;
-        let mut accepted = None;
-        for _ in 0..=HALVINGS {
-            let q_new = chain.step(&q, &dq);
-            let f = chain.forward(&q_new);
-            let e_new = residual.error(&f.tool);
-            if e_new.cost < error.cost {
-                accepted = Some((q_new, f, e_new));
-                break;
-            }
-            dq *= T::of(0.5);
-        }
-        let Some((q_new, f, e_new)) = accepted else {
-            return done(q, error, iteration + 1, DescentEnd::Stalled);
-        };
-        let slow = e_new.cost > error.cost * (T::one() - T::of(SLOW));
-        unproductive = if slow { unproductive + 1 } else { 0 };
-        (q, frames, error) = (q_new, f, e_new);
-        if unproductive >= PATIENCE {
-            let end = if residual.converged(&error) { DescentEnd::Converged } else { DescentEnd::Stalled };
-            return done(q, error, iteration + 1, end);
-        }
+        (alpha.finite() && alpha > T::zero()).then(|| g * alpha)
     }
-    let end = if residual.converged(&error) { DescentEnd::Converged } else { DescentEnd::OutOfBudget };
-    done(q, error, budget, end)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ik::{IkConfig, IkProblem, IkStatus, Target};
+    use crate::ik::{DescentEnd, IkConfig, IkProblem, IkStatus, Target};
     use crate::{presets, SplitMix64};
     use nalgebra::Vector3;
 
