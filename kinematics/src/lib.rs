@@ -29,6 +29,7 @@ mod pose;
 pub mod presets;
 mod real;
 mod rng;
+pub mod trajectory;
 
 pub use chain::{Chain, ChainError, DhRow};
 pub use fk::Frames;
