@@ -6,6 +6,7 @@ use crate::arm::ArmSpec;
 use crate::bench::{self, Protocol};
 use crate::dof::{self, DynArm, IkOutcome, IkRequest, Scalar, SolverName};
 use crate::parse;
+use crate::trajectory;
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
 use kinematics::ik::{IkConfig, IkStatus};
@@ -47,6 +48,18 @@ enum Command {
         #[command(subcommand)]
         what: BenchCommand,
     },
+    /// Joint trajectories through keyframes.
+    Trajectory {
+        #[command(subcommand)]
+        what: TrajectoryCommand,
+    },
+}
+
+#[derive(Subcommand, Debug)]
+enum TrajectoryCommand {
+    /// Interpolate a keyframe CSV file and sample it at a fixed rate (CSV `t,q...,v...,a...` or
+    /// --json on stdout).
+    Sample(trajectory::SampleArgs),
 }
 
 #[derive(Subcommand, Debug)]
@@ -187,6 +200,9 @@ fn run(command: Command, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32
             print_json(out, &json!({"arm": arm.spec().name, "jacobian": arm.jacobian(&q)?}))?;
         }
         Command::Ik(args) => return ik(&args, out, err),
+        Command::Trajectory { what: TrajectoryCommand::Sample(args) } => {
+            return trajectory::run_sample(&args, out, err)
+        }
         Command::Bench { what: BenchCommand::Ik { arm, n, scalar, seed, no_k } } => {
             if n == 0 {
                 bail!("--n must be at least 1");

@@ -8,3 +8,5 @@ pub mod cli;
 pub mod dof;
 pub mod kcompare;
 pub mod parse;
+pub mod plot;
+pub mod trajectory;

@@ -1,0 +1,602 @@
+//! `armctl trajectory sample`: keyframes from a CSV file, interpolated by one of the kinematics
+//! crate's methods, sampled at a fixed rate and written as CSV or JSON (optionally plotted).
+//!
+//! The keyframe file is CSV with the header `t,q1,...,qN` and optionally `v1,...,vN` (velocities
+//! at the keyframes, used by `--method hermite`). Blank lines and lines starting with `#` are
+//! skipped. Every error names the file line it is about (the header is line 1).
+
+use crate::plot;
+use anyhow::{anyhow, bail, Context, Result};
+use clap::{Args, ValueEnum};
+use kinematics::nalgebra::SVector;
+use kinematics::trajectory::{
+    time_scale, Curve, EndCondition, Interpolation, JointLimits, Keyframe, KochanekBartels, LimitError, TrajectoryError,
+};
+use serde_json::{json, Value};
+use std::io::Write;
+use std::path::PathBuf;
+
+/// The largest joint count `armctl trajectory` handles.
+pub const MAX_JOINTS: usize = 12;
+/// The largest keyframe count (the fixed capacity of the kinematics crate's curves).
+pub const MAX_KEYFRAMES: usize = 1024;
+/// The most sample rows one run writes.
+pub const MAX_SAMPLES: usize = 10_000_000;
+
+/// Interpolation method.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Method {
+    /// Straight lines (constant velocity between keyframes; velocity jumps at keyframes).
+    Linear,
+    /// Non-uniform Catmull-Rom (C1); ends per --ends.
+    CatmullRom,
+    /// Monotone cubic (Fritsch-Carlson): never overshoots between keyframes (C1).
+    Monotone,
+    /// Natural cubic spline (C2, zero acceleration at both ends).
+    Natural,
+    /// Cubic Hermite with the velocities of the file's v1..vN columns (C1).
+    Hermite,
+    /// Kochanek-Bartels (TCB): --tension, --continuity, --bias; ends per --ends.
+    Kb,
+}
+
+impl Method {
+    fn name(self) -> &'static str {
+        match self {
+            Method::Linear => "linear",
+            Method::CatmullRom => "catmull-rom",
+            Method::Monotone => "monotone",
+            Method::Natural => "natural",
+            Method::Hermite => "hermite",
+            Method::Kb => "kb",
+        }
+    }
+}
+
+/// Velocity at the first and last keyframe for `catmull-rom` and `kb`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Ends {
+    /// Start and end at rest.
+    Zero,
+    /// Zero acceleration at the first and last keyframe.
+    Natural,
+}
+
+/// Arguments of `armctl trajectory sample`.
+#[derive(Args, Debug)]
+pub struct SampleArgs {
+    /// Keyframe CSV file: header `t,q1,...,qN` plus optional `v1,...,vN` velocity columns.
+    #[arg(long)]
+    pub keyframes: PathBuf,
+    /// Interpolation method.
+    #[arg(long, value_enum)]
+    pub method: Method,
+    /// Samples per second, from the first to the last keyframe time inclusive.
+    #[arg(long, default_value_t = 100.0)]
+    pub rate: f64,
+    /// Kochanek-Bartels tension (`--method kb`).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub tension: f64,
+    /// Kochanek-Bartels continuity (`--method kb`; non-zero gives corners).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub continuity: f64,
+    /// Kochanek-Bartels bias (`--method kb`).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub bias: f64,
+    /// End condition of `catmull-rom` and `kb`.
+    #[arg(long, value_enum, default_value = "zero")]
+    pub ends: Ends,
+    /// Joint limits as KEY=VALUE pairs, comma-separated: `v` (max |velocity|) and `a` (max
+    /// |acceleration|) are required, `lo`/`hi` (position range) optional. A value is one number for
+    /// every joint or one per joint separated by `:`, e.g. `v=1.5,a=4` or `v=1:1:2,a=4,lo=-3,hi=3`.
+    /// A trajectory that breaks them is slowed down (never moved), and a note with the new
+    /// duration goes to stderr.
+    #[arg(long, allow_hyphen_values = true)]
+    pub limits: Option<String>,
+    /// Write JSON (one line) instead of CSV.
+    #[arg(long)]
+    pub json: bool,
+    /// Also draw position, velocity and acceleration per joint to this PNG file.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+}
+
+/// Keyframes as read from a file, before the joint count is fixed at compile time.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Keyframes {
+    /// Joint count N.
+    pub joints: usize,
+    /// Times (s), strictly increasing.
+    pub times: Vec<f64>,
+    /// One row of N positions per keyframe.
+    pub positions: Vec<Vec<f64>>,
+    /// One row of N velocities per keyframe, if the file has `v` columns.
+    pub velocities: Option<Vec<Vec<f64>>>,
+    /// The file line of each keyframe (1-based, the header is line 1).
+    pub lines: Vec<usize>,
+}
+
+fn expected_header(joints: usize, velocities: bool) -> Vec<String> {
+    let mut names = vec!["t".to_string()];
+    names.extend((1..=joints).map(|j| format!("q{j}")));
+    if velocities {
+        names.extend((1..=joints).map(|j| format!("v{j}")));
+    }
+    names
+}
+
+/// Parses keyframe CSV text; errors are `line L: ...` (or `line L, column C: ...`).
+pub fn parse_keyframes(text: &str) -> Result<Keyframes> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    let mut rows = text
+        .split('\n')
+        .enumerate()
+        .map(|(i, line)| (i + 1, line.trim_end_matches('\r')))
+        .filter(|(_, line)| !line.trim().is_empty() && !line.trim_start().starts_with('#'));
+    let Some((header_line, header)) = rows.next() else {
+        bail!("empty file: expected the header t,q1,...,qN[,v1,...,vN]");
+    };
+    let names: Vec<&str> = header.split(',').map(str::trim).collect();
+    let joints = names.iter().skip(1).filter(|n| n.starts_with('q')).count();
+    let with_velocities = names.len() == 1 + 2 * joints;
+    if joints == 0 || names != expected_header(joints, with_velocities) {
+        bail!("line {header_line}: the header must be t,q1,...,qN or t,q1,...,qN,v1,...,vN; found {:?}", header.trim());
+    }
+    if joints > MAX_JOINTS {
+        bail!("line {header_line}: {joints} joints: armctl trajectory handles at most {MAX_JOINTS}");
+    }
+    let mut k = Keyframes {
+        joints,
+        times: Vec::new(),
+        positions: Vec::new(),
+        velocities: with_velocities.then(Vec::new),
+        lines: Vec::new(),
+    };
+    for (line, row) in rows {
+        let fields: Vec<&str> = row.split(',').map(str::trim).collect();
+        if fields.len() != names.len() {
+            bail!("line {line}: {} fields, but the header has {}", fields.len(), names.len());
+        }
+        if k.times.len() == MAX_KEYFRAMES {
+            bail!("line {line}: more than {MAX_KEYFRAMES} keyframes (armctl's capacity)");
+        }
+        let mut values = Vec::with_capacity(fields.len());
+        for (field, name) in fields.iter().zip(&names) {
+            let value =
+                field.parse::<f64>().map_err(|_| anyhow!("line {line}, column {name}: {field:?} is not a number"))?;
+            if !value.is_finite() {
+                bail!("line {line}, column {name}: {field} is not a finite number");
+            }
+            values.push(value);
+        }
+        let t = values[0];
+        if let (Some(&previous), Some(&previous_line)) = (k.times.last(), k.lines.last()) {
+            if t <= previous {
+                bail!("line {line}: time {t} is not later than the previous keyframe's ({previous}, line {previous_line})");
+            }
+        }
+        k.times.push(t);
+        k.positions.push(values[1..=joints].to_vec());
+        if let Some(v) = &mut k.velocities {
+            v.push(values[1 + joints..].to_vec());
+        }
+        k.lines.push(line);
+    }
+    match k.times.len() {
+        0 => bail!("no keyframes after the header"),
+        1 => bail!("line {}: only one keyframe; a trajectory needs at least 2", k.lines[0]),
+        _ => Ok(k),
+    }
+}
+
+/// Reads and parses a keyframe file; errors start with the file name.
+pub fn read_keyframes(path: &std::path::Path) -> Result<Keyframes> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read keyframe file {}", path.display()))?;
+    parse_keyframes(&text).with_context(|| path.display().to_string())
+}
+
+/// Joint limits as given on the command line; each list has one entry (every joint) or N.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LimitSpec {
+    /// Max |velocity|.
+    pub velocity: Vec<f64>,
+    /// Max |acceleration|.
+    pub acceleration: Vec<f64>,
+    /// Lowest positions (unbounded if absent).
+    pub lower: Option<Vec<f64>>,
+    /// Highest positions (unbounded if absent).
+    pub upper: Option<Vec<f64>>,
+}
+
+/// Parses `--limits` (`v=1.5,a=4,lo=-3,hi=3`, a value being `x` or `x1:x2:...:xN`).
+pub fn parse_limits(text: &str) -> Result<LimitSpec> {
+    let mut spec = LimitSpec::default();
+    let (mut v, mut a) = (None, None);
+    for item in text.split(',').map(str::trim) {
+        let Some((key, value)) = item.split_once('=') else {
+            bail!("--limits: {item:?} is not KEY=VALUE (keys v, a, lo, hi)");
+        };
+        let key = key.trim();
+        let numbers = crate::parse::numbers(&value.replace(':', ","), &format!("--limits {key}"))?;
+        if numbers.is_empty() {
+            bail!("--limits: {key} has no value");
+        }
+        let slot = match key {
+            "v" => &mut v,
+            "a" => &mut a,
+            "lo" => &mut spec.lower,
+            "hi" => &mut spec.upper,
+            _ => bail!("--limits: unknown key {key:?} (keys v, a, lo, hi)"),
+        };
+        if slot.replace(numbers).is_some() {
+            bail!("--limits: {key} given twice");
+        }
+    }
+    spec.velocity = v.ok_or_else(|| anyhow!("--limits needs v=MAX_VELOCITY"))?;
+    spec.acceleration = a.ok_or_else(|| anyhow!("--limits needs a=MAX_ACCELERATION"))?;
+    Ok(spec)
+}
+
+/// One sampled instant.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Row {
+    /// Time (s).
+    pub t: f64,
+    /// Positions.
+    pub q: Vec<f64>,
+    /// Velocities.
+    pub v: Vec<f64>,
+    /// Accelerations.
+    pub a: Vec<f64>,
+}
+
+/// What time scaling under `--limits` did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Retiming {
+    /// Duration before (s).
+    pub old_duration: f64,
+    /// Duration after (s).
+    pub new_duration: f64,
+    /// The largest factor a segment was stretched by.
+    pub max_stretch: f64,
+    /// True if velocities were reduced to keep a segment inside the position range.
+    pub range_clamped: bool,
+}
+
+/// A sampled trajectory.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sampled {
+    /// Method used.
+    pub method: Method,
+    /// Joint count.
+    pub joints: usize,
+    /// Keyframe times of the sampled curve (after any time scaling).
+    pub keyframe_times: Vec<f64>,
+    /// Keyframe positions.
+    pub keyframe_positions: Vec<Vec<f64>>,
+    /// The samples.
+    pub rows: Vec<Row>,
+    /// Set when `--limits` changed the timing.
+    pub retiming: Option<Retiming>,
+}
+
+/// Sampling options.
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// Method.
+    pub method: Method,
+    /// Kochanek-Bartels tension, continuity, bias.
+    pub tcb: [f64; 3],
+    /// End condition of catmull-rom and kb.
+    pub ends: Ends,
+    /// Samples per second.
+    pub rate: f64,
+    /// Joint limits.
+    pub limits: Option<LimitSpec>,
+}
+
+/// Sample times from `start` to `end` inclusive at `rate` (the last one is exactly `end`).
+pub fn sample_times(start: f64, end: f64, rate: f64) -> Result<Vec<f64>> {
+    if !(rate.is_finite() && rate > 0.0) {
+        bail!("--rate must be a positive finite number of samples per second");
+    }
+    let span = (end - start) * rate;
+    let steps = (span + 1e-9 * span.max(1.0)).floor();
+    if !(steps.is_finite() && steps < MAX_SAMPLES as f64) {
+        bail!("--rate {rate} over {} s gives more than {MAX_SAMPLES} samples", end - start);
+    }
+    let steps = steps as usize;
+    let mut times: Vec<f64> = (0..=steps).map(|i| start + i as f64 / rate).collect();
+    let last = times.last_mut().expect("at least one sample");
+    if (end - *last).abs() <= 1e-9 * (end - start).abs().max(1.0) {
+        *last = end;
+    } else {
+        times.push(end);
+    }
+    Ok(times)
+}
+
+/// Builds the curve of `options` from `keyframes` and samples it.
+pub fn sample(keyframes: &Keyframes, options: &Options) -> Result<Sampled> {
+    macro_rules! by_joints {
+        ($($n:literal)*) => {
+            match keyframes.joints {
+                $($n => sample_n::<$n>(keyframes, options),)*
+                n => bail!("{n} joints: armctl trajectory handles 1 to {MAX_JOINTS}"),
+            }
+        };
+    }
+    by_joints!(1 2 3 4 5 6 7 8 9 10 11 12)
+}
+
+type Curve64<const J: usize> = Curve<f64, J, MAX_KEYFRAMES>;
+
+/// The keyframe named by a kinematics error, as a file line.
+fn explain(e: impl std::fmt::Display, index: Option<usize>, keyframes: &Keyframes) -> anyhow::Error {
+    match index.and_then(|i| keyframes.lines.get(i)) {
+        Some(line) => anyhow!("line {line}: {e}"),
+        None => anyhow!("{e}"),
+    }
+}
+
+fn trajectory_error(e: TrajectoryError, keyframes: &Keyframes) -> anyhow::Error {
+    let index = match e {
+        TrajectoryError::TimesNotIncreasing { index } | TrajectoryError::NonFinite { index } => Some(index),
+        _ => None,
+    };
+    explain(e, index, keyframes)
+}
+
+fn vector<const J: usize>(values: &[f64], what: &str) -> Result<SVector<f64, J>> {
+    match values.len() {
+        1 => Ok(SVector::repeat(values[0])),
+        n if n == J => Ok(SVector::from_column_slice(values)),
+        n => bail!("--limits {what}: {n} values for {J} joints (give 1 or {J})"),
+    }
+}
+
+fn build<const J: usize>(k: &Keyframes, options: &Options, frames: &[Keyframe<f64, J>]) -> Result<Box<Curve64<J>>> {
+    let ends = match options.ends {
+        Ends::Zero => EndCondition::ZeroVelocity,
+        Ends::Natural => EndCondition::Natural,
+    };
+    let curve = match options.method {
+        Method::Linear => Curve64::<J>::linear(frames),
+        Method::CatmullRom => Curve64::<J>::catmull_rom(frames, ends),
+        Method::Monotone => Curve64::<J>::monotone(frames),
+        Method::Natural => Curve64::<J>::natural_spline(frames),
+        Method::Hermite => {
+            let Some(velocities) = &k.velocities else {
+                bail!("--method hermite needs velocity columns v1,...,v{} in the keyframe file", k.joints);
+            };
+            let velocities: Vec<SVector<f64, J>> = velocities.iter().map(|v| SVector::from_column_slice(v)).collect();
+            Curve64::<J>::with_velocities(frames, &velocities)
+        }
+        Method::Kb => {
+            let [tension, continuity, bias] = options.tcb;
+            if !options.tcb.iter().all(|x| x.is_finite()) {
+                bail!("--tension, --continuity and --bias must be finite numbers");
+            }
+            Curve64::<J>::kochanek_bartels(frames, KochanekBartels { tension, continuity, bias }, ends)
+        }
+    };
+    curve.map(Box::new).map_err(|e| trajectory_error(e, k))
+}
+
+fn sample_n<const J: usize>(k: &Keyframes, options: &Options) -> Result<Sampled> {
+    let frames: Vec<Keyframe<f64, J>> = k
+        .times
+        .iter()
+        .zip(&k.positions)
+        .map(|(&time, p)| Keyframe { time, position: SVector::from_column_slice(p) })
+        .collect();
+    let mut curve = build::<J>(k, options, &frames)?;
+    let mut retiming = None;
+    if let Some(spec) = &options.limits {
+        let unbounded = |sign: f64| vec![sign * 1e12];
+        let limits = JointLimits::new(
+            vector::<J>(spec.lower.as_ref().unwrap_or(&unbounded(-1.0)), "lo")?,
+            vector::<J>(spec.upper.as_ref().unwrap_or(&unbounded(1.0)), "hi")?,
+            vector::<J>(&spec.velocity, "v")?,
+            vector::<J>(&spec.acceleration, "a")?,
+        )
+        .map_err(|e| match e {
+            LimitError::InvalidLimits { joint } => anyhow!(
+                "--limits: joint {} has unusable limits (need finite values, lo <= hi, v > 0, a > 0)",
+                joint + 1
+            ),
+            e => anyhow!("--limits: {e}"),
+        })?;
+        if let Err(violation) = limits.check(curve.as_ref()) {
+            let cubic = curve.interpolation() == Interpolation::Hermite && curve.arriving() == curve.leaving();
+            if !cubic {
+                bail!(
+                    "the {} trajectory breaks --limits (joint {}: {:?} limit at t = {}) and only a C1 cubic \
+                     (not linear, not kb with --continuity) can be time-scaled",
+                    options.method.name(),
+                    violation.joint + 1,
+                    violation.limit,
+                    violation.time
+                );
+            }
+            let retimed =
+                time_scale::<f64, J, MAX_KEYFRAMES>(&frames, curve.leaving(), &limits).map_err(|e| match e {
+                    LimitError::KeyframeOutOfRange { keyframe, joint, value } => explain(
+                        format_args!("q{} = {value} is outside the --limits position range", joint + 1),
+                        Some(keyframe),
+                        k,
+                    ),
+                    LimitError::Trajectory(e) => trajectory_error(e, k),
+                    e => anyhow!("--limits: {e}"),
+                })?;
+            let old_duration = curve.end() - curve.start();
+            *curve = retimed.curve().map_err(|e| trajectory_error(e, k))?;
+            retiming = Some(Retiming {
+                old_duration,
+                new_duration: curve.end() - curve.start(),
+                max_stretch: retimed.stretch.iter().copied().fold(1.0, f64::max),
+                range_clamped: retimed.range_clamped(),
+            });
+        }
+    }
+    let rows = sample_times(curve.start(), curve.end(), options.rate)?
+        .into_iter()
+        .map(|t| {
+            let s = sample_inside(&curve, t);
+            Row {
+                t,
+                q: s.position.iter().copied().collect(),
+                v: s.velocity.iter().copied().collect(),
+                a: s.acceleration.iter().copied().collect(),
+            }
+        })
+        .collect();
+    Ok(Sampled {
+        method: options.method,
+        joints: J,
+        keyframe_times: curve.times().to_vec(),
+        keyframe_positions: curve.positions().iter().map(|p| p.iter().copied().collect()).collect(),
+        rows,
+        retiming,
+    })
+}
+
+/// `curve.sample(t)`, except at the first and last keyframe, where the curve's own sample is the
+/// hold outside it (zero velocity and acceleration): there the first or last segment's one-sided
+/// values are given, so the rows show the velocity a Hermite curve starts and ends with.
+fn sample_inside<const J: usize>(curve: &Curve64<J>, t: f64) -> kinematics::trajectory::Sample<f64, J> {
+    let n = curve.times().len();
+    let segment = if n < 2 {
+        return curve.sample(t);
+    } else if t <= curve.start() {
+        0
+    } else if t >= curve.end() {
+        n - 2
+    } else {
+        return curve.sample(t);
+    };
+    let s = curve.segment(segment);
+    match curve.interpolation() {
+        Interpolation::Hermite => s.sample(t),
+        _ => {
+            let mut out = curve.sample(t);
+            if curve.interpolation() == Interpolation::Linear {
+                out.velocity = (s.p1 - s.p0) / (s.t1 - s.t0);
+            }
+            out
+        }
+    }
+}
+
+/// Writes `t,q1..qN,v1..vN,a1..aN` and one line per sample.
+pub fn write_csv(out: &mut dyn Write, s: &Sampled) -> Result<()> {
+    let mut header = vec!["t".to_string()];
+    for prefix in ["q", "v", "a"] {
+        header.extend((1..=s.joints).map(|j| format!("{prefix}{j}")));
+    }
+    let mut text = header.join(",");
+    text.push('\n');
+    for row in &s.rows {
+        text.push_str(&row.t.to_string());
+        for x in row.q.iter().chain(&row.v).chain(&row.a) {
+            text.push(',');
+            text.push_str(&x.to_string());
+        }
+        text.push('\n');
+    }
+    out.write_all(text.as_bytes())?;
+    Ok(())
+}
+
+/// The JSON form: method, joints, keyframes and the samples as `{t, q, v, a}` objects.
+pub fn to_json(s: &Sampled) -> Value {
+    let samples: Vec<Value> = s.rows.iter().map(|r| json!({"t": r.t, "q": r.q, "v": r.v, "a": r.a})).collect();
+    let keyframes: Vec<Value> =
+        s.keyframe_times.iter().zip(&s.keyframe_positions).map(|(t, q)| json!({"t": t, "q": q})).collect();
+    json!({
+        "method": s.method.name(),
+        "joints": s.joints,
+        "duration": s.keyframe_times.last().unwrap_or(&0.0) - s.keyframe_times.first().unwrap_or(&0.0),
+        "time_scaled": s.retiming.is_some(),
+        "keyframes": keyframes,
+        "samples": samples,
+    })
+}
+
+/// Runs `armctl trajectory sample`.
+pub fn run_sample(args: &SampleArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+    let limits = args.limits.as_deref().map(parse_limits).transpose()?;
+    if !(args.rate.is_finite() && args.rate > 0.0) {
+        bail!("--rate must be a positive finite number of samples per second");
+    }
+    let keyframes = read_keyframes(&args.keyframes)?;
+    let options = Options {
+        method: args.method,
+        tcb: [args.tension, args.continuity, args.bias],
+        ends: args.ends,
+        rate: args.rate,
+        limits,
+    };
+    let sampled = sample(&keyframes, &options).with_context(|| args.keyframes.display().to_string())?;
+    if let Some(r) = &sampled.retiming {
+        writeln!(
+            err,
+            "note: time-scaled to meet --limits: duration {} s -> {} s (slowest segment x{:.3}{})",
+            r.old_duration,
+            r.new_duration,
+            r.max_stretch,
+            if r.range_clamped { ", velocities reduced to stay inside lo/hi" } else { "" }
+        )?;
+    }
+    if let Some(path) = &args.plot {
+        let title = format!("{} ({})", args.keyframes.display(), args.method.name());
+        plot::draw(path, &sampled, &title).with_context(|| format!("cannot write plot {}", path.display()))?;
+    }
+    if args.json {
+        writeln!(out, "{}", to_json(&sampled))?;
+    } else {
+        write_csv(out, &sampled)?;
+    }
+    Ok(0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_and_names_lines() {
+        let k = parse_keyframes("t,q1,q2\n# c\n0,1,2\n\n1,3,4\n").unwrap();
+        assert_eq!(k.joints, 2);
+        assert_eq!(k.lines, vec![3, 5]);
+        assert!(k.velocities.is_none());
+        let k = parse_keyframes("t,q1,v1\r\n0,1,0\r\n1,2,0\r\n").unwrap();
+        assert_eq!(k.velocities.unwrap(), vec![vec![0.0], vec![0.0]]);
+        let e = parse_keyframes("t,q1\n0,1\n1\n").unwrap_err().to_string();
+        assert!(e.contains("line 3") && e.contains("1 fields"), "{e}");
+        let e = parse_keyframes("t,q1\n0,1\n0,2\n").unwrap_err().to_string();
+        assert!(e.contains("line 3") && e.contains("not later"), "{e}");
+        let e = parse_keyframes("t,q1\n0,1\n1,nan\n").unwrap_err().to_string();
+        assert!(e.contains("line 3, column q1"), "{e}");
+        assert!(parse_keyframes("t,q2\n0,1\n1,1\n").is_err());
+        assert!(parse_keyframes("t,q1,v2\n0,1,1\n1,1,1\n").is_err());
+    }
+
+    #[test]
+    fn sample_times_include_both_ends() {
+        assert_eq!(sample_times(0.0, 1.0, 4.0).unwrap(), vec![0.0, 0.25, 0.5, 0.75, 1.0]);
+        assert_eq!(sample_times(0.0, 0.3, 10.0).unwrap().len(), 4);
+        assert_eq!(sample_times(0.0, 1.05, 10.0).unwrap().last(), Some(&1.05));
+    }
+
+    #[test]
+    fn limits_syntax() {
+        let l = parse_limits("v=1.5,a=4:5,lo=-1").unwrap();
+        assert_eq!(l.velocity, vec![1.5]);
+        assert_eq!(l.acceleration, vec![4.0, 5.0]);
+        assert_eq!(l.lower, Some(vec![-1.0]));
+        assert!(parse_limits("v=1").is_err());
+        assert!(parse_limits("v=1,a=2,x=3").is_err());
+    }
+}
