@@ -30,10 +30,7 @@ pub struct Protocol {
 impl Protocol {
     /// Position and orientation tolerances: 1e-5 m and rad in f64; 1e-4 m and 1e-3 rad in f32.
     pub fn tolerances(&self) -> (f64, f64) {
-        match self.scalar {
-            Scalar::F64 => (1e-5, 1e-5),
-            Scalar::F32 => (1e-4, 1e-3),
-        }
+        self.scalar.default_tolerances()
     }
 }
 

@@ -144,8 +144,8 @@ where
                 return 0;
             }
             if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
-                // `armctl` alone: the help is the answer, but it is still not a command.
-                let _ = write!(err, "{}", e.render());
+                // `armctl` or `armctl bench` alone: say so in one line, like every other error.
+                let _ = writeln!(err, "error: a command is missing (see armctl --help)");
                 return 2;
             }
             // clap's own rendering spans several lines; its first paragraph (joined into one line
@@ -158,6 +158,8 @@ where
     };
     match run(cli.command, out, err) {
         Ok(code) => code,
+        // The reader closed the pipe (`armctl ... | head`): it has what it wanted.
+        Err(e) if e.downcast_ref::<std::io::Error>().is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe) => 0,
         Err(e) => {
             let _ = writeln!(err, "error: {e:#}");
             1
@@ -243,10 +245,7 @@ fn print_json(out: &mut dyn Write, v: &Value) -> Result<()> {
 }
 
 fn config(args: &IkArgs) -> Result<IkConfig<f64>> {
-    let (p, o) = match args.scalar {
-        Scalar::F64 => (1e-5, 1e-5),
-        Scalar::F32 => (1e-4, 1e-3),
-    };
+    let (p, o) = args.scalar.default_tolerances();
     let config = IkConfig {
         position_tolerance: args.position_tolerance.unwrap_or(p),
         orientation_tolerance: args.orientation_tolerance.unwrap_or(o),
@@ -274,9 +273,21 @@ fn outcome_json(outcome: &IkOutcome, position_only: bool) -> Value {
         "orientation_error": if position_only { Value::Null } else { json!(outcome.orientation_error) },
     });
     if let IkStatus::InvalidInput(reason) = outcome.status {
+        // Nothing was solved, so there are no errors to report.
         v["reason"] = json!(reason.to_string());
+        v["position_error"] = Value::Null;
+        v["orientation_error"] = Value::Null;
     }
     v
+}
+
+/// The one-line complaint for an outcome the solver refused (input that passed the f64 checks
+/// here but not the solver's, e.g. a value that overflows f32), or `None`.
+fn refusal(outcome: &IkOutcome, scalar: Scalar) -> Option<String> {
+    match outcome.status {
+        IkStatus::InvalidInput(reason) => Some(format!("the solver refused the input in {scalar:?}: {reason}")),
+        _ => None,
+    }
 }
 
 fn ik(args: &IkArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
@@ -297,6 +308,10 @@ fn ik(args: &IkArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
         let seed = args.seed.as_deref().map(|s| parse::numbers(s, "--seed")).transpose()?;
         let outcome = arm.solve(&request(position, quat, seed))?;
         print_json(out, &outcome_json(&outcome, quat.is_none()))?;
+        if let Some(complaint) = refusal(&outcome, args.scalar) {
+            writeln!(err, "error: {complaint}")?;
+            return Ok(1);
+        }
         return Ok(0);
     };
 
@@ -319,11 +334,19 @@ fn ik(args: &IkArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
             .and_then(|t| arm.solve(&request(t.position, t.quaternion_wxyz, t.seed)).map(|o| (o, t.quaternion_wxyz)));
         match result {
             Ok((outcome, quat)) => {
-                times.push(outcome.solve_time);
-                solved += usize::from(outcome.status == IkStatus::Converged);
                 let mut v = outcome_json(&outcome, quat.is_none());
                 v["line"] = json!(line_number);
                 print_json(out, &v)?;
+                match refusal(&outcome, args.scalar) {
+                    Some(complaint) => {
+                        rejected += 1;
+                        writeln!(err, "error: {batch}: line {line_number}: {complaint}")?;
+                    }
+                    None => {
+                        times.push(outcome.solve_time);
+                        solved += usize::from(outcome.status == IkStatus::Converged);
+                    }
+                }
             }
             Err(e) => {
                 rejected += 1;

@@ -27,6 +27,26 @@ pub enum Scalar {
     F64,
 }
 
+impl Scalar {
+    /// The default position (m) and orientation (rad) tolerances of the solver in this scalar.
+    pub fn default_tolerances(self) -> (f64, f64) {
+        match self {
+            Scalar::F64 => {
+                let c = IkConfig::<f64>::default();
+                (c.position_tolerance, c.orientation_tolerance)
+            }
+            Scalar::F32 => {
+                let c = IkConfig::<f32>::default();
+                (f64::from(c.position_tolerance), f64::from(c.orientation_tolerance))
+            }
+        }
+    }
+}
+
+/// How far from 1 a typed quaternion's norm may be (four printed decimals) before it counts as a
+/// mistake rather than rounding; within it the quaternion is normalised.
+pub const QUATERNION_NORM_TOLERANCE: f64 = 1e-3;
+
 /// The IK methods by name.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum SolverName {
@@ -166,8 +186,14 @@ fn solve_in<T: Real, const N: usize>(
     let position = request.position.map(T::of);
     let target = match request.quaternion_wxyz {
         None => Target::Position(position.into()),
-        Some(quat) => Target::pose_wxyz(position, quat.map(T::of))
-            .ok_or_else(|| anyhow!("the target quaternion must be finite and non-zero"))?,
+        Some(quat) => {
+            let norm = quat.iter().map(|v| v * v).sum::<f64>().sqrt();
+            if (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE || norm.is_nan() {
+                bail!("the target quaternion w,x,y,z is not a unit quaternion (norm {norm})");
+            }
+            Target::pose_wxyz(position, quat.map(T::of))
+                .ok_or_else(|| anyhow!("the target quaternion must be finite and non-zero"))?
+        }
     };
     let c = &request.config;
     let config = IkConfig {

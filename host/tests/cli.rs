@@ -271,6 +271,13 @@ fn errors_are_one_line_on_stderr() {
         (vec!["ik", "--arm", "ur5e", "--target", "0,0,0", "--batch", "-"], vec!["--batch"]),
         (vec!["ik", "--arm", "ur5e", "--target", "0,0,0", "--solver", "magic"], vec!["magic"]),
         (vec!["bench", "ik", "--arm", "ur5e", "--n", "0"], vec!["--n"]),
+        (vec!["fk", "--arm", "ur5e", "--tip", "tool0", "--q", "0,0,0,0,0,0"], vec!["--tip", ".urdf"]),
+        (
+            vec!["ik", "--arm", "ur5e", "--target", "0.3,0.1,0.4", "--quat", "0,2,0,0"],
+            vec!["unit quaternion", "norm 2"],
+        ),
+        (vec![], vec!["command is missing"]),
+        (vec!["bench"], vec!["command is missing"]),
     ];
     for (args, needles) in &cases {
         assert_fails(args, needles);
@@ -403,4 +410,22 @@ fn bench_ik_with_k() {
     assert!(solvers[0]["success_percent"].as_f64().unwrap() >= 95.0, "{v}");
     assert!(solvers[1]["solver"].as_str().unwrap().starts_with('k'), "{v}");
     assert_eq!(run.stderr.lines().count(), 2, "{}", run.stderr);
+}
+
+/// A value that is finite in f64 but overflows f32 passes the host's checks and is refused by the
+/// f32 solver: the JSON says invalid_input with its reason and no errors, stderr has one line, and
+/// the exit code is 1.
+#[test]
+fn f32_overflow_is_refused_with_an_error() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_armctl"))
+        .args(["ik", "--arm", "ur5e", "--target", "1e39,0,0", "--scalar", "f32"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["status"], "invalid_input", "{v}");
+    assert!(v["position_error"].is_null() && v["reason"].as_str().unwrap().contains("NaN or infinity"), "{v}");
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.starts_with("error: ") && stderr.contains("F32"), "{stderr}");
 }

@@ -161,7 +161,10 @@ fn clamp<T: Real>(q: T, l: Limits<T>) -> T {
 pub fn wrap_angle<T: Real>(q: T) -> T {
     let two_pi = T::two_pi();
     let pi = T::pi();
-    let mut w = q - two_pi * ((q + pi) / two_pi).floor();
+    // `%` is exact (IEEE fmod), so even a huge angle keeps its true remainder; the floor form alone
+    // would lose it to rounding in `q / two_pi` beyond about 1e16.
+    let r = q % two_pi;
+    let mut w = r - two_pi * ((r + pi) / two_pi).floor();
     // floor puts -pi exactly at -pi; map it to +pi so the interval is half-open at the bottom.
     if w <= -pi {
         w += two_pi;

@@ -16,7 +16,7 @@
 //! assert_eq!(solution.status, IkStatus::Converged);
 //! assert!(solution.position_error <= 1e-5);
 //! ```
-#![cfg_attr(not(any(test, feature = "std")), no_std)]
+#![cfg_attr(not(test), no_std)]
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
 

@@ -96,6 +96,9 @@ impl ArmSpec {
         let path = Path::new(arm);
         let extension = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
         match extension.as_deref() {
+            _ if tip.is_some() && extension.as_deref() != Some("urdf") => {
+                bail!("--tip applies only to .urdf arms, not to {arm}")
+            }
             Some("urdf") => {
                 let text = std::fs::read_to_string(path).with_context(|| format!("cannot read URDF {arm}"))?;
                 urdf::parse(&text, tip).with_context(|| format!("URDF {arm}"))

@@ -31,7 +31,7 @@ struct UrdfJoint<'a> {
     child: &'a str,
     origin: Pose<f64>,
     axis: [f64; 3],
-    /// `(lower, upper)` from `<limit>`, where the element and both attributes are present.
+    /// `(lower, upper)` from `<limit>` where the element is present (a missing attribute is 0).
     limits: Option<(f64, f64)>,
 }
 
@@ -225,14 +225,13 @@ fn read_joint<'a>(node: Node<'a, 'a>, line: u32) -> Result<UrdfJoint<'a>> {
     let limits = match child(node, "limit") {
         None => None,
         Some(l) => {
-            let lower = scalar(l, "lower", name, at(l))?;
-            let upper = scalar(l, "upper", name, at(l))?;
-            if let (Some(lower), Some(upper)) = (lower, upper) {
-                if lower > upper {
-                    bail!("line {}: joint {name}: <limit> lower {lower} is above upper {upper}", at(l));
-                }
+            // URDF specification: a missing lower or upper attribute of <limit> defaults to 0.
+            let lower = scalar(l, "lower", name, at(l))?.unwrap_or(0.0);
+            let upper = scalar(l, "upper", name, at(l))?.unwrap_or(0.0);
+            if lower > upper {
+                bail!("line {}: joint {name}: <limit> lower {lower} is above upper {upper}", at(l));
             }
-            lower.zip(upper)
+            Some((lower, upper))
         }
     };
     if matches!(kind, UrdfKind::Moving(JointKind::Revolute | JointKind::Prismatic)) && limits.is_none() {
@@ -428,7 +427,7 @@ mod tests {
             ("<robot name='r'><link name='a'>".into(), None, "not well-formed XML"),
             ("<root/>".into(), None, "not <robot>"),
             (revolute(r#"type="revolute""#, ""), None, "joint j1 is revolute and needs <limit"),
-            (revolute(r#"type="prismatic""#, r#"<limit lower="0"/>"#), None, "joint j1 is prismatic and needs <limit"),
+            (revolute(r#"type="prismatic""#, r#"<limit lower="1"/>"#), None, "lower 1 is above upper 0"),
             (revolute(r#"type="hinge""#, ""), None, "joint j1 has unknown type \"hinge\""),
             (revolute("", ""), None, "joint j1 has no type attribute"),
             (revolute(r#"type="floating""#, ""), Some("b"), "joint j1 is floating"),

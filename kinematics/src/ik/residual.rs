@@ -86,6 +86,7 @@ impl<T: Real> Residual<T> {
         frames: &Frames<T, N>,
         e: &ErrorTerms<T>,
     ) -> (SMatrix<T, M, N>, SVector<T, M>) {
+        const { assert!(M == 3 || M == 6, "a task has 3 (position) or 6 (pose) rows") };
         let j6 = chain.jacobian_of(frames);
         let j = SMatrix::<T, M, N>::from_fn(|r, c| if r < 3 { j6[(r, c)] } else { j6[(r, c)] * self.weight });
         let v = SVector::<T, M>::from_fn(|r, _| e.vector[r]);
