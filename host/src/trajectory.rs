@@ -356,7 +356,20 @@ fn vector<const J: usize>(values: &[f64], what: &str) -> Result<SVector<f64, J>>
     }
 }
 
+/// Refuses options the chosen method would ignore, so nothing the user gave is dropped silently
+/// (velocity columns are only noted, see `run_sample`: one file is often sampled by several methods).
+fn check_unused(options: &Options) -> Result<()> {
+    if options.tcb != [0.0; 3] && options.method != Method::Kb {
+        bail!("--tension, --continuity and --bias apply only to --method kb");
+    }
+    if options.ends != Ends::Zero && !matches!(options.method, Method::CatmullRom | Method::Kb) {
+        bail!("--ends applies only to --method catmull-rom and kb");
+    }
+    Ok(())
+}
+
 fn build<const J: usize>(k: &Keyframes, options: &Options, frames: &[Keyframe<f64, J>]) -> Result<Box<Curve64<J>>> {
+    check_unused(options)?;
     let ends = match options.ends {
         Ends::Zero => EndCondition::ZeroVelocity,
         Ends::Natural => EndCondition::Natural,
@@ -531,6 +544,9 @@ pub fn run_sample(args: &SampleArgs, out: &mut dyn Write, err: &mut dyn Write) -
         bail!("--rate must be a positive finite number of samples per second");
     }
     let keyframes = read_keyframes(&args.keyframes)?;
+    if keyframes.velocities.is_some() && args.method != Method::Hermite {
+        writeln!(err, "note: --method {} ignores the velocity columns (only hermite uses them)", args.method.name())?;
+    }
     let options = Options {
         method: args.method,
         tcb: [args.tension, args.continuity, args.bias],

@@ -42,7 +42,8 @@ fn sample(path: &Path, extra: &[&str]) -> Run {
 /// Parsed CSV output: header and rows of numbers.
 fn csv(run: &Run) -> (Vec<String>, Vec<Vec<f64>>) {
     assert_eq!(run.code, 0, "stderr: {}", run.stderr);
-    assert!(run.stderr.is_empty(), "unexpected stderr: {}", run.stderr);
+    // Only notes (such as velocity columns a method does not use) may appear on stderr.
+    assert!(run.stderr.lines().all(|l| l.starts_with("note: ")), "unexpected stderr: {}", run.stderr);
     let mut lines = run.stdout.lines();
     let header = lines.next().expect("header").split(',').map(String::from).collect::<Vec<_>>();
     let rows: Vec<Vec<f64>> =
@@ -56,8 +57,9 @@ fn csv(run: &Run) -> (Vec<String>, Vec<Vec<f64>>) {
 fn assert_fails(run: &Run, needles: &[&str]) {
     assert_ne!(run.code, 0, "expected failure; stdout: {}", run.stdout);
     assert!(run.stdout.is_empty(), "stdout on failure: {}", run.stdout);
-    let lines: Vec<&str> = run.stderr.lines().collect();
-    assert_eq!(lines.len(), 1, "expected one stderr line: {:?}", run.stderr);
+    // One error line; notes about ignored input may come before it.
+    let lines: Vec<&str> = run.stderr.lines().filter(|l| !l.starts_with("note: ")).collect();
+    assert_eq!(lines.len(), 1, "expected one stderr line besides notes: {:?}", run.stderr);
     assert!(lines[0].starts_with("error:"), "{}", lines[0]);
     for needle in needles {
         assert!(lines[0].contains(needle), "{:?} not in {:?}", needle, lines[0]);
@@ -238,4 +240,15 @@ fn example_files_work() {
         "50",
     ]));
     assert_eq!(rows.len(), 201);
+}
+
+#[test]
+fn options_a_method_would_ignore_are_refused_or_noted() {
+    let path = file("ignored.csv", WITH_VELOCITIES);
+    let run = sample(&path, &["--method", "catmull-rom"]);
+    assert_eq!(run.code, 0, "{}", run.stderr);
+    assert_eq!(run.stderr.trim(), "note: --method catmull-rom ignores the velocity columns (only hermite uses them)");
+    assert!(sample(&path, &["--method", "hermite"]).stderr.is_empty());
+    assert_fails(&sample(&path, &["--method", "natural", "--tension", "0.5"]), &["--tension", "kb"]);
+    assert_fails(&sample(&path, &["--method", "monotone", "--ends", "natural"]), &["--ends"]);
 }

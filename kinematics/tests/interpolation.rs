@@ -559,3 +559,25 @@ proptest! {
         let _ = bspline_sample(&positions, 0.0, 1.0, t);
     }
 }
+
+/// Keyframes 1e-200 s apart: h^2 underflows, so velocity and acceleration could not be finite; the
+/// keyframes are refused rather than producing NaN samples. Segment indices past the end are safe.
+#[test]
+fn unusably_short_intervals_are_refused_and_segment_indices_are_total() {
+    use kinematics::nalgebra::SVector;
+    use kinematics::trajectory::{Curve, Keyframe, TrajectoryError};
+    let keys = [
+        Keyframe { time: 0.0, position: SVector::<f64, 1>::from([0.0]) },
+        Keyframe { time: 1e-200, position: SVector::<f64, 1>::from([1.0]) },
+    ];
+    let refused = Err(TrajectoryError::TimesNotIncreasing { index: 1 });
+    assert_eq!(Curve::<f64, 1, 4>::monotone(&keys).map(|_| ()), refused);
+    assert_eq!(Curve::<f64, 1, 4>::linear(&keys).map(|_| ()), refused);
+    assert_eq!(Curve::<f64, 1, 4>::natural_spline(&keys).map(|_| ()), refused);
+    let one = Curve::<f64, 1, 4>::linear(&keys[..1]).unwrap();
+    let s = one.segment(5).sample(0.5);
+    assert_eq!((s.position[0], s.velocity[0], s.acceleration[0]), (0.0, 0.0, 0.0));
+    let keys = [keys[0], Keyframe { time: 1.0, position: SVector::from([1.0]) }];
+    let two = Curve::<f64, 1, 4>::catmull_rom(&keys, kinematics::trajectory::EndCondition::ZeroVelocity).unwrap();
+    assert_eq!(two.segment(7), two.segment(0));
+}

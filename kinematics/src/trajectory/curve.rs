@@ -29,7 +29,8 @@ pub enum TrajectoryError {
         /// The capacity.
         capacity: usize,
     },
-    /// Keyframe `index` is not later than the one before it.
+    /// Keyframe `index` is not later than the one before it, or so little later that the
+    /// interval's square underflows (the curve's acceleration would not be finite).
     TimesNotIncreasing {
         /// Offending keyframe.
         index: usize,
@@ -49,7 +50,7 @@ impl core::fmt::Display for TrajectoryError {
             TrajectoryError::Empty => write!(f, "no keyframes"),
             TrajectoryError::TooMany { capacity } => write!(f, "more than {capacity} keyframes"),
             TrajectoryError::TimesNotIncreasing { index } => {
-                write!(f, "keyframe {index}: time is not later than the previous keyframe's")
+                write!(f, "keyframe {index}: time is not later than the previous keyframe's by a usable interval")
             }
             TrajectoryError::NonFinite { index } => write!(f, "keyframe {index}: NaN or infinite value"),
             TrajectoryError::VelocityCount => write!(f, "need exactly one velocity per keyframe"),
@@ -137,7 +138,7 @@ impl<T: Real, const J: usize, const K: usize> Curve<T, J, K> {
             if !(k.time.finite() && finite(&k.position) && finite(&arriving[index]) && finite(&leaving[index])) {
                 return Err(TrajectoryError::NonFinite { index });
             }
-            if index > 0 && k.time <= keyframes[index - 1].time {
+            if index > 0 && !usable_interval(keyframes[index - 1].time, k.time) {
                 return Err(TrajectoryError::TimesNotIncreasing { index });
             }
             // Capacity was checked above, so these pushes cannot fail.
@@ -194,10 +195,18 @@ impl<T: Real, const J: usize, const K: usize> Curve<T, J, K> {
         after.saturating_sub(1).min(n - 2)
     }
 
-    /// Segment `i` (between keyframes i and i + 1) as a Hermite segment. `i` must be a valid
-    /// segment index (below `times().len() - 1`); a stepped or linear curve's segment is the
-    /// Hermite form of its rule only for evaluation through [`Curve::sample`].
+    /// Segment `i` (between keyframes i and i + 1) as a Hermite segment with the stored
+    /// velocities (for a stepped or linear curve, use [`Curve::sample`], which applies its rule).
+    /// An index past the last segment gives the last segment; a one-keyframe curve gives a
+    /// one-second hold at its keyframe.
     pub fn segment(&self, i: usize) -> HermiteSegment<T, J> {
+        let n = self.times.len();
+        if n < 2 {
+            let p = self.positions[0];
+            let t0 = self.times[0];
+            return HermiteSegment { t0, t1: t0 + T::one(), p0: p, v0: SVector::zeros(), p1: p, v1: SVector::zeros() };
+        }
+        let i = i.min(n - 2);
         HermiteSegment {
             t0: self.times[i],
             t1: self.times[i + 1],
@@ -233,4 +242,11 @@ impl<T: Real, const J: usize, const K: usize> Curve<T, J, K> {
             Interpolation::Hermite => self.segment(i).sample(t),
         }
     }
+}
+
+/// True if `t` is later than `previous` by an interval whose square is a normal positive number,
+/// so that a segment's velocity and acceleration (divided by `h` and `h^2`) stay finite.
+pub(super) fn usable_interval<T: Real>(previous: T, t: T) -> bool {
+    let h = t - previous;
+    h > T::zero() && (T::one() / (h * h)).finite()
 }

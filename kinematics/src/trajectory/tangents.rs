@@ -10,6 +10,7 @@
 //! computed, and every index stays below the checked length. A finite input whose velocities
 //! overflow is refused as [`TrajectoryError::NonFinite`].
 
+use super::curve::usable_interval;
 use super::{Curve, Keyframe, TrajectoryError};
 use crate::Real;
 use nalgebra::SVector;
@@ -60,7 +61,7 @@ pub(super) fn check<T: Real, const J: usize, const K: usize>(
         if !(k.time.finite() && k.position.iter().all(|x| x.finite())) {
             return Err(TrajectoryError::NonFinite { index });
         }
-        if previous.is_some_and(|p| k.time <= p) {
+        if previous.is_some_and(|p| !usable_interval(p, k.time)) {
             return Err(TrajectoryError::TimesNotIncreasing { index });
         }
         previous = Some(k.time);
