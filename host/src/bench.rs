@@ -93,18 +93,41 @@ impl Tally {
 
     fn figures(mut self) -> SolverFigures {
         let targets = self.times.len();
-        self.times.sort_unstable();
-        let us = |d: Duration| d.as_secs_f64() * 1e6;
-        let mean_us = self.times.iter().map(|d| us(*d)).sum::<f64>() / targets.max(1) as f64;
+        let times = SolveTimes::of(&mut self.times);
         SolverFigures {
             solver: self.solver,
             solved: self.solved,
             targets,
             success_percent: 100.0 * self.solved as f64 / targets.max(1) as f64,
-            mean_us,
-            median_us: percentile(&self.times, 0.5).map_or(0.0, us),
-            p99_us: percentile(&self.times, 0.99).map_or(0.0, us),
+            mean_us: times.mean_us,
+            median_us: times.median_us,
+            p99_us: times.p99_us,
             false_claims: self.false_claims,
+        }
+    }
+}
+
+/// Mean, median and 99th percentile of solve times, in microseconds (0 when there are none): the
+/// figures both `bench ik` and `ik --batch` report.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SolveTimes {
+    /// Mean (failures included).
+    pub mean_us: f64,
+    /// Median.
+    pub median_us: f64,
+    /// 99th percentile (nearest rank).
+    pub p99_us: f64,
+}
+
+impl SolveTimes {
+    /// The figures of `times` (sorted in place).
+    pub fn of(times: &mut [Duration]) -> Self {
+        times.sort_unstable();
+        let us = |d: Duration| d.as_secs_f64() * 1e6;
+        Self {
+            mean_us: times.iter().map(|d| us(*d)).sum::<f64>() / times.len().max(1) as f64,
+            median_us: percentile(times, 0.5).map_or(0.0, us),
+            p99_us: percentile(times, 0.99).map_or(0.0, us),
         }
     }
 }

@@ -357,9 +357,7 @@ fn ik(args: &IkArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
         }
     }
     let total = times.len() + rejected;
-    times.sort_unstable();
-    let mean = times.iter().map(|d| d.as_secs_f64()).sum::<f64>() / times.len().max(1) as f64 * 1e6;
-    let p99 = bench::percentile(&times, 0.99).map_or(0.0, |d| d.as_secs_f64() * 1e6);
+    let bench::SolveTimes { mean_us: mean, p99_us: p99, .. } = bench::SolveTimes::of(&mut times);
     writeln!(
         err,
         "{}: {solved}/{total} converged ({:.2}%), {rejected} rejected lines; mean {mean:.2} us, p99 {p99:.2} us per solve",
