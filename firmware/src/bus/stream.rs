@@ -1,0 +1,232 @@
+//! A streaming frame decoder: bytes arrive from a UART one at a time or in bursts, with line noise,
+//! bytes lost mid-packet and packets cut short; complete, checksum-valid frames come out.
+//!
+//! The decoder keeps at most `CAP` bytes. It looks for a header, asks the codec how long the frame
+//! is ([`Protocol::frame_len`]), and when all of it is there checks the checksum. Whatever cannot
+//! be a frame is dropped one byte at a time and the rest rescanned, so a header hidden in the
+//! bytes of a broken packet is still found: after garbage, a partial packet or a bad checksum the
+//! decoder is back in step at the next intact packet. A length field promising more than `CAP`
+//! bytes is treated the same way. Every dropped candidate is counted in [`DecoderStats`].
+
+use super::{FrameLen, Protocol};
+
+/// What the decoder has seen, for error reports and link statistics.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DecoderStats {
+    /// Frames delivered.
+    pub frames: u32,
+    /// Complete frames dropped for a bad checksum.
+    pub bad_checksums: u32,
+    /// Bytes dropped because no frame could start there.
+    pub garbage_bytes: u32,
+    /// Frames dropped because their length field exceeds the buffer.
+    pub oversized: u32,
+    /// Partial frames dropped by [`StreamDecoder::expire`].
+    pub expired: u32,
+    /// Bytes refused because the buffer was full of frames not taken.
+    pub overflow: u32,
+}
+
+/// A bounded streaming decoder for one protocol.
+#[derive(Clone, Debug)]
+pub struct StreamDecoder<const CAP: usize> {
+    protocol: Protocol,
+    buf: [u8; CAP],
+    len: usize,
+    /// Bytes of the frame last returned, dropped at the next call (the frame borrows them).
+    delivered: usize,
+    stats: DecoderStats,
+}
+
+impl<const CAP: usize> StreamDecoder<CAP> {
+    /// An empty decoder.
+    pub const fn new(protocol: Protocol) -> Self {
+        Self {
+            protocol,
+            buf: [0; CAP],
+            len: 0,
+            delivered: 0,
+            stats: DecoderStats {
+                frames: 0,
+                bad_checksums: 0,
+                garbage_bytes: 0,
+                oversized: 0,
+                expired: 0,
+                overflow: 0,
+            },
+        }
+    }
+
+    /// The protocol decoded.
+    pub fn protocol(&self) -> Protocol {
+        self.protocol
+    }
+
+    /// Counters since creation.
+    pub fn stats(&self) -> DecoderStats {
+        self.stats
+    }
+
+    /// Bytes held (a partial frame, or frames not yet taken).
+    pub fn buffered(&self) -> usize {
+        self.len - self.delivered
+    }
+
+    /// Forgets every buffered byte (e.g. before a new transaction: nothing before it belongs to it).
+    pub fn clear(&mut self) {
+        self.len = 0;
+        self.delivered = 0;
+    }
+
+    /// Drops a partial frame: call when the line has been idle for longer than the protocol allows
+    /// between the bytes of one packet, which proves the rest was lost.
+    pub fn expire(&mut self) {
+        self.release();
+        if self.len > 0 {
+            self.stats.expired += 1;
+        }
+        self.len = 0;
+    }
+
+    fn release(&mut self) {
+        if self.delivered > 0 {
+            self.drop_front(self.delivered);
+            self.delivered = 0;
+        }
+    }
+
+    fn drop_front(&mut self, n: usize) {
+        let n = n.min(self.len);
+        self.buf.copy_within(n..self.len, 0);
+        self.len -= n;
+    }
+
+    /// Appends as many of `bytes` as fit; returns how many were taken. Fewer than all means the
+    /// buffer is full of complete frames: take them with [`StreamDecoder::next_frame`] and append
+    /// the rest. After `next_frame` returns `None` there is always room for one more byte.
+    pub fn extend(&mut self, bytes: &[u8]) -> usize {
+        self.release();
+        let n = bytes.len().min(CAP - self.len);
+        self.buf[self.len..self.len + n].copy_from_slice(&bytes[..n]);
+        self.len += n;
+        n
+    }
+
+    /// Appends one byte and returns the frame it completes, if any. Used alone, `push` always has
+    /// room (each call takes out what completes); a byte that finds the buffer full because
+    /// [`StreamDecoder::extend`] filled it without draining is counted in `overflow`.
+    pub fn push(&mut self, byte: u8) -> Option<&mut [u8]> {
+        if self.extend(&[byte]) == 0 {
+            self.stats.overflow += 1;
+        }
+        self.next_frame()
+    }
+
+    /// The next complete frame with a valid checksum among the buffered bytes, if there is one.
+    /// The frame stays valid until the next call on the decoder; parse it with the codec.
+    pub fn next_frame(&mut self) -> Option<&mut [u8]> {
+        self.release();
+        let n = self.next_frame_len()?;
+        self.buf.get_mut(..n)
+    }
+
+    /// Scans for a frame; on success marks its bytes as delivered and returns its length.
+    fn next_frame_len(&mut self) -> Option<usize> {
+        loop {
+            // Skip to the first byte that can start a header (both protocols start with 0xFF).
+            let start = self.buf[..self.len].iter().position(|&b| b == 0xFF).unwrap_or(self.len);
+            if start > 0 {
+                self.stats.garbage_bytes += start as u32;
+                self.drop_front(start);
+            }
+            if self.len == 0 {
+                return None;
+            }
+            match self.protocol.frame_len(&self.buf[..self.len]) {
+                FrameLen::NotAFrame => {
+                    self.stats.garbage_bytes += 1;
+                    self.drop_front(1);
+                }
+                FrameLen::NeedMore(n) if n > CAP => {
+                    self.stats.oversized += 1;
+                    self.drop_front(1);
+                }
+                FrameLen::NeedMore(_) => return None,
+                FrameLen::Complete(n) => match self.protocol.verify(&self.buf[..n.min(self.len)]) {
+                    Ok(()) => {
+                        self.stats.frames += 1;
+                        self.delivered = n.min(self.len);
+                        return Some(self.delivered);
+                    }
+                    Err(_) => {
+                        self.stats.bad_checksums += 1;
+                        self.drop_front(1);
+                    }
+                },
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const PING: [u8; 10] = [0xFF, 0xFF, 0xFD, 0x00, 0x01, 0x03, 0x00, 0x01, 0x19, 0x4E];
+    const STATUS: [u8; 14] = [0xFF, 0xFF, 0xFD, 0x00, 0x01, 0x07, 0x00, 0x55, 0x00, 0x06, 0x04, 0x26, 0x65, 0x5D];
+
+    fn frames(decoder: &mut StreamDecoder<64>, bytes: &[u8]) -> Vec<Vec<u8>> {
+        let mut out = Vec::new();
+        for &b in bytes {
+            if let Some(f) = decoder.push(b) {
+                out.push(f.to_vec());
+            }
+        }
+        while let Some(f) = decoder.next_frame() {
+            out.push(f.to_vec());
+        }
+        out
+    }
+
+    #[test]
+    fn byte_by_byte_and_in_a_burst() {
+        let mut d = StreamDecoder::<64>::new(Protocol::Dxl2);
+        let stream = [&PING[..], &STATUS[..]].concat();
+        assert_eq!(frames(&mut d, &stream), [PING.to_vec(), STATUS.to_vec()]);
+        let mut d = StreamDecoder::<64>::new(Protocol::Dxl2);
+        assert_eq!(d.extend(&stream), stream.len());
+        assert_eq!(d.next_frame().map(|f| f.to_vec()), Some(PING.to_vec()));
+        assert_eq!(d.next_frame().map(|f| f.to_vec()), Some(STATUS.to_vec()));
+        assert_eq!(d.next_frame(), None);
+    }
+
+    #[test]
+    fn resynchronises_after_garbage_partial_packets_and_bad_checksums() {
+        let mut d = StreamDecoder::<64>::new(Protocol::Dxl2);
+        let mut corrupt = STATUS;
+        corrupt[9] ^= 0x10;
+        let stream = [&[0x00, 0xFF, 0x13, 0xFF, 0xFF][..], &PING[..6], &corrupt[..], &PING[..], &STATUS[..]].concat();
+        assert_eq!(frames(&mut d, &stream), [PING.to_vec(), STATUS.to_vec()]);
+        let stats = d.stats();
+        assert_eq!(stats.frames, 2);
+        assert!(stats.bad_checksums >= 1, "{stats:?}");
+    }
+
+    #[test]
+    fn oversized_length_fields_are_dropped_without_waiting() {
+        // A header announcing 0xFFF0 bytes can never fit 64: the decoder moves on at once.
+        let mut d = StreamDecoder::<64>::new(Protocol::Dxl2);
+        let stream = [&[0xFF, 0xFF, 0xFD, 0x00, 0x01, 0xF0, 0xFF][..], &PING[..]].concat();
+        assert_eq!(frames(&mut d, &stream), [PING.to_vec()]);
+        assert_eq!(d.stats().oversized, 1);
+    }
+
+    #[test]
+    fn expire_drops_a_partial_frame() {
+        let mut d = StreamDecoder::<64>::new(Protocol::Feetech);
+        assert_eq!(frames(&mut d, &[0xFF, 0xFF, 0x01, 0x02]), Vec::<Vec<u8>>::new());
+        d.expire();
+        assert_eq!(d.stats().expired, 1);
+        assert_eq!(frames(&mut d, &[0xFF, 0xFF, 0x01, 0x02, 0x01, 0xFB]), [vec![0xFF, 0xFF, 0x01, 0x02, 0x01, 0xFB]]);
+    }
+}

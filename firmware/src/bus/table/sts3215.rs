@@ -1,0 +1,108 @@
+//! Feetech STS3215 (SO-100/SO-101 arms), from the Feetech STS memory table as LeRobot's
+//! `tables.py` transcribes it. Multi-byte items are little-endian; positions and velocities carry
+//! their sign in bit 15.
+
+use super::{Access::*, Encoding::*, Item, Items, Model};
+use crate::bus::feetech::value::Endian;
+use crate::bus::Protocol;
+
+/// Firmware major version.
+pub const FIRMWARE_MAJOR_VERSION: Item = Item::new("firmware_major_version", 0, 1, Read, Unsigned);
+/// Firmware minor version.
+pub const FIRMWARE_MINOR_VERSION: Item = Item::new("firmware_minor_version", 1, 1, Read, Unsigned);
+/// Model number (777 for the STS3215).
+pub const MODEL_NUMBER: Item = Item::new("model_number", 3, 2, Read, Unsigned);
+/// Bus id, 0..=253.
+pub const ID: Item = Item::new("id", 5, 1, ReadWrite, Unsigned);
+/// Baud rate index: 0 1M, 1 500k, 2 250k, 3 128k, 4 115200, 5 76800, 6 57600, 7 38400.
+pub const BAUD_RATE: Item = Item::new("baud_rate", 6, 1, ReadWrite, Unsigned);
+/// Return delay in 2 µs units (factory 0).
+pub const RETURN_DELAY_TIME: Item = Item::new("return_delay_time", 7, 1, ReadWrite, Unsigned);
+/// Response status level: 0 replies only to ping and read, 1 to everything.
+pub const RESPONSE_STATUS_LEVEL: Item = Item::new("response_status_level", 8, 1, ReadWrite, Unsigned);
+/// Lower position limit in steps.
+pub const MIN_POSITION_LIMIT: Item = Item::new("min_position_limit", 9, 2, ReadWrite, Unsigned);
+/// Upper position limit in steps.
+pub const MAX_POSITION_LIMIT: Item = Item::new("max_position_limit", 11, 2, ReadWrite, Unsigned);
+/// Homing offset in steps, sign in bit 11.
+pub const HOMING_OFFSET: Item = Item::new("homing_offset", 31, 2, ReadWrite, SignMagnitude(11));
+/// Operating mode (0 position).
+pub const OPERATING_MODE: Item = Item::new("operating_mode", 33, 1, ReadWrite, Unsigned);
+/// Torque enable.
+pub const TORQUE_ENABLE: Item = Item::new("torque_enable", 40, 1, ReadWrite, Unsigned);
+/// Acceleration in 100 steps/s² (0 unlimited).
+pub const ACCELERATION: Item = Item::new("acceleration", 41, 1, ReadWrite, Unsigned);
+/// Goal position in steps.
+pub const GOAL_POSITION: Item = Item::new("goal_position", 42, 2, ReadWrite, SignMagnitude(15));
+/// Goal time in ms (0: use the goal velocity).
+pub const GOAL_TIME: Item = Item::new("goal_time", 44, 2, ReadWrite, Unsigned);
+/// Goal velocity in steps/s (0: as fast as the motor goes).
+pub const GOAL_VELOCITY: Item = Item::new("goal_velocity", 46, 2, ReadWrite, SignMagnitude(15));
+/// EEPROM lock: 0 unlocked (EEPROM writes are kept), 1 locked.
+pub const LOCK: Item = Item::new("lock", 55, 1, ReadWrite, Unsigned);
+/// Present position in steps.
+pub const PRESENT_POSITION: Item = Item::new("present_position", 56, 2, Read, SignMagnitude(15));
+/// Present velocity in steps/s.
+pub const PRESENT_VELOCITY: Item = Item::new("present_velocity", 58, 2, Read, SignMagnitude(15));
+/// Voltage in 0.1 V.
+pub const PRESENT_VOLTAGE: Item = Item::new("present_voltage", 62, 1, Read, Unsigned);
+/// Temperature in °C.
+pub const PRESENT_TEMPERATURE: Item = Item::new("present_temperature", 63, 1, Read, Unsigned);
+/// Moving (1 while the servo runs toward its goal).
+pub const MOVING: Item = Item::new("moving", 66, 1, Read, Unsigned);
+
+const BAUDS: [(u8, u32); 8] =
+    [(0, 1_000_000), (1, 500_000), (2, 250_000), (3, 128_000), (4, 115_200), (5, 76_800), (6, 57_600), (7, 38_400)];
+
+const DEFAULTS: [(Item, i64); 13] = [
+    (FIRMWARE_MAJOR_VERSION, 3),
+    (FIRMWARE_MINOR_VERSION, 10),
+    (MODEL_NUMBER, 777),
+    (ID, 1),
+    (BAUD_RATE, 0),
+    (RETURN_DELAY_TIME, 0),
+    (RESPONSE_STATUS_LEVEL, 1),
+    (MIN_POSITION_LIMIT, 0),
+    (MAX_POSITION_LIMIT, 4095),
+    (LOCK, 1),
+    (PRESENT_VOLTAGE, 74),
+    (PRESENT_TEMPERATURE, 30),
+    (OPERATING_MODE, 0),
+];
+
+/// STS3215 (model 777): 4096 steps per revolution, 1 Mbps from the factory, about 45 rev/min
+/// without load at 7.4 V (0.222 s per 60°).
+pub const STS3215: Model = Model {
+    name: "STS3215",
+    number: 777,
+    firmware: 3,
+    protocol: Protocol::Feetech,
+    endian: Endian::Little,
+    ticks_per_revolution: 4096,
+    eeprom_end: 40,
+    table_len: 71,
+    bauds: &BAUDS,
+    return_delay_unit_us: 2,
+    velocity_unit: 1.0,
+    acceleration_unit: 100.0,
+    max_velocity: 45.0 * 4096.0 / 60.0,
+    items: Items {
+        model_number: MODEL_NUMBER,
+        firmware: FIRMWARE_MAJOR_VERSION,
+        id: ID,
+        baud: BAUD_RATE,
+        return_delay: RETURN_DELAY_TIME,
+        min_position: MIN_POSITION_LIMIT,
+        max_position: MAX_POSITION_LIMIT,
+        torque_enable: TORQUE_ENABLE,
+        status_return_level: RESPONSE_STATUS_LEVEL,
+        acceleration: ACCELERATION,
+        velocity: GOAL_VELOCITY,
+        goal_position: GOAL_POSITION,
+        moving: MOVING,
+        present_position: PRESENT_POSITION,
+        hardware_error: None,
+        lock: Some(LOCK),
+    },
+    defaults: &DEFAULTS,
+};

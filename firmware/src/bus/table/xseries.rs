@@ -1,0 +1,139 @@
+//! ROBOTIS X-series on Protocol 2.0 (e-manual "XL430-W250", "XM430-W350", "XL330-M288" control
+//! tables). The three share the addresses used here; they differ in model number, factory baud
+//! rate and speed.
+
+use super::{Access::*, Encoding::*, Item, Items, Model};
+use crate::bus::feetech::value::Endian;
+use crate::bus::Protocol;
+
+/// Model number (2 bytes, read only).
+pub const MODEL_NUMBER: Item = Item::new("model_number", 0, 2, Read, Unsigned);
+/// Firmware version.
+pub const FIRMWARE_VERSION: Item = Item::new("firmware_version", 6, 1, Read, Unsigned);
+/// Bus id, 0..=252.
+pub const ID: Item = Item::new("id", 7, 1, ReadWrite, Unsigned);
+/// Baud rate index: 0 9600, 1 57600, 2 115200, 3 1M, 4 2M, 5 3M, 6 4M, 7 4.5M.
+pub const BAUD_RATE: Item = Item::new("baud_rate", 8, 1, ReadWrite, Unsigned);
+/// Return delay in 2 µs units (factory 250 = 500 µs).
+pub const RETURN_DELAY_TIME: Item = Item::new("return_delay_time", 9, 1, ReadWrite, Unsigned);
+/// Drive mode (bit 0 reverse direction, bit 2 time-based profile).
+pub const DRIVE_MODE: Item = Item::new("drive_mode", 10, 1, ReadWrite, Unsigned);
+/// Operating mode (3 position control).
+pub const OPERATING_MODE: Item = Item::new("operating_mode", 11, 1, ReadWrite, Unsigned);
+/// Homing offset in ticks.
+pub const HOMING_OFFSET: Item = Item::new("homing_offset", 20, 4, ReadWrite, Signed);
+/// Velocity limit in 0.229 rev/min.
+pub const VELOCITY_LIMIT: Item = Item::new("velocity_limit", 44, 4, ReadWrite, Unsigned);
+/// Upper position limit in ticks.
+pub const MAX_POSITION_LIMIT: Item = Item::new("max_position_limit", 48, 4, ReadWrite, Unsigned);
+/// Lower position limit in ticks.
+pub const MIN_POSITION_LIMIT: Item = Item::new("min_position_limit", 52, 4, ReadWrite, Unsigned);
+/// Torque enable: 1 on (locks the EEPROM area), 0 off.
+pub const TORQUE_ENABLE: Item = Item::new("torque_enable", 64, 1, ReadWrite, Unsigned);
+/// LED.
+pub const LED: Item = Item::new("led", 65, 1, ReadWrite, Unsigned);
+/// Status return level: 0 ping only, 1 ping and reads, 2 all.
+pub const STATUS_RETURN_LEVEL: Item = Item::new("status_return_level", 68, 1, ReadWrite, Unsigned);
+/// Registered instruction (1 after a reg write, until action).
+pub const REGISTERED_INSTRUCTION: Item = Item::new("registered_instruction", 69, 1, Read, Unsigned);
+/// Hardware error status: bit 0 input voltage, 2 overheating, 3 motor encoder, 4 electrical
+/// shock, 5 overload. Any bit sets the alert bit of every status packet.
+pub const HARDWARE_ERROR_STATUS: Item = Item::new("hardware_error_status", 70, 1, Read, Unsigned);
+/// Profile acceleration in 214.577 rev/min² (0 unlimited).
+pub const PROFILE_ACCELERATION: Item = Item::new("profile_acceleration", 108, 4, ReadWrite, Unsigned);
+/// Profile velocity in 0.229 rev/min (0 unlimited).
+pub const PROFILE_VELOCITY: Item = Item::new("profile_velocity", 112, 4, ReadWrite, Unsigned);
+/// Goal position in ticks.
+pub const GOAL_POSITION: Item = Item::new("goal_position", 116, 4, ReadWrite, Signed);
+/// Moving (1 while the profile runs).
+pub const MOVING: Item = Item::new("moving", 122, 1, Read, Unsigned);
+/// Present velocity in 0.229 rev/min.
+pub const PRESENT_VELOCITY: Item = Item::new("present_velocity", 128, 4, Read, Signed);
+/// Present position in ticks.
+pub const PRESENT_POSITION: Item = Item::new("present_position", 132, 4, Read, Signed);
+/// Input voltage in 0.1 V.
+pub const PRESENT_INPUT_VOLTAGE: Item = Item::new("present_input_voltage", 144, 2, Read, Unsigned);
+/// Temperature in °C.
+pub const PRESENT_TEMPERATURE: Item = Item::new("present_temperature", 146, 1, Read, Unsigned);
+
+const ITEMS: Items = Items {
+    model_number: MODEL_NUMBER,
+    firmware: FIRMWARE_VERSION,
+    id: ID,
+    baud: BAUD_RATE,
+    return_delay: RETURN_DELAY_TIME,
+    min_position: MIN_POSITION_LIMIT,
+    max_position: MAX_POSITION_LIMIT,
+    torque_enable: TORQUE_ENABLE,
+    status_return_level: STATUS_RETURN_LEVEL,
+    acceleration: PROFILE_ACCELERATION,
+    velocity: PROFILE_VELOCITY,
+    goal_position: GOAL_POSITION,
+    moving: MOVING,
+    present_position: PRESENT_POSITION,
+    hardware_error: Some(HARDWARE_ERROR_STATUS),
+    lock: None,
+};
+
+const BAUDS: [(u8, u32); 8] = [
+    (0, 9600),
+    (1, 57_600),
+    (2, 115_200),
+    (3, 1_000_000),
+    (4, 2_000_000),
+    (5, 3_000_000),
+    (6, 4_000_000),
+    (7, 4_500_000),
+];
+
+/// 0.229 rev/min in ticks per second (4096 ticks per revolution).
+const VELOCITY_UNIT: f32 = 0.229 * 4096.0 / 60.0;
+/// 214.577 rev/min² in ticks per second squared.
+const ACCELERATION_UNIT: f32 = 214.577 * 4096.0 / 3600.0;
+
+/// Factory values shared by the three models (e-manual "Default Value" column); the id is 1.
+const fn defaults(baud_index: i64, velocity_limit: i64) -> [(Item, i64); 10] {
+    [
+        (ID, 1),
+        (BAUD_RATE, baud_index),
+        (RETURN_DELAY_TIME, 250),
+        (OPERATING_MODE, 3),
+        (VELOCITY_LIMIT, velocity_limit),
+        (MAX_POSITION_LIMIT, 4095),
+        (MIN_POSITION_LIMIT, 0),
+        (STATUS_RETURN_LEVEL, 2),
+        (PRESENT_INPUT_VOLTAGE, 120),
+        (PRESENT_TEMPERATURE, 30),
+    ]
+}
+
+const XL430_DEFAULTS: [(Item, i64); 10] = defaults(1, 265);
+const XM430_DEFAULTS: [(Item, i64); 10] = defaults(1, 200);
+const XL330_DEFAULTS: [(Item, i64); 10] = defaults(1, 445);
+
+const fn x_series(name: &'static str, number: u16, max_rpm: f32, defaults: &'static [(Item, i64)]) -> Model {
+    Model {
+        name,
+        number,
+        firmware: 46,
+        protocol: Protocol::Dxl2,
+        endian: Endian::Little,
+        ticks_per_revolution: 4096,
+        eeprom_end: 64,
+        table_len: 148,
+        bauds: &BAUDS,
+        return_delay_unit_us: 2,
+        velocity_unit: VELOCITY_UNIT,
+        acceleration_unit: ACCELERATION_UNIT,
+        max_velocity: max_rpm * 4096.0 / 60.0,
+        items: ITEMS,
+        defaults,
+    }
+}
+
+/// XL430-W250 (model 1060): 57 rev/min without load at 12 V.
+pub const XL430_W250: Model = x_series("XL430-W250", 1060, 57.0, &XL430_DEFAULTS);
+/// XM430-W350 (model 1020): 46 rev/min without load at 12 V.
+pub const XM430_W350: Model = x_series("XM430-W350", 1020, 46.0, &XM430_DEFAULTS);
+/// XL330-M288 (model 1200): 103 rev/min without load at 5 V.
+pub const XL330_M288: Model = x_series("XL330-M288", 1200, 103.0, &XL330_DEFAULTS);
