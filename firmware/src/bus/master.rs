@@ -614,6 +614,62 @@ where
         Ok(report)
     }
 
+    /// Reads `length` bytes at `address` of each servo in `ids` with a Dynamixel fast sync read:
+    /// one combined reply instead of one per servo, which saves each reply's header. The servos
+    /// chain their parts, so one silent servo spoils the whole reply: it is retried whole, and the
+    /// report then says none answered (fall back to [`Master::sync_read`] to find which).
+    pub fn fast_sync_read(
+        &mut self,
+        address: u16,
+        length: u16,
+        ids: &[Id],
+        out: &mut [u8],
+    ) -> Result<GroupReport, PortError<P>> {
+        let len = usize::from(length);
+        check_group(ids.len(), out.len(), ids.len() * len)?;
+        let mut report = GroupReport { count: ids.len(), ..GroupReport::default() };
+        // Header, id, length, instruction (8 bytes), then error, id, data and CRC per servo; the
+        // status length formula with `data` covering all parts but one part's fixed bytes.
+        let reply_data = (ids.len() * (len + 4)).saturating_sub(3);
+        let timeout_us = self.reply_timeout_us(1, reply_data)
+            + u64::from(self.config.return_delay_us) * ids.len().saturating_sub(1) as u64;
+        let packet =
+            InstructionPacket { id: BROADCAST, instruction: Instruction::FastSyncRead { address, length, ids } };
+        let protocol = self.config.protocol;
+        for attempt in 0..=self.config.retries {
+            if attempt > 0 {
+                self.stats.retries += 1;
+            }
+            report.attempts = attempt + 1;
+            self.send(&packet)?;
+            let replied = self.receive(timeout_us, |status| {
+                if status.id != BROADCAST {
+                    return Flow::More;
+                }
+                let Some(parts) = super::dxl2::fast_sync_read_parts(status, len) else { return Flow::More };
+                for part in parts {
+                    let Some(i) = ids.iter().position(|&id| id == part.id) else { continue };
+                    let bit = 1u32 << i;
+                    let (refused, alert) = classify(protocol, part.error);
+                    if refused {
+                        report.failed |= bit;
+                    } else if part.data.len() == len {
+                        out[i * len..(i + 1) * len].copy_from_slice(part.data);
+                        report.answered |= bit;
+                        if alert.is_some() {
+                            report.alerts |= bit;
+                        }
+                    }
+                }
+                Flow::Done
+            })?;
+            if replied {
+                break;
+            }
+        }
+        Ok(report)
+    }
+
     /// Reads a different item of each servo (Dynamixel bulk read): the data of record `i` goes to
     /// `out` at the sum of the lengths before it. One attempt per call; the report says who answered.
     pub fn bulk_read(&mut self, records: &[BulkReadRecord], out: &mut [u8]) -> Result<GroupReport, PortError<P>> {
