@@ -249,3 +249,49 @@ impl Model {
         self.bauds.iter().find(|(_, b)| *b == baud).map(|(i, _)| *i)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dynamixel_items_are_little_endian_twos_complement() {
+        let mut out = [0u8; 4];
+        // e-manual WRITE example: goal position 512 is `00 02 00 00`.
+        xseries::GOAL_POSITION.encode(512, Endian::Little, &mut out).unwrap();
+        assert_eq!(out, [0x00, 0x02, 0x00, 0x00]);
+        xseries::PRESENT_POSITION.encode(-2, Endian::Little, &mut out).unwrap();
+        assert_eq!(out, [0xFE, 0xFF, 0xFF, 0xFF]);
+        assert_eq!(xseries::PRESENT_POSITION.decode(&out, Endian::Little), Ok(-2));
+        assert_eq!(
+            xseries::TORQUE_ENABLE.encode(256, Endian::Little, &mut out),
+            Err(ValueError::OutOfRange { item: "torque_enable", value: 256 })
+        );
+        assert_eq!(
+            xseries::GOAL_POSITION.decode(&[1, 2], Endian::Little),
+            Err(ValueError::WrongSize { item: "goal_position", len: 2 })
+        );
+    }
+
+    #[test]
+    fn feetech_items_carry_their_sign_in_a_bit() {
+        let mut out = [0u8; 2];
+        // Feetech manual, READ example reply: position bytes `18 05` (SCS, big-endian) = 0x1805.
+        assert_eq!(sts3215::PRESENT_POSITION.decode(&[0x18, 0x05], Endian::Big), Ok(0x1805));
+        sts3215::GOAL_POSITION.encode(-1, Endian::Little, &mut out).unwrap();
+        assert_eq!(out, [0x01, 0x80]);
+        assert_eq!(sts3215::GOAL_POSITION.decode(&out, Endian::Little), Ok(-1));
+        assert_eq!(sts3215::HOMING_OFFSET.range(), (-2047, 2047));
+        assert!(sts3215::HOMING_OFFSET.encode(2048, Endian::Little, &mut out).is_err());
+    }
+
+    #[test]
+    fn models_are_found_by_number_and_baud() {
+        assert_eq!(Model::by_number(Protocol::Dxl2, 1060).map(|m| m.name), Some("XL430-W250"));
+        assert_eq!(Model::by_number(Protocol::Feetech, 777).map(|m| m.name), Some("STS3215"));
+        assert_eq!(Model::by_number(Protocol::Feetech, 1060), None);
+        assert_eq!(XL330_M288.baud_index(1_000_000), Some(3));
+        assert_eq!(STS3215.baud_rate(0), Some(1_000_000));
+        assert_eq!(STS3215.baud_index(9600), None);
+    }
+}
