@@ -650,6 +650,10 @@ where
                 for part in parts {
                     let Some(i) = ids.iter().position(|&id| id == part.id) else { continue };
                     let bit = 1u32 << i;
+                    if (report.answered | report.failed) & bit != 0 {
+                        // The same id twice in one reply: the first part counts.
+                        continue;
+                    }
                     let (refused, alert) = classify(protocol, part.error);
                     if refused {
                         report.failed |= bit;
