@@ -1,0 +1,38 @@
+//! The servo bus simulator: N simulated servos on one line, for software-in-the-loop tests in
+//! process and, on a pseudo-terminal, for any program that opens a serial port.
+//!
+//! - [`clock`]: the virtual clock (nanoseconds, shared), a [`firmware::bus::master::Clock`].
+//! - [`motion`]: the servos' trapezoidal motion profile.
+//! - [`servo`]: one servo: control table, instructions, status return level, hardware errors.
+//! - [`faults`]: silent servos, corrupted replies, lost bytes and flipped bits, seeded.
+//! - [`bus`]: the line: instruction decoding, reply timing, collisions.
+//! - [`port`]: the master's end of an in-memory line, an `embedded-io` port on the virtual clock.
+//! - [`pty`]: a bus served on a pseudo-terminal, on real time.
+//! - [`cli`]: `armctl sim servos`.
+//!
+//! The codecs, control tables and wire-time arithmetic are the firmware's own
+//! ([`firmware::bus`]): the simulator exercises the same code the boards run.
+
+pub mod bus;
+pub mod cli;
+pub mod clock;
+pub mod faults;
+pub mod motion;
+pub mod port;
+pub mod pty;
+pub mod servo;
+
+pub use bus::{BusStats, SimBus, WireByte};
+pub use clock::VirtualClock;
+pub use faults::{FaultStats, Faults};
+pub use port::{PortStats, SharedBus, SimPort};
+pub use pty::{PtyServer, SimConfig};
+pub use servo::SimServo;
+
+/// A bus shared with a port on a fresh virtual clock: what a SIL test connects a master to.
+pub fn connect(bus: SimBus) -> (SharedBus, SimPort, VirtualClock) {
+    let bus = std::rc::Rc::new(std::cell::RefCell::new(bus));
+    let clock = VirtualClock::new();
+    let port = SimPort::new(bus.clone(), clock.clone());
+    (bus, port, clock)
+}

@@ -1,0 +1,414 @@
+//! One simulated servo: its control table and what it does with each instruction.
+//!
+//! The table has the real addresses of [`Model`]: it starts from the model's factory values,
+//! every value is encoded through [`Item::encode`] in the model's byte order (sign-magnitude on
+//! Feetech), and the master reads back exactly the bytes a real servo would send.
+//!
+//! Rules, as on the real servos:
+//! - Dynamixel refuses with an error number: 4 (data range) for an address outside the table,
+//!   5 (data length) for a range that runs past it or carries no data, 7 (access) for writes to
+//!   read-only items and for EEPROM writes (address below `eeprom_end`) while torque is on.
+//! - Feetech has no error numbers: bytes outside the table or on read-only items are ignored.
+//!   EEPROM writes take effect whatever the `lock` item says; `lock` only decides whether they
+//!   survive a power cycle, which the simulator does not model.
+//! - Turning torque on sets the goal to the present position, so the horn does not jump; with
+//!   torque off nothing moves. A hardware error turns torque off and keeps it off until a reboot
+//!   (Dynamixel) or [`SimServo::clear_hardware_error`].
+//! - Goals are clamped to the position limits; the horn then follows the servo's own trapezoidal
+//!   profile ([`super::motion`]) and the present position is quantised to whole ticks.
+//! - A servo whose baud item does not match the bus's baud rate hears nothing (after changing it,
+//!   or after a factory reset that restores it).
+
+use firmware::bus::table::{Access, Item, Model};
+use firmware::bus::{Instruction, Protocol};
+
+use super::motion::Profile;
+
+/// Dynamixel error numbers (e-manual, Protocol 2.0, "Status Packet").
+pub mod error {
+    /// Result fail: the instruction could not be carried out.
+    pub const RESULT_FAIL: u8 = 1;
+    /// Instruction error: unknown instruction, or an action without a reg write.
+    pub const INSTRUCTION: u8 = 2;
+    /// Data range error: the address is outside the table.
+    pub const DATA_RANGE: u8 = 4;
+    /// Data length error: the data runs past the table, or there is none.
+    pub const DATA_LENGTH: u8 = 5;
+    /// Access error: read-only item, or EEPROM while torque is on.
+    pub const ACCESS: u8 = 7;
+}
+
+/// The Dynamixel alert bit of the status error byte.
+pub const ALERT: u8 = 0x80;
+
+/// The key of Dynamixel's CLEAR of the multi-turn position (`0x01 'D' 'X' 'L' '"'`).
+const CLEAR_KEY: [u8; 4] = [0x44, 0x58, 0x4C, 0x22];
+
+/// A simulated servo of one [`Model`].
+#[derive(Clone, Debug)]
+pub struct SimServo {
+    model: &'static Model,
+    table: Vec<u8>,
+    profile: Profile,
+    registered: Option<(u16, Vec<u8>)>,
+    /// Feetech's error bits (Dynamixel keeps them in its hardware error status item).
+    fault_bits: u8,
+}
+
+impl SimServo {
+    /// A servo fresh from the factory but with `id` and the baud item of `baud` (the factory
+    /// baud when the model has no index for it), standing at half a turn (2048 ticks on these
+    /// models, the middle of their range).
+    pub fn new(model: &'static Model, id: u8, baud: u32) -> Self {
+        let mut servo = Self {
+            model,
+            table: factory_table(model),
+            profile: Profile::hold(0.0, 0),
+            registered: None,
+            fault_bits: 0,
+        };
+        servo.set(model.items.id, i64::from(id));
+        if let Some(index) = model.baud_index(baud) {
+            servo.set(model.items.baud, i64::from(index));
+        }
+        let (lo, hi) = (servo.get(model.items.min_position), servo.get(model.items.max_position));
+        servo.set_position((i64::from(model.ticks_per_revolution) / 2).clamp(lo.min(hi), hi.max(lo)), 0);
+        servo
+    }
+
+    /// The model.
+    pub fn model(&self) -> &'static Model {
+        self.model
+    }
+
+    /// The control table as it stands.
+    pub fn table(&self) -> &[u8] {
+        &self.table
+    }
+
+    /// The servo's id (its id item).
+    pub fn id(&self) -> u8 {
+        self.get(self.model.items.id) as u8
+    }
+
+    /// The value of `item` (0 when the item lies outside the table).
+    pub fn get(&self, item: Item) -> i64 {
+        let range = usize::from(item.address)..usize::from(item.address) + item.len();
+        self.table.get(range).and_then(|b| item.decode(b, self.model.endian).ok()).unwrap_or(0)
+    }
+
+    /// Sets `item` directly, bypassing the bus rules (for tests and scenario setup). Values that do
+    /// not fit the item are ignored.
+    pub fn set(&mut self, item: Item, value: i64) {
+        let at = usize::from(item.address);
+        if let Some(slot) = self.table.get_mut(at..at + item.len()) {
+            let _ = item.encode(value, self.model.endian, slot);
+        }
+    }
+
+    /// Puts the horn at `ticks` at time `t_ns` (as if turned by hand), goal included; no motion.
+    pub fn set_position(&mut self, ticks: i64, t_ns: u64) {
+        self.profile = Profile::hold(ticks as f64, t_ns);
+        self.set(self.model.items.present_position, ticks);
+        self.set(self.model.items.goal_position, ticks);
+        self.set(self.model.items.moving, 0);
+    }
+
+    /// The baud rate the servo listens at (`None` when the baud item has no rate).
+    pub fn baud(&self) -> Option<u32> {
+        self.model.baud_rate(self.get(self.model.items.baud) as u8)
+    }
+
+    /// Return delay in nanoseconds, from the return delay item.
+    pub fn return_delay_ns(&self) -> u64 {
+        self.get(self.model.items.return_delay) as u64 * u64::from(self.model.return_delay_unit_us) * 1000
+    }
+
+    /// Whether torque is on.
+    pub fn torque(&self) -> bool {
+        self.get(self.model.items.torque_enable) != 0
+    }
+
+    /// Raises a hardware error: on Dynamixel `bits` go to the hardware error status item and every
+    /// status carries the alert bit; on Feetech `bits` are the status error bits (e.g. 0x20
+    /// overload). Torque goes off, as the real servo's protection does.
+    pub fn set_hardware_error(&mut self, bits: u8, t_ns: u64) {
+        self.update(t_ns);
+        match self.model.items.hardware_error {
+            Some(item) => self.set(item, i64::from(bits)),
+            None => self.fault_bits = bits,
+        }
+        if bits != 0 {
+            self.torque_off(t_ns);
+        }
+    }
+
+    /// Clears the hardware error (Dynamixel: what a reboot does).
+    pub fn clear_hardware_error(&mut self) {
+        match self.model.items.hardware_error {
+            Some(item) => self.set(item, 0),
+            None => self.fault_bits = 0,
+        }
+    }
+
+    /// The error byte of a status carrying error number `number` (Dynamixel; ignored on Feetech).
+    pub fn status_error(&self, number: u8) -> u8 {
+        match self.model.items.hardware_error {
+            Some(item) if self.get(item) != 0 => number | ALERT,
+            Some(_) => number,
+            None => self.fault_bits,
+        }
+    }
+
+    /// Brings present position, velocity-driven motion and the moving flag up to `t_ns`.
+    pub fn update(&mut self, t_ns: u64) {
+        if !self.torque() {
+            return;
+        }
+        let (p, _) = self.profile.at(t_ns);
+        let moving = self.profile.moving(t_ns);
+        self.set(self.model.items.present_position, p.round() as i64);
+        self.set(self.model.items.moving, i64::from(moving));
+    }
+
+    fn torque_off(&mut self, t_ns: u64) {
+        let (p, _) = self.profile.at(t_ns);
+        self.set(self.model.items.torque_enable, 0);
+        // Torque off: the horn stops where it is (no coasting modelled).
+        self.profile = Profile::hold(p.round(), t_ns);
+        self.set(self.model.items.present_position, p.round() as i64);
+        self.set(self.model.items.moving, 0);
+    }
+
+    /// Whether the status return level lets the servo answer `instruction` sent to it alone.
+    pub fn answers(&self, instruction: &Instruction<'_>) -> bool {
+        let level = self.get(self.model.items.status_return_level);
+        let read = matches!(
+            instruction,
+            Instruction::Read { .. }
+                | Instruction::SyncRead { .. }
+                | Instruction::FastSyncRead { .. }
+                | Instruction::BulkRead { .. }
+        );
+        match (self.model.protocol, instruction) {
+            (_, Instruction::Ping) => true,
+            // Dynamixel: 0 ping only, 1 ping and reads, 2 everything.
+            (Protocol::Dxl2, _) if read => level >= 1,
+            (Protocol::Dxl2, _) => level >= 2,
+            // Feetech: 0 ping and reads, 1 everything.
+            (Protocol::Feetech, _) if read => true,
+            (Protocol::Feetech, _) => level >= 1,
+        }
+    }
+
+    /// The data of a ping's reply: model number (LE) and firmware on Dynamixel, none on Feetech.
+    pub fn ping_params(&self) -> Vec<u8> {
+        match self.model.protocol {
+            Protocol::Dxl2 => {
+                let [lo, hi] = self.model.number.to_le_bytes();
+                vec![lo, hi, self.model.firmware]
+            }
+            Protocol::Feetech => Vec::new(),
+        }
+    }
+
+    /// `length` bytes from `address`, or a Dynamixel error number. Feetech reads past the table
+    /// give zeros.
+    pub fn read(&self, address: u16, length: u16) -> Result<Vec<u8>, u8> {
+        let (at, len) = (usize::from(address), usize::from(length));
+        if self.model.protocol == Protocol::Dxl2 {
+            self.check_range(at, len)?;
+        }
+        Ok((at..at + len).map(|i| self.table.get(i).copied().unwrap_or(0)).collect())
+    }
+
+    fn check_range(&self, at: usize, len: usize) -> Result<(), u8> {
+        if at >= self.table.len() {
+            return Err(error::DATA_RANGE);
+        }
+        if len == 0 || at + len > self.table.len() {
+            return Err(error::DATA_LENGTH);
+        }
+        Ok(())
+    }
+
+    /// Whether a write of `data` at `address` is allowed (Dynamixel rules; Feetech allows all).
+    pub fn check_write(&self, address: u16, data: &[u8]) -> Result<(), u8> {
+        if self.model.protocol != Protocol::Dxl2 {
+            return Ok(());
+        }
+        let (at, len) = (usize::from(address), data.len());
+        self.check_range(at, len)?;
+        if read_only_items(self.model).any(|item| overlaps(item, at, len)) {
+            return Err(error::ACCESS);
+        }
+        if at < usize::from(self.model.eeprom_end) && self.torque() {
+            return Err(error::ACCESS);
+        }
+        Ok(())
+    }
+
+    /// Writes `data` at `address` at time `t_ns`, with the model's rules and side effects (torque,
+    /// goal). On Dynamixel a refused write changes nothing and returns the error number.
+    pub fn write(&mut self, address: u16, data: &[u8], t_ns: u64) -> Result<(), u8> {
+        self.check_write(address, data)?;
+        self.update(t_ns);
+        let was_on = self.torque();
+        let at = usize::from(address);
+        let model = self.model;
+        for (i, &b) in data.iter().enumerate() {
+            let a = at + i;
+            // Feetech: bytes of read-only items and outside the table are ignored.
+            let read_only = read_only_items(model).any(|item| overlaps(item, a, 1));
+            if let (false, Some(slot)) = (read_only, self.table.get_mut(a)) {
+                *slot = b;
+            }
+        }
+        let items = model.items;
+        if overlaps(items.torque_enable, at, data.len()) {
+            let on = self.torque();
+            let faulty = self.status_error(0) != 0;
+            if on && faulty {
+                // Protection holds torque off until the fault is cleared.
+                self.set(items.torque_enable, 0);
+            } else if on && !was_on {
+                let present = self.get(items.present_position);
+                self.set_position(present, t_ns);
+            } else if !on && was_on {
+                self.set(items.torque_enable, 1);
+                self.torque_off(t_ns);
+            }
+        }
+        if overlaps(items.goal_position, at, data.len()) && self.torque() {
+            self.start_move(t_ns);
+        }
+        Ok(())
+    }
+
+    fn start_move(&mut self, t_ns: u64) {
+        let items = self.model.items;
+        let (lo, hi) = (self.get(items.min_position), self.get(items.max_position));
+        let goal = self.get(items.goal_position).clamp(lo.min(hi), hi.max(lo));
+        let max = f64::from(self.model.max_velocity);
+        let v = self.get(items.velocity).unsigned_abs() as f64 * f64::from(self.model.velocity_unit);
+        let v = if v == 0.0 { max } else { v.min(max) };
+        let a = self.get(items.acceleration).unsigned_abs() as f64 * f64::from(self.model.acceleration_unit);
+        let a = if a == 0.0 { f64::INFINITY } else { a };
+        let (p, vel) = self.profile.at(t_ns);
+        self.profile = Profile::plan(t_ns, p, vel, goal as f64, v, a);
+        self.update(t_ns);
+    }
+
+    /// When the present move ends, in virtual nanoseconds (`None` when standing).
+    pub fn move_end_ns(&self) -> Option<u64> {
+        self.profile.end_ns().filter(|_| self.torque())
+    }
+
+    /// Carries out an instruction addressed to this servo (or broadcast) at `t_ns`; returns the
+    /// reply's data, or a Dynamixel error number. Group instructions are the bus's business.
+    pub fn execute(&mut self, instruction: &Instruction<'_>, t_ns: u64) -> Result<Vec<u8>, u8> {
+        self.update(t_ns);
+        match *instruction {
+            Instruction::Ping => Ok(self.ping_params()),
+            Instruction::Read { address, length } => self.read(address, length),
+            Instruction::Write { address, data } => self.write(address, data, t_ns).map(|()| Vec::new()),
+            Instruction::RegWrite { address, data } => {
+                self.check_write(address, data)?;
+                self.registered = Some((address, data.to_vec()));
+                Ok(Vec::new())
+            }
+            Instruction::Action => match self.registered.take() {
+                Some((address, data)) => self.write(address, &data, t_ns).map(|()| Vec::new()),
+                None if self.model.protocol == Protocol::Dxl2 => Err(error::INSTRUCTION),
+                None => Ok(Vec::new()),
+            },
+            Instruction::Reboot => {
+                self.reboot(t_ns);
+                Ok(Vec::new())
+            }
+            Instruction::FactoryReset { mode } => {
+                self.factory_reset(mode, t_ns);
+                Ok(Vec::new())
+            }
+            Instruction::Clear { params: [mode, key @ ..] } => match mode {
+                // The multi-turn count is not modelled: positions stay within one turn.
+                0x01 if key == CLEAR_KEY => Ok(Vec::new()),
+                0x01 => Err(error::RESULT_FAIL),
+                0x02 => {
+                    self.clear_hardware_error();
+                    Ok(Vec::new())
+                }
+                _ => Err(error::DATA_RANGE),
+            },
+            // Feetech RESET restores the running state (turn count), which is not modelled.
+            Instruction::Reset => Ok(Vec::new()),
+            _ => Err(error::INSTRUCTION),
+        }
+    }
+
+    /// Restart: RAM back to factory values, EEPROM kept, the horn where it is, faults cleared.
+    pub fn reboot(&mut self, t_ns: u64) {
+        self.update(t_ns);
+        let present = self.get(self.model.items.present_position);
+        let eeprom = usize::from(self.model.eeprom_end).min(self.table.len());
+        let mut table = factory_table(self.model);
+        table[..eeprom].copy_from_slice(&self.table[..eeprom]);
+        self.table = table;
+        self.registered = None;
+        self.clear_hardware_error();
+        self.set_position(present, t_ns);
+    }
+
+    /// Factory settings: everything back to factory values, except the id (`mode` 0x01) or the id
+    /// and baud (`mode` 0x02); 0xFF resets those too.
+    pub fn factory_reset(&mut self, mode: u8, t_ns: u64) {
+        self.update(t_ns);
+        let items = self.model.items;
+        let (id, baud) = (self.get(items.id), self.get(items.baud));
+        let present = self.get(items.present_position);
+        self.table = factory_table(self.model);
+        if mode == 0x01 || mode == 0x02 {
+            self.set(items.id, id);
+        }
+        if mode == 0x02 {
+            self.set(items.baud, baud);
+        }
+        self.registered = None;
+        self.clear_hardware_error();
+        self.set_position(present, t_ns);
+    }
+}
+
+/// A table of the model's factory values, model number and firmware version.
+fn factory_table(model: &'static Model) -> Vec<u8> {
+    let mut table = vec![0u8; usize::from(model.table_len)];
+    let mut put = |item: Item, value: i64| {
+        let at = usize::from(item.address);
+        if let Some(slot) = table.get_mut(at..at + item.len()) {
+            let _ = item.encode(value, model.endian, slot);
+        }
+    };
+    for &(item, value) in model.defaults {
+        put(item, value);
+    }
+    put(model.items.model_number, i64::from(model.number));
+    put(model.items.firmware, i64::from(model.firmware));
+    table
+}
+
+/// The model's read-only items: those of its roles and of its factory values.
+fn read_only_items(model: &'static Model) -> impl Iterator<Item = Item> {
+    let i = model.items;
+    let roles = [Some(i.model_number), Some(i.firmware), Some(i.moving), Some(i.present_position), i.hardware_error];
+    roles
+        .into_iter()
+        .flatten()
+        .chain(model.defaults.iter().map(|(item, _)| *item))
+        .filter(|it| it.access == Access::Read)
+}
+
+/// Whether `item` shares a byte with `len` bytes from `at`.
+fn overlaps(item: Item, at: usize, len: usize) -> bool {
+    let a = usize::from(item.address);
+    a < at + len && at < a + item.len()
+}

@@ -1,0 +1,547 @@
+//! The servo bus simulator against the firmware's own bus master: every instruction on both
+//! protocols, the servos' rules (status return level, EEPROM lock, limits, motion profile,
+//! hardware alerts), injected faults, bus timing on the virtual clock, and the pty server.
+//!
+//! Everything runs on the virtual clock and seeded faults, so results are exact and repeatable;
+//! only the pty tests touch real time, and they assert bytes, not durations.
+
+use armctl::sim::{connect, Faults, PtyServer, SharedBus, SimBus, SimConfig, SimPort, VirtualClock};
+use firmware::bus::cycle::ServoGroup;
+use firmware::bus::instruction::{BulkReadRecord, RecordWriter};
+use firmware::bus::master::{BusConfig, Master, MasterError, NoDirectionPin, Replies};
+use firmware::bus::table::{Item, Model, STS3215, XL430_W250};
+use firmware::bus::timing::{cycle_time_ns, sync_read_request_len, sync_write_len, wire_time_ns};
+use firmware::bus::{Instruction, Protocol, Status, BROADCAST};
+
+type SimMaster = Master<SimPort, NoDirectionPin, VirtualClock>;
+
+const BAUD: u32 = 1_000_000;
+
+struct Rig {
+    bus: SharedBus,
+    master: SimMaster,
+    clock: VirtualClock,
+    model: &'static Model,
+}
+
+fn rig_with(model: &'static Model, ids: &[u8], faults: Faults) -> Rig {
+    rig_at(model, ids, faults, BAUD)
+}
+
+fn rig_at(model: &'static Model, ids: &[u8], faults: Faults, baud: u32) -> Rig {
+    let bus = SimBus::new(model.protocol, model, ids, baud).with_faults(faults);
+    let (bus, port, clock) = connect(bus);
+    let master = Master::new(port, NoDirectionPin, clock.clone(), BusConfig::new(model.protocol, baud));
+    Rig { bus, master, clock, model }
+}
+
+fn rig(model: &'static Model, ids: &[u8]) -> Rig {
+    rig_with(model, ids, Faults::default())
+}
+
+impl Rig {
+    /// An item's value in servo `id`'s table, brought up to the present virtual time.
+    fn table(&self, id: u8, item: Item) -> i64 {
+        let mut bus = self.bus.borrow_mut();
+        bus.advance_to(self.clock.now_ns());
+        bus.servo(id).expect("servo").get(item)
+    }
+
+    fn bytes(&self, item: Item, value: i64) -> Vec<u8> {
+        let mut b = vec![0u8; item.len()];
+        item.encode(value, self.model.endian, &mut b).unwrap();
+        b
+    }
+
+    fn write_item(&mut self, id: u8, item: Item, value: i64) {
+        let data = self.bytes(item, value);
+        self.master.write(id, item.address, &data).unwrap_or_else(|e| panic!("write {}: {e}", item.name));
+    }
+
+    fn read_item(&mut self, id: u8, item: Item) -> i64 {
+        let mut b = vec![0u8; item.len()];
+        self.master.read(id, item.address, &mut b).unwrap_or_else(|e| panic!("read {}: {e}", item.name));
+        item.decode(&b, self.model.endian).unwrap()
+    }
+}
+
+#[test]
+fn dynamixel_answers_every_instruction() {
+    let mut r = rig(&XL430_W250, &[1, 2, 3]);
+    let items = r.model.items;
+    let info = r.master.ping(1).unwrap();
+    assert_eq!((info.model, info.firmware, info.alert), (Some(1060), Some(46), None));
+    assert_eq!(r.read_item(1, items.present_position), 2048);
+    assert_eq!(r.read_item(2, items.model_number), 1060);
+
+    // Write, EEPROM (torque is off from the factory) and RAM.
+    r.write_item(1, items.return_delay, 10);
+    assert_eq!(r.table(1, items.return_delay), 10);
+    r.write_item(1, items.status_return_level, 2);
+    r.master.write(1, 65, &[1]).unwrap();
+    assert_eq!(r.bus.borrow().servo(1).unwrap().table()[65], 1);
+
+    // Reg write waits for the action.
+    let goal = r.bytes(items.goal_position, 1000);
+    r.master.reg_write(1, items.goal_position.address, &goal).unwrap();
+    assert_eq!(r.table(1, items.goal_position), 2048);
+    assert!(!r.master.action(BROADCAST).unwrap().replied);
+    assert_eq!(r.table(1, items.goal_position), 1000);
+
+    // Reboot: RAM back to factory values, EEPROM kept.
+    assert!(r.master.command(1, Instruction::Reboot).unwrap().replied);
+    assert_eq!(r.bus.borrow().servo(1).unwrap().table()[65], 0);
+    assert_eq!(r.table(1, items.return_delay), 10);
+
+    // Factory reset keeping id and baud: EEPROM back to factory values.
+    r.master.command(1, Instruction::FactoryReset { mode: 0x02 }).unwrap();
+    assert_eq!(r.table(1, items.return_delay), 250);
+    assert_eq!(r.table(1, items.id), 1);
+    assert_eq!(r.read_item(1, items.id), 1);
+
+    // Clear the multi-turn position (key "DXL\"").
+    assert!(r.master.command(1, Instruction::Clear { params: [0x01, 0x44, 0x58, 0x4C, 0x22] }).unwrap().replied);
+
+    // Sync write of goals, then group reads of them.
+    let mut records = [0u8; 32];
+    let mut w = RecordWriter::new(&mut records);
+    for (id, g) in [(1u8, 100i64), (2, 200), (3, 300)] {
+        w.sync_write(id, &r.bytes(items.goal_position, g)).unwrap();
+    }
+    let n = w.records().len();
+    r.master.sync_write(items.goal_position.address, 4, &records[..n]).unwrap();
+    for (id, g) in [(1u8, 100i64), (2, 200), (3, 300)] {
+        assert_eq!(r.table(id, items.goal_position), g);
+    }
+    let mut out = [0u8; 12];
+    let report = r.master.sync_read(items.goal_position.address, 4, &[3, 1, 2], &mut out).unwrap();
+    assert!(report.complete(), "{report:?}");
+    let values: Vec<i64> = out.chunks(4).map(|c| items.goal_position.decode(c, r.model.endian).unwrap()).collect();
+    assert_eq!(values, [300, 100, 200]);
+
+    let mut out = [0u8; 12];
+    let report = r.master.fast_sync_read(items.goal_position.address, 4, &[2, 3, 1], &mut out).unwrap();
+    assert!(report.complete(), "{report:?}");
+    let values: Vec<i64> = out.chunks(4).map(|c| items.goal_position.decode(c, r.model.endian).unwrap()).collect();
+    assert_eq!(values, [200, 300, 100]);
+
+    // Bulk write and bulk read of different items.
+    let mut records = [0u8; 32];
+    let mut w = RecordWriter::new(&mut records);
+    w.bulk_write(2, 65, &[1]).unwrap();
+    w.bulk_write(3, items.goal_position.address, &r.bytes(items.goal_position, 333)).unwrap();
+    let n = w.records().len();
+    r.master.bulk_write(&records[..n]).unwrap();
+    let asked = [
+        BulkReadRecord { id: 3, address: items.goal_position.address, length: 4 },
+        BulkReadRecord { id: 2, address: 65, length: 1 },
+    ];
+    let mut out = [0u8; 5];
+    let report = r.master.bulk_read(&asked, &mut out).unwrap();
+    assert!(report.complete(), "{report:?}");
+    assert_eq!(items.goal_position.decode(&out[..4], r.model.endian).unwrap(), 333);
+    assert_eq!(out[4], 1);
+
+    // Out of the table: data range (4) and data length (5) errors.
+    let mut big = [0u8; 4];
+    assert!(matches!(r.master.read(1, 200, &mut big), Err(MasterError::Refused { error: 4, .. })));
+    assert!(matches!(r.master.read(1, 146, &mut big), Err(MasterError::Refused { error: 5, .. })));
+    // Read-only items refuse writes with an access error.
+    assert!(matches!(r.master.write(1, 132, &[0; 4]), Err(MasterError::Refused { error: 7, .. })));
+}
+
+#[test]
+fn feetech_answers_every_instruction() {
+    let mut r = rig(&STS3215, &[1, 2, 3]);
+    let items = r.model.items;
+    let info = r.master.ping(2).unwrap();
+    assert_eq!((info.model, info.alert), (None, None));
+    assert_eq!(r.read_item(1, items.model_number), 777);
+    assert_eq!(r.read_item(1, items.present_position), 2048);
+
+    // EEPROM writes take effect whatever the lock says (the lock only decides persistence).
+    assert_eq!(r.table(1, items.lock.unwrap()), 1);
+    r.write_item(1, items.max_position, 3000);
+    assert_eq!(r.table(1, items.max_position), 3000);
+    r.write_item(1, items.torque_enable, 1);
+    assert_eq!(r.table(1, items.torque_enable), 1);
+
+    // Sign-magnitude goal through a reg write and the action.
+    let goal = r.bytes(items.velocity, -50);
+    assert_eq!(goal, [50, 0x80]);
+    r.master.reg_write(1, items.velocity.address, &goal).unwrap();
+    assert_eq!(r.table(1, items.velocity), 0);
+    r.master.action(BROADCAST).unwrap();
+    assert_eq!(r.table(1, items.velocity), -50);
+
+    let mut records = [0u8; 32];
+    let mut w = RecordWriter::new(&mut records);
+    for (id, v) in [(1u8, 11i64), (2, 22), (3, 33)] {
+        w.sync_write(id, &r.bytes(items.return_delay, v)).unwrap();
+    }
+    let n = w.records().len();
+    r.master.sync_write(items.return_delay.address, 1, &records[..n]).unwrap();
+    let mut out = [0u8; 3];
+    let report = r.master.sync_read(items.return_delay.address, 1, &[1, 2, 3], &mut out).unwrap();
+    assert!(report.complete(), "{report:?}");
+    assert_eq!(out, [11, 22, 33]);
+
+    assert!(r.master.command(3, Instruction::Reset).unwrap().replied);
+    // Read-only bytes are ignored without an error number (Feetech has none).
+    r.master.write(1, items.present_position.address, &[0, 0]).unwrap();
+    assert_eq!(r.read_item(1, items.present_position), 2048);
+}
+
+#[test]
+fn status_return_levels_are_honoured() {
+    let mut r = rig(&XL430_W250, &[1]);
+    let items = r.model.items;
+    // Level 1: ping and reads only; the write still takes effect.
+    r.write_item(1, items.status_return_level, 1);
+    assert!(matches!(r.master.write(1, 65, &[1]), Err(MasterError::NoReply { .. })));
+    assert_eq!(r.table(1, Item { address: 65, ..items.torque_enable }), 1);
+    assert_eq!(r.read_item(1, items.status_return_level), 1);
+    let mut config = *r.master.config();
+    config.replies = Replies::Reads;
+    r.master.set_config(config);
+    assert!(!r.master.write(1, 65, &[0]).unwrap().replied);
+    // Level 0: ping only.
+    r.master.write(1, items.status_return_level.address, &[0]).unwrap();
+    assert!(r.master.ping(1).is_ok());
+    let mut b = [0u8; 1];
+    assert!(matches!(r.master.read(1, 65, &mut b), Err(MasterError::NoReply { .. })));
+    let mut out = [0u8; 4];
+    let report = r.master.sync_read(items.present_position.address, 4, &[1], &mut out).unwrap();
+    assert_eq!(report.answered, 0);
+
+    // Feetech level 0: ping and reads only.
+    let mut r = rig(&STS3215, &[4]);
+    let items = r.model.items;
+    r.write_item(4, items.status_return_level, 0);
+    assert!(matches!(r.master.write(4, 41, &[1]), Err(MasterError::NoReply { .. })));
+    assert_eq!(r.read_item(4, items.acceleration), 1);
+}
+
+#[test]
+fn eeprom_is_refused_while_torque_is_on() {
+    let mut r = rig(&XL430_W250, &[1]);
+    let items = r.model.items;
+    r.write_item(1, items.torque_enable, 1);
+    let err = r.master.write(1, items.return_delay.address, &[0]).unwrap_err();
+    assert!(matches!(err, MasterError::Refused { id: 1, error: 7, .. }), "{err:?}");
+    assert_eq!(err.to_string(), "servo 1: access error");
+    assert_eq!(r.table(1, items.return_delay), 250);
+    r.write_item(1, items.torque_enable, 0);
+    r.write_item(1, items.return_delay, 0);
+    assert_eq!(r.table(1, items.return_delay), 0);
+}
+
+#[test]
+fn goals_are_clamped_to_the_position_limits_and_nothing_moves_without_torque() {
+    for model in [&XL430_W250, &STS3215] {
+        let mut r = rig(model, &[1]);
+        let items = model.items;
+        r.write_item(1, items.max_position, 3000);
+        r.write_item(1, items.min_position, 1000);
+        // Torque off: the goal is stored, the horn stays.
+        r.write_item(1, items.goal_position, 2500);
+        r.clock.advance_ns(2_000_000_000);
+        assert_eq!(r.read_item(1, items.present_position), 2048, "{}", model.name);
+        r.write_item(1, items.torque_enable, 1);
+        r.write_item(1, items.goal_position, 4000);
+        r.clock.advance_ns(5_000_000_000);
+        assert_eq!(r.read_item(1, items.present_position), 3000, "{}", model.name);
+        r.write_item(1, items.goal_position, 10);
+        r.clock.advance_ns(5_000_000_000);
+        assert_eq!(r.read_item(1, items.present_position), 1000, "{}", model.name);
+    }
+}
+
+/// Samples present position and moving flag every `step_ns` until the servo stops; returns
+/// `(time the position read reached the servo, position, time the moving read did, moving)` of
+/// each sample.
+fn follow(r: &mut Rig, id: u8, step_ns: u64, limit_ns: u64) -> Vec<(u64, i64, u64, bool)> {
+    let items = r.model.items;
+    let read_len = r.model.protocol.instruction_len(4);
+    let poll = wire_time_ns(1, BAUD);
+    let mut samples = Vec::new();
+    let start = r.clock.now_ns();
+    while r.clock.now_ns() - start < limit_ns {
+        // The port's poll for stale input, then the read's bytes: when the servo sees the read.
+        let at = r.clock.now_ns() + poll + wire_time_ns(read_len, BAUD);
+        let p = r.read_item(id, items.present_position);
+        let at_moving = r.clock.now_ns() + poll + wire_time_ns(read_len, BAUD);
+        let moving = r.read_item(id, items.moving) != 0;
+        samples.push((at, p, at_moving, moving));
+        if !moving && samples.len() > 1 {
+            break;
+        }
+        r.clock.advance_ns(step_ns);
+    }
+    samples
+}
+
+#[test]
+fn the_motion_profile_takes_the_expected_time() {
+    let mut r = rig(&XL430_W250, &[1]);
+    let items = r.model.items;
+    let v_units = 100;
+    let v = f64::from(v_units) * f64::from(r.model.velocity_unit);
+    r.write_item(1, items.velocity, i64::from(v_units));
+    r.write_item(1, items.torque_enable, 1);
+    let write_len = r.model.protocol.instruction_len(2 + 4);
+    let t_goal = r.clock.now_ns() + wire_time_ns(1, BAUD) + wire_time_ns(write_len, BAUD);
+    r.write_item(1, items.goal_position, 3048);
+    let samples = follow(&mut r, 1, 200_000, 2_000_000_000);
+    // Constant velocity (acceleration 0 = unlimited): 1000 ticks at v ticks/s.
+    let expected_end = t_goal + (1000.0 / v * 1e9) as u64;
+    let tick_ns = (1e9 / v) as u64;
+    for &(t, p, t_moving, moving) in &samples {
+        let ideal = (2048.0 + v * (t.saturating_sub(t_goal)) as f64 * 1e-9).min(3048.0);
+        assert!((p as f64 - ideal).abs() <= 1.0, "at {t} ns (goal at {t_goal}): {p} vs {ideal}");
+        assert_eq!(moving, t_moving < expected_end, "moving flag at {t_moving} ns (end {expected_end})");
+    }
+    let arrived = samples.iter().find(|s| s.1 == 3048).expect("reached the goal").0;
+    assert!(arrived + 2 * tick_ns >= expected_end && arrived <= expected_end + 200_000 + tick_ns, "{arrived}");
+
+    // With a profile acceleration: a trapezoid, d/v + v/a.
+    let a_units = 10;
+    let a = f64::from(a_units) * f64::from(r.model.acceleration_unit);
+    r.write_item(1, items.acceleration, i64::from(a_units));
+    let t_goal = r.clock.now_ns() + wire_time_ns(1, BAUD) + wire_time_ns(write_len, BAUD);
+    r.write_item(1, items.goal_position, 48);
+    let samples = follow(&mut r, 1, 500_000, 5_000_000_000);
+    let expected = 3000.0 / v + v / a;
+    // The moving flag drops when the profile ends; the quantised position reaches the goal up to
+    // half a tick earlier, which at the end of the deceleration takes sqrt(2 * 0.5 / a).
+    let stopped = samples.iter().find(|s| !s.3).expect("stopped").2;
+    let took = (stopped - t_goal) as f64 * 1e-9;
+    assert!(took >= expected && took <= expected + 0.0005 + 0.002, "{took} s vs {expected} s");
+    let arrived = samples.iter().find(|s| s.1 == 48).expect("reached the goal").0;
+    let took = (arrived - t_goal) as f64 * 1e-9;
+    let early = (2.0 * 0.5 / a).sqrt();
+    assert!(took >= expected - early - 0.0005 && took <= expected, "{took} s vs {expected} s");
+    // Accelerating: the first half-second covers far less than v * t.
+    let early = samples.iter().find(|s| s.0 >= t_goal + 300_000_000).unwrap();
+    let ideal = 3048.0 - 0.5 * a * ((early.0 - t_goal) as f64 * 1e-9).powi(2);
+    assert!((early.1 as f64 - ideal).abs() <= 1.0, "{} vs {ideal}", early.1);
+}
+
+#[test]
+fn hardware_alerts_are_reported_and_turn_torque_off() {
+    let mut r = rig(&XL430_W250, &[1, 2]);
+    let items = r.model.items;
+    r.write_item(2, items.torque_enable, 1);
+    let now = r.clock.now_ns();
+    r.bus.borrow_mut().servo_mut(2).unwrap().set_hardware_error(0x20, now);
+    let mut b = [0u8; 1];
+    let answer = r.master.read(2, items.torque_enable.address, &mut b).unwrap();
+    assert_eq!((answer.alert, b[0]), (Some(0x80), 0));
+    assert_eq!(r.read_item(2, items.hardware_error.unwrap()), 0x20);
+    let mut out = [0u8; 8];
+    let report = r.master.sync_read(items.present_position.address, 4, &[1, 2], &mut out).unwrap();
+    assert_eq!((report.answered, report.alerts), (0b11, 0b10));
+    assert_eq!(r.master.ping(2).unwrap().alert, Some(0x80));
+    // Torque stays off until a reboot clears the fault.
+    r.write_item(2, items.torque_enable, 1);
+    assert_eq!(r.table(2, items.torque_enable), 0);
+    r.master.command(2, Instruction::Reboot).unwrap();
+    assert_eq!(r.master.ping(2).unwrap().alert, None);
+
+    let mut r = rig(&STS3215, &[1]);
+    r.write_item(1, items_of(&STS3215).torque_enable, 1);
+    let now = r.clock.now_ns();
+    r.bus.borrow_mut().servo_mut(1).unwrap().set_hardware_error(0x20, now);
+    let mut b = [0u8; 2];
+    let answer = r.master.read(1, STS3215.items.present_position.address, &mut b).unwrap();
+    assert_eq!(answer.alert, Some(0x20));
+    assert_eq!(r.table(1, STS3215.items.torque_enable), 0);
+}
+
+fn items_of(model: &Model) -> firmware::bus::table::Items {
+    model.items
+}
+
+#[test]
+fn a_silent_servo_is_no_reply_alone_and_missing_in_a_sync_read() {
+    let mut r = rig_with(&XL430_W250, &[1, 2, 3, 4], Faults { silent: vec![3], ..Faults::default() });
+    let items = r.model.items;
+    let mut b = [0u8; 4];
+    let err = r.master.read(3, items.present_position.address, &mut b).unwrap_err();
+    assert!(matches!(err, MasterError::NoReply { id: 3, attempts: 3, corrupt: 0, .. }), "{err:?}");
+    for id in [1, 2, 4] {
+        r.bus.borrow_mut().servo_mut(id).unwrap().set_position(1000 + i64::from(id), 0);
+    }
+    let ids = [1, 2, 3, 4];
+    let mut out = [0u8; 16];
+    let report = r.master.sync_read(items.present_position.address, 4, &ids, &mut out).unwrap();
+    assert_eq!(report.missing(&ids).collect::<Vec<_>>(), [3]);
+    assert_eq!(report.attempts, 3);
+    let values: Vec<i64> = out.chunks(4).map(|c| items.present_position.decode(c, r.model.endian).unwrap()).collect();
+    assert_eq!(values, [1001, 1002, 0, 1004]);
+    // A fast sync read's chain breaks at the silent servo: nobody's data arrives.
+    let report = r.master.fast_sync_read(items.present_position.address, 4, &ids, &mut out).unwrap();
+    assert_eq!(report.answered, 0);
+    let report = r.master.fast_sync_read(items.present_position.address, 4, &[4, 1], &mut out).unwrap();
+    assert!(report.complete());
+}
+
+#[test]
+fn corrupted_replies_are_retried_then_reported() {
+    let mut r = rig(&XL430_W250, &[1]);
+    r.bus.borrow_mut().faults().corrupt_next(1, 1);
+    let mut b = [0u8; 4];
+    r.master.read(1, 132, &mut b).unwrap();
+    assert_eq!(i32::from_le_bytes(b), 2048);
+    assert_eq!((r.master.stats().retries, r.master.stats().bad_checksums), (1, 1));
+
+    r.bus.borrow_mut().faults().corrupt_next(1, 3);
+    let err = r.master.read(1, 132, &mut b).unwrap_err();
+    assert!(matches!(err, MasterError::NoReply { id: 1, attempts: 3, corrupt: 3, .. }), "{err:?}");
+    assert!(err.to_string().contains("bad checksum"), "{err}");
+
+    // On Feetech too, and by probability.
+    let mut r = rig_with(&STS3215, &[1], Faults { seed: 7, corrupt_rate: 0.3, ..Faults::default() });
+    for _ in 0..50 {
+        r.master.ping(1).unwrap();
+    }
+    assert!(r.master.stats().bad_checksums > 0);
+}
+
+#[test]
+fn dropped_bytes_are_recovered_by_retries() {
+    for model in [&XL430_W250, &STS3215] {
+        let mut r = rig_with(model, &[1, 2], Faults { seed: 3, drop_rate: 0.003, ..Faults::default() });
+        let pos = model.items.present_position;
+        for i in 0..200 {
+            let mut b = vec![0u8; pos.len()];
+            r.master.read(1 + (i % 2), pos.address, &mut b).unwrap_or_else(|e| panic!("{}: read {i}: {e}", model.name));
+            assert_eq!(pos.decode(&b, model.endian).unwrap(), 2048);
+        }
+        let dropped = r.bus.borrow_mut().faults().stats().dropped;
+        assert!(dropped > 0 && r.master.stats().retries > 0, "{}: {dropped} dropped", model.name);
+    }
+}
+
+#[test]
+fn two_servos_with_one_id_garble_the_reply() {
+    let mut r = rig(&XL430_W250, &[1, 2]);
+    let mut twin = r.bus.borrow().new_servo(2);
+    twin.set_position(1234, 0);
+    r.bus.borrow_mut().add_servo(twin);
+    let mut b = [0u8; 4];
+    let err = r.master.read(2, 132, &mut b).unwrap_err();
+    assert!(matches!(err, MasterError::NoReply { id: 2, corrupt, .. } if corrupt > 0), "{err:?}");
+    assert!(r.bus.borrow().stats().collisions > 0);
+    // Both obey writes, and their identical empty statuses AND into a valid one; servo 1 is
+    // unaffected.
+    r.master.write(2, 65, &[1]).unwrap();
+    assert!(r.bus.borrow().servos().iter().filter(|s| s.id() == 2).all(|s| s.table()[65] == 1));
+    r.master.read(1, 132, &mut b).unwrap();
+}
+
+/// One control cycle for six servos: the protocol's minimum bytes, and the wire time plus return
+/// delays on the virtual clock, at 1 Mbps and at 57600 baud (where a byte time is not a whole number
+/// of nanoseconds). The tolerance is two poll steps (one byte time each) and 1 ns per byte of
+/// rounding: before each of its two packets the master drains stale input, and the port, finding
+/// nothing queued, advances the clock by one poll step; every other wait ends exactly when a byte
+/// arrives.
+#[test]
+fn one_cycle_costs_the_wire_time_and_return_delays() {
+    for baud in [BAUD, 57_600] {
+        for model in [&XL430_W250, &STS3215] {
+            let protocol = model.protocol;
+            let ids = [1, 2, 3, 4, 5, 6];
+            let mut r = rig_at(model, &ids, Faults::default(), baud);
+            let group = ServoGroup { model, ids };
+            let goals = [2048; 6];
+            let mut positions = [0; 6];
+            let (t0, sent0) = (r.clock.now_ns(), r.master.stats().bytes_sent);
+            let report = group.cycle(&mut r.master, &goals, &mut positions).unwrap();
+            assert!(report.complete(), "{} at {baud}: {report:?}", model.name);
+            let (len, pos_len) = (model.items.goal_position.len(), model.items.present_position.len());
+            let bytes = r.master.stats().bytes_sent - sent0;
+            assert_eq!(bytes as usize, sync_write_len(protocol, 6, len) + sync_read_request_len(protocol, 6));
+            let delay_us = r.bus.borrow().servo(1).unwrap().return_delay_ns() / 1000;
+            let ideal = cycle_time_ns(protocol, 6, len, pos_len, baud, delay_us as u32);
+            let took = r.clock.now_ns() - t0;
+            let slack = 2 * wire_time_ns(1, baud) + 200;
+            assert!(took >= ideal && took <= ideal + slack, "{} at {baud}: {took} ns vs {ideal} ns", model.name);
+            assert_eq!(positions, [2048; 6]);
+        }
+    }
+}
+
+fn ping_reply(protocol: Protocol, id: u8, params: &[u8]) -> Vec<u8> {
+    let mut buf = [0u8; 32];
+    let n = protocol.encode_status(&Status { id, error: 0, params }, &mut buf).unwrap();
+    buf[..n].to_vec()
+}
+
+fn exchange(path: &str, request: &[u8], reply_len: usize) -> Vec<u8> {
+    let mut port = serialport::new(path, BAUD).timeout(std::time::Duration::from_secs(5)).open().expect("open pty");
+    port.write_all(request).unwrap();
+    port.flush().unwrap();
+    let mut reply = vec![0u8; reply_len];
+    port.read_exact(&mut reply).expect("reply");
+    reply
+}
+
+#[test]
+fn the_pty_server_answers_a_ping() {
+    let server = PtyServer::spawn(SimConfig {
+        protocol: Protocol::Dxl2,
+        model: &XL430_W250,
+        ids: vec![1, 2],
+        baud: BAUD,
+        faults: Faults::default(),
+        duplicates: Vec::new(),
+    })
+    .unwrap();
+    let expected = ping_reply(Protocol::Dxl2, 1, &[0x24, 0x04, 46]);
+    let ping = [0xFF, 0xFF, 0xFD, 0x00, 0x01, 0x03, 0x00, 0x01, 0x19, 0x4E];
+    assert_eq!(exchange(server.path(), &ping, expected.len()), expected);
+    server.stop().unwrap();
+}
+
+#[test]
+fn armctl_sim_servos_serves_a_pty_and_refuses_bad_input() {
+    use std::io::BufRead;
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_armctl"))
+        .args(["sim", "servos", "--protocol", "sts", "--ids", "1-3,7", "--pty"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    std::io::BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+    let path = line.trim().to_string();
+    let reply = std::panic::catch_unwind(|| exchange(&path, &[0xFF, 0xFF, 0x07, 0x02, 0x01, 0xF5], 6));
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert_eq!(reply.expect("ping over the pty"), ping_reply(Protocol::Feetech, 7, &[]));
+
+    for args in [
+        &["--protocol", "dxl2", "--ids", "1-6"][..],
+        &["--protocol", "dxl2", "--ids", "1-253", "--pty"],
+        &["--protocol", "sts", "--ids", "1", "--model", "xl430-w250", "--pty"],
+        &["--protocol", "dxl2", "--ids", "1", "--baud", "12345", "--pty"],
+        &["--protocol", "dxl2", "--ids", "3-1", "--pty"],
+        &["--protocol", "dxl2", "--ids", "1,x", "--pty"],
+    ] {
+        let (mut out, mut err) = (Vec::new(), Vec::new());
+        let argv = ["armctl", "sim", "servos"].iter().chain(args);
+        let code = armctl::cli::main(argv, &mut out, &mut err);
+        let err = String::from_utf8(err).unwrap();
+        assert_eq!(code, 2, "{args:?}: {err}");
+        assert!(err.starts_with("error: ") && err.lines().count() == 1, "{args:?}: {err}");
+        assert!(out.is_empty());
+    }
+}
+
+#[test]
+fn id_lists_parse() {
+    assert_eq!(armctl::sim::cli::parse_ids("1-3,7").unwrap(), [1, 2, 3, 7]);
+    assert_eq!(armctl::sim::cli::parse_ids("1,3,5").unwrap(), [1, 3, 5]);
+    assert!(armctl::sim::cli::parse_ids("").is_err());
+}
