@@ -1,0 +1,19 @@
+//! `armctl servo`: setting up serial bus servos on a real port (what Dynamixel Wizard or LeRobot's
+//! set-up scripts are used for): scan a bus, read and write control-table bytes, change a servo's id
+//! or baud rate, switch torque.
+//!
+//! The bus code is the firmware's ([`firmware::bus`]): its codecs, its [`Master`] with timeouts and
+//! retries, its model tables. This module adds only what a PC needs around it:
+//! - [`transport`]: a `serialport` port as an `embedded-io` stream, and a `std` clock;
+//! - [`items`]: every named control-table item of a model, to decode what a read returns;
+//! - [`session`]: an open bus, with servo identification and one-line error texts;
+//! - [`commands`]: the commands themselves;
+//! - [`cli`]: their command-line arguments.
+//!
+//! [`Master`]: firmware::bus::master::Master
+
+pub mod cli;
+pub mod commands;
+pub mod items;
+pub mod session;
+pub mod transport;

@@ -1,0 +1,379 @@
+//! `armctl servo` end to end through `armctl::cli::main`, against simulated servos served on a
+//! pseudo-terminal ([`armctl::sim::PtyServer`]): the same serial port code a real adapter gets.
+//! No timing is asserted; scans name a few ids to stay quick.
+
+use armctl::sim::{Faults, PtyServer, SimConfig};
+use firmware::bus::table::{Model, STS3215, XL430_W250};
+use firmware::bus::Protocol;
+
+/// What one run did.
+struct Run {
+    code: i32,
+    out: String,
+    err: String,
+}
+
+impl Run {
+    fn lines(&self) -> Vec<&str> {
+        self.out.lines().collect()
+    }
+
+    /// Asserts success with nothing on stderr.
+    fn ok(self) -> Self {
+        assert_eq!(self.code, 0, "stdout: {}\nstderr: {}", self.out, self.err);
+        assert_eq!(self.err, "", "stderr of a successful run");
+        self
+    }
+
+    /// Asserts a failure with `code` and exactly one stderr line containing every needle.
+    fn fails(self, code: i32, needles: &[&str]) -> Self {
+        assert_eq!(self.code, code, "stdout: {}\nstderr: {}", self.out, self.err);
+        let lines: Vec<&str> = self.err.lines().collect();
+        assert_eq!(lines.len(), 1, "expected one stderr line, got {:?}", self.err);
+        assert!(lines[0].starts_with("error: "), "{}", lines[0]);
+        for needle in needles {
+            assert!(lines[0].contains(needle), "{:?} not in {:?}", needle, lines[0]);
+        }
+        self
+    }
+}
+
+fn armctl(args: &[&str]) -> Run {
+    let (mut out, mut err) = (Vec::new(), Vec::new());
+    let code = armctl::cli::main(std::iter::once("armctl").chain(args.iter().copied()), &mut out, &mut err);
+    Run { code, out: String::from_utf8(out).unwrap(), err: String::from_utf8(err).unwrap() }
+}
+
+/// A simulated bus of `model` servos with `ids`, at [`BAUD`].
+fn sim(model: &'static Model, ids: &[u8], faults: Faults, duplicates: &[u8]) -> PtyServer {
+    PtyServer::spawn(SimConfig {
+        protocol: model.protocol,
+        model,
+        ids: ids.to_vec(),
+        baud: BAUD,
+        faults,
+        duplicates: duplicates.to_vec(),
+    })
+    .expect("pty server starts")
+}
+
+/// The simulated buses' baud rate: Feetech's factory rate, and a rate of the X series too (the
+/// set-baud test also runs at the X series' factory 57600).
+const BAUD: u32 = 1_000_000;
+
+fn proto(model: &Model) -> &'static str {
+    match model.protocol {
+        Protocol::Dxl2 => "dxl2",
+        Protocol::Feetech => "sts",
+    }
+}
+
+/// `armctl servo <command> --port <sim> --protocol <p> <rest...>`.
+fn servo(server: &PtyServer, model: &Model, command: &[&str], rest: &[&str]) -> Run {
+    let mut args = vec!["servo"];
+    args.extend_from_slice(command);
+    // A long margin: the tests run in parallel on a loaded machine, and a late reply would look
+    // like a silent servo.
+    let common = ["--port", server.path(), "--protocol", proto(model), "--baud", "1000000", "--timeout-ms", "200"];
+    args.extend_from_slice(&common);
+    args.extend_from_slice(rest);
+    armctl(&args)
+}
+
+#[test]
+fn scan_finds_exactly_the_dynamixel_servos() {
+    let server = sim(&XL430_W250, &[1, 2, 5], Faults::default(), &[]);
+    let run = servo(&server, &XL430_W250, &["scan"], &["--ids", "0-8"]).ok();
+    assert_eq!(
+        run.lines(),
+        [
+            "id 1: model 1060 XL430-W250, firmware 46, 1000000 baud",
+            "id 2: model 1060 XL430-W250, firmware 46, 1000000 baud",
+            "id 5: model 1060 XL430-W250, firmware 46, 1000000 baud",
+        ]
+    );
+}
+
+#[test]
+fn scan_finds_exactly_the_feetech_servos() {
+    let server = sim(&STS3215, &[1, 3], Faults::default(), &[]);
+    let run = servo(&server, &STS3215, &["scan"], &["--ids", "0-6"]).ok();
+    assert_eq!(
+        run.lines(),
+        ["id 1: model 777 STS3215, firmware 3, 1000000 baud", "id 3: model 777 STS3215, firmware 3, 1000000 baud"]
+    );
+}
+
+#[test]
+fn scan_of_an_empty_range_says_nobody_answered() {
+    let server = sim(&XL430_W250, &[1], Faults::default(), &[]);
+    let run = servo(&server, &XL430_W250, &["scan"], &["--ids", "10-12"]);
+    run.fails(1, &["no servos answered at 1000000 baud"]);
+}
+
+#[test]
+fn scan_at_every_baud_finds_the_servos_at_theirs() {
+    let server = sim(&STS3215, &[1, 2], Faults::default(), &[]);
+    servo(&server, &STS3215, &["set-baud"], &["--id", "2", "--new-baud", "57600"]).ok();
+    // The pty server hears at the speed the port is opened at: each servo answers at its own rate.
+    let run = servo(&server, &STS3215, &["scan"], &["--ids", "1-2", "--all-bauds"]).ok();
+    assert_eq!(
+        run.lines(),
+        ["id 1: model 777 STS3215, firmware 3, 1000000 baud", "id 2: model 777 STS3215, firmware 3, 57600 baud"]
+    );
+}
+
+#[test]
+fn dynamixel_read_write_round_trip() {
+    let server = sim(&XL430_W250, &[1], Faults::default(), &[]);
+    let m = &XL430_W250;
+    let run = servo(&server, m, &["write"], &["--id", "1", "--addr", "112", "--value", "300"]).ok();
+    assert_eq!(run.lines(), ["servo 1: wrote 2c 01 00 00 at 112 (profile_velocity = 300)"]);
+    let run = servo(&server, m, &["read"], &["--id", "1", "--addr", "112", "--len", "4"]).ok();
+    assert_eq!(run.lines(), ["2c 01 00 00", "profile_velocity = 300"]);
+    // A signed EEPROM item (torque is off from the factory), a negative value.
+    servo(&server, m, &["write"], &["--id", "1", "--addr", "20", "--value", "-5"]).ok();
+    let run = servo(&server, m, &["read"], &["--id", "1", "--addr", "20", "--len", "4"]).ok();
+    assert_eq!(run.lines(), ["fb ff ff ff", "homing_offset = -5"]);
+    // Several items in one read, each decoded.
+    let run = servo(&server, m, &["read"], &["--id", "1", "--addr", "128", "--len", "8"]).ok();
+    assert_eq!(run.lines()[1..], ["present_velocity = 0", "present_position = 2048"]);
+}
+
+#[test]
+fn feetech_read_write_round_trip_relocks_the_eeprom() {
+    let server = sim(&STS3215, &[1], Faults::default(), &[]);
+    let m = &STS3215;
+    // Homing offset: EEPROM (unlocked, written, locked again), sign-magnitude with bit 11.
+    let run = servo(&server, m, &["write"], &["--id", "1", "--addr", "31", "--value", "-5"]).ok();
+    assert_eq!(run.lines(), ["servo 1: wrote 05 08 at 31 (homing_offset = -5)"]);
+    let run = servo(&server, m, &["read"], &["--id", "1", "--addr", "31", "--len", "2"]).ok();
+    assert_eq!(run.lines(), ["05 08", "homing_offset = -5"]);
+    let run = servo(&server, m, &["read"], &["--id", "1", "--addr", "55", "--len", "1"]).ok();
+    assert_eq!(run.lines(), ["01", "lock = 1"]);
+    // Bytes no item names: --len gives the width.
+    servo(&server, m, &["write"], &["--id", "1", "--addr", "41", "--value", "0x20"]).ok();
+    let run = servo(&server, m, &["read"], &["--id", "1", "--addr", "41", "--len", "1"]).ok();
+    assert_eq!(run.lines(), ["20", "acceleration = 32"]);
+}
+
+#[test]
+fn write_refuses_values_that_do_not_fit_and_read_only_items() {
+    let server = sim(&XL430_W250, &[1], Faults::default(), &[]);
+    let m = &XL430_W250;
+    servo(&server, m, &["write"], &["--id", "1", "--addr", "64", "--value", "256"])
+        .fails(1, &["256 does not fit torque_enable"]);
+    servo(&server, m, &["write"], &["--id", "1", "--addr", "132", "--value", "1"])
+        .fails(1, &["present_position", "read-only"]);
+    servo(&server, m, &["write"], &["--id", "1", "--addr", "65", "--value", "70000", "--len", "2"])
+        .fails(1, &["70000 does not fit"]);
+    servo(&server, m, &["write"], &["--id", "1", "--addr", "66", "--value", "1"]).fails(1, &["give --len"]);
+}
+
+#[test]
+fn torque_on_and_off_show_in_a_read() {
+    for m in [&XL430_W250, &STS3215] {
+        let server = sim(m, &[4], Faults::default(), &[]);
+        let address = m.items.torque_enable.address.to_string();
+        let read = ["--id", "4", "--addr", address.as_str(), "--len", "1"];
+        let run = servo(&server, m, &["torque", "on"], &["--id", "4"]).ok();
+        assert_eq!(run.lines(), ["servo 4: torque on"]);
+        assert_eq!(servo(&server, m, &["read"], &read).ok().lines(), ["01", "torque_enable = 1"]);
+        let run = servo(&server, m, &["torque", "off"], &["--id", "4"]).ok();
+        assert_eq!(run.lines(), ["servo 4: torque off"]);
+        assert_eq!(servo(&server, m, &["read"], &read).ok().lines(), ["00", "torque_enable = 0"]);
+        let run = servo(&server, m, &["torque", "on"], &["--id", "all"]).ok();
+        assert_eq!(run.lines(), ["all servos: torque on (broadcast, not confirmed)"]);
+        assert_eq!(servo(&server, m, &["read"], &read).ok().lines(), ["01", "torque_enable = 1"]);
+    }
+}
+
+#[test]
+fn set_id_then_scan_shows_the_new_id() {
+    for m in [&XL430_W250, &STS3215] {
+        let server = sim(m, &[1, 2], Faults::default(), &[]);
+        let run = servo(&server, m, &["set-id"], &["--id", "1", "--new-id", "7"]).ok();
+        assert_eq!(run.lines(), [format!("servo 1: id is now 7 (model {} {})", m.number, m.name)]);
+        let run = servo(&server, m, &["scan"], &["--ids", "0-8"]).ok();
+        let ids: Vec<&str> = run.lines().iter().map(|l| l.split(':').next().unwrap()).collect();
+        assert_eq!(ids, ["id 2", "id 7"]);
+        if let Some(lock) = m.items.lock {
+            let address = lock.address.to_string();
+            let run = servo(&server, m, &["read"], &["--id", "7", "--addr", &address, "--len", "1"]).ok();
+            assert_eq!(run.lines(), ["01", "lock = 1"]);
+        }
+    }
+}
+
+#[test]
+fn set_id_refuses_a_taken_id_and_dynamixel_torque_on() {
+    let server = sim(&XL430_W250, &[1, 2], Faults::default(), &[]);
+    let m = &XL430_W250;
+    servo(&server, m, &["set-id"], &["--id", "1", "--new-id", "2"]).fails(1, &["id 2 is taken"]);
+    servo(&server, m, &["torque", "on"], &["--id", "1"]).ok();
+    servo(&server, m, &["set-id"], &["--id", "1", "--new-id", "3"]).fails(1, &["servo 1: torque is on", "torque off"]);
+    // Nothing changed.
+    let run = servo(&server, m, &["scan"], &["--ids", "0-4"]).ok();
+    assert_eq!(run.lines().len(), 2);
+    assert!(run.lines()[0].starts_with("id 1:") && run.lines()[1].starts_with("id 2:"));
+}
+
+#[test]
+fn dynamixel_eeprom_write_with_torque_on_is_explained() {
+    let server = sim(&XL430_W250, &[1], Faults::default(), &[]);
+    let m = &XL430_W250;
+    servo(&server, m, &["torque", "on"], &["--id", "1"]).ok();
+    servo(&server, m, &["write"], &["--id", "1", "--addr", "11", "--value", "4"])
+        .fails(1, &["servo 1: torque is on", "torque off --id 1"]);
+}
+
+#[test]
+fn set_baud_refuses_a_rate_the_model_lacks_and_confirms_at_the_new_rate() {
+    let server = sim(&XL430_W250, &[1], Faults::default(), &[]);
+    let m = &XL430_W250;
+    servo(&server, m, &["set-baud"], &["--id", "1", "--new-baud", "12345"])
+        .fails(1, &["XL430-W250 has no 12345 baud", "57600"]);
+    // The pty server follows the speed the port is opened at, so the servo is heard at its new rate
+    // only: set-baud reopens the port at 57600 and pings there to confirm.
+    let run = servo(&server, m, &["set-baud"], &["--id", "1", "--new-baud", "57600"]).ok();
+    assert_eq!(run.lines(), ["servo 1: baud rate is now 57600 (baud_rate = 1)"]);
+    let at = |baud: &str| {
+        armctl(&[
+            "servo",
+            "read",
+            "--port",
+            server.path(),
+            "--protocol",
+            "dxl2",
+            "--baud",
+            baud,
+            "--timeout-ms",
+            "200",
+            "--id",
+            "1",
+            "--addr",
+            "8",
+            "--len",
+            "1",
+        ])
+    };
+    assert_eq!(at("57600").ok().lines(), ["01", "baud_rate = 1"]);
+    at("1000000").fails(1, &["servo 1: no reply to read"]);
+}
+
+#[test]
+fn a_missing_port_is_one_line_naming_it() {
+    let run = armctl(&["servo", "scan", "--port", "/dev/armctl-no-such-port", "--protocol", "dxl2"]);
+    run.fails(1, &["/dev/armctl-no-such-port: no such serial port"]);
+    let run = armctl(&[
+        "servo",
+        "read",
+        "--port",
+        "/dev/armctl-nope",
+        "--protocol",
+        "sts",
+        "--id",
+        "1",
+        "--addr",
+        "56",
+        "--len",
+        "2",
+    ]);
+    run.fails(1, &["/dev/armctl-nope"]);
+}
+
+#[test]
+fn a_silent_servo_gets_no_reply() {
+    let faults = Faults { silent: vec![3], ..Faults::default() };
+    for m in [&XL430_W250, &STS3215] {
+        let server = sim(m, &[1, 3], faults.clone(), &[]);
+        let run = servo(&server, m, &["read"], &["--id", "3", "--addr", "10", "--len", "1", "--retries", "1"]);
+        assert_eq!(run.out, "");
+        run.fails(1, &["servo 3: no reply to read (2 attempts"]);
+        // The silent servo is left out of a scan.
+        let run = servo(&server, m, &["scan"], &["--ids", "0-4"]).ok();
+        assert_eq!(run.lines().len(), 1, "{:?}", run.lines());
+    }
+}
+
+#[test]
+fn a_corrupted_reply_is_a_bad_checksum() {
+    let faults = Faults { corrupt_rate: 1.0, seed: 7, ..Faults::default() };
+    for m in [&XL430_W250, &STS3215] {
+        let server = sim(m, &[1], faults.clone(), &[]);
+        let run = servo(&server, m, &["read"], &["--id", "1", "--addr", "10", "--len", "1"]);
+        run.fails(1, &["servo 1: reply to read had a bad checksum"]);
+    }
+}
+
+#[test]
+fn a_duplicate_id_is_reported_by_scan() {
+    let server = sim(&XL430_W250, &[1, 2], Faults::default(), &[2]);
+    let run = servo(&server, &XL430_W250, &["scan"], &["--ids", "0-3"]);
+    assert_eq!(run.code, 1, "stdout: {}\nstderr: {}", run.out, run.err);
+    assert!(run.lines().iter().any(|l| l.starts_with("id 1:")), "{}", run.out);
+    assert!(run.lines().iter().any(|l| l.starts_with("id 2:")), "{}", run.out);
+    run.fails(1, &["servo 2: reply to read had a bad checksum", "two servos with id 2?"]);
+}
+
+#[test]
+fn bad_arguments_exit_2() {
+    let p = "/dev/null";
+    let cases: [&[&str]; 7] = [
+        &["servo", "scan", "--protocol", "dxl2"],
+        &["servo", "scan", "--port", p, "--protocol", "dxl3"],
+        &["servo", "read", "--port", p, "--protocol", "dxl2", "--id", "1", "--addr", "0", "--len", "0"],
+        &[
+            "servo",
+            "write",
+            "--port",
+            p,
+            "--protocol",
+            "dxl2",
+            "--id",
+            "1",
+            "--addr",
+            "0",
+            "--value",
+            "1",
+            "--len",
+            "3",
+        ],
+        &["servo", "read", "--port", p, "--protocol", "dxl2", "--id", "253", "--addr", "0", "--len", "1"],
+        &["servo", "set-id", "--port", p, "--protocol", "sts", "--id", "1", "--new-id", "1"],
+        &["servo", "scan", "--port", p, "--protocol", "sts", "--ids", "5-1"],
+    ];
+    for args in cases {
+        let run = armctl(args);
+        assert_eq!(run.code, 2, "{args:?}: {}", run.err);
+        assert_eq!(run.err.lines().count(), 1, "{args:?}: {}", run.err);
+        assert!(run.err.starts_with("error: "), "{args:?}: {}", run.err);
+        assert_eq!(run.out, "");
+    }
+}
+
+/// Alerts: the pty server cannot raise a servo's hardware error, so these run the commands on the
+/// simulator's in-memory line (virtual clock) instead of through `cli::main`.
+#[test]
+fn an_alert_shows_the_data_then_one_error_line_per_servo() {
+    use armctl::servo::commands;
+    use armctl::servo::session::Session;
+    use armctl::sim::{connect, SimBus};
+    use firmware::bus::master::BusConfig;
+
+    for (m, bits, text) in [
+        (&XL430_W250, 0x20, "error: servo 3: alert: hardware error status 0x20 (overload)"),
+        (&STS3215, 0x24, "error: servo 3: alert: overheat (error bits 0x24)"),
+    ] {
+        let (bus, port, clock) = connect(SimBus::new(m.protocol, m, &[3], BAUD));
+        bus.borrow_mut().servo_mut(3).unwrap().set_hardware_error(bits, 0);
+        let mut session = Session::new("sim", port, clock, BusConfig::new(m.protocol, BAUD));
+        let address = m.items.present_position.address;
+        let (mut out, mut err) = (Vec::new(), Vec::new());
+        let code = commands::read(&mut session, 3, address, 2, &mut out, &mut err).unwrap();
+        let (out, err) = (String::from_utf8(out).unwrap(), String::from_utf8(err).unwrap());
+        assert_eq!(code, 1, "{out}{err}");
+        assert_eq!(out.lines().count(), 1 + usize::from(m.protocol == Protocol::Feetech), "the data is shown: {out}");
+        assert_eq!(err.lines().collect::<Vec<_>>(), [text]);
+    }
+}
