@@ -48,11 +48,18 @@ enum Command {
         #[command(subcommand)]
         what: BenchCommand,
     },
+    /// Simulated servo buses (served on a pseudo-terminal).
+    Sim {
+        #[command(subcommand)]
+        what: crate::sim::cli::SimCommand,
+    },
     /// Joint trajectories through keyframes.
     Trajectory {
         #[command(subcommand)]
         what: TrajectoryCommand,
     },
+    /// Serial bus servo set-up on a real port: scan, read, write, set-id, set-baud, torque.
+    Servo(crate::servo::cli::ServoArgs),
 }
 
 #[derive(Subcommand, Debug)]
@@ -81,6 +88,9 @@ enum BenchCommand {
         #[arg(long)]
         no_k: bool,
     },
+    /// Wire time of one control cycle (sync write goals + sync read positions), computed and
+    /// simulated with the firmware's cycle against simulated servos.
+    Bus(crate::bench_bus::BusBenchArgs),
 }
 
 #[derive(Args, Debug)]
@@ -202,6 +212,9 @@ fn run(command: Command, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32
             print_json(out, &json!({"arm": arm.spec().name, "jacobian": arm.jacobian(&q)?}))?;
         }
         Command::Ik(args) => return ik(&args, out, err),
+        Command::Bench { what: BenchCommand::Bus(args) } => return crate::bench_bus::run(&args, out),
+        Command::Servo(args) => return crate::servo::cli::run(args, out, err),
+        Command::Sim { what } => return crate::sim::cli::run(what, out, err),
         Command::Trajectory { what: TrajectoryCommand::Sample(args) } => {
             return trajectory::run_sample(&args, out, err)
         }

@@ -4,9 +4,12 @@
 
 pub mod arm;
 pub mod bench;
+pub mod bench_bus;
 pub mod cli;
 pub mod dof;
 pub mod kcompare;
 pub mod parse;
 pub mod plot;
+pub mod servo;
+pub mod sim;
 pub mod trajectory;
