@@ -17,7 +17,7 @@ use firmware::bus::timing::{cycle_bytes, cycle_time_ns, sync_read_request_len, s
 use firmware::bus::Protocol;
 use serde_json::json;
 
-use crate::sim::cli::{ModelArg, ProtocolArg};
+use crate::bus_args::{model_for, ModelArg, ProtocolArg};
 use crate::sim::{connect, SimBus};
 
 /// Arguments of `armctl bench bus`.
@@ -96,18 +96,8 @@ macro_rules! dispatch {
 
 /// Runs `armctl bench bus`: one JSON object on `out`.
 pub fn run(args: &BusBenchArgs, out: &mut dyn Write) -> Result<i32> {
-    let protocol = match args.protocol {
-        ProtocolArg::Dxl2 => Protocol::Dxl2,
-        ProtocolArg::Sts => Protocol::Feetech,
-    };
-    let model = match (args.model, protocol) {
-        (Some(m), _) => m.model(),
-        (None, Protocol::Dxl2) => ModelArg::Xl430W250.model(),
-        (None, Protocol::Feetech) => ModelArg::Sts3215.model(),
-    };
-    if model.protocol != protocol {
-        bail!("--model {} speaks {}, not {}", model.name, model.protocol.name(), protocol.name());
-    }
+    let protocol = Protocol::from(args.protocol);
+    let model = model_for(protocol, args.model)?;
     if model.baud_index(args.baud).is_none() {
         bail!("{} has no baud index for {}", model.name, args.baud);
     }

@@ -5,6 +5,7 @@
 pub mod arm;
 pub mod bench;
 pub mod bench_bus;
+pub mod bus_args;
 pub mod cli;
 pub mod dof;
 pub mod kcompare;

@@ -142,6 +142,40 @@ impl GroupReport {
     }
 }
 
+impl GroupReport {
+    /// Books servo `i`'s reply (`error` byte and `data`) into the report and its `slot` of the
+    /// output; false when it does not count (already booked, or data of the wrong size).
+    fn book(&mut self, i: usize, protocol: Protocol, error: u8, data: &[u8], slot: &mut [u8]) -> bool {
+        let bit = 1u32 << i;
+        if (self.answered | self.failed) & bit != 0 {
+            return false;
+        }
+        let (refused, alert) = classify(protocol, error);
+        if refused {
+            self.failed |= bit;
+        } else if data.len() == slot.len() {
+            slot.copy_from_slice(data);
+            self.answered |= bit;
+            if alert.is_some() {
+                self.alerts |= bit;
+            }
+        } else {
+            return false;
+        }
+        true
+    }
+}
+
+/// Until `pending` reaches zero, more replies are awaited.
+fn countdown(pending: &mut usize) -> Flow {
+    *pending = pending.saturating_sub(1);
+    if *pending == 0 {
+        Flow::Done
+    } else {
+        Flow::More
+    }
+}
+
 fn mask(count: usize) -> u32 {
     if count >= 32 {
         u32::MAX
@@ -583,28 +617,12 @@ where
             let mut pending = n;
             self.receive(timeout_us, |status| {
                 let Some(i) = ids.iter().position(|&id| id == status.id) else { return Flow::More };
-                let bit = 1u32 << i;
-                if (report.answered | report.failed) & bit != 0 || !asked[..n].contains(&status.id) {
+                if !asked[..n].contains(&status.id)
+                    || !report.book(i, protocol, status.error, status.params, &mut out[i * len..(i + 1) * len])
+                {
                     return Flow::More;
                 }
-                let (refused, alert) = classify(protocol, status.error);
-                if refused {
-                    report.failed |= bit;
-                } else if status.params.len() == len {
-                    out[i * len..(i + 1) * len].copy_from_slice(status.params);
-                    report.answered |= bit;
-                    if alert.is_some() {
-                        report.alerts |= bit;
-                    }
-                } else {
-                    return Flow::More;
-                }
-                pending -= 1;
-                if pending == 0 {
-                    Flow::Done
-                } else {
-                    Flow::More
-                }
+                countdown(&mut pending)
             })?;
             // A refusal is an answer: asking again would get the same.
             if report.answered | report.failed == mask(ids.len()) {
@@ -648,21 +666,9 @@ where
                 }
                 let Some(parts) = super::dxl2::fast_sync_read_parts(status, len) else { return Flow::More };
                 for part in parts {
-                    let Some(i) = ids.iter().position(|&id| id == part.id) else { continue };
-                    let bit = 1u32 << i;
-                    if (report.answered | report.failed) & bit != 0 {
-                        // The same id twice in one reply: the first part counts.
-                        continue;
-                    }
-                    let (refused, alert) = classify(protocol, part.error);
-                    if refused {
-                        report.failed |= bit;
-                    } else if part.data.len() == len {
-                        out[i * len..(i + 1) * len].copy_from_slice(part.data);
-                        report.answered |= bit;
-                        if alert.is_some() {
-                            report.alerts |= bit;
-                        }
+                    // The same id twice in one reply: the first part counts.
+                    if let Some(i) = ids.iter().position(|&id| id == part.id) {
+                        report.book(i, protocol, part.error, part.data, &mut out[i * len..(i + 1) * len]);
                     }
                 }
                 Flow::Done
@@ -696,30 +702,12 @@ where
         let mut pending = records.len();
         self.receive(timeout_us, |status| {
             let Some(i) = records.iter().position(|r| r.id == status.id) else { return Flow::More };
-            let bit = 1u32 << i;
-            if (report.answered | report.failed) & bit != 0 {
-                return Flow::More;
-            }
             let start: usize = records[..i].iter().map(|r| usize::from(r.length)).sum();
-            let len = usize::from(records[i].length);
-            let (refused, alert) = classify(protocol, status.error);
-            if refused {
-                report.failed |= bit;
-            } else if status.params.len() == len {
-                out[start..start + len].copy_from_slice(status.params);
-                report.answered |= bit;
-                if alert.is_some() {
-                    report.alerts |= bit;
-                }
-            } else {
+            let slot = &mut out[start..start + usize::from(records[i].length)];
+            if !report.book(i, protocol, status.error, status.params, slot) {
                 return Flow::More;
             }
-            pending -= 1;
-            if pending == 0 {
-                Flow::Done
-            } else {
-                Flow::More
-            }
+            countdown(&mut pending)
         })?;
         Ok(report)
     }

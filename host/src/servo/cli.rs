@@ -15,6 +15,7 @@ use firmware::bus::{Id, Protocol};
 
 use super::commands::{self, Target};
 use super::session::Session;
+use crate::bus_args::ProtocolArg;
 
 /// Serial bus servos: scan, read and write the control table, set id and baud rate, torque.
 #[derive(Args, Debug)]
@@ -111,24 +112,6 @@ enum ServoCommand {
 enum OnOff {
     On,
     Off,
-}
-
-/// The protocol on the command line.
-#[derive(Clone, Copy, Debug, ValueEnum)]
-enum ProtocolArg {
-    /// Dynamixel Protocol 2.0.
-    Dxl2,
-    /// Feetech SCS/STS.
-    Sts,
-}
-
-impl From<ProtocolArg> for Protocol {
-    fn from(p: ProtocolArg) -> Self {
-        match p {
-            ProtocolArg::Dxl2 => Protocol::Dxl2,
-            ProtocolArg::Sts => Protocol::Feetech,
-        }
-    }
 }
 
 #[derive(Args, Debug)]

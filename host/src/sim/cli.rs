@@ -3,12 +3,12 @@
 use std::io::Write;
 
 use anyhow::{bail, Context, Result};
-use clap::{Args, Subcommand, ValueEnum};
-use firmware::bus::table::{Model, STS3215, XL330_M288, XL430_W250, XM430_W350};
+use clap::{Args, Subcommand};
 use firmware::bus::{dxl2, feetech, Protocol};
 
 use super::faults::Faults;
 use super::pty::{PtyServer, SimConfig};
+use crate::bus_args::{model_for, ModelArg, ProtocolArg};
 
 /// What to simulate.
 #[derive(Subcommand, Debug)]
@@ -16,40 +16,6 @@ pub enum SimCommand {
     /// Serve simulated servos on a pseudo-terminal: prints its path on the first line of stdout,
     /// then serves until interrupted.
     Servos(SimServosArgs),
-}
-
-/// The protocol on the command line.
-#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ProtocolArg {
-    /// Dynamixel Protocol 2.0.
-    Dxl2,
-    /// Feetech SCS/STS.
-    Sts,
-}
-
-/// The servo model on the command line.
-#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ModelArg {
-    /// ROBOTIS XL430-W250 (Dynamixel).
-    Xl430W250,
-    /// ROBOTIS XM430-W350 (Dynamixel).
-    Xm430W350,
-    /// ROBOTIS XL330-M288 (Dynamixel).
-    Xl330M288,
-    /// Feetech STS3215.
-    Sts3215,
-}
-
-impl ModelArg {
-    /// The firmware's table of the model.
-    pub fn model(self) -> &'static Model {
-        match self {
-            Self::Xl430W250 => &XL430_W250,
-            Self::Xm430W350 => &XM430_W350,
-            Self::Xl330M288 => &XL330_M288,
-            Self::Sts3215 => &STS3215,
-        }
-    }
 }
 
 /// Arguments of `armctl sim servos`.
@@ -110,18 +76,12 @@ pub fn parse_ids(text: &str) -> Result<Vec<u8>> {
 
 /// Checks the arguments and builds the bus description.
 pub fn config(args: &SimServosArgs) -> Result<SimConfig> {
-    let (protocol, max_id) = match args.protocol {
-        ProtocolArg::Dxl2 => (Protocol::Dxl2, dxl2::MAX_ID),
-        ProtocolArg::Sts => (Protocol::Feetech, feetech::MAX_ID),
+    let protocol = Protocol::from(args.protocol);
+    let max_id = match protocol {
+        Protocol::Dxl2 => dxl2::MAX_ID,
+        Protocol::Feetech => feetech::MAX_ID,
     };
-    let model = match args.model {
-        Some(m) => m.model(),
-        None if protocol == Protocol::Dxl2 => &XL430_W250,
-        None => &STS3215,
-    };
-    if model.protocol != protocol {
-        bail!("--model {} speaks {}, not {}", model.name, model.protocol.name(), protocol.name());
-    }
+    let model = model_for(protocol, args.model)?;
     let ids = parse_ids(&args.ids)?;
     let all = ids.iter().chain(&args.silent).chain(&args.duplicate);
     if let Some(id) = all.into_iter().find(|&&id| id > max_id) {
