@@ -165,3 +165,20 @@ fn corrupt_reply_is_named() {
     assert!(matches!(err, MasterError::NoReply { corrupt: 3, .. }), "{err:?}");
     assert!(err.to_string().contains("bad checksum"), "{err}");
 }
+
+#[test]
+fn a_reply_behind_a_false_header_in_noise_arrives_once_the_line_is_quiet() {
+    // Noise that looks like the start of a long packet, then the real reply: the decoder must not
+    // wait for the noise's announced length once the line has gone quiet.
+    for (protocol, noise) in [
+        (Protocol::Dxl2, vec![0xFF, 0xFF, 0xFD, 0x00, 0x01, 0x30, 0x00]),
+        (Protocol::Feetech, vec![0xFF, 0xFF, 0x00, 0x20]),
+    ] {
+        let reply = [noise, status(protocol, 1, 0, &[0x18, 0x05])].concat();
+        let (mut m, _) = master(protocol, false, vec![reply]);
+        let mut data = [0u8; 2];
+        m.read(1, 56, &mut data).unwrap_or_else(|e| panic!("{protocol:?}: {e}"));
+        assert_eq!(data, [0x18, 0x05]);
+        assert_eq!(m.stats().retries, 0, "{protocol:?}: answered on the first attempt");
+    }
+}

@@ -157,6 +157,23 @@ fn feetech_read_write_round_trip_relocks_the_eeprom() {
     assert_eq!(run.lines(), ["20", "acceleration = 32"]);
 }
 
+/// Writing the id or baud item directly would skip set-id's and set-baud's checks and leave the
+/// servo where the tool cannot confirm it: refused, and nothing changes.
+#[test]
+fn write_refuses_the_id_and_baud_items() {
+    for m in [&XL430_W250, &STS3215] {
+        let server = sim(m, &[1], Faults::default(), &[]);
+        let (id_addr, baud_addr) = (m.items.id.address.to_string(), m.items.baud.address.to_string());
+        servo(&server, m, &["write"], &["--id", "1", "--addr", &id_addr, "--value", "9"])
+            .fails(1, &["use armctl servo set-id"]);
+        servo(&server, m, &["write"], &["--id", "1", "--addr", &baud_addr, "--value", "1"])
+            .fails(1, &["use armctl servo set-baud"]);
+        let run = servo(&server, m, &["scan"], &["--ids", "0-10"]).ok();
+        assert_eq!(run.lines().len(), 1);
+        assert!(run.lines()[0].starts_with("id 1: "), "{:?}", run.lines());
+    }
+}
+
 #[test]
 fn write_refuses_values_that_do_not_fit_and_read_only_items() {
     let server = sim(&XL430_W250, &[1], Faults::default(), &[]);

@@ -237,7 +237,7 @@ fn eeprom_is_refused_while_torque_is_on() {
 }
 
 #[test]
-fn goals_are_clamped_to_the_position_limits_and_nothing_moves_without_torque() {
+fn goals_beyond_the_limits_are_refused_or_clamped_and_nothing_moves_without_torque() {
     for model in [&XL430_W250, &STS3215] {
         let mut r = rig(model, &[1]);
         let items = model.items;
@@ -248,12 +248,29 @@ fn goals_are_clamped_to_the_position_limits_and_nothing_moves_without_torque() {
         r.clock.advance_ns(2_000_000_000);
         assert_eq!(r.read_item(1, items.present_position), 2048, "{}", model.name);
         r.write_item(1, items.torque_enable, 1);
-        r.write_item(1, items.goal_position, 4000);
-        r.clock.advance_ns(5_000_000_000);
-        assert_eq!(r.read_item(1, items.present_position), 3000, "{}", model.name);
-        r.write_item(1, items.goal_position, 10);
-        r.clock.advance_ns(5_000_000_000);
-        assert_eq!(r.read_item(1, items.present_position), 1000, "{}", model.name);
+        let beyond = |r: &mut Rig, goal: i64| {
+            let data = r.bytes(items.goal_position, goal);
+            r.master.write(1, items.goal_position.address, &data)
+        };
+        match model.protocol {
+            // Dynamixel refuses a goal beyond the limits with a data limit error and keeps its goal.
+            Protocol::Dxl2 => {
+                let err = beyond(&mut r, 4000).unwrap_err();
+                assert!(matches!(err, MasterError::Refused { error: 6, .. }), "{err:?}");
+                assert_eq!(err.to_string(), "servo 1: data limit error");
+                r.clock.advance_ns(5_000_000_000);
+                assert_eq!(r.read_item(1, items.present_position), 2048);
+            }
+            // Feetech takes it and stops at the limit.
+            Protocol::Feetech => {
+                beyond(&mut r, 4000).unwrap();
+                r.clock.advance_ns(5_000_000_000);
+                assert_eq!(r.read_item(1, items.present_position), 3000);
+                beyond(&mut r, 10).unwrap();
+                r.clock.advance_ns(5_000_000_000);
+                assert_eq!(r.read_item(1, items.present_position), 1000);
+            }
+        }
     }
 }
 
@@ -502,6 +519,38 @@ fn the_pty_server_answers_a_ping() {
     let ping = [0xFF, 0xFF, 0xFD, 0x00, 0x01, 0x03, 0x00, 0x01, 0x19, 0x4E];
     assert_eq!(exchange(server.path(), &ping, expected.len()), expected);
     server.stop().unwrap();
+}
+
+/// Noise that looks like the start of a long packet, then a ping, in one burst: the servos drop
+/// the dead candidate once the line is quiet and answer the ping, on the pty (real time) and on
+/// the in-memory port (virtual time).
+#[test]
+fn a_ping_behind_a_false_header_in_noise_is_answered() {
+    let server = PtyServer::spawn(SimConfig {
+        protocol: Protocol::Feetech,
+        model: &STS3215,
+        ids: vec![1],
+        baud: BAUD,
+        faults: Faults::default(),
+        duplicates: Vec::new(),
+    })
+    .unwrap();
+    let noisy_ping = [0xFF, 0xFF, 0x00, 0x20, 0xFF, 0xFF, 0x01, 0x02, 0x01, 0xFB];
+    let expected = ping_reply(Protocol::Feetech, 1, &[]);
+    assert_eq!(exchange(server.path(), &noisy_ping, expected.len()), expected);
+    server.stop().unwrap();
+
+    let mut port = armctl::sim::connect(SimBus::new(Protocol::Feetech, &STS3215, &[1], BAUD)).1;
+    use embedded_io::{Read, ReadReady, Write};
+    port.write_all(&noisy_ping).unwrap();
+    port.flush().unwrap();
+    let mut reply = Vec::new();
+    while port.read_ready().unwrap() {
+        let mut b = [0u8; 16];
+        let n = port.read(&mut b).unwrap();
+        reply.extend_from_slice(&b[..n]);
+    }
+    assert_eq!(reply, expected);
 }
 
 #[test]

@@ -86,7 +86,8 @@ impl<const N: usize> ServoGroup<N> {
         for (i, v) in values.iter_mut().enumerate() {
             if report.answered & (1 << i) != 0 {
                 if let Ok(x) = item.decode(&raw[i * len..(i + 1) * len], self.model.endian) {
-                    *v = x as i32;
+                    // Only an unsigned 4-byte item can exceed i32; no position item is one.
+                    *v = x.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
                 }
             }
         }

@@ -104,7 +104,7 @@ impl JointMapping {
 
     /// The joint angle of a tick value (exact up to the scalar's rounding).
     pub fn to_radians<T: Real>(&self, ticks: i32) -> T {
-        T::of(self.sign() * f64::from(ticks - self.zero) / self.ticks_per_radian())
+        T::of(self.sign() * (f64::from(ticks) - f64::from(self.zero)) / self.ticks_per_radian())
     }
 
     /// The joint range the tick limits allow, `(lowest, highest)` in radians.
@@ -150,6 +150,13 @@ mod tests {
         let (lo, hi) = m.joint_range::<f64>();
         assert!(lo < hi);
         assert!((hi - 1000.0 / 4096.0 * 2.0 * PI).abs() < 1e-12);
+    }
+
+    #[test]
+    fn extreme_tick_values_from_a_servo_do_not_overflow() {
+        let m = JointMapping::centred(1, 4096);
+        assert!(m.to_radians::<f64>(i32::MIN) < -3e6);
+        assert!(m.to_radians::<f32>(i32::MAX) > 3e6);
     }
 
     #[test]

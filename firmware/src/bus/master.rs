@@ -5,7 +5,11 @@
 //! transaction: the wire time of the bytes expected at the baud rate, plus each replying servo's
 //! return delay, plus a margin (the servo's processing time and, on a PC, the USB adapter's
 //! latency). A timeout or a corrupt reply is retried; a sync read retries only the servos that did
-//! not answer and reports those that still did not, instead of failing the whole read.
+//! not answer and reports those that still did not, instead of failing the whole read. A fast sync
+//! read is retried whole; a bulk read makes one attempt and reports who answered.
+//!
+//! A quiet line ends a packet: when no byte has come for [`BusConfig::idle_gap_us`] while the
+//! decoder holds an incomplete frame, that frame is dropped and the replies behind it are read.
 //!
 //! Half-duplex adapters have a direction pin: it is set high (transmit) before the first byte
 //! and low (receive) after the port's `flush`, which must return only once the last byte has left
@@ -68,6 +72,11 @@ pub struct BusConfig {
     pub return_delay_us: u32,
     /// Added to every timeout: servo processing time, and on a PC the USB adapter's latency.
     pub margin_us: u32,
+    /// How long the line may stay quiet in the middle of a packet before the bytes held are
+    /// judged dead (see [`super::stream::StreamDecoder::expire`]): a few byte times on a
+    /// microcontroller's UART, the adapter's latency on a PC, where a packet can arrive in two USB
+    /// transfers.
+    pub idle_gap_us: u32,
     /// Extra attempts after a timeout or a corrupt reply.
     pub retries: u8,
     /// Which instructions the servos answer.
@@ -79,13 +88,25 @@ pub struct BusConfig {
 
 impl BusConfig {
     /// The factory settings of the protocol's servos (return delay 500 µs on Dynamixel, 0 on
-    /// Feetech; replies to everything), a 1 ms margin and 2 retries.
+    /// Feetech; replies to everything), a 1 ms margin, 2 retries, and an idle gap of three byte
+    /// times (at least 100 µs): the figures of a microcontroller's own UART. On a PC raise
+    /// `margin_us` and `idle_gap_us` to the USB adapter's latency.
     pub fn new(protocol: Protocol, baud: u32) -> Self {
         let return_delay_us = match protocol {
             Protocol::Dxl2 => 500,
             Protocol::Feetech => 0,
         };
-        Self { protocol, baud, return_delay_us, margin_us: 1000, retries: 2, replies: Replies::All, echo: false }
+        let idle_gap_us = (wire_time_ns(3, baud).div_ceil(1000)).max(100) as u32;
+        Self {
+            protocol,
+            baud,
+            return_delay_us,
+            margin_us: 1000,
+            idle_gap_us,
+            retries: 2,
+            replies: Replies::All,
+            echo: false,
+        }
     }
 }
 
@@ -138,7 +159,10 @@ impl GroupReport {
     /// The ids, among `ids` (the ones asked, in order), whose data did not arrive.
     pub fn missing<'a>(&self, ids: &'a [Id]) -> impl Iterator<Item = Id> + 'a {
         let answered = self.answered;
-        ids.iter().enumerate().filter(move |(i, _)| answered & (1 << i) == 0).map(|(_, id)| *id)
+        ids.iter()
+            .enumerate()
+            .filter(move |(i, _)| answered & 1u32.checked_shl(*i as u32).unwrap_or(0) == 0)
+            .map(|(_, id)| *id)
     }
 }
 
@@ -379,7 +403,7 @@ where
             if got == 0 {
                 break;
             }
-            self.stats.bytes_received += got as u64;
+            self.stats.bytes_received = self.stats.bytes_received.wrapping_add(got as u64);
         }
         self.decoder.clear();
         self.direction.set_high().map_err(|_| MasterError::DirectionPin)?;
@@ -389,8 +413,8 @@ where
         sent.map_err(MasterError::Io)?;
         released.map_err(|_| MasterError::DirectionPin)?;
         self.echo_left = if self.config.echo { n } else { 0 };
-        self.stats.packets_sent += 1;
-        self.stats.bytes_sent += n as u64;
+        self.stats.packets_sent = self.stats.packets_sent.wrapping_add(1);
+        self.stats.bytes_sent = self.stats.bytes_sent.wrapping_add(n as u64);
         Ok(())
     }
 
@@ -404,18 +428,26 @@ where
         let deadline = self.clock.now_us().saturating_add(timeout_us);
         let checksums_before = self.decoder.stats().bad_checksums;
         let mut chunk = [0u8; 32];
+        let mut last_byte = self.clock.now_us();
         let done = 'wait: loop {
             if self.drain(&mut on_status) {
                 break 'wait true;
             }
-            if self.clock.now_us() >= deadline {
+            let now = self.clock.now_us();
+            if now >= deadline {
                 break 'wait false;
             }
             if !self.port.read_ready().map_err(MasterError::Io)? {
+                // A quiet line ends any packet in progress: what is held but incomplete (a cut
+                // reply, or a header-like pattern in noise) is dead, and frames behind it are freed.
+                if now.saturating_sub(last_byte) >= u64::from(self.config.idle_gap_us) && self.decoder.holds_partial() {
+                    self.decoder.expire();
+                }
                 continue;
             }
             let got = self.port.read(&mut chunk).map_err(MasterError::Io)?;
-            self.stats.bytes_received += got as u64;
+            last_byte = self.clock.now_us();
+            self.stats.bytes_received = self.stats.bytes_received.wrapping_add(got as u64);
             let skip = self.echo_left.min(got);
             self.echo_left -= skip;
             let mut rest = &chunk[skip..got];
@@ -427,9 +459,10 @@ where
                 }
             }
         };
-        self.stats.bad_checksums += self.decoder.stats().bad_checksums - checksums_before;
+        self.stats.bad_checksums =
+            self.stats.bad_checksums.wrapping_add(self.decoder.stats().bad_checksums.wrapping_sub(checksums_before));
         if !done {
-            self.stats.timeouts += 1;
+            self.stats.timeouts = self.stats.timeouts.wrapping_add(1);
         }
         Ok(done)
     }
@@ -444,7 +477,7 @@ where
                         return true;
                     }
                 }
-                Err(_) => self.stats.ignored += 1,
+                Err(_) => self.stats.ignored = self.stats.ignored.wrapping_add(1),
             }
         }
         false
@@ -483,7 +516,7 @@ where
         let protocol = self.config.protocol;
         for attempt in 0..=self.config.retries {
             if attempt > 0 {
-                self.stats.retries += 1;
+                self.stats.retries = self.stats.retries.wrapping_add(1);
             }
             self.send(&packet)?;
             let mut outcome: Option<Result<Answer, PortError<P>>> = None;
@@ -512,7 +545,7 @@ where
             instruction: instruction.name(),
             timeout_us,
             attempts: self.config.retries + 1,
-            corrupt: self.stats.bad_checksums - checksums_before,
+            corrupt: self.stats.bad_checksums.wrapping_sub(checksums_before),
         })
     }
 
@@ -608,7 +641,7 @@ where
                 break;
             }
             if attempt > 0 {
-                self.stats.retries += 1;
+                self.stats.retries = self.stats.retries.wrapping_add(1);
             }
             report.attempts = attempt + 1;
             let instruction = Instruction::SyncRead { address, length, ids: &asked[..n] };
@@ -656,7 +689,7 @@ where
         let protocol = self.config.protocol;
         for attempt in 0..=self.config.retries {
             if attempt > 0 {
-                self.stats.retries += 1;
+                self.stats.retries = self.stats.retries.wrapping_add(1);
             }
             report.attempts = attempt + 1;
             self.send(&packet)?;

@@ -4,9 +4,16 @@
 //! The decoder keeps at most `CAP` bytes. It looks for a header, asks the codec how long the frame
 //! is ([`Protocol::frame_len`]), and when all of it is there checks the checksum. Whatever cannot
 //! be a frame is dropped one byte at a time and the rest rescanned, so a header hidden in the
-//! bytes of a broken packet is still found: after garbage, a partial packet or a bad checksum the
-//! decoder is back in step at the next intact packet. A length field promising more than `CAP`
-//! bytes is treated the same way. Every dropped candidate is counted in [`DecoderStats`].
+//! bytes of a broken packet is still found. A length field promising more than `CAP` bytes is
+//! treated the same way. Every dropped candidate is counted in [`DecoderStats`].
+//!
+//! A candidate whose length field promises more bytes than have come (a packet cut short, or a
+//! header-like pattern in line noise) holds back the bytes behind it while the line is busy: they
+//! could be its data. Once the line has been idle longer than a packet's bytes may be apart, that
+//! candidate is dead: [`StreamDecoder::expire`] drops every incomplete candidate and rescans, so
+//! an intact packet received behind one is delivered then. The bus master and the simulated
+//! servos call it when the line goes quiet; without that call, a false header in noise would
+//! delay the frames behind it until its announced length had arrived.
 
 use super::{FrameLen, Protocol};
 
@@ -21,7 +28,7 @@ pub struct DecoderStats {
     pub garbage_bytes: u32,
     /// Frames dropped because their length field exceeds the buffer.
     pub oversized: u32,
-    /// Partial frames dropped by [`StreamDecoder::expire`].
+    /// Incomplete candidates dropped after [`StreamDecoder::expire`].
     pub expired: u32,
     /// Bytes refused because the buffer was full of frames not taken.
     pub overflow: u32,
@@ -35,6 +42,8 @@ pub struct StreamDecoder<const CAP: usize> {
     len: usize,
     /// Bytes of the frame last returned, dropped at the next call (the frame borrows them).
     delivered: usize,
+    /// The line has been idle since the last byte: incomplete candidates are dead.
+    idle: bool,
     stats: DecoderStats,
 }
 
@@ -46,6 +55,7 @@ impl<const CAP: usize> StreamDecoder<CAP> {
             buf: [0; CAP],
             len: 0,
             delivered: 0,
+            idle: false,
             stats: DecoderStats {
                 frames: 0,
                 bad_checksums: 0,
@@ -78,14 +88,20 @@ impl<const CAP: usize> StreamDecoder<CAP> {
         self.delivered = 0;
     }
 
-    /// Drops a partial frame: call when the line has been idle for longer than the protocol allows
-    /// between the bytes of one packet, which proves the rest was lost.
+    /// Declares the line idle: call when no byte has come for longer than the protocol allows
+    /// between the bytes of one packet, which proves that an incomplete frame will never be
+    /// completed. Every incomplete candidate is then dropped (one byte at a time, rescanning), and
+    /// complete frames behind them are delivered by [`StreamDecoder::next_frame`]. The next byte
+    /// appended ends the idle state.
     pub fn expire(&mut self) {
+        self.idle = true;
+    }
+
+    /// Whether bytes are held that are not yet a frame (the line is mid-packet, or noise waits
+    /// for [`StreamDecoder::expire`]).
+    pub fn holds_partial(&mut self) -> bool {
         self.release();
-        if self.len > 0 {
-            self.stats.expired += 1;
-        }
-        self.len = 0;
+        self.len > 0
     }
 
     fn release(&mut self) {
@@ -107,6 +123,9 @@ impl<const CAP: usize> StreamDecoder<CAP> {
     pub fn extend(&mut self, bytes: &[u8]) -> usize {
         self.release();
         let n = bytes.len().min(CAP - self.len);
+        if n > 0 {
+            self.idle = false;
+        }
         self.buf[self.len..self.len + n].copy_from_slice(&bytes[..n]);
         self.len += n;
         n
@@ -117,7 +136,7 @@ impl<const CAP: usize> StreamDecoder<CAP> {
     /// [`StreamDecoder::extend`] filled it without draining is counted in `overflow`.
     pub fn push(&mut self, byte: u8) -> Option<&mut [u8]> {
         if self.extend(&[byte]) == 0 {
-            self.stats.overflow += 1;
+            self.stats.overflow = self.stats.overflow.wrapping_add(1);
         }
         self.next_frame()
     }
@@ -136,7 +155,7 @@ impl<const CAP: usize> StreamDecoder<CAP> {
             // Skip to the first byte that can start a header (both protocols start with 0xFF).
             let start = self.buf[..self.len].iter().position(|&b| b == 0xFF).unwrap_or(self.len);
             if start > 0 {
-                self.stats.garbage_bytes += start as u32;
+                self.stats.garbage_bytes = self.stats.garbage_bytes.wrapping_add(start as u32);
                 self.drop_front(start);
             }
             if self.len == 0 {
@@ -144,22 +163,26 @@ impl<const CAP: usize> StreamDecoder<CAP> {
             }
             match self.protocol.frame_len(&self.buf[..self.len]) {
                 FrameLen::NotAFrame => {
-                    self.stats.garbage_bytes += 1;
+                    self.stats.garbage_bytes = self.stats.garbage_bytes.wrapping_add(1);
                     self.drop_front(1);
                 }
                 FrameLen::NeedMore(n) if n > CAP => {
-                    self.stats.oversized += 1;
+                    self.stats.oversized = self.stats.oversized.wrapping_add(1);
+                    self.drop_front(1);
+                }
+                FrameLen::NeedMore(_) if self.idle => {
+                    self.stats.expired = self.stats.expired.wrapping_add(1);
                     self.drop_front(1);
                 }
                 FrameLen::NeedMore(_) => return None,
                 FrameLen::Complete(n) => match self.protocol.verify(&self.buf[..n.min(self.len)]) {
                     Ok(()) => {
-                        self.stats.frames += 1;
+                        self.stats.frames = self.stats.frames.wrapping_add(1);
                         self.delivered = n.min(self.len);
                         return Some(self.delivered);
                     }
                     Err(_) => {
-                        self.stats.bad_checksums += 1;
+                        self.stats.bad_checksums = self.stats.bad_checksums.wrapping_add(1);
                         self.drop_front(1);
                     }
                 },
@@ -226,7 +249,27 @@ mod tests {
         let mut d = StreamDecoder::<64>::new(Protocol::Feetech);
         assert_eq!(frames(&mut d, &[0xFF, 0xFF, 0x01, 0x02]), Vec::<Vec<u8>>::new());
         d.expire();
-        assert_eq!(d.stats().expired, 1);
+        assert_eq!(d.next_frame(), None);
+        assert!(d.stats().expired >= 1);
+        assert!(!d.holds_partial());
         assert_eq!(frames(&mut d, &[0xFF, 0xFF, 0x01, 0x02, 0x01, 0xFB]), [vec![0xFF, 0xFF, 0x01, 0x02, 0x01, 0xFB]]);
+    }
+
+    /// A header-like pattern in noise announcing more bytes than come holds back the intact
+    /// packet behind it only until the line goes idle.
+    #[test]
+    fn a_false_header_in_noise_delays_but_never_loses_the_packet_behind_it() {
+        for (protocol, noise, packet) in [
+            (Protocol::Dxl2, &[0xFF, 0xFF, 0xFD, 0x00, 0x01, 0x30, 0x00][..], &STATUS[..]),
+            (Protocol::Feetech, &[0xFF, 0xFF, 0x00, 0x20][..], &[0xFF, 0xFF, 0x01, 0x02, 0x00, 0xFC][..]),
+        ] {
+            let mut d = StreamDecoder::<64>::new(protocol);
+            let stream = [noise, packet].concat();
+            assert_eq!(frames(&mut d, &stream), Vec::<Vec<u8>>::new(), "{protocol:?}: still mid-packet");
+            assert!(d.holds_partial());
+            d.expire();
+            assert_eq!(d.next_frame().map(|f| f.to_vec()), Some(packet.to_vec()), "{protocol:?}");
+            assert!(!d.holds_partial());
+        }
     }
 }

@@ -141,10 +141,13 @@ impl BusArgs {
             Protocol::Dxl2 => 57_600,
             Protocol::Feetech => 1_000_000,
         });
+        let base = BusConfig::new(protocol, baud);
         BusConfig {
             margin_us: self.timeout_ms * 1000,
+            // A USB adapter can deliver one packet in two transfers, up to its latency apart.
+            idle_gap_us: (self.timeout_ms * 1000).max(base.idle_gap_us),
             retries: self.retries.unwrap_or(default_retries),
-            ..BusConfig::new(protocol, baud)
+            ..base
         }
     }
 

@@ -166,6 +166,20 @@ pub fn write<P: Port, C: Clock>(
     if item.access == Access::Read {
         bail!("servo {id}: {} (address {address}) is read-only", item.name);
     }
+    // The id and baud items change how the servo is reached: set-id checks the new id is free and
+    // set-baud that the rate exists, and both confirm by pinging the servo where it now is.
+    if let Some(model) = servo.model {
+        let (id_item, baud_item) = (model.items.id, model.items.baud);
+        let touches = |i: firmware::bus::table::Item| {
+            address < i.address + u16::from(i.size) && i.address < address + u16::from(item.size)
+        };
+        if touches(id_item) {
+            bail!("servo {id}: address {address} is the id: use armctl servo set-id");
+        }
+        if touches(baud_item) {
+            bail!("servo {id}: address {address} is the baud rate: use armctl servo set-baud");
+        }
+    }
     // Dynamixel is little-endian; an unknown Feetech model is taken for an STS (little-endian).
     let endian = servo.model.map_or(Endian::Little, |m| m.endian);
     let mut bytes = [0u8; 4];

@@ -162,12 +162,11 @@ impl SimBus {
     /// before it) and returns the reply bytes they cause with their arrival times, in time order.
     pub fn receive(&mut self, bytes: &[u8], at_ns: u64) -> Vec<WireByte> {
         let first_ns = at_ns.saturating_sub(wire_time_ns(bytes.len(), self.baud));
+        let mut pending = Vec::new();
         if first_ns.saturating_sub(self.last_rx_ns) > INTER_BYTE_TIMEOUT_NS {
-            // The line was idle long enough: any partial packet is dead (the servo's timeout).
-            self.decoder.expire();
+            self.expire_partial(&mut pending);
         }
         self.last_rx_ns = at_ns;
-        let mut pending = Vec::new();
         for (k, &b) in bytes.iter().enumerate() {
             let Some(b) = self.faults.on_byte(b) else { continue };
             self.decoder.extend(&[b]);
@@ -181,6 +180,34 @@ impl SimBus {
         }
         self.stats.replies += pending.len() as u64;
         self.lay_on_wire(pending)
+    }
+
+    /// The line has been quiet since the last byte received: [`INTER_BYTE_TIMEOUT_NS`] after it,
+    /// the servos drop whatever incomplete packet they hold (a packet cut short, a header-like
+    /// pattern in noise) and carry out the complete packets that were held behind it. Returns the
+    /// replies those cause. Call it when the line goes quiet (after a burst in memory, on a read
+    /// timeout on a pty); it does nothing when no partial packet is held.
+    pub fn line_idle(&mut self) -> Vec<WireByte> {
+        let mut pending = Vec::new();
+        self.expire_partial(&mut pending);
+        self.stats.replies += pending.len() as u64;
+        self.lay_on_wire(pending)
+    }
+
+    fn expire_partial(&mut self, pending: &mut Vec<Pending>) {
+        if !self.decoder.holds_partial() {
+            return;
+        }
+        let t = self.last_rx_ns.saturating_add(INTER_BYTE_TIMEOUT_NS);
+        self.decoder.expire();
+        while let Some(frame) = self.decoder.next_frame() {
+            let mut frame = frame.to_vec();
+            self.advance_to(t);
+            self.stats.instructions += 1;
+            self.handle(&mut frame, t, pending);
+        }
+        // Nothing held now is waiting for more bytes: the next burst starts afresh.
+        self.last_rx_ns = t;
     }
 
     fn handle(&mut self, frame: &mut [u8], t: u64, out: &mut Vec<Pending>) {

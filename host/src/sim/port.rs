@@ -100,8 +100,13 @@ impl Write for SimPort {
         let bytes = std::mem::take(&mut self.tx);
         self.clock.advance_ns(wire_time_ns(bytes.len(), self.bus.borrow().baud()));
         self.stats.sent += bytes.len() as u64;
-        let replies = self.bus.borrow_mut().receive(&bytes, self.clock.now_ns());
+        let mut bus = self.bus.borrow_mut();
+        let replies = bus.receive(&bytes, self.clock.now_ns());
         self.rx.extend(replies);
+        // A flush is a whole burst: the line is quiet after it until the next one, so a packet
+        // left incomplete (bytes lost to a fault, noise) times out in the servos.
+        self.rx.extend(bus.line_idle());
+        drop(bus);
         // Late replies of an earlier instruction may still be queued: keep arrival order.
         self.rx.make_contiguous().sort_by_key(|&(t, _)| t);
         Ok(())

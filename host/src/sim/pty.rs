@@ -118,7 +118,16 @@ fn serve(master: &mut TTYPort, slave: &TTYPort, mut bus: SimBus, stop: &AtomicBo
     while !stop.load(Ordering::Relaxed) {
         let n = match master.read(&mut buf) {
             Ok(n) => n,
-            Err(e) if matches!(e.kind(), std::io::ErrorKind::TimedOut | std::io::ErrorKind::WouldBlock) => continue,
+            Err(e) if matches!(e.kind(), std::io::ErrorKind::TimedOut | std::io::ErrorKind::WouldBlock) => {
+                // A quiet line: a packet left incomplete is dead, and what it held back is served.
+                let replies = bus.line_idle();
+                if !replies.is_empty() {
+                    let bytes: Vec<u8> = replies.iter().map(|&(_, b)| b).collect();
+                    master.write_all(&bytes)?;
+                    master.flush()?;
+                }
+                continue;
+            }
             Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
             Err(e) => return Err(e),
         };

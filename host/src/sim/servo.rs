@@ -34,6 +34,8 @@ pub mod error {
     pub const DATA_RANGE: u8 = 4;
     /// Data length error: the data runs past the table, or there is none.
     pub const DATA_LENGTH: u8 = 5;
+    /// The value is outside the item's limits (a goal position beyond the position limits).
+    pub const DATA_LIMIT: u8 = 6;
     /// Access error: read-only item, or EEPROM while torque is on.
     pub const ACCESS: u8 = 7;
 }
@@ -244,6 +246,17 @@ impl SimServo {
         }
         if at < usize::from(self.model.eeprom_end) && self.torque() {
             return Err(error::ACCESS);
+        }
+        // A goal position outside the position limits is refused with a data limit error
+        // (DynamixelSDK: "The data value exceeds the limit value!"), not clamped.
+        let goal = self.model.items.goal_position;
+        let (g0, g1) = (usize::from(goal.address), usize::from(goal.address) + goal.len());
+        if at <= g0 && at + len >= g1 {
+            let value = goal.decode(&data[g0 - at..g1 - at], self.model.endian).unwrap_or(0);
+            let (lo, hi) = (self.get(self.model.items.min_position), self.get(self.model.items.max_position));
+            if value < lo.min(hi) || value > hi.max(lo) {
+                return Err(error::DATA_LIMIT);
+            }
         }
         Ok(())
     }
