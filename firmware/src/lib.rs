@@ -10,4 +10,5 @@
 
 pub mod builtin;
 pub mod bus;
+pub mod link;
 pub mod tracking;

@@ -9,6 +9,7 @@ pub mod bus_args;
 pub mod cli;
 pub mod dof;
 pub mod kcompare;
+pub mod link;
 pub mod parse;
 pub mod plot;
 pub mod servo;

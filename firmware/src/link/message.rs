@@ -1,0 +1,542 @@
+//! The messages of the host link, shared by the firmware core and the host.
+//!
+//! Every field has a fixed largest size (arrays, `heapless` vectors and strings), so a message
+//! decodes without a heap and its postcard encoding has a known bound. Values are SI (metres,
+//! radians, seconds) in `f32`, the firmware's scalar; quaternions are unit and w-first.
+//!
+//! A message that decodes is not yet a valid one: [`HostMessage::validate`] refuses NaN, infinite
+//! and out-of-range values with a [`ValueError`] naming the field, and the session naks such a
+//! message before anything is applied. Checks that need the arm (joint count, joint limits,
+//! reachability) are the controller's, which answers with [`NakReason::NotReady`],
+//! [`NakReason::BadValue`] or [`NakReason::Unreachable`].
+//!
+//! # Panics
+//! Nothing here panics.
+
+use heapless::{String, Vec};
+use serde::{Deserialize, Serialize};
+
+/// The protocol version carried by the handshake; bumped on any change to the wire format.
+pub const PROTOCOL_VERSION: u16 = 1;
+/// The most joints a message carries.
+pub const MAX_JOINTS: usize = 8;
+/// The longest arm name, in bytes of UTF-8.
+pub const MAX_NAME: usize = 24;
+
+/// Joint values (radians or metres), one per joint.
+pub type Joints = Vec<f32, MAX_JOINTS>;
+
+/// Largest |coordinate| of a Cartesian target (m): far beyond any desk arm, so only garbage fails.
+pub const MAX_REACH: f32 = 10.0;
+/// Largest |joint value| (rad or m): continuous joints may be many turns from zero.
+pub const MAX_JOINT_VALUE: f32 = 1000.0;
+/// Largest |joint velocity| (rad/s or m/s).
+pub const MAX_JOINT_VELOCITY: f32 = 1000.0;
+/// Longest move or keyframe time (s): a day.
+pub const MAX_TIME: f32 = 86_400.0;
+/// Fastest tool speed limit (m/s).
+pub const MAX_SPEED: f32 = 10.0;
+/// Fastest telemetry (Hz); the firmware caps it further at its control rate.
+pub const MAX_TELEMETRY_HZ: u16 = 1000;
+/// How far a quaternion's norm may be from 1 (f32 text round trips lose about 1e-7).
+pub const QUATERNION_TOLERANCE: f32 = 1e-3;
+
+/// How long a move takes.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Timing {
+    /// Exactly this long (s, > 0).
+    Duration(f32),
+    /// As fast as the limits allow, the tool (or, for joint moves, every joint) no faster than this
+    /// (m/s for the tool, rad/s or m/s for joints; > 0).
+    MaxSpeed(f32),
+}
+
+/// A Cartesian target of the tool in the base frame.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CartesianTarget {
+    /// Position (m).
+    pub position: [f32; 3],
+    /// Orientation as a unit quaternion, w-first; `None` leaves it free (position-only IK).
+    pub orientation: Option<[f32; 4]>,
+}
+
+/// A joint keyframe for the player's queue.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct JointKeyframe {
+    /// Time on the trajectory clock (s, >= 0).
+    pub time: f32,
+    /// Joint values, one per joint.
+    pub positions: Joints,
+    /// Joint velocities at the keyframe; `None` lets the player choose them.
+    pub velocities: Option<Joints>,
+}
+
+/// A Cartesian keyframe: the firmware solves IK for it and queues the joint keyframe.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CartesianKeyframe {
+    /// Time on the trajectory clock (s, >= 0).
+    pub time: f32,
+    /// The tool's pose.
+    pub target: CartesianTarget,
+}
+
+/// How a joint moves (as in URDF).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum JointType {
+    /// Rotation within limits.
+    Revolute,
+    /// Rotation without limits.
+    Continuous,
+    /// Translation within limits.
+    Prismatic,
+}
+
+/// One joint of an arm sent by the host: geometry, limits and servo mapping.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct JointConfig {
+    /// Revolute, continuous or prismatic.
+    pub kind: JointType,
+    /// Translation from the parent frame at zero joint value (m).
+    pub origin_xyz: [f32; 3],
+    /// Rotation from the parent frame, roll-pitch-yaw as in URDF (rad).
+    pub origin_rpy: [f32; 3],
+    /// Motion axis in the joint frame (unit length within the quaternion tolerance).
+    pub axis: [f32; 3],
+    /// Lowest position (rad or m).
+    pub lower: f32,
+    /// Highest position (rad or m), above `lower`.
+    pub upper: f32,
+    /// Largest |velocity| (> 0).
+    pub max_velocity: f32,
+    /// Largest |acceleration| (> 0).
+    pub max_acceleration: f32,
+    /// The servo driving the joint.
+    pub servo: ServoConfig,
+}
+
+/// Servo mapping of one joint (see `firmware::bus::mapping`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ServoConfig {
+    /// Servo id on the bus (0..=252).
+    pub id: u8,
+    /// Ticks per revolution (> 0).
+    pub ticks_per_revolution: u32,
+    /// Ticks at joint value zero.
+    pub zero: i32,
+    /// The servo turns against the joint axis.
+    pub reversed: bool,
+}
+
+/// Emergency stop behaviour.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum EStopMode {
+    /// Hold the current position with torque on.
+    Hold,
+    /// Switch torque off (the arm falls where gravity takes it).
+    TorqueOff,
+}
+
+/// Messages from the host. Each travels in a request frame and is answered by one reply.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum HostMessage {
+    /// Handshake: answered by [`FirmwareMessage::Info`]. Starts a new session.
+    Hello {
+        /// The host's [`PROTOCOL_VERSION`].
+        protocol_version: u16,
+    },
+    /// Starts sending an arm: its name and joint count; the joints follow one per message, since
+    /// a whole arm does not fit one frame.
+    ConfigureBegin {
+        /// The arm's name.
+        name: String<MAX_NAME>,
+        /// Joints to follow (1..=MAX_JOINTS).
+        joints: u8,
+        /// The tool point in the last joint's frame (m).
+        tool_xyz: [f32; 3],
+    },
+    /// One joint of the arm being sent.
+    ConfigureJoint {
+        /// Its index (0-based, below the announced count).
+        index: u8,
+        /// The joint.
+        joint: JointConfig,
+    },
+    /// Ends the arm: the firmware validates the whole arm and switches to it, or naks and keeps
+    /// the arm it had.
+    ConfigureCommit,
+    /// Drops a configured arm and uses the firmware's built-in one.
+    UseBuiltinArm,
+    /// Torque on or off on every servo.
+    Torque {
+        /// On.
+        on: bool,
+    },
+    /// Moves the tool to a Cartesian target, IK solved on the firmware.
+    MoveTo {
+        /// Where.
+        target: CartesianTarget,
+        /// How long.
+        timing: Timing,
+    },
+    /// Moves to joint values.
+    MoveJoints {
+        /// Joint values.
+        positions: Joints,
+        /// How long.
+        timing: Timing,
+    },
+    /// Appends a joint keyframe to the queue.
+    PushKeyframe(JointKeyframe),
+    /// Appends a Cartesian keyframe (IK on the firmware) to the queue.
+    PushCartesianKeyframe(CartesianKeyframe),
+    /// Starts (or resumes) playing the queue.
+    Start,
+    /// Pauses playback: decelerates and holds, keeping the queue.
+    Pause,
+    /// Stops: decelerates within the limits and clears the queue.
+    Stop,
+    /// Emergency stop: at once, no deceleration.
+    EStop {
+        /// Hold or torque off.
+        mode: EStopMode,
+    },
+    /// Asks for a [`FirmwareMessage::Status`].
+    GetStatus,
+    /// Telemetry ([`FirmwareMessage::Telemetry`]) at this rate (Hz); 0 switches it off.
+    SetTelemetry {
+        /// Rate (Hz, 0..=MAX_TELEMETRY_HZ).
+        rate_hz: u16,
+    },
+}
+
+/// The handshake's answer.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Info {
+    /// The firmware's [`PROTOCOL_VERSION`].
+    pub protocol_version: u16,
+    /// Firmware version (major, minor, patch).
+    pub firmware_version: [u8; 3],
+    /// Joints of the current arm.
+    pub joints: u8,
+    /// Name of the current arm.
+    pub arm_name: String<MAX_NAME>,
+    /// Capacity of the keyframe queue.
+    pub queue_capacity: u16,
+    /// Control rate (Hz).
+    pub control_rate_hz: u16,
+}
+
+/// What the player is doing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum RunState {
+    /// At rest, holding position.
+    Idle,
+    /// Playing the queue or a move.
+    Moving,
+    /// Paused (decelerating or holding), queue kept.
+    Paused,
+    /// Decelerating after a stop.
+    Stopping,
+    /// Emergency-stopped; needs a new command.
+    EStopped,
+    /// Torque off.
+    TorqueOff,
+}
+
+/// The last IK solve on the firmware.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct IkStatus {
+    /// It converged within tolerance.
+    pub converged: bool,
+    /// Iterations used.
+    pub iterations: u16,
+    /// Position error left (m).
+    pub position_error: f32,
+    /// Orientation error left (rad).
+    pub orientation_error: f32,
+}
+
+/// Control-loop timing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct LoopTiming {
+    /// Mean busy time of a control tick (us).
+    pub mean_us: u32,
+    /// Longest busy time since the last status (us).
+    pub max_us: u32,
+    /// Ticks that overran their period.
+    pub overruns: u32,
+}
+
+/// Error counters since start.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ErrorCounters {
+    /// Link frames dropped for a bad CRC or COBS encoding.
+    pub link_corrupt: u32,
+    /// Link frames dropped as oversized.
+    pub link_oversized: u32,
+    /// Requests refused (nak).
+    pub naks: u32,
+    /// Servo replies missing.
+    pub bus_timeouts: u32,
+    /// Servo replies broken or reporting errors.
+    pub bus_errors: u32,
+    /// Queue underruns of the player.
+    pub underruns: u32,
+}
+
+/// A snapshot of the controller.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Status {
+    /// Controller time (s).
+    pub time: f32,
+    /// What the player is doing.
+    pub state: RunState,
+    /// Measured joint positions.
+    pub measured: Joints,
+    /// Joint setpoints sent last.
+    pub setpoints: Joints,
+    /// Keyframes queued.
+    pub queued: u16,
+    /// Free keyframe slots.
+    pub free_slots: u16,
+    /// The last IK solve.
+    pub ik: IkStatus,
+    /// Loop timing.
+    pub timing: LoopTiming,
+    /// Error counters.
+    pub errors: ErrorCounters,
+}
+
+/// Which field of a message a [`ValueError`] is about.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Field {
+    /// A Cartesian position.
+    Position,
+    /// A quaternion.
+    Orientation,
+    /// A move duration.
+    Duration,
+    /// A speed limit.
+    Speed,
+    /// A keyframe time.
+    Time,
+    /// Joint values.
+    Joints,
+    /// Joint velocities.
+    Velocities,
+    /// The joint count of an arm.
+    JointCount,
+    /// A joint index.
+    JointIndex,
+    /// A joint's origin.
+    Origin,
+    /// A joint's axis.
+    Axis,
+    /// A joint's limits.
+    Limits,
+    /// A joint's servo mapping.
+    Servo,
+    /// A telemetry rate.
+    Rate,
+    /// An arm name.
+    Name,
+}
+
+/// What is wrong with a field.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Problem {
+    /// NaN or infinite.
+    NotFinite,
+    /// Outside its range.
+    OutOfRange,
+    /// A quaternion or axis not of unit length.
+    NotUnit,
+    /// Too few or too many values, or lengths that disagree.
+    Count,
+}
+
+/// Why a message's values are refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ValueError {
+    /// The field.
+    pub field: Field,
+    /// What is wrong.
+    pub problem: Problem,
+}
+
+/// Why a request was refused. A refused request changes nothing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum NakReason {
+    /// A frame failed its CRC or COBS decoding (its sequence number cannot be trusted).
+    Corrupt,
+    /// A frame longer than [`super::frame::MAX_FRAME`].
+    Oversized,
+    /// The frame kind or message is not one this protocol version knows.
+    UnknownMessage,
+    /// A value is refused.
+    BadValue(ValueError),
+    /// A keyframe push found the queue full.
+    QueueFull,
+    /// The request does not fit the controller's state (e.g. a move with torque off, a joint
+    /// count that is not the arm's, a configure step out of order).
+    NotReady,
+    /// IK found no solution for a Cartesian target.
+    Unreachable,
+}
+
+/// Messages from the firmware.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum FirmwareMessage {
+    /// The request was applied (or had been: a repeat). Carries the free keyframe slots, which
+    /// the host's flow control relies on.
+    Ack {
+        /// Free keyframe slots after the request.
+        free_slots: u16,
+    },
+    /// The request was refused and changed nothing.
+    Nak {
+        /// Why.
+        reason: NakReason,
+    },
+    /// Answer to [`HostMessage::Hello`].
+    Info(Info),
+    /// Answer to [`HostMessage::GetStatus`] (its `free_slots` acknowledges like an ack).
+    Status(Status),
+    /// Unrequested status at the telemetry rate.
+    Telemetry(Status),
+}
+
+impl FirmwareMessage {
+    /// The free keyframe slots the message reports, if it reports them.
+    pub fn free_slots(&self) -> Option<u16> {
+        match self {
+            Self::Ack { free_slots } => Some(*free_slots),
+            Self::Status(s) | Self::Telemetry(s) => Some(s.free_slots),
+            Self::Info(_) | Self::Nak { .. } => None,
+        }
+    }
+}
+
+fn check(field: Field, ok: bool, problem: Problem) -> Result<(), ValueError> {
+    if ok {
+        Ok(())
+    } else {
+        Err(ValueError { field, problem })
+    }
+}
+
+/// Finite and within `[lo, hi]`.
+fn range(field: Field, x: f32, lo: f32, hi: f32) -> Result<(), ValueError> {
+    check(field, x.is_finite(), Problem::NotFinite)?;
+    check(field, lo <= x && x <= hi, Problem::OutOfRange)
+}
+
+fn all_range(field: Field, xs: &[f32], limit: f32) -> Result<(), ValueError> {
+    xs.iter().try_for_each(|&x| range(field, x, -limit, limit))
+}
+
+fn unit(field: Field, xs: &[f32]) -> Result<(), ValueError> {
+    all_range(field, xs, 2.0)?;
+    let norm = libm::sqrtf(xs.iter().map(|x| x * x).sum());
+    check(field, libm::fabsf(norm - 1.0) <= QUATERNION_TOLERANCE, Problem::NotUnit)
+}
+
+fn joints(field: Field, xs: &[f32], limit: f32) -> Result<(), ValueError> {
+    check(field, !xs.is_empty(), Problem::Count)?;
+    all_range(field, xs, limit)
+}
+
+impl Timing {
+    fn validate(&self) -> Result<(), ValueError> {
+        match *self {
+            Self::Duration(t) => {
+                range(Field::Duration, t, 0.0, MAX_TIME).and(check(Field::Duration, t > 0.0, Problem::OutOfRange))
+            }
+            Self::MaxSpeed(v) => {
+                range(Field::Speed, v, 0.0, MAX_SPEED).and(check(Field::Speed, v > 0.0, Problem::OutOfRange))
+            }
+        }
+    }
+}
+
+impl CartesianTarget {
+    fn validate(&self) -> Result<(), ValueError> {
+        all_range(Field::Position, &self.position, MAX_REACH)?;
+        self.orientation.as_ref().map_or(Ok(()), |q| unit(Field::Orientation, q))
+    }
+}
+
+impl JointKeyframe {
+    fn validate(&self) -> Result<(), ValueError> {
+        range(Field::Time, self.time, 0.0, MAX_TIME)?;
+        joints(Field::Joints, &self.positions, MAX_JOINT_VALUE)?;
+        if let Some(v) = &self.velocities {
+            check(Field::Velocities, v.len() == self.positions.len(), Problem::Count)?;
+            all_range(Field::Velocities, v, MAX_JOINT_VELOCITY)?;
+        }
+        Ok(())
+    }
+}
+
+impl JointConfig {
+    fn validate(&self) -> Result<(), ValueError> {
+        all_range(Field::Origin, &self.origin_xyz, MAX_REACH)?;
+        all_range(Field::Origin, &self.origin_rpy, 2.0 * core::f32::consts::PI)?;
+        unit(Field::Axis, &self.axis)?;
+        range(Field::Limits, self.lower, -MAX_JOINT_VALUE, MAX_JOINT_VALUE)?;
+        range(Field::Limits, self.upper, -MAX_JOINT_VALUE, MAX_JOINT_VALUE)?;
+        check(Field::Limits, self.lower < self.upper, Problem::OutOfRange)?;
+        range(Field::Limits, self.max_velocity, 0.0, MAX_JOINT_VELOCITY)?;
+        range(Field::Limits, self.max_acceleration, 0.0, 1e6)?;
+        check(Field::Limits, self.max_velocity > 0.0 && self.max_acceleration > 0.0, Problem::OutOfRange)?;
+        // Dynamixel Protocol 2.0 reserves ids above 252 (0xFE is broadcast on both buses).
+        check(Field::Servo, self.servo.id <= 252, Problem::OutOfRange)?;
+        check(Field::Servo, self.servo.ticks_per_revolution > 0, Problem::OutOfRange)
+    }
+}
+
+impl HostMessage {
+    /// Checks every value the message carries on its own (not against the arm): finite, in
+    /// range, counts within [`MAX_JOINTS`] and consistent, quaternions and axes unit.
+    pub fn validate(&self) -> Result<(), ValueError> {
+        match self {
+            Self::Hello { .. }
+            | Self::ConfigureCommit
+            | Self::UseBuiltinArm
+            | Self::Torque { .. }
+            | Self::Start
+            | Self::Pause
+            | Self::Stop
+            | Self::EStop { .. }
+            | Self::GetStatus => Ok(()),
+            Self::ConfigureBegin { name, joints, tool_xyz } => {
+                check(Field::Name, !name.is_empty(), Problem::Count)?;
+                check(Field::JointCount, (1..=MAX_JOINTS as u8).contains(joints), Problem::OutOfRange)?;
+                all_range(Field::Origin, tool_xyz, MAX_REACH)
+            }
+            Self::ConfigureJoint { index, joint } => {
+                check(Field::JointIndex, usize::from(*index) < MAX_JOINTS, Problem::OutOfRange)?;
+                joint.validate()
+            }
+            Self::MoveTo { target, timing } => {
+                target.validate()?;
+                timing.validate()
+            }
+            Self::MoveJoints { positions, timing } => {
+                joints(Field::Joints, positions, MAX_JOINT_VALUE)?;
+                timing.validate()
+            }
+            Self::PushKeyframe(k) => k.validate(),
+            Self::PushCartesianKeyframe(k) => {
+                range(Field::Time, k.time, 0.0, MAX_TIME)?;
+                k.target.validate()
+            }
+            Self::SetTelemetry { rate_hz } => check(Field::Rate, *rate_hz <= MAX_TELEMETRY_HZ, Problem::OutOfRange),
+        }
+    }
+
+    /// Whether the message appends a keyframe (and so needs a free slot).
+    pub fn is_keyframe_push(&self) -> bool {
+        matches!(self, Self::PushKeyframe(_) | Self::PushCartesianKeyframe(_))
+    }
+}
