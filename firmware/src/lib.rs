@@ -10,5 +10,6 @@
 
 pub mod builtin;
 pub mod bus;
+pub mod controller;
 pub mod link;
 pub mod tracking;

@@ -1,0 +1,325 @@
+//! The commands the host link delivers, and their validation: a refused command changes nothing
+//! (except that it proves the host alive).
+
+use kinematics::ik::{IkConfig, IkProblem, IkStatus, Target};
+use kinematics::nalgebra::{SVector, Vector3};
+use kinematics::trajectory::{PlayerKeyframe, PushError};
+
+use super::{Controller, Mode, ToolGoal};
+use crate::tracking::Tracker;
+
+/// How fast the tool goes to a Cartesian goal.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Pace {
+    /// Arrive after this many seconds (> 0), joint limits permitting.
+    Duration(f32),
+    /// Move the goal point at this speed, m/s (> 0), joint limits permitting.
+    Speed(f32),
+}
+
+/// A command from the host.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Command<const N: usize> {
+    /// Torque on, holding the present position. Also leaves an emergency stop.
+    TorqueOn,
+    /// Torque off: the arm goes limp. Drops any motion.
+    TorqueOff,
+    /// Move the joints to `q` (rad) in `duration` seconds, or in the least time the velocity and
+    /// acceleration limits allow if that is longer; ends at rest.
+    MoveJoints {
+        /// Target joint values, inside the joint limits.
+        q: [f32; N],
+        /// Seconds (>= 0).
+        duration: f32,
+    },
+    /// Move the tool to `position` (m, base frame), and to `orientation` (unit quaternion, w
+    /// first) if given, along a straight line at the given pace.
+    MoveTool {
+        /// Target tool position.
+        position: [f32; 3],
+        /// Target tool orientation, w first; `None` leaves it free.
+        orientation: Option<[f32; 4]>,
+        /// How fast.
+        pace: Pace,
+    },
+    /// Queue a keyframe. Its time is seconds on the playback clock, which starts at 0 when a
+    /// trajectory starts from rest ([`Command::Start`]); while playing, keyframes append.
+    PushKeyframe(PlayerKeyframe<f32, N>),
+    /// Start the queued trajectory, or resume a paused one.
+    Start,
+    /// Slow the playback to a standstill on its path (resume with [`Command::Start`]).
+    Pause,
+    /// Decelerate to a stop within the acceleration limits and hold; the queue is dropped.
+    Stop,
+    /// Emergency stop: hold where the arm is now, or turn the torque off.
+    EStop {
+        /// Turn the torque off instead of holding.
+        torque_off: bool,
+    },
+    /// The host is alive (feeds the watchdog; every command does).
+    HostAlive,
+}
+
+/// Why a command was refused. Nothing changed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Refusal {
+    /// A value is NaN or infinite.
+    NotFinite,
+    /// A joint value lies outside the joint's limits.
+    OutOfRange {
+        /// The joint.
+        joint: usize,
+    },
+    /// A duration or speed is not positive, or a quaternion is zero.
+    BadParameter,
+    /// No joint values reach the Cartesian goal within the joint limits.
+    Unreachable {
+        /// The closest the tool got, m.
+        position_error: f32,
+    },
+    /// Emergency stopped: only torque on (or off) is accepted.
+    EStopped,
+    /// The torque is off.
+    TorqueOff,
+    /// Not every servo's position has been read yet.
+    NoPosition,
+    /// The keyframe queue is full.
+    QueueFull,
+    /// The keyframe is not later than the last one queued.
+    TimeNotIncreasing,
+    /// Nothing to start, or nothing playing to pause.
+    WrongMode,
+}
+
+impl core::fmt::Display for Refusal {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::NotFinite => write!(f, "NaN or infinite value"),
+            Self::OutOfRange { joint } => write!(f, "joint {joint}: outside its limits"),
+            Self::BadParameter => write!(f, "duration, speed or quaternion not usable"),
+            Self::Unreachable { position_error } => write!(f, "unreachable: closest {position_error} m away"),
+            Self::EStopped => write!(f, "emergency stopped"),
+            Self::TorqueOff => write!(f, "torque is off"),
+            Self::NoPosition => write!(f, "servo positions not read yet"),
+            Self::QueueFull => write!(f, "keyframe queue full"),
+            Self::TimeNotIncreasing => write!(f, "keyframe time not later than the previous one"),
+            Self::WrongMode => write!(f, "not possible in this mode"),
+        }
+    }
+}
+
+impl<const N: usize, const Q: usize> Controller<N, Q> {
+    /// Carries out `cmd`, received at `now_us`; on refusal nothing changes.
+    pub fn command(&mut self, cmd: Command<N>, now_us: u64) -> Result<(), Refusal> {
+        self.last_host_us = now_us;
+        let result = self.apply(cmd);
+        if result.is_err() {
+            self.counters.refusals = self.counters.refusals.saturating_add(1);
+        }
+        result
+    }
+
+    fn apply(&mut self, cmd: Command<N>) -> Result<(), Refusal> {
+        match cmd {
+            Command::HostAlive => Ok(()),
+            Command::TorqueOn => {
+                if !self.all_seen() {
+                    return Err(Refusal::NoPosition);
+                }
+                if self.torque && self.mode != Mode::EStopped && self.pending_torque.is_none() {
+                    return Ok(());
+                }
+                // Hold where the arm is: the servos get that goal before their torque comes on.
+                self.setpoint.position = self.measured;
+                self.setpoint.velocity = SVector::zeros();
+                self.pending_torque = Some(true);
+                self.enter_hold();
+                Ok(())
+            }
+            Command::TorqueOff => {
+                self.pending_torque = Some(false);
+                if self.mode != Mode::EStopped {
+                    self.mode = Mode::Idle;
+                }
+                self.tool = None;
+                self.reset_player();
+                Ok(())
+            }
+            Command::EStop { torque_off } => {
+                self.mode = Mode::EStopped;
+                self.tool = None;
+                self.setpoint.position = self.measured;
+                self.setpoint.velocity = SVector::zeros();
+                self.hold = self.measured;
+                self.reset_player();
+                if torque_off {
+                    self.pending_torque = Some(false);
+                }
+                Ok(())
+            }
+            Command::MoveJoints { q, duration } => self.move_joints(SVector::from(q), duration),
+            Command::MoveTool { position, orientation, pace } => self.move_tool(position, orientation, pace),
+            Command::PushKeyframe(keyframe) => self.push_keyframe(keyframe),
+            Command::Start => {
+                self.ready()?;
+                if self.mode == Mode::Playing {
+                    self.play.paused = false;
+                    return Ok(());
+                }
+                if self.player.queued() == 0 {
+                    return Err(Refusal::WrongMode);
+                }
+                self.mode = Mode::Playing;
+                self.tool = None;
+                self.play = super::PlayClock { time: 0.0, rate: 1.0, paused: false, queued_fresh: false };
+                Ok(())
+            }
+            Command::Pause => {
+                if self.mode != Mode::Playing {
+                    return Err(Refusal::WrongMode);
+                }
+                self.play.paused = true;
+                Ok(())
+            }
+            Command::Stop => {
+                match self.mode {
+                    Mode::Playing | Mode::Tracking => self.begin_stop(),
+                    Mode::Holding | Mode::Idle => self.reset_player(),
+                    Mode::Stopping | Mode::EStopped => {}
+                }
+                Ok(())
+            }
+        }
+    }
+
+    /// Refuses motion while e-stopped or limp.
+    fn ready(&self) -> Result<(), Refusal> {
+        if self.mode == Mode::EStopped {
+            return Err(Refusal::EStopped);
+        }
+        if !self.torque && self.pending_torque != Some(true) {
+            return Err(Refusal::TorqueOff);
+        }
+        Ok(())
+    }
+
+    fn check_joints(&self, q: &SVector<f32, N>) -> Result<(), Refusal> {
+        if !q.iter().all(|x| x.is_finite()) {
+            return Err(Refusal::NotFinite);
+        }
+        for j in 0..N {
+            if q[j] < self.limits.lower[j] || q[j] > self.limits.upper[j] {
+                return Err(Refusal::OutOfRange { joint: j });
+            }
+        }
+        Ok(())
+    }
+
+    fn move_joints(&mut self, q: SVector<f32, N>, duration: f32) -> Result<(), Refusal> {
+        self.check_joints(&q)?;
+        if !duration.is_finite() {
+            return Err(Refusal::NotFinite);
+        }
+        if duration < 0.0 {
+            return Err(Refusal::BadParameter);
+        }
+        self.ready()?;
+        // A rest-to-rest cubic over T peaks at 1.5 Δ/T in velocity and 6 Δ/T² in acceleration.
+        let mut needed = self.config.period_us as f32 * 1e-6;
+        for j in 0..N {
+            let delta = libm::fabsf(q[j] - self.setpoint.position[j]);
+            needed = needed.max(1.5 * delta / self.limits.max_velocity[j]);
+            needed = needed.max(libm::sqrtf(6.0 * delta / self.limits.max_acceleration[j]));
+        }
+        let duration = duration.max(needed);
+        let rest = Some(SVector::zeros());
+        if self.mode == Mode::Playing {
+            // From the player's present position and velocity: no jump.
+            let keyframe = PlayerKeyframe { time: self.play.time + duration, position: q, velocity: rest };
+            self.player.replace(&[keyframe]).map_err(refusal)?;
+            self.play.paused = false;
+        } else {
+            self.reset_player();
+            let keyframe = PlayerKeyframe { time: duration, position: q, velocity: rest };
+            self.player.push(keyframe).map_err(refusal)?;
+            self.play.rate = 1.0;
+            self.mode = Mode::Playing;
+            self.tool = None;
+        }
+        Ok(())
+    }
+
+    fn push_keyframe(&mut self, keyframe: PlayerKeyframe<f32, N>) -> Result<(), Refusal> {
+        self.check_joints(&keyframe.position)?;
+        let velocity_ok = keyframe.velocity.as_ref().is_none_or(|v| v.iter().all(|x| x.is_finite()));
+        if !keyframe.time.is_finite() || !velocity_ok {
+            return Err(Refusal::NotFinite);
+        }
+        if let Some(v) = keyframe.velocity {
+            if let Some(j) = (0..N).find(|&j| libm::fabsf(v[j]) > self.limits.max_velocity[j]) {
+                return Err(Refusal::OutOfRange { joint: j });
+            }
+        }
+        if self.mode == Mode::EStopped {
+            return Err(Refusal::EStopped);
+        }
+        if self.mode == Mode::Playing {
+            return self.player.push(keyframe).map_err(refusal);
+        }
+        if !self.play.queued_fresh {
+            // The first keyframe of a new trajectory: it starts from the setpoint, at rest. The
+            // keyframe was checked above, so a fresh player accepts it.
+            self.reset_player();
+            self.play.queued_fresh = true;
+        }
+        self.player.push(keyframe).map_err(refusal)
+    }
+
+    fn move_tool(&mut self, position: [f32; 3], orientation: Option<[f32; 4]>, pace: Pace) -> Result<(), Refusal> {
+        if !position.iter().all(|x| x.is_finite()) || !orientation.iter().flatten().all(|x| x.is_finite()) {
+            return Err(Refusal::NotFinite);
+        }
+        let target = match orientation {
+            Some(quaternion) => Target::pose_wxyz(position, quaternion).ok_or(Refusal::BadParameter)?,
+            None => Target::Position(Vector3::from(position)),
+        };
+        let (value, is_speed) = match pace {
+            Pace::Duration(d) => (d, false),
+            Pace::Speed(s) => (s, true),
+        };
+        if !value.is_finite() {
+            return Err(Refusal::NotFinite);
+        }
+        if value <= 0.0 {
+            return Err(Refusal::BadParameter);
+        }
+        self.ready()?;
+        // Refuse what IK cannot reach from here, with restarts, before anything moves.
+        let config = IkConfig {
+            max_iterations: self.config.ik_check_iterations,
+            attempt_iterations: self.config.ik_check_iterations.div_ceil(4).max(1),
+            max_restarts: 8,
+            ..IkConfig::default()
+        };
+        let check = self.chain.solve(&IkProblem { target, seed: self.setpoint.position, config });
+        if check.status != IkStatus::Converged {
+            return Err(Refusal::Unreachable { position_error: check.position_error });
+        }
+        let start = self.chain.tool_pose(&self.setpoint.position).translation;
+        let distance = (target.position() - start).norm();
+        let speed = if is_speed { value } else { (distance / value).max(1e-6) };
+        self.reset_player();
+        self.tracker = Tracker::new(self.setpoint.position, self.config.ik_iterations_per_tick);
+        self.tool = Some(ToolGoal { target, via: start, speed });
+        self.mode = Mode::Tracking;
+        Ok(())
+    }
+}
+
+fn refusal(e: PushError) -> Refusal {
+    match e {
+        PushError::QueueFull => Refusal::QueueFull,
+        PushError::NonFinite => Refusal::NotFinite,
+        PushError::TimeNotIncreasing => Refusal::TimeNotIncreasing,
+    }
+}

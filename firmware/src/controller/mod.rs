@@ -1,0 +1,257 @@
+//! The control loop: a sans-IO state machine stepped by a fixed-rate tick.
+//!
+//! Each [`Controller::tick`] reads every present position in one sync read, computes the next
+//! setpoint for the mode (hold, trajectory player, Cartesian tracking with warm-started IK, brake),
+//! passes it through the [`limiter`] (joint range, velocity and acceleration limits), maps it to
+//! ticks and sends every goal in one sync write. [`Controller::command`] is what the host link
+//! calls: it validates first and changes nothing when it refuses. Bus writes that a command needs
+//! (torque on or off) happen on the next tick, so a command never touches the bus.
+//!
+//! Time comes in as microseconds on the caller's monotonic clock; the loop's work time is read
+//! from the bus master's clock at the end of the tick.
+//!
+//! # Safety properties
+//! - Every goal sent lies inside the joint's limits and the servo's tick range, and differs from
+//!   the previous one by at most `max_velocity * period`: the limiter runs on every mode's output.
+//! - When the host falls silent for [`Config::watchdog_ms`] while the arm moves on its own, the
+//!   arm decelerates within the acceleration limits and holds.
+//!
+//! # Panics
+//! Nothing here panics, allocates or loops without a bound.
+
+mod command;
+mod config;
+mod health;
+pub mod limiter;
+mod tick;
+
+pub use command::{Command, Pace, Refusal};
+pub use config::{joint_limits, minimum_period_us, Config, ConfigError};
+pub use health::{Counters, Fault, ServoHealth, TickReport};
+
+use kinematics::ik::Target;
+use kinematics::nalgebra::{SVector, Vector3};
+use kinematics::trajectory::{JointLimits, Player};
+use kinematics::Chain;
+
+use crate::bus::cycle::ServoGroup;
+use crate::bus::mapping::JointMapping;
+use crate::bus::master::MAX_GROUP;
+use crate::bus::table::Model;
+use crate::tracking::Tracker;
+use limiter::Setpoint;
+
+/// What the controller is doing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// Torque off: the servos are limp; the setpoint follows the measured positions.
+    Idle,
+    /// Holding the setpoint.
+    Holding,
+    /// Playing the keyframe queue (or a joint move), possibly paused.
+    Playing,
+    /// Moving the tool toward a Cartesian goal.
+    Tracking,
+    /// Decelerating to a stop within the acceleration limits, then holding.
+    Stopping,
+    /// Emergency stop: holding where the arm was, or torque off. Only torque on leaves it.
+    EStopped,
+}
+
+/// The playback clock of the player: seconds since the trajectory started, advanced at a rate
+/// that ramps to 0 on pause and back to 1 on start, so pausing slows the motion down smoothly.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct PlayClock {
+    time: f32,
+    rate: f32,
+    paused: bool,
+    /// A new trajectory is being queued while not playing; it starts at time 0 on start.
+    queued_fresh: bool,
+}
+
+/// A Cartesian goal and the point moving toward it at the requested speed, which IK follows.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct ToolGoal {
+    target: Target<f32>,
+    via: Vector3<f32>,
+    speed: f32,
+}
+
+/// The control loop of an arm of `N` joints with a keyframe queue of `Q` keyframes.
+#[derive(Clone, Debug)]
+pub struct Controller<const N: usize, const Q: usize> {
+    chain: Chain<f32, N>,
+    mappings: [JointMapping; N],
+    group: ServoGroup<N>,
+    player: Player<f32, N, Q>,
+    tracker: Tracker<f32, N>,
+    limits: JointLimits<f32, N>,
+    config: Config,
+    mode: Mode,
+    torque: bool,
+    /// A torque change requested by a command, written on the next tick.
+    pending_torque: Option<bool>,
+    setpoint: Setpoint<N>,
+    hold: SVector<f32, N>,
+    measured: SVector<f32, N>,
+    present_ticks: [i32; N],
+    goal_ticks: [i32; N],
+    /// Joints whose position has been read at least once (bit per joint).
+    seen: u32,
+    play: PlayClock,
+    tool: Option<ToolGoal>,
+    /// Per-joint deceleration of the brake in progress (rad/s²).
+    brake: SVector<f32, N>,
+    last_host_us: u64,
+    last_tick_us: Option<u64>,
+    counters: Counters,
+    health: [ServoHealth; N],
+}
+
+impl<const N: usize, const Q: usize> Controller<N, Q> {
+    /// A controller for `chain`, whose joint `j` is driven by the servo of `mappings[j]` (all of
+    /// `model`), enforcing `limits` (build them with [`joint_limits`]; the period is checked
+    /// against the bus with [`minimum_period_us`] by the caller, who knows the bus). It starts
+    /// idle: torque stays off until [`Command::TorqueOn`].
+    pub fn new(
+        chain: Chain<f32, N>,
+        mappings: [JointMapping; N],
+        model: &'static Model,
+        limits: JointLimits<f32, N>,
+        config: Config,
+    ) -> Result<Self, ConfigError> {
+        if N > MAX_GROUP {
+            return Err(ConfigError::TooManyJoints);
+        }
+        if config.period_us == 0 {
+            return Err(ConfigError::PeriodTooShort { minimum_us: 1 });
+        }
+        let start = chain.middle();
+        let start = start.zip_zip_map(&limits.lower, &limits.upper, |x, lo, hi| x.clamp(lo, hi));
+        let player = Player::new(start, limits).map_err(|e| match e {
+            kinematics::trajectory::LimitError::InvalidLimits { joint } => ConfigError::BadLimits { joint },
+            _ => ConfigError::BadLimits { joint: 0 },
+        })?;
+        let group = ServoGroup { model, ids: mappings.map(|m| m.id) };
+        Ok(Self {
+            tracker: Tracker::new(start, config.ik_iterations_per_tick),
+            chain,
+            mappings,
+            group,
+            player,
+            limits,
+            config,
+            mode: Mode::Idle,
+            torque: false,
+            pending_torque: None,
+            setpoint: Setpoint { position: start, velocity: SVector::zeros() },
+            hold: start,
+            measured: start,
+            present_ticks: [0; N],
+            goal_ticks: [0; N],
+            seen: 0,
+            play: PlayClock { time: 0.0, rate: 0.0, paused: false, queued_fresh: false },
+            tool: None,
+            brake: SVector::zeros(),
+            last_host_us: 0,
+            last_tick_us: None,
+            counters: Counters::default(),
+            health: [ServoHealth::default(); N],
+        })
+    }
+
+    /// The mode.
+    pub fn mode(&self) -> Mode {
+        self.mode
+    }
+
+    /// Whether playback is paused (or slowing down to a pause).
+    pub fn paused(&self) -> bool {
+        self.mode == Mode::Playing && self.play.paused
+    }
+
+    /// Whether the servos' torque is on (as last written).
+    pub fn torque(&self) -> bool {
+        self.torque
+    }
+
+    /// The counters.
+    pub fn counters(&self) -> &Counters {
+        &self.counters
+    }
+
+    /// Each servo's bus record, joint by joint.
+    pub fn health(&self) -> &[ServoHealth; N] {
+        &self.health
+    }
+
+    /// The last measured joint values (rad); a joint whose servo did not answer keeps its last.
+    pub fn measured(&self) -> &SVector<f32, N> {
+        &self.measured
+    }
+
+    /// The setpoint sent on the last tick (rad) and its velocity (rad/s).
+    pub fn setpoint(&self) -> &Setpoint<N> {
+        &self.setpoint
+    }
+
+    /// The enforced limits.
+    pub fn limits(&self) -> &JointLimits<f32, N> {
+        &self.limits
+    }
+
+    /// The chain.
+    pub fn chain(&self) -> &Chain<f32, N> {
+        &self.chain
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &Config {
+        &self.config
+    }
+
+    /// Keyframes waiting in the player's queue.
+    pub fn queued(&self) -> usize {
+        self.player.queued()
+    }
+
+    /// The playback clock: seconds since the trajectory started.
+    pub fn play_time(&self) -> f32 {
+        self.play.time
+    }
+
+    /// The joint-to-servo mappings.
+    pub fn mappings(&self) -> &[JointMapping; N] {
+        &self.mappings
+    }
+
+    fn all_seen(&self) -> bool {
+        let all = if N >= 32 { u32::MAX } else { (1u32 << N) - 1 };
+        self.seen & all == all
+    }
+
+    /// A fresh player at rest at the setpoint, with an empty queue.
+    fn reset_player(&mut self) {
+        if let Ok(player) = Player::new(self.setpoint.position, self.limits) {
+            self.player = player;
+        }
+        self.play = PlayClock { time: 0.0, rate: 0.0, paused: false, queued_fresh: false };
+    }
+
+    /// Holds the current setpoint from now on.
+    fn enter_hold(&mut self) {
+        self.mode = Mode::Holding;
+        self.hold = self.setpoint.position;
+        self.tool = None;
+        self.reset_player();
+    }
+
+    /// Starts a time-synchronised brake from the setpoint's velocity: every joint decelerates at
+    /// a constant rate within its limit and all stop together.
+    fn begin_stop(&mut self) {
+        let t = self.limits.stopping_time(&self.setpoint.velocity);
+        self.brake = if t > 0.0 && t.is_finite() { self.setpoint.velocity / t } else { SVector::zeros() };
+        self.mode = Mode::Stopping;
+        self.tool = None;
+    }
+}

@@ -1,0 +1,260 @@
+//! One control tick: read, compute, limit, write.
+
+use embedded_hal::digital::OutputPin;
+use embedded_io::{Read, ReadReady, Write};
+use kinematics::ik::{IkStatus, Target};
+use kinematics::nalgebra::SVector;
+use kinematics::trajectory::State;
+use kinematics::Pose;
+
+use super::health::{Fault, TickReport};
+use super::limiter::{limit_step, Setpoint};
+use super::{Controller, Mode};
+use crate::bus::master::{Clock, Master};
+
+impl<const N: usize, const Q: usize> Controller<N, Q> {
+    /// Runs one control tick at `now_us` (the caller's clock, the same as the master's): sync read
+    /// of present positions, setpoint of the mode, limits, sync write of goals.
+    pub fn tick<P, D, C, const BUF: usize>(&mut self, master: &mut Master<P, D, C, BUF>, now_us: u64) -> TickReport
+    where
+        P: Read + Write + ReadReady,
+        D: OutputPin,
+        C: Clock,
+    {
+        let period = u64::from(self.config.period_us);
+        let elapsed = self.last_tick_us.map(|t| now_us.saturating_sub(t));
+        // A tick later than 1.5 periods skipped a slot.
+        let mut late = elapsed.is_some_and(|e| 2 * e > 3 * period);
+        // The limiter's step never covers more than one period, so a late tick cannot produce a
+        // step beyond the velocity limit per period; the motion slows down instead.
+        let dt = elapsed.map_or(period, |e| e.min(period)) as f32 * 1e-6;
+        self.last_tick_us = Some(now_us);
+        self.counters.ticks = self.counters.ticks.wrapping_add(1);
+        let mut report = TickReport::new(self.mode);
+
+        self.read_positions(master, &mut report);
+        if let Some(on) = self.pending_torque {
+            if self.write_torque(master, on) {
+                self.pending_torque = None;
+            }
+        }
+        if self.torque {
+            self.watchdog(now_us, &mut report);
+            let (desired, velocity) = self.desired(dt, &mut report);
+            self.setpoint = limit_step(&self.setpoint, &desired, &velocity, &self.limits, dt);
+            self.after_step();
+            report.wrote_goals = self.write_goals(master);
+        } else {
+            // Limp: the setpoint follows the arm, so torque on holds it where it is.
+            self.setpoint = Setpoint { position: self.measured, velocity: SVector::zeros() };
+        }
+
+        let end = master.clock().now_us();
+        let loop_us = u32::try_from(end.saturating_sub(now_us)).unwrap_or(u32::MAX);
+        late |= u64::from(loop_us) > period;
+        self.counters.last_loop_us = loop_us;
+        self.counters.max_loop_us = self.counters.max_loop_us.max(loop_us);
+        if late {
+            self.counters.deadline_misses = self.counters.deadline_misses.saturating_add(1);
+        }
+        report.late = late;
+        report.loop_us = loop_us;
+        report.mode = self.mode;
+        report
+    }
+
+    fn read_positions<P, D, C, const BUF: usize>(&mut self, master: &mut Master<P, D, C, BUF>, report: &mut TickReport)
+    where
+        P: Read + Write + ReadReady,
+        D: OutputPin,
+        C: Clock,
+    {
+        let item = self.group.model.items.present_position;
+        let result = self.group.read_all(master, item, &mut self.present_ticks);
+        if result.is_err() {
+            self.counters.bus_errors = self.counters.bus_errors.saturating_add(1);
+        }
+        for j in 0..N {
+            let bit = 1u32 << j;
+            let fault = match &result {
+                Ok(r) if r.answered & bit != 0 => None,
+                Ok(r) if r.failed & bit != 0 => Some(Fault::Refused),
+                Ok(_) => Some(Fault::NoReply),
+                Err(_) => Some(Fault::Port),
+            };
+            let health = &mut self.health[j];
+            match fault {
+                None => {
+                    self.measured[j] = self.mappings[j].to_radians(self.present_ticks[j]);
+                    self.seen |= bit;
+                    if result.as_ref().is_ok_and(|r| r.alerts & bit != 0) {
+                        health.alerts = health.alerts.saturating_add(1);
+                    }
+                    if health.lost {
+                        health.lost = false;
+                        health.recoveries = health.recoveries.saturating_add(1);
+                        report.recovered |= bit;
+                    }
+                    health.consecutive = 0;
+                }
+                Some(fault) => {
+                    health.missed = health.missed.saturating_add(1);
+                    health.consecutive = health.consecutive.saturating_add(1);
+                    health.last_fault = Some(fault);
+                    self.counters.missing_replies = self.counters.missing_replies.saturating_add(1);
+                    report.missing |= bit;
+                    if !health.lost && health.consecutive >= self.config.lost_after {
+                        health.lost = true;
+                        report.lost |= bit;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Writes the torque item of every servo; on torque on, the goals first, so that no servo
+    /// starts toward a stale goal. True once written.
+    fn write_torque<P, D, C, const BUF: usize>(&mut self, master: &mut Master<P, D, C, BUF>, on: bool) -> bool
+    where
+        P: Read + Write + ReadReady,
+        D: OutputPin,
+        C: Clock,
+    {
+        if on && !self.write_goals(master) {
+            return false;
+        }
+        let item = self.group.model.items.torque_enable;
+        let ok = self.group.write_all(master, item, &[i32::from(on); N]).is_ok();
+        if ok {
+            self.torque = on;
+        } else {
+            self.counters.bus_errors = self.counters.bus_errors.saturating_add(1);
+        }
+        ok
+    }
+
+    /// Maps the setpoint to ticks and sends every goal; true when sent.
+    fn write_goals<P, D, C, const BUF: usize>(&mut self, master: &mut Master<P, D, C, BUF>) -> bool
+    where
+        P: Read + Write + ReadReady,
+        D: OutputPin,
+        C: Clock,
+    {
+        for j in 0..N {
+            match self.mappings[j].to_ticks(self.setpoint.position[j]) {
+                Ok(t) => self.goal_ticks[j] = t,
+                // The limits keep setpoints inside every servo's range; should one fall outside
+                // anyway, the servo keeps its last goal rather than get a wrong one.
+                Err(_) => self.counters.mapping_errors = self.counters.mapping_errors.saturating_add(1),
+            }
+        }
+        let item = self.group.model.items.goal_position;
+        let ok = self.group.write_all(master, item, &self.goal_ticks).is_ok();
+        if !ok {
+            self.counters.bus_errors = self.counters.bus_errors.saturating_add(1);
+        }
+        ok
+    }
+
+    /// Stops the arm when the host has been silent too long while the arm moves on its own.
+    fn watchdog(&mut self, now_us: u64, report: &mut TickReport) {
+        let moving = match self.mode {
+            Mode::Tracking => true,
+            Mode::Playing => !(self.play.paused && self.play.rate == 0.0),
+            _ => false,
+        };
+        let silent = now_us.saturating_sub(self.last_host_us) > u64::from(self.config.watchdog_ms) * 1000;
+        if moving && silent {
+            self.begin_stop();
+            self.counters.watchdog_trips = self.counters.watchdog_trips.saturating_add(1);
+            report.watchdog = true;
+        }
+    }
+
+    /// What the mode asks for this tick, before the limits: a position and the velocity at which it
+    /// moves (zero for a goal to stop on).
+    fn desired(&mut self, dt: f32, report: &mut TickReport) -> (SVector<f32, N>, SVector<f32, N>) {
+        match self.mode {
+            Mode::Idle | Mode::Holding | Mode::EStopped => (self.hold, SVector::zeros()),
+            Mode::Playing => {
+                // Pausing scales the playback clock's rate down within the time the fastest
+                // joint needs to stop, so the slow-down respects the acceleration limits.
+                let ramp =
+                    (0..N).map(|j| self.limits.max_velocity[j] / self.limits.max_acceleration[j]).fold(dt, f32::max);
+                let goal = if self.play.paused { 0.0 } else { 1.0 };
+                let change = dt / ramp;
+                self.play.rate = if self.play.rate < goal {
+                    (self.play.rate + change).min(goal)
+                } else {
+                    (self.play.rate - change).max(goal)
+                };
+                self.play.time += dt * self.play.rate;
+                let tick = self.player.tick(self.play.time);
+                if matches!(tick.state, State::Idle | State::Holding) && !self.play.paused {
+                    self.mode = Mode::Holding;
+                    self.hold = tick.sample.position;
+                    return (self.hold, SVector::zeros());
+                }
+                (tick.sample.position, tick.sample.velocity * self.play.rate)
+            }
+            Mode::Tracking => {
+                let Some(mut goal) = self.tool else {
+                    self.mode = Mode::Holding;
+                    self.hold = self.setpoint.position;
+                    return (self.hold, SVector::zeros());
+                };
+                // The goal point moves along the straight line at the requested speed.
+                let to_go = goal.target.position() - goal.via;
+                let distance = to_go.norm();
+                let step = goal.speed * dt;
+                goal.via =
+                    if distance <= step { *goal.target.position() } else { goal.via + to_go * (step / distance) };
+                self.tool = Some(goal);
+                let target = match goal.target {
+                    Target::Position(_) => Target::Position(goal.via),
+                    Target::Pose(p) => Target::Pose(Pose { rotation: p.rotation, translation: goal.via }),
+                };
+                let solution = self.tracker.step(&self.chain, target);
+                report.ik = Some(solution.status);
+                if solution.status != IkStatus::Converged {
+                    self.counters.ik_failures = self.counters.ik_failures.saturating_add(1);
+                }
+                (self.tracker.q, SVector::zeros())
+            }
+            Mode::Stopping => {
+                // Each joint's velocity falls by its share of the synchronised brake, never past 0.
+                let mut desired = self.setpoint.position;
+                let mut velocity = SVector::zeros();
+                for j in 0..N {
+                    let v = self.setpoint.velocity[j];
+                    let dv = libm::fabsf(self.brake[j]) * dt;
+                    velocity[j] = if v > 0.0 { (v - dv).max(0.0) } else { (v + dv).min(0.0) };
+                    desired[j] += velocity[j] * dt;
+                }
+                (desired, velocity)
+            }
+        }
+    }
+
+    /// Mode changes that depend on where the limited step ended.
+    fn after_step(&mut self) {
+        match self.mode {
+            Mode::Stopping if self.setpoint.velocity.iter().all(|v| *v == 0.0) => self.enter_hold(),
+            Mode::Tracking => {
+                let arrived = self.tool.is_some_and(|g| g.via == *g.target.position());
+                let settled = (0..N).all(|j| {
+                    libm::fabsf(self.setpoint.position[j] - self.tracker.q[j]) < 1e-5
+                        && self.setpoint.velocity[j] == 0.0
+                });
+                if arrived && settled {
+                    let error = self.chain.tool_pose(&self.tracker.q).translation;
+                    let reached = self.tool.is_some_and(|g| (error - g.target.position()).norm() < 1e-3);
+                    if reached {
+                        self.enter_hold();
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+}

@@ -1,0 +1,386 @@
+//! Software in the loop: the firmware's controller drives five simulated STS3215 servos (the
+//! built-in SO-101) through the firmware's own bus master, ticking at 100 Hz on the virtual clock.
+//! After every tick the test reads each simulated servo's goal item, so every goal the servos
+//! received is checked against the joint limits and the per-tick velocity limit.
+
+use armctl::sim::{connect, Faults, SharedBus, SimBus, SimPort, VirtualClock};
+use firmware::builtin;
+use firmware::bus::mapping::JointMapping;
+use firmware::bus::master::{BusConfig, Master, NoDirectionPin};
+use firmware::bus::table::STS3215;
+use firmware::controller::{
+    joint_limits, minimum_period_us, Command, Config, Controller, Fault, Mode, Pace, Refusal, TickReport,
+};
+use kinematics::nalgebra::SVector;
+use kinematics::trajectory::PlayerKeyframe;
+
+const J: usize = builtin::JOINTS;
+const PERIOD_US: u64 = 10_000;
+const BAUD: u32 = 1_000_000;
+const VMAX: f32 = 1.5;
+const AMAX: f32 = 6.0;
+
+type Ctl = Controller<J, 32>;
+
+struct Rig {
+    bus: SharedBus,
+    master: Master<SimPort, NoDirectionPin, VirtualClock>,
+    clock: VirtualClock,
+    ctl: Ctl,
+    next_us: u64,
+    /// Goal ticks after the previous tick, to check each step.
+    last_goals: Option<[i64; J]>,
+    /// Largest per-tick goal step seen, ticks.
+    max_step: i64,
+}
+
+fn ids() -> [u8; J] {
+    core::array::from_fn(|i| i as u8 + 1)
+}
+
+fn rig_with(faults: Faults) -> Rig {
+    let bus = SimBus::new(STS3215.protocol, &STS3215, &ids(), BAUD).with_faults(faults);
+    let (bus, port, clock) = connect(bus);
+    let bus_config = BusConfig::new(STS3215.protocol, BAUD);
+    let master = Master::new(port, NoDirectionPin, clock.clone(), bus_config);
+    let chain = builtin::arm().unwrap();
+    let mappings = ids().map(|id| JointMapping::centred(id, 4096));
+    let limits = joint_limits(&chain, &mappings, SVector::repeat(VMAX), SVector::repeat(AMAX)).unwrap();
+    let config = Config::default();
+    assert!(u64::from(minimum_period_us(&STS3215, &bus_config, J)) <= PERIOD_US);
+    let ctl = Ctl::new(chain, mappings, &STS3215, limits, config).unwrap();
+    let mut rig = Rig { bus, master, clock, ctl, next_us: 0, last_goals: None, max_step: 0 };
+    rig.tick();
+    rig
+}
+
+/// A rig with torque on, holding the servos' start position (all at tick 2048, joint value 0).
+fn armed() -> Rig {
+    let mut r = rig_with(Faults::default());
+    r.command(Command::TorqueOn).unwrap();
+    r.tick();
+    assert_eq!(r.ctl.mode(), Mode::Holding);
+    r
+}
+
+impl Rig {
+    fn now_us(&self) -> u64 {
+        self.clock.now_ns() / 1000
+    }
+
+    fn command(&mut self, cmd: Command<J>) -> Result<(), Refusal> {
+        let now = self.now_us();
+        self.ctl.command(cmd, now)
+    }
+
+    fn item(&self, item: firmware::bus::table::Item) -> [i64; J] {
+        let mut bus = self.bus.borrow_mut();
+        bus.advance_to(self.clock.now_ns());
+        ids().map(|id| bus.servo(id).unwrap().get(item))
+    }
+
+    fn goals(&self) -> [i64; J] {
+        self.item(STS3215.items.goal_position)
+    }
+
+    fn present(&self) -> SVector<f32, J> {
+        let ticks = self.item(STS3215.items.present_position);
+        SVector::from_fn(|j, _| self.ctl.mappings()[j].to_radians::<f32>(ticks[j] as i32))
+    }
+
+    /// One tick at the next 10 ms boundary; then every goal is checked against the limits.
+    fn tick(&mut self) -> TickReport {
+        self.clock.advance_to(self.next_us * 1000);
+        let report = self.ctl.tick(&mut self.master, self.next_us);
+        self.next_us += PERIOD_US;
+        self.check_goals();
+        report
+    }
+
+    fn check_goals(&mut self) {
+        if !self.ctl.torque() {
+            self.last_goals = None;
+            return;
+        }
+        let goals = self.goals();
+        let limits = *self.ctl.limits();
+        for (j, (m, goal)) in self.ctl.mappings().iter().zip(goals).enumerate() {
+            let a = i64::from(m.to_ticks(limits.lower[j]).unwrap());
+            let b = i64::from(m.to_ticks(limits.upper[j]).unwrap());
+            let (lo, hi) = (a.min(b), a.max(b));
+            assert!((lo..=hi).contains(&goal), "joint {j}: goal {goal} outside {lo}..={hi}");
+        }
+        if let Some(prev) = self.last_goals {
+            // VMAX over one period in ticks, plus one tick of rounding.
+            let allowed =
+                (f64::from(VMAX) * PERIOD_US as f64 * 1e-6 * 4096.0 / std::f64::consts::TAU).ceil() as i64 + 1;
+            for j in 0..J {
+                let step = (goals[j] - prev[j]).abs();
+                self.max_step = self.max_step.max(step);
+                assert!(step <= allowed, "joint {j}: goal step {step} ticks > {allowed}");
+            }
+        }
+        self.last_goals = Some(goals);
+    }
+
+    /// `n` ticks, feeding the watchdog.
+    fn run(&mut self, n: usize) {
+        for _ in 0..n {
+            self.command(Command::HostAlive).unwrap();
+            self.tick();
+        }
+    }
+
+    /// Ticks (feeding the watchdog) until `done` or `limit` ticks; returns the ticks run.
+    fn run_until(&mut self, limit: usize, mut done: impl FnMut(&mut Rig, &TickReport) -> bool) -> usize {
+        for n in 1..=limit {
+            self.command(Command::HostAlive).unwrap();
+            let report = self.tick();
+            if done(self, &report) {
+                return n;
+            }
+        }
+        panic!("not done after {limit} ticks; mode {:?}, counters {:?}", self.ctl.mode(), self.ctl.counters());
+    }
+}
+
+fn max_abs(v: &SVector<f32, J>) -> f32 {
+    v.iter().fold(0.0, |m, x| m.max(x.abs()))
+}
+
+#[test]
+fn move_joints_reaches_the_target_within_limits() {
+    let mut r = armed();
+    let target = SVector::<f32, J>::from([0.5, -0.6, 0.8, 0.4, -0.7]);
+    r.command(Command::MoveJoints { q: target.into(), duration: 1.5 }).unwrap();
+    assert_eq!(r.ctl.mode(), Mode::Playing);
+    let ticks = r.run_until(400, |r, rep| rep.mode == Mode::Holding && max_abs(&(r.present() - target)) < 0.003);
+    let error = max_abs(&(r.present() - target));
+    println!("move_joints: {ticks} ticks, final error {error:.5} rad, largest goal step {} ticks", r.max_step);
+    assert!(ticks >= 150, "arrived before the requested duration: {ticks}");
+    assert_eq!(r.ctl.counters().deadline_misses, 0);
+    assert_eq!(r.ctl.counters().missing_replies, 0);
+}
+
+#[test]
+fn move_tool_reaches_a_reachable_point_within_a_millimetre() {
+    let mut r = armed();
+    let start = [0.1, -0.4, 0.6, 0.8, 0.0];
+    r.command(Command::MoveJoints { q: start, duration: 1.0 }).unwrap();
+    r.run_until(300, |_, rep| rep.mode == Mode::Holding);
+    let chain = builtin::arm().unwrap();
+    let goal = chain.tool_pose(&SVector::from([0.4, -0.7, 0.9, 0.5, 0.0])).translation;
+    let from = chain.tool_pose(r.ctl.measured()).translation;
+    r.command(Command::MoveTool { position: goal.into(), orientation: None, pace: Pace::Speed(0.1) }).unwrap();
+    assert_eq!(r.ctl.mode(), Mode::Tracking);
+    let mut ik_ticks = 0;
+    let ticks = r.run_until(500, |r, rep| {
+        ik_ticks += usize::from(rep.ik.is_some());
+        (chain.tool_pose(&r.present()).translation - goal).norm() < 1e-3
+    });
+    let settled = r.run_until(300, |_, rep| rep.mode == Mode::Holding);
+    let error = (chain.tool_pose(&r.present()).translation - goal).norm();
+    println!(
+        "move_tool: {:.1} mm at 0.1 m/s: within 1 mm after {ticks} ticks; holding {settled} ticks later, \
+         error {:.3} mm; IK non-converged ticks {} of {ik_ticks}",
+        (goal - from).norm() * 1e3,
+        error * 1e3,
+        r.ctl.counters().ik_failures
+    );
+    assert!(error < 1e-3);
+}
+
+#[test]
+fn a_keyframe_trajectory_is_followed_closely_and_pause_resumes() {
+    let mut r = armed();
+    let at = |t: f32| SVector::<f32, J>::from_fn(|j, _| 0.4 * (1.3 * t + j as f32).sin() - 0.4 * (j as f32).sin());
+    for k in 1..=12 {
+        let t = k as f32 * 0.25;
+        r.command(Command::PushKeyframe(PlayerKeyframe::new(t, at(t)))).unwrap();
+    }
+    assert_eq!(r.ctl.queued(), 12);
+    r.command(Command::Start).unwrap();
+    let (mut sum, mut n, mut worst) = (0.0f64, 0usize, 0.0f32);
+    let mut previous_setpoint = r.ctl.setpoint().position;
+    let ticks = r.run_until(600, |r, rep| {
+        // The servo should be at the goal sent on the previous tick.
+        let e = max_abs(&(r.ctl.measured() - previous_setpoint));
+        previous_setpoint = r.ctl.setpoint().position;
+        worst = worst.max(e);
+        sum += f64::from(e * e);
+        n += 1;
+        rep.mode == Mode::Holding
+    });
+    let end_error = max_abs(&(r.present() - at(3.0)));
+    println!(
+        "keyframes: {ticks} ticks, following error (measured vs previous goal) max {:.5} rad, rms {:.5} rad; \
+         end error {end_error:.5} rad",
+        worst,
+        (sum / n as f64).sqrt()
+    );
+    assert!(end_error < 0.003);
+    assert!(worst < 0.01);
+
+    // Pause mid-trajectory: the playback slows to a stop on the path, then resumes to the end.
+    for k in 1..=8 {
+        let t = k as f32 * 0.25;
+        r.command(Command::PushKeyframe(PlayerKeyframe::new(t, at(3.0 - t)))).unwrap();
+    }
+    r.command(Command::Start).unwrap();
+    r.run(50);
+    r.command(Command::Pause).unwrap();
+    r.run_until(100, |r, _| max_abs(&r.ctl.setpoint().velocity) == 0.0);
+    let paused_at = r.ctl.play_time();
+    r.run(20);
+    assert_eq!(r.ctl.play_time(), paused_at);
+    assert!(r.ctl.paused());
+    r.command(Command::Start).unwrap();
+    r.run_until(400, |_, rep| rep.mode == Mode::Holding);
+    assert!(max_abs(&(r.present() - at(1.0))) < 0.003);
+}
+
+#[test]
+fn a_silent_host_stops_the_arm_within_the_limits() {
+    let mut r = armed();
+    let target = [1.2, -1.2, 1.2, 1.2, 1.2];
+    r.command(Command::MoveJoints { q: target, duration: 4.0 }).unwrap();
+    let silent_from = r.now_us();
+    let mut velocities = vec![r.ctl.setpoint().velocity];
+    let mut tripped_at = None;
+    for n in 0..300 {
+        let report = r.tick();
+        velocities.push(r.ctl.setpoint().velocity);
+        if report.watchdog {
+            tripped_at = Some((n, r.now_us() - silent_from));
+        }
+        if r.ctl.mode() == Mode::Holding {
+            break;
+        }
+    }
+    let (n, after_us) = tripped_at.expect("the watchdog never tripped");
+    assert_eq!(r.ctl.mode(), Mode::Holding);
+    assert_eq!(r.ctl.counters().watchdog_trips, 1);
+    let dt = PERIOD_US as f32 * 1e-6;
+    let worst_accel = velocities.windows(2).map(|w| max_abs(&(w[1] - w[0])) / dt).fold(0.0f32, f32::max);
+    println!(
+        "watchdog: tripped after {:.0} ms of silence, held {} ticks later; largest acceleration {worst_accel:.2} rad/s²",
+        after_us as f64 / 1e3,
+        velocities.len() - 1 - n
+    );
+    assert!((500_000..=520_000).contains(&after_us));
+    assert!(worst_accel <= AMAX * 1.001);
+    // Stopped short of the target, and stays put.
+    let held = r.ctl.setpoint().position;
+    assert!(max_abs(&(held - SVector::from(target))) > 0.1);
+    for _ in 0..20 {
+        r.tick();
+    }
+    assert_eq!(r.ctl.setpoint().position, held);
+}
+
+#[test]
+fn a_silent_servo_is_reported_the_others_keep_working_and_it_recovers() {
+    let mut r = armed();
+    let target = SVector::<f32, J>::from([0.3, -0.3, 0.3, 0.3, 0.3]);
+    r.command(Command::MoveJoints { q: target.into(), duration: 1.0 }).unwrap();
+    r.run(10);
+    r.bus.borrow_mut().faults().config_mut().silent = vec![3];
+    let mut lost_at = None;
+    let ticks = r.run_until(300, |_, rep| {
+        assert_eq!(rep.missing, 1 << 2, "only servo 3 should be missing");
+        if rep.lost != 0 {
+            lost_at = Some(rep.lost);
+        }
+        rep.mode == Mode::Holding
+    });
+    assert_eq!(lost_at, Some(1 << 2));
+    let health = r.ctl.health()[2];
+    assert!(health.lost && health.last_fault == Some(Fault::NoReply) && health.missed as usize >= ticks);
+    for j in [0, 1, 3, 4] {
+        assert!((r.present()[j] - target[j]).abs() < 0.003, "joint {j} did not arrive");
+        assert_eq!(r.ctl.health()[j].missed, 0);
+    }
+    let counters = *r.ctl.counters();
+    println!(
+        "silent servo: {} missing replies, loop time up to {} µs, {} deadline misses",
+        counters.missing_replies, counters.max_loop_us, counters.deadline_misses
+    );
+
+    r.bus.borrow_mut().faults().config_mut().silent.clear();
+    let report = r.tick();
+    assert_eq!(report.recovered, 1 << 2);
+    assert_eq!(report.missing, 0);
+    let health = r.ctl.health()[2];
+    assert!(!health.lost && health.recoveries == 1 && health.consecutive == 0);
+    // It carried out the goals while silent, so its measured position is at the target too.
+    assert!((r.ctl.measured()[2] - target[2]).abs() < 0.003);
+}
+
+#[test]
+fn nan_out_of_range_and_unreachable_commands_are_refused_and_change_nothing() {
+    let mut r = armed();
+    r.tick();
+    let before = (r.ctl.mode(), r.ctl.setpoint().position, r.ctl.queued(), r.goals());
+    let nan = [f32::NAN, 0.0, 0.0, 0.0, 0.0];
+    assert_eq!(r.command(Command::MoveJoints { q: nan, duration: 1.0 }), Err(Refusal::NotFinite));
+    assert_eq!(r.command(Command::MoveJoints { q: [0.0; J], duration: f32::INFINITY }), Err(Refusal::NotFinite));
+    assert_eq!(
+        r.command(Command::MoveJoints { q: [0.0, 0.0, 3.0, 0.0, 0.0], duration: 1.0 }),
+        Err(Refusal::OutOfRange { joint: 2 })
+    );
+    let tool = |position, pace| Command::MoveTool { position, orientation: None, pace };
+    assert_eq!(r.command(tool([f32::NAN, 0.0, 0.1], Pace::Speed(0.1))), Err(Refusal::NotFinite));
+    assert_eq!(r.command(tool([0.2, 0.0, 0.1], Pace::Speed(0.0))), Err(Refusal::BadParameter));
+    let far = r.command(tool([1.0, 0.0, 0.2], Pace::Duration(1.0)));
+    assert!(matches!(far, Err(Refusal::Unreachable { position_error }) if position_error > 0.3), "{far:?}");
+    let zero_quaternion =
+        Command::MoveTool { position: [0.2, 0.0, 0.1], orientation: Some([0.0; 4]), pace: Pace::Speed(0.1) };
+    assert_eq!(r.command(zero_quaternion), Err(Refusal::BadParameter));
+    let bad_key = PlayerKeyframe::new(1.0, SVector::from(nan));
+    assert_eq!(r.command(Command::PushKeyframe(bad_key)), Err(Refusal::NotFinite));
+    assert_eq!(r.command(Command::Pause), Err(Refusal::WrongMode));
+    assert_eq!(r.command(Command::Start), Err(Refusal::WrongMode));
+    assert_eq!(r.ctl.counters().refusals, 10);
+    for _ in 0..10 {
+        r.tick();
+    }
+    assert_eq!(before, (r.ctl.mode(), r.ctl.setpoint().position, r.ctl.queued(), r.goals()));
+}
+
+#[test]
+fn estop_with_torque_off_turns_every_servo_limp_until_torque_on() {
+    let mut r = armed();
+    r.command(Command::MoveJoints { q: [0.5; J], duration: 2.0 }).unwrap();
+    r.run(50);
+    r.command(Command::EStop { torque_off: true }).unwrap();
+    r.tick();
+    assert_eq!(r.ctl.mode(), Mode::EStopped);
+    assert_eq!(r.item(STS3215.items.torque_enable), [0; J]);
+    assert!(!r.ctl.torque());
+    assert_eq!(r.command(Command::MoveJoints { q: [0.0; J], duration: 1.0 }), Err(Refusal::EStopped));
+    assert_eq!(r.command(Command::Start), Err(Refusal::EStopped));
+    // Stopped where it was: moving no more.
+    let stopped = r.present();
+    for _ in 0..20 {
+        r.tick();
+    }
+    assert_eq!(r.present(), stopped);
+    // Torque on re-arms, holding the present position.
+    r.command(Command::TorqueOn).unwrap();
+    r.tick();
+    assert_eq!(r.ctl.mode(), Mode::Holding);
+    assert_eq!(r.item(STS3215.items.torque_enable), [1; J]);
+    assert!(max_abs(&(r.present() - stopped)) < 0.002);
+
+    // E-stop holding: torque stays on, the goal is where the arm was.
+    r.command(Command::MoveJoints { q: [-0.3; J], duration: 2.0 }).unwrap();
+    r.run(50);
+    r.command(Command::EStop { torque_off: false }).unwrap();
+    let here = *r.ctl.measured();
+    r.tick();
+    assert_eq!(r.item(STS3215.items.torque_enable), [1; J]);
+    for _ in 0..20 {
+        r.tick();
+    }
+    assert!(max_abs(&(r.present() - here)) < 0.002);
+}
