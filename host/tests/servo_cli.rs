@@ -278,6 +278,15 @@ fn set_baud_refuses_a_rate_the_model_lacks_and_confirms_at_the_new_rate() {
     at("1000000").fails(1, &["servo 1: no reply to read"]);
 }
 
+/// A port another program holds (serialport opens ttys exclusively) is one line naming it.
+#[test]
+fn a_busy_port_is_one_line_naming_it() {
+    let server = sim(&STS3215, &[1], Faults::default(), &[]);
+    let _holder = serialport::new(server.path(), BAUD).open().expect("first open");
+    let run = armctl(&["servo", "scan", "--port", server.path(), "--protocol", "sts", "--ids", "1"]);
+    run.fails(1, &[server.path(), "port busy"]);
+}
+
 #[test]
 fn a_missing_port_is_one_line_naming_it() {
     let run = armctl(&["servo", "scan", "--port", "/dev/armctl-no-such-port", "--protocol", "dxl2"]);
