@@ -11,5 +11,6 @@
 pub mod builtin;
 pub mod bus;
 pub mod controller;
+mod crc16;
 pub mod link;
 pub mod tracking;

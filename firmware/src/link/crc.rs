@@ -8,32 +8,15 @@
 //!
 //! Nothing here panics.
 
-/// The table for one byte at a time, built at compile time.
-const TABLE: [u16; 256] = {
-    let mut table = [0u16; 256];
-    let mut i = 0;
-    while i < 256 {
-        let mut crc = (i as u16) << 8;
-        let mut bit = 0;
-        while bit < 8 {
-            crc = if crc & 0x8000 != 0 { (crc << 1) ^ 0x1021 } else { crc << 1 };
-            bit += 1;
-        }
-        table[i] = crc;
-        i += 1;
-    }
-    table
-};
+/// The table for one byte at a time (see [`crate::crc16`]).
+const TABLE: [u16; 256] = crate::crc16::msb_first_table(0x1021);
 
 /// The initial register value.
 pub const INIT: u16 = 0xFFFF;
 
 /// Continues a CRC over `bytes` from the register value `crc` (start with [`INIT`]).
-pub fn update(mut crc: u16, bytes: &[u8]) -> u16 {
-    for &b in bytes {
-        crc = (crc << 8) ^ TABLE[usize::from((crc >> 8) as u8 ^ b)];
-    }
-    crc
+pub fn update(crc: u16, bytes: &[u8]) -> u16 {
+    crate::crc16::update(&TABLE, crc, bytes)
 }
 
 /// The CRC-16/CCITT-FALSE of `bytes`.
