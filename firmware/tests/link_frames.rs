@@ -99,7 +99,10 @@ fn status(n: usize) -> Status {
             bus_timeouts: u32::MAX,
             bus_errors: 5,
             underruns: 0,
+            watchdog_trips: u32::MAX,
+            ik_failures: u32::MAX,
         },
+        lost_servos: u32::MAX,
     }
 }
 
@@ -122,7 +125,13 @@ fn host_messages() -> std::vec::Vec<HostMessage> {
     let target = CartesianTarget { position: [0.2, -0.1, 0.3], orientation: Some([1.0, 0.0, 0.0, 0.0]) };
     vec![
         HostMessage::Hello { protocol_version: PROTOCOL_VERSION },
-        HostMessage::ConfigureBegin { name: name("so101-follower-left-arm!"), joints: 6, tool_xyz: [0.0, 0.0, 0.05] },
+        HostMessage::ConfigureBegin {
+            name: name("so101-follower-left-arm!"),
+            joints: 6,
+            tool_xyz: [0.0, 0.0, 0.05],
+            tool_rpy: [0.1, 0.2, 0.3],
+            model: u16::MAX,
+        },
         HostMessage::ConfigureJoint { index: 5, joint: joint_config() },
         HostMessage::ConfigureCommit,
         HostMessage::UseBuiltinArm,
@@ -326,7 +335,8 @@ fn validate_refuses_bad_values_with_the_field() {
     j.lower = 3.0;
     assert_eq!(HostMessage::ConfigureJoint { index: 0, joint: j }.validate(), err(Field::Limits, Problem::OutOfRange));
     assert_eq!(
-        HostMessage::ConfigureBegin { name: name("x"), joints: 9, tool_xyz: [0.0; 3] }.validate(),
+        HostMessage::ConfigureBegin { name: name("x"), joints: 9, tool_xyz: [0.0; 3], tool_rpy: [0.0; 3], model: 777 }
+            .validate(),
         err(Field::JointCount, Problem::OutOfRange)
     );
     assert_eq!(HostMessage::SetTelemetry { rate_hz: 5000 }.validate(), err(Field::Rate, Problem::OutOfRange));

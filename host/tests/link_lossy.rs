@@ -97,6 +97,7 @@ impl Toy {
             ik: IkStatus { converged: true, iterations: 0, position_error: 0.0, orientation_error: 0.0 },
             timing: LoopTiming { mean_us: 0, max_us: 0, overruns: 0 },
             errors: ErrorCounters::default(),
+            lost_servos: 0,
         }
     }
 

@@ -5,7 +5,7 @@ use kinematics::ik::{IkConfig, IkProblem, IkStatus, Target};
 use kinematics::nalgebra::{SVector, Vector3};
 use kinematics::trajectory::{PlayerKeyframe, PushError};
 
-use super::{Controller, Mode, ToolGoal};
+use super::{Controller, IkSummary, Mode, ToolGoal};
 use crate::tracking::Tracker;
 
 /// How fast the tool goes to a Cartesian goal.
@@ -45,6 +45,16 @@ pub enum Command<const N: usize> {
     /// Queue a keyframe. Its time is seconds on the playback clock, which starts at 0 when a
     /// trajectory starts from rest ([`Command::Start`]); while playing, keyframes append.
     PushKeyframe(PlayerKeyframe<f32, N>),
+    /// Queue a keyframe given as a tool pose: IK (with restarts, seeded by the previous keyframe
+    /// so the arm keeps its posture) turns it into a joint keyframe with player-chosen velocity.
+    PushToolKeyframe {
+        /// Seconds on the playback clock, as for [`Command::PushKeyframe`].
+        time: f32,
+        /// Tool position (m, base frame).
+        position: [f32; 3],
+        /// Tool orientation, w first; `None` leaves it free.
+        orientation: Option<[f32; 4]>,
+    },
     /// Start the queued trajectory, or resume a paused one.
     Start,
     /// Slow the playback to a standstill on its path (resume with [`Command::Start`]).
@@ -160,6 +170,9 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             Command::MoveJoints { q, duration } => self.move_joints(SVector::from(q), duration),
             Command::MoveTool { position, orientation, pace } => self.move_tool(position, orientation, pace),
             Command::PushKeyframe(keyframe) => self.push_keyframe(keyframe),
+            Command::PushToolKeyframe { time, position, orientation } => {
+                self.push_tool_keyframe(time, position, orientation)
+            }
             Command::Start => {
                 self.ready()?;
                 if self.mode == Mode::Playing {
@@ -263,26 +276,47 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         if self.mode == Mode::EStopped {
             return Err(Refusal::EStopped);
         }
-        if self.mode == Mode::Playing {
-            return self.player.push(keyframe).map_err(refusal);
-        }
-        if !self.play.queued_fresh {
+        if self.mode != Mode::Playing && !self.play.queued_fresh {
             // The first keyframe of a new trajectory: it starts from the setpoint, at rest. The
             // keyframe was checked above, so a fresh player accepts it.
             self.reset_player();
             self.play.queued_fresh = true;
         }
-        self.player.push(keyframe).map_err(refusal)
+        self.player.push(keyframe).map_err(refusal)?;
+        self.queue_tail = keyframe.position;
+        Ok(())
     }
 
-    fn move_tool(&mut self, position: [f32; 3], orientation: Option<[f32; 4]>, pace: Pace) -> Result<(), Refusal> {
+    /// The IK target of a tool pose, refusing NaN and a zero quaternion.
+    fn tool_target(position: [f32; 3], orientation: Option<[f32; 4]>) -> Result<Target<f32>, Refusal> {
         if !position.iter().all(|x| x.is_finite()) || !orientation.iter().flatten().all(|x| x.is_finite()) {
             return Err(Refusal::NotFinite);
         }
-        let target = match orientation {
-            Some(quaternion) => Target::pose_wxyz(position, quaternion).ok_or(Refusal::BadParameter)?,
-            None => Target::Position(Vector3::from(position)),
+        match orientation {
+            Some(quaternion) => Target::pose_wxyz(position, quaternion).ok_or(Refusal::BadParameter),
+            None => Ok(Target::Position(Vector3::from(position))),
+        }
+    }
+
+    /// Solves `target` from `seed` with restarts, within the limits; refuses it if IK does not
+    /// converge, so nothing unreachable is ever accepted.
+    fn solve_reachable(&mut self, target: Target<f32>, seed: SVector<f32, N>) -> Result<SVector<f32, N>, Refusal> {
+        let config = IkConfig {
+            max_iterations: self.config.ik_check_iterations,
+            attempt_iterations: self.config.ik_check_iterations.div_ceil(4).max(1),
+            max_restarts: 8,
+            ..IkConfig::default()
         };
+        let solution = self.chain.solve(&IkProblem { target, seed, config });
+        self.last_ik = Some(IkSummary::of(&solution));
+        if solution.status != IkStatus::Converged {
+            return Err(Refusal::Unreachable { position_error: solution.position_error });
+        }
+        Ok(solution.q)
+    }
+
+    fn move_tool(&mut self, position: [f32; 3], orientation: Option<[f32; 4]>, pace: Pace) -> Result<(), Refusal> {
+        let target = Self::tool_target(position, orientation)?;
         let (value, is_speed) = match pace {
             Pace::Duration(d) => (d, false),
             Pace::Speed(s) => (s, true),
@@ -295,16 +329,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         }
         self.ready()?;
         // Refuse what IK cannot reach from here, with restarts, before anything moves.
-        let config = IkConfig {
-            max_iterations: self.config.ik_check_iterations,
-            attempt_iterations: self.config.ik_check_iterations.div_ceil(4).max(1),
-            max_restarts: 8,
-            ..IkConfig::default()
-        };
-        let check = self.chain.solve(&IkProblem { target, seed: self.setpoint.position, config });
-        if check.status != IkStatus::Converged {
-            return Err(Refusal::Unreachable { position_error: check.position_error });
-        }
+        self.solve_reachable(target, self.setpoint.position)?;
         let start = self.chain.tool_pose(&self.setpoint.position).translation;
         let distance = (target.position() - start).norm();
         let speed = if is_speed { value } else { (distance / value).max(1e-6) };
@@ -313,6 +338,25 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         self.tool = Some(ToolGoal { target, via: start, speed });
         self.mode = Mode::Tracking;
         Ok(())
+    }
+
+    fn push_tool_keyframe(
+        &mut self,
+        time: f32,
+        position: [f32; 3],
+        orientation: Option<[f32; 4]>,
+    ) -> Result<(), Refusal> {
+        let target = Self::tool_target(position, orientation)?;
+        if !time.is_finite() {
+            return Err(Refusal::NotFinite);
+        }
+        if self.mode == Mode::EStopped {
+            return Err(Refusal::EStopped);
+        }
+        let fresh = self.mode != Mode::Playing && !self.play.queued_fresh;
+        let seed = if fresh { self.setpoint.position } else { self.queue_tail };
+        let q = self.solve_reachable(target, seed)?;
+        self.push_keyframe(PlayerKeyframe { time, position: q, velocity: None })
     }
 }
 

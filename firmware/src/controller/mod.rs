@@ -69,6 +69,31 @@ struct PlayClock {
     queued_fresh: bool,
 }
 
+/// The outcome of the controller's last IK solve (accepting a Cartesian goal or keyframe, or a
+/// tracking tick).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IkSummary {
+    /// It converged within tolerance.
+    pub converged: bool,
+    /// Iterations spent.
+    pub iterations: u32,
+    /// Position error left, m.
+    pub position_error: f32,
+    /// Orientation error left, rad (0 for a position-only target).
+    pub orientation_error: f32,
+}
+
+impl IkSummary {
+    fn of<const N: usize>(solution: &kinematics::ik::IkSolution<f32, N>) -> Self {
+        Self {
+            converged: solution.status == kinematics::ik::IkStatus::Converged,
+            iterations: solution.iterations,
+            position_error: solution.position_error,
+            orientation_error: solution.orientation_error,
+        }
+    }
+}
+
 /// A Cartesian goal and the point moving toward it at the requested speed, which IK follows.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct ToolGoal {
@@ -106,6 +131,10 @@ pub struct Controller<const N: usize, const Q: usize> {
     last_tick_us: Option<u64>,
     counters: Counters,
     health: [ServoHealth; N],
+    last_ik: Option<IkSummary>,
+    /// Joint values of the last keyframe queued (the setpoint when none is): the seed of the next
+    /// Cartesian keyframe's IK.
+    queue_tail: SVector<f32, N>,
 }
 
 impl<const N: usize, const Q: usize> Controller<N, Q> {
@@ -157,6 +186,8 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             last_tick_us: None,
             counters: Counters::default(),
             health: [ServoHealth::default(); N],
+            last_ik: None,
+            queue_tail: start,
         })
     }
 
@@ -220,6 +251,21 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         self.play.time
     }
 
+    /// Room left in the keyframe queue.
+    pub fn free_slots(&self) -> usize {
+        self.player.free_slots()
+    }
+
+    /// Times the player ran out of keyframes while playing.
+    pub fn underruns(&self) -> u32 {
+        self.player.underruns()
+    }
+
+    /// The last IK solve, if any.
+    pub fn last_ik(&self) -> Option<IkSummary> {
+        self.last_ik
+    }
+
     /// The joint-to-servo mappings.
     pub fn mappings(&self) -> &[JointMapping; N] {
         &self.mappings
@@ -236,6 +282,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             self.player = player;
         }
         self.play = PlayClock { time: 0.0, rate: 0.0, paused: false, queued_fresh: false };
+        self.queue_tail = self.setpoint.position;
     }
 
     /// Holds the current setpoint from now on.

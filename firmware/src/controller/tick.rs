@@ -216,6 +216,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
                 };
                 let solution = self.tracker.step(&self.chain, target);
                 report.ik = Some(solution.status);
+                self.last_ik = Some(super::IkSummary::of(&solution));
                 if solution.status != IkStatus::Converged {
                     self.counters.ik_failures = self.counters.ik_failures.saturating_add(1);
                 }

@@ -151,8 +151,14 @@ pub enum HostMessage {
         name: String<MAX_NAME>,
         /// Joints to follow (1..=MAX_JOINTS).
         joints: u8,
-        /// The tool point in the last joint's frame (m).
+        /// The tool frame's origin in the last joint's frame (m).
         tool_xyz: [f32; 3],
+        /// The tool frame's rotation, roll-pitch-yaw as in URDF (rad).
+        tool_rpy: [f32; 3],
+        /// Model number of the servos (as their model item reads, e.g. 777 for the STS3215, 1020
+        /// for the XM430-W350): the firmware needs its control table and refuses a model it has
+        /// no table for or that does not speak its bus's protocol.
+        model: u16,
     },
     /// One joint of the arm being sent.
     ConfigureJoint {
@@ -282,6 +288,10 @@ pub struct ErrorCounters {
     pub bus_errors: u32,
     /// Queue underruns of the player.
     pub underruns: u32,
+    /// Times the watchdog stopped the arm because the host fell silent.
+    pub watchdog_trips: u32,
+    /// Tracking ticks whose IK did not converge within the per-tick budget.
+    pub ik_failures: u32,
 }
 
 /// A snapshot of the controller.
@@ -305,6 +315,8 @@ pub struct Status {
     pub timing: LoopTiming,
     /// Error counters.
     pub errors: ErrorCounters,
+    /// Servos (bit `j` for joint `j`) that have stopped answering; cleared when one answers again.
+    pub lost_servos: u32,
 }
 
 /// Which field of a message a [`ValueError`] is about.
@@ -377,11 +389,40 @@ pub enum NakReason {
     BadValue(ValueError),
     /// A keyframe push found the queue full.
     QueueFull,
-    /// The request does not fit the controller's state (e.g. a move with torque off, a joint
-    /// count that is not the arm's, a configure step out of order).
+    /// The request does not fit the controller's state (e.g. no arm yet, nothing to start or
+    /// pause, a configure step out of order, servo positions not read yet).
     NotReady,
-    /// IK found no solution for a Cartesian target.
+    /// IK found no solution for a Cartesian target within the joint limits.
     Unreachable,
+    /// A joint value lies outside that joint's limits.
+    JointLimit {
+        /// The joint (0-based).
+        joint: u8,
+    },
+    /// A keyframe's time is not later than the previous keyframe's.
+    KeyframeTime,
+    /// The torque is off: motion needs torque on first.
+    TorqueOff,
+    /// Emergency-stopped: only torque on (or off) is accepted.
+    EStopped,
+}
+
+impl core::fmt::Display for NakReason {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Corrupt => write!(f, "corrupt frame"),
+            Self::Oversized => write!(f, "frame longer than {} bytes", super::frame::MAX_FRAME),
+            Self::UnknownMessage => write!(f, "unknown message"),
+            Self::BadValue(e) => write!(f, "bad value: {:?} is {:?}", e.field, e.problem),
+            Self::QueueFull => write!(f, "keyframe queue full"),
+            Self::NotReady => write!(f, "not possible in the controller's present state"),
+            Self::Unreachable => write!(f, "target unreachable within the joint limits"),
+            Self::JointLimit { joint } => write!(f, "joint {} outside its limits", joint + 1),
+            Self::KeyframeTime => write!(f, "keyframe time not later than the previous keyframe"),
+            Self::TorqueOff => write!(f, "torque is off (turn it on first)"),
+            Self::EStopped => write!(f, "emergency-stopped (torque on to leave it)"),
+        }
+    }
 }
 
 /// Messages from the firmware.
@@ -509,10 +550,11 @@ impl HostMessage {
             | Self::Stop
             | Self::EStop { .. }
             | Self::GetStatus => Ok(()),
-            Self::ConfigureBegin { name, joints, tool_xyz } => {
+            Self::ConfigureBegin { name, joints, tool_xyz, tool_rpy, .. } => {
                 check(Field::Name, !name.is_empty(), Problem::Count)?;
                 check(Field::JointCount, (1..=MAX_JOINTS as u8).contains(joints), Problem::OutOfRange)?;
-                all_range(Field::Origin, tool_xyz, MAX_REACH)
+                all_range(Field::Origin, tool_xyz, MAX_REACH)?;
+                all_range(Field::Origin, tool_rpy, 2.0 * core::f32::consts::PI)
             }
             Self::ConfigureJoint { index, joint } => {
                 check(Field::JointIndex, usize::from(*index) < MAX_JOINTS, Problem::OutOfRange)?;

@@ -1,0 +1,170 @@
+//! The arm the firmware drives: the built-in one, or one the host sends joint by joint
+//! (configure begin, one message per joint, commit), checked as a whole before it replaces the arm
+//! in use.
+
+use heapless::String;
+use kinematics::nalgebra::{SVector, Vector3};
+use kinematics::trajectory::JointLimits;
+use kinematics::{Chain, Joint, JointKind, Limits, Pose};
+
+use super::Board;
+use crate::bus::mapping::{Direction, JointMapping};
+use crate::bus::table::Model;
+use crate::controller::{joint_limits, ConfigError, Controller};
+use crate::link::message::{Field, JointConfig, JointType, NakReason, Problem, ValueError, MAX_NAME};
+
+/// Everything the controller needs about an arm.
+#[derive(Clone, Debug)]
+pub struct ArmSetup<const N: usize> {
+    /// Its name, reported in the handshake.
+    pub name: String<MAX_NAME>,
+    /// Its kinematics.
+    pub chain: Chain<f32, N>,
+    /// The servo of each joint.
+    pub mappings: [JointMapping; N],
+    /// The servos' model.
+    pub model: &'static Model,
+    /// Position (already within each servo's range), velocity and acceleration limits.
+    pub limits: JointLimits<f32, N>,
+}
+
+impl<const N: usize> ArmSetup<N> {
+    /// A setup from its parts; the limits are the chain's intersected with the servos' ranges.
+    pub fn new(
+        name: &str,
+        chain: Chain<f32, N>,
+        mappings: [JointMapping; N],
+        model: &'static Model,
+        max_velocity: SVector<f32, N>,
+        max_acceleration: SVector<f32, N>,
+    ) -> Result<Self, ConfigError> {
+        let limits = joint_limits(&chain, &mappings, max_velocity, max_acceleration)?;
+        let mut owned = String::new();
+        for c in name.chars() {
+            if owned.push(c).is_err() {
+                break;
+            }
+        }
+        Ok(Self { name: owned, chain, mappings, model, limits })
+    }
+
+    /// A controller for this arm on `board`.
+    pub(super) fn controller<const Q: usize>(&self, board: &Board) -> Result<Controller<N, Q>, ConfigError> {
+        Controller::new(self.chain.clone(), self.mappings, self.model, self.limits, board.control)
+    }
+}
+
+/// An arm being received from the host.
+#[derive(Clone, Debug)]
+pub struct Staging<const N: usize> {
+    begun: Option<Begun>,
+    joints: [JointConfig; N],
+    /// Joints received (bit per joint); the others hold [`EMPTY`].
+    received: u32,
+}
+
+/// The arm-wide part of an arm being received.
+#[derive(Clone, Debug)]
+struct Begun {
+    name: String<MAX_NAME>,
+    tool: Pose<f32>,
+    model: u16,
+}
+
+/// What a joint slot holds until its joint arrives (never used: commit needs every joint).
+const EMPTY: JointConfig = JointConfig {
+    kind: JointType::Revolute,
+    origin_xyz: [0.0; 3],
+    origin_rpy: [0.0; 3],
+    axis: [0.0, 0.0, 1.0],
+    lower: 0.0,
+    upper: 0.0,
+    max_velocity: 0.0,
+    max_acceleration: 0.0,
+    servo: crate::link::message::ServoConfig { id: 0, ticks_per_revolution: 0, zero: 0, reversed: false },
+};
+
+impl<const N: usize> Default for Staging<N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+fn bad(field: Field, problem: Problem) -> NakReason {
+    NakReason::BadValue(ValueError { field, problem })
+}
+
+impl<const N: usize> Staging<N> {
+    /// Nothing received.
+    pub const fn new() -> Self {
+        Self { begun: None, joints: [EMPTY; N], received: 0 }
+    }
+
+    /// Starts an arm of `joints` joints (which must be this firmware's `N`), dropping any arm
+    /// half received.
+    pub fn begin(&mut self, name: &String<MAX_NAME>, joints: u8, tool: Pose<f32>, model: u16) -> Result<(), NakReason> {
+        if usize::from(joints) != N {
+            return Err(bad(Field::JointCount, Problem::Count));
+        }
+        *self = Self::new();
+        self.begun = Some(Begun { name: name.clone(), tool, model });
+        Ok(())
+    }
+
+    /// Stores joint `index`.
+    pub fn joint(&mut self, index: u8, joint: &JointConfig) -> Result<(), NakReason> {
+        if self.begun.is_none() {
+            return Err(NakReason::NotReady);
+        }
+        let slot = self.joints.get_mut(usize::from(index)).ok_or(bad(Field::JointIndex, Problem::OutOfRange))?;
+        *slot = *joint;
+        self.received |= 1 << index;
+        Ok(())
+    }
+
+    /// The whole arm, checked: every joint sent, distinct servo ids, a model on `board`'s bus, a
+    /// valid chain, limits that leave each joint a range within its servo's. The staging is
+    /// emptied on success; on failure it is kept, so a corrected joint can be resent.
+    pub fn commit(&mut self, board: &Board) -> Result<ArmSetup<N>, NakReason> {
+        let begun = self.begun.as_ref().ok_or(NakReason::NotReady)?;
+        // N is at most MAX_JOINTS (8), so the mask fits.
+        if self.received != (1u32 << N) - 1 {
+            return Err(NakReason::NotReady);
+        }
+        let configs = self.joints;
+        let model = Model::by_number(board.bus.protocol, begun.model).ok_or(bad(Field::Servo, Problem::OutOfRange))?;
+        for (j, a) in configs.iter().enumerate() {
+            if configs[..j].iter().any(|b| b.servo.id == a.servo.id) {
+                return Err(bad(Field::Servo, Problem::OutOfRange));
+            }
+        }
+        let joints = configs.map(|c| Joint {
+            origin: Pose::from_xyz_rpy(c.origin_xyz, c.origin_rpy),
+            axis: Vector3::from(c.axis),
+            kind: match c.kind {
+                JointType::Revolute => JointKind::Revolute,
+                JointType::Continuous => JointKind::Continuous,
+                JointType::Prismatic => JointKind::Prismatic,
+            },
+            limits: Limits::new(c.lower, c.upper),
+        });
+        let chain = Chain::new(joints, begun.tool).map_err(|_| bad(Field::Axis, Problem::OutOfRange))?;
+        let mappings = configs.map(|c| {
+            let tpr = i32::try_from(c.servo.ticks_per_revolution).unwrap_or(i32::MAX);
+            JointMapping {
+                id: c.servo.id,
+                ticks_per_revolution: c.servo.ticks_per_revolution,
+                zero: c.servo.zero,
+                direction: if c.servo.reversed { Direction::Reverse } else { Direction::Forward },
+                min_ticks: 0,
+                max_ticks: tpr - 1,
+            }
+        });
+        let velocity = SVector::from(configs.map(|c| c.max_velocity));
+        let acceleration = SVector::from(configs.map(|c| c.max_acceleration));
+        let setup = ArmSetup::new(&begun.name, chain, mappings, model, velocity, acceleration)
+            .map_err(|_| bad(Field::Limits, Problem::OutOfRange))?;
+        *self = Self::new();
+        Ok(setup)
+    }
+}

@@ -1,0 +1,190 @@
+//! The firmware application: the host link in front of the controller, as one sans-IO object.
+//!
+//! A board's main loop (and the SIL harness on the host) does two things, forever:
+//! - hands every byte received from the host to [`Firmware::receive`], which decodes frames,
+//!   answers each request once ([`crate::link::session`]) and writes the reply frames to the link;
+//! - calls [`Firmware::tick`] every [`Firmware::period_us`], which runs one control tick on the servo
+//!   bus and sends a telemetry frame when one is due.
+//!
+//! - [`arm`]: the arm the firmware drives (built in, or configured by the host) and its checks.
+//! - [`requests`]: host messages turned into controller commands and replies.
+//! - [`report`]: the status snapshot and loop statistics.
+//!
+//! # Panics
+//! Nothing here panics, allocates or loops without a bound, on any bytes from the host.
+
+pub mod arm;
+mod report;
+mod requests;
+
+pub use arm::{ArmSetup, Staging};
+
+use embedded_hal::digital::OutputPin;
+use embedded_io::{Read, ReadReady, Write};
+use heapless::String;
+
+use crate::bus::master::{BusConfig, Clock, Master};
+use crate::bus::table::Model;
+use crate::controller::{minimum_period_us, Config, ConfigError, Controller, TickReport};
+use crate::link::frame::{FrameDecoder, MAX_ENCODED, MAX_FRAME};
+use crate::link::message::{FirmwareMessage, MAX_NAME};
+use crate::link::session::Session;
+use report::LoopStats;
+
+/// What the board is: its servo bus and how the control loop runs on it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Board {
+    /// The servo bus (protocol, baud rate, return delay, margins).
+    pub bus: BusConfig,
+    /// The servo model of the built-in arm, and of a configured arm that names none it knows.
+    pub model: &'static Model,
+    /// Control rate, watchdog and IK budget.
+    pub control: Config,
+}
+
+/// The arm in use and its controller.
+#[derive(Clone, Debug)]
+struct Running<const N: usize, const Q: usize> {
+    name: String<MAX_NAME>,
+    controller: Controller<N, Q>,
+}
+
+/// Everything but the link's framing: what a request may change.
+#[derive(Clone, Debug)]
+struct Core<const N: usize, const Q: usize> {
+    board: Board,
+    builtin: Option<ArmSetup<N>>,
+    running: Option<Running<N, Q>>,
+    staging: Staging<N>,
+    /// Telemetry period (µs) and when the next frame is due.
+    telemetry: Option<(u64, u64)>,
+    loops: LoopStats,
+}
+
+/// The firmware of an arm of `N` joints with a keyframe queue of `Q`.
+#[derive(Clone, Debug)]
+pub struct Firmware<const N: usize, const Q: usize> {
+    decoder: FrameDecoder<MAX_ENCODED>,
+    session: Session,
+    core: Core<N, Q>,
+}
+
+impl<const N: usize, const Q: usize> Firmware<N, Q> {
+    /// Firmware for `board`, driving `builtin` until the host configures another arm (with no
+    /// built-in arm, motion requests are refused until the host sends one). Fails if the control
+    /// period is shorter than one bus cycle for `N` servos, or the built-in arm is unusable.
+    pub fn new(board: Board, builtin: Option<ArmSetup<N>>) -> Result<Self, ConfigError> {
+        if N > crate::link::message::MAX_JOINTS {
+            return Err(ConfigError::TooManyJoints);
+        }
+        let minimum_us = minimum_period_us(board.model, &board.bus, N);
+        if board.control.period_us < minimum_us {
+            return Err(ConfigError::PeriodTooShort { minimum_us });
+        }
+        let running = match &builtin {
+            Some(setup) => Some(Running { name: setup.name.clone(), controller: setup.controller(&board)? }),
+            None => None,
+        };
+        Ok(Self {
+            decoder: FrameDecoder::new(),
+            session: Session::new(),
+            core: Core {
+                board,
+                builtin,
+                running,
+                staging: Staging::new(),
+                telemetry: None,
+                loops: LoopStats::default(),
+            },
+        })
+    }
+
+    /// The control period (µs): call [`Firmware::tick`] this often.
+    pub fn period_us(&self) -> u32 {
+        self.core.board.control.period_us
+    }
+
+    /// The bus the firmware expects.
+    pub fn bus(&self) -> &BusConfig {
+        &self.core.board.bus
+    }
+
+    /// The controller, once there is an arm.
+    pub fn controller(&self) -> Option<&Controller<N, Q>> {
+        self.core.running.as_ref().map(|r| &r.controller)
+    }
+
+    /// The name of the arm in use (empty before there is one).
+    pub fn arm_name(&self) -> &str {
+        self.core.running.as_ref().map_or("", |r| r.name.as_str())
+    }
+
+    /// The link session's counters.
+    pub fn session(&self) -> &Session {
+        &self.session
+    }
+
+    /// The frame decoder's counters.
+    pub fn frame_stats(&self) -> crate::link::frame::FrameStats {
+        self.decoder.stats()
+    }
+
+    /// Takes bytes received from the host at `now_us`; every complete frame is answered on `tx`
+    /// (replies to requests, nak events for broken frames). Returns the first write error, after
+    /// which the remaining bytes are still decoded but their replies are lost like a broken line's.
+    pub fn receive<W: Write>(&mut self, bytes: &[u8], now_us: u64, tx: &mut W) -> Result<(), W::Error> {
+        let mut result = Ok(());
+        let mut out = [0u8; MAX_FRAME];
+        for &byte in bytes {
+            let link = report::LinkCounts::of(&self.decoder.stats(), &self.session.stats());
+            let written = match self.decoder.push(byte) {
+                None => continue,
+                Some(Ok(frame)) => {
+                    let core = &mut self.core;
+                    self.session.handle(&frame, &mut out, |message| core.apply(message, now_us, link))
+                }
+                Some(Err(error)) => self.session.nak_broken(&error, &mut out),
+            };
+            // A reply always fits a frame (every message's bound is below MAX_FRAME); should one
+            // not, the host times out and retransmits.
+            if let Ok(n) = written {
+                if result.is_ok() {
+                    result = tx.write_all(&out[..n]);
+                }
+            }
+        }
+        result
+    }
+
+    /// Runs one control tick at `now_us` on `master`'s bus and, if due, writes a telemetry frame to
+    /// `tx`. Returns the tick's report, or `None` while there is no arm.
+    pub fn tick<P, D, C, W, const BUF: usize>(
+        &mut self,
+        master: &mut Master<P, D, C, BUF>,
+        now_us: u64,
+        tx: &mut W,
+    ) -> Result<Option<TickReport>, W::Error>
+    where
+        P: Read + Write + ReadReady,
+        D: OutputPin,
+        C: Clock,
+        W: Write,
+    {
+        let Some(running) = self.core.running.as_mut() else { return Ok(None) };
+        let report = running.controller.tick(master, now_us);
+        self.core.loops.record(report.loop_us);
+        if let Some((period, next)) = self.core.telemetry {
+            if now_us >= next {
+                // The next frame is due a period after this one, or now if ticks fell behind.
+                self.core.telemetry = Some((period, (next + period).max(now_us)));
+                let link = report::LinkCounts::of(&self.decoder.stats(), &self.session.stats());
+                let status = self.core.status(now_us, link);
+                let mut out = [0u8; MAX_FRAME];
+                if let Ok(n) = self.session.event(&FirmwareMessage::Telemetry(status), &mut out) {
+                    tx.write_all(&out[..n])?;
+                }
+            }
+        }
+        Ok(Some(report))
+    }
+}

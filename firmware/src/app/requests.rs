@@ -1,0 +1,201 @@
+//! Host requests carried out: each [`HostMessage`] becomes a controller command (or an arm change,
+//! a status snapshot, a telemetry rate) and its reply. A refused request changes nothing.
+
+use kinematics::nalgebra::SVector;
+use kinematics::trajectory::PlayerKeyframe;
+
+use super::report::{free_slots, LinkCounts};
+use super::{Core, Running};
+use crate::controller::{Command, Pace, Refusal};
+use crate::link::message::{
+    EStopMode, Field, FirmwareMessage, HostMessage, Info, Joints, NakReason, Problem, Timing, ValueError,
+    PROTOCOL_VERSION,
+};
+
+/// The firmware's version (major, minor, patch), from the crate version.
+const FIRMWARE_VERSION: [u8; 3] = [
+    parse_u8(env!("CARGO_PKG_VERSION_MAJOR")),
+    parse_u8(env!("CARGO_PKG_VERSION_MINOR")),
+    parse_u8(env!("CARGO_PKG_VERSION_PATCH")),
+];
+
+const fn parse_u8(s: &str) -> u8 {
+    let bytes = s.as_bytes();
+    let mut value: u32 = 0;
+    let mut i = 0;
+    while i < bytes.len() {
+        value = value * 10 + (bytes[i] - b'0') as u32;
+        i += 1;
+    }
+    if value > 255 {
+        255
+    } else {
+        value as u8
+    }
+}
+
+fn bad(field: Field, problem: Problem) -> NakReason {
+    NakReason::BadValue(ValueError { field, problem })
+}
+
+/// The nak a controller refusal is reported with.
+fn nak(refusal: Refusal) -> NakReason {
+    match refusal {
+        Refusal::NotFinite => bad(Field::Joints, Problem::NotFinite),
+        Refusal::OutOfRange { joint } => NakReason::JointLimit { joint: u8::try_from(joint).unwrap_or(u8::MAX) },
+        Refusal::BadParameter => bad(Field::Duration, Problem::OutOfRange),
+        Refusal::Unreachable { .. } => NakReason::Unreachable,
+        Refusal::EStopped => NakReason::EStopped,
+        Refusal::TorqueOff => NakReason::TorqueOff,
+        Refusal::NoPosition | Refusal::WrongMode => NakReason::NotReady,
+        Refusal::QueueFull => NakReason::QueueFull,
+        Refusal::TimeNotIncreasing => NakReason::KeyframeTime,
+    }
+}
+
+/// Joint values of a message as the arm's vector, if there is one value per joint.
+fn vector<const N: usize>(values: &Joints, field: Field) -> Result<SVector<f32, N>, NakReason> {
+    if values.len() != N {
+        return Err(bad(field, Problem::Count));
+    }
+    Ok(SVector::from_fn(|j, _| values[j]))
+}
+
+impl<const N: usize, const Q: usize> Core<N, Q> {
+    /// Carries out `message` (already checked by [`HostMessage::validate`]) received at `now_us`.
+    pub(super) fn apply(&mut self, message: &HostMessage, now_us: u64, link: LinkCounts) -> FirmwareMessage {
+        match self.carry_out(message, now_us, link) {
+            Ok(reply) => reply,
+            Err(reason) => FirmwareMessage::Nak { reason },
+        }
+    }
+
+    fn ack(&self) -> FirmwareMessage {
+        let free = self.running.as_ref().map_or(0, |r| r.controller.free_slots());
+        FirmwareMessage::Ack { free_slots: free_slots(free) }
+    }
+
+    fn info(&self) -> FirmwareMessage {
+        let control_rate_hz = 1_000_000 / self.board.control.period_us.max(1);
+        FirmwareMessage::Info(Info {
+            protocol_version: PROTOCOL_VERSION,
+            firmware_version: FIRMWARE_VERSION,
+            joints: N as u8,
+            arm_name: self.running.as_ref().map(|r| r.name.clone()).unwrap_or_default(),
+            queue_capacity: free_slots(Q),
+            control_rate_hz: u16::try_from(control_rate_hz).unwrap_or(u16::MAX),
+        })
+    }
+
+    /// Swaps the arm, which needs the torque off: a new arm starts limp and reads its servos.
+    fn switch_arm(&mut self, setup: &super::ArmSetup<N>) -> Result<(), NakReason> {
+        if self.running.as_ref().is_some_and(|r| r.controller.torque()) {
+            return Err(NakReason::NotReady);
+        }
+        let controller = setup.controller(&self.board).map_err(|_| bad(Field::Limits, Problem::OutOfRange))?;
+        self.running = Some(Running { name: setup.name.clone(), controller });
+        Ok(())
+    }
+
+    fn carry_out(
+        &mut self,
+        message: &HostMessage,
+        now_us: u64,
+        link: LinkCounts,
+    ) -> Result<FirmwareMessage, NakReason> {
+        // Requests that do not need an arm.
+        match message {
+            HostMessage::Hello { .. } => return Ok(self.info()),
+            HostMessage::GetStatus => {
+                if let Some(r) = self.running.as_mut() {
+                    // Polling status proves the host alive: the watchdog leaves the arm alone.
+                    let _ = r.controller.command(Command::HostAlive, now_us);
+                }
+                return Ok(FirmwareMessage::Status(self.status(now_us, link)));
+            }
+            HostMessage::SetTelemetry { rate_hz } => {
+                let period = u64::from(self.board.control.period_us);
+                self.telemetry = match *rate_hz {
+                    0 => None,
+                    // No faster than the control rate: a frame per tick at most.
+                    hz => Some(((1_000_000 / u64::from(hz)).max(period), now_us)),
+                };
+                return Ok(self.ack());
+            }
+            HostMessage::ConfigureBegin { name, joints, tool_xyz, tool_rpy, model } => {
+                let tool = kinematics::Pose::from_xyz_rpy(*tool_xyz, *tool_rpy);
+                self.staging.begin(name, *joints, tool, *model)?;
+                return Ok(self.ack());
+            }
+            HostMessage::ConfigureJoint { index, joint } => {
+                self.staging.joint(*index, joint)?;
+                return Ok(self.ack());
+            }
+            HostMessage::ConfigureCommit => {
+                if self.running.as_ref().is_some_and(|r| r.controller.torque()) {
+                    return Err(NakReason::NotReady);
+                }
+                let setup = self.staging.commit(&self.board)?;
+                self.switch_arm(&setup)?;
+                return Ok(self.ack());
+            }
+            HostMessage::UseBuiltinArm => {
+                let builtin = self.builtin.clone().ok_or(NakReason::NotReady)?;
+                self.switch_arm(&builtin)?;
+                return Ok(self.ack());
+            }
+            _ => {}
+        }
+        let running = self.running.as_mut().ok_or(NakReason::NotReady)?;
+        let controller = &mut running.controller;
+        let command = match message {
+            HostMessage::Torque { on: true } => Command::TorqueOn,
+            HostMessage::Torque { on: false } => Command::TorqueOff,
+            HostMessage::MoveTo { target, timing } => Command::MoveTool {
+                position: target.position,
+                orientation: target.orientation,
+                pace: match *timing {
+                    Timing::Duration(d) => Pace::Duration(d),
+                    Timing::MaxSpeed(v) => Pace::Speed(v),
+                },
+            },
+            HostMessage::MoveJoints { positions, timing } => {
+                let q: SVector<f32, N> = vector(positions, Field::Joints)?;
+                let duration = match *timing {
+                    Timing::Duration(d) => d,
+                    // The joint that moves furthest sets the time; the controller lengthens it
+                    // further if the acceleration limits need.
+                    Timing::MaxSpeed(v) => (q - controller.setpoint().position).amax() / v,
+                };
+                Command::MoveJoints { q: q.into(), duration }
+            }
+            HostMessage::PushKeyframe(k) => {
+                let position = vector(&k.positions, Field::Joints)?;
+                let velocity = match &k.velocities {
+                    Some(v) => Some(vector(v, Field::Velocities)?),
+                    None => None,
+                };
+                Command::PushKeyframe(PlayerKeyframe { time: k.time, position, velocity })
+            }
+            HostMessage::PushCartesianKeyframe(k) => Command::PushToolKeyframe {
+                time: k.time,
+                position: k.target.position,
+                orientation: k.target.orientation,
+            },
+            HostMessage::Start => Command::Start,
+            HostMessage::Pause => Command::Pause,
+            HostMessage::Stop => Command::Stop,
+            HostMessage::EStop { mode } => Command::EStop { torque_off: *mode == EStopMode::TorqueOff },
+            // Answered above.
+            HostMessage::Hello { .. }
+            | HostMessage::GetStatus
+            | HostMessage::SetTelemetry { .. }
+            | HostMessage::ConfigureBegin { .. }
+            | HostMessage::ConfigureJoint { .. }
+            | HostMessage::ConfigureCommit
+            | HostMessage::UseBuiltinArm => return Err(NakReason::UnknownMessage),
+        };
+        controller.command(command, now_us).map_err(nak)?;
+        Ok(self.ack())
+    }
+}
