@@ -152,6 +152,7 @@ fn host_messages() -> std::vec::Vec<HostMessage> {
         HostMessage::EStop { mode: EStopMode::Hold },
         HostMessage::EStop { mode: EStopMode::TorqueOff },
         HostMessage::GetStatus,
+        HostMessage::Ping,
         HostMessage::SetTelemetry { rate_hz: 50 },
     ]
 }

@@ -50,7 +50,7 @@ impl<const N: usize> ArmSetup<N> {
 
     /// A controller for this arm on `board`.
     pub(super) fn controller<const Q: usize>(&self, board: &Board) -> Result<Controller<N, Q>, ConfigError> {
-        Controller::new(self.chain.clone(), self.mappings, self.model, self.limits, board.control)
+        Controller::new(self.chain, self.mappings, self.model, self.limits, board.control)
     }
 }
 

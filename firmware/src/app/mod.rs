@@ -141,6 +141,11 @@ impl<const N: usize, const Q: usize> Firmware<N, Q> {
                 None => continue,
                 Some(Ok(frame)) => {
                     let core = &mut self.core;
+                    // Any whole frame proves the host alive, a repeat included: on a noisy line
+                    // the host may retransmit for a while before a reply gets through.
+                    if let Some(r) = core.running.as_mut() {
+                        let _ = r.controller.command(crate::controller::Command::HostAlive, now_us);
+                    }
                     self.session.handle(&frame, &mut out, |message| core.apply(message, now_us, link))
                 }
                 Some(Err(error)) => self.session.nak_broken(&error, &mut out),

@@ -26,7 +26,7 @@ impl LoopStats {
 
     /// Mean since start and maximum since the last call.
     fn take(&mut self) -> (u32, u32) {
-        let mean = if self.ticks == 0 { 0 } else { self.sum_us / self.ticks };
+        let mean = self.sum_us.checked_div(self.ticks).unwrap_or(0);
         let max = core::mem::take(&mut self.max_us);
         (u32::try_from(mean).unwrap_or(u32::MAX), max)
     }

@@ -106,6 +106,12 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
         // Requests that do not need an arm.
         match message {
             HostMessage::Hello { .. } => return Ok(self.info()),
+            HostMessage::Ping => {
+                if let Some(r) = self.running.as_mut() {
+                    let _ = r.controller.command(Command::HostAlive, now_us);
+                }
+                return Ok(self.ack());
+            }
             HostMessage::GetStatus => {
                 if let Some(r) = self.running.as_mut() {
                     // Polling status proves the host alive: the watchdog leaves the arm alone.
@@ -189,6 +195,7 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
             // Answered above.
             HostMessage::Hello { .. }
             | HostMessage::GetStatus
+            | HostMessage::Ping
             | HostMessage::SetTelemetry { .. }
             | HostMessage::ConfigureBegin { .. }
             | HostMessage::ConfigureJoint { .. }

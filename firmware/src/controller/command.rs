@@ -284,6 +284,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         }
         self.player.push(keyframe).map_err(refusal)?;
         self.queue_tail = keyframe.position;
+        self.counters.keyframes = self.counters.keyframes.wrapping_add(1);
         Ok(())
     }
 

@@ -56,6 +56,8 @@ pub struct Counters {
     pub watchdog_trips: u32,
     /// Commands refused.
     pub refusals: u32,
+    /// Keyframes accepted into the queue (joint and Cartesian).
+    pub keyframes: u32,
     /// Goals not sent because a joint value had no tick value (never expected: the limits keep
     /// setpoints inside every servo's range).
     pub mapping_errors: u32,

@@ -208,6 +208,9 @@ pub enum HostMessage {
     },
     /// Asks for a [`FirmwareMessage::Status`].
     GetStatus,
+    /// Asks for an ack: the free keyframe slots in a short reply (the host's flow-control poll),
+    /// and proof that the host is alive (the watchdog).
+    Ping,
     /// Telemetry ([`FirmwareMessage::Telemetry`]) at this rate (Hz); 0 switches it off.
     SetTelemetry {
         /// Rate (Hz, 0..=MAX_TELEMETRY_HZ).
@@ -549,7 +552,8 @@ impl HostMessage {
             | Self::Pause
             | Self::Stop
             | Self::EStop { .. }
-            | Self::GetStatus => Ok(()),
+            | Self::GetStatus
+            | Self::Ping => Ok(()),
             Self::ConfigureBegin { name, joints, tool_xyz, tool_rpy, .. } => {
                 check(Field::Name, !name.is_empty(), Problem::Count)?;
                 check(Field::JointCount, (1..=MAX_JOINTS as u8).contains(joints), Problem::OutOfRange)?;
