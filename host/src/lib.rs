@@ -13,5 +13,6 @@ pub mod link;
 pub mod parse;
 pub mod plot;
 pub mod servo;
+pub mod sil;
 pub mod sim;
 pub mod trajectory;

@@ -10,7 +10,7 @@
 //! [`LinkError::GaveUp`].
 //!
 //! Flow control: every ack (and status) reports the free keyframe slots. A keyframe push is only
-//! sent while the last report says a slot is free; otherwise the client polls status, waiting one
+//! sent while the last report says a slot is free; otherwise the client polls with a ping, waiting one
 //! read timeout between polls, until one is. The count is unknown (zero) at the start and after a
 //! failed request, so the client then asks before pushing.
 
@@ -33,10 +33,13 @@ pub struct LinkConfig {
 }
 
 impl Default for LinkConfig {
-    /// 12 attempts and a wait of at most 32 timeouts: with a 20 ms timeout, about 5 s before giving
-    /// up, which outlasts a noisy stretch of line but not a disconnected board.
+    /// 40 attempts and a wait of at most 8 timeouts: with a 20 ms timeout, about 6 s before giving
+    /// up, which outlasts a noisy stretch of line but not a disconnected board. Many attempts with
+    /// short waits rather than few long ones, because on a noisy line a long reply (a status is
+    /// about 80 bytes) may need many tries: at 1% lost bytes and 0.1% flipped bits only one in
+    /// four status replies arrives whole.
     fn default() -> Self {
-        Self { max_attempts: 12, max_backoff: 32, max_polls: 100_000 }
+        Self { max_attempts: 40, max_backoff: 8, max_polls: 100_000 }
     }
 }
 
@@ -98,8 +101,8 @@ impl std::fmt::Display for LinkError {
             Self::GaveUp { seq, attempts } => {
                 write!(f, "no reply from the firmware to request {seq} after {attempts} attempts")
             }
-            Self::Nak(reason) => write!(f, "firmware refused the request: {reason:?}"),
-            Self::Invalid(e) => write!(f, "refused before sending: {:?} is {:?}", e.field, e.problem),
+            Self::Nak(reason) => write!(f, "the firmware refused the request: {}", Reason(reason)),
+            Self::Invalid(e) => write!(f, "refused before sending: {}", Value(e)),
             Self::Encode(e) => write!(f, "{e}"),
             Self::Unexpected(m) => write!(f, "unexpected reply {m:?}"),
             Self::QueueStuck { polls } => write!(f, "keyframe queue still full after {polls} status polls"),
@@ -111,6 +114,62 @@ impl std::fmt::Display for LinkError {
 }
 
 impl std::error::Error for LinkError {}
+
+/// A [`NakReason`] in words, for messages to people.
+pub struct Reason<'a>(pub &'a NakReason);
+
+impl std::fmt::Display for Reason<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.0 {
+            NakReason::Corrupt => write!(f, "the request arrived corrupted"),
+            NakReason::Oversized => write!(f, "the request frame is too long"),
+            NakReason::UnknownMessage => write!(f, "the firmware does not know this request"),
+            NakReason::BadValue(e) => write!(f, "{}", Value(e)),
+            NakReason::QueueFull => write!(f, "the keyframe queue is full"),
+            NakReason::NotReady => write!(f, "not possible in the controller's state now"),
+            NakReason::Unreachable => {
+                write!(f, "IK found no solution for the target within the joint limits (unreachable)")
+            }
+            NakReason::JointLimit { joint } => write!(f, "joint {} would leave its limits", u16::from(*joint) + 1),
+            NakReason::KeyframeTime => write!(f, "the keyframe's time is not later than the previous keyframe's"),
+            NakReason::TorqueOff => write!(f, "the torque is off (`torque on` first)"),
+            NakReason::EStopped => write!(f, "the arm is emergency-stopped (`torque on` leaves the emergency stop)"),
+        }
+    }
+}
+
+/// A [`ValueError`] in words.
+pub struct Value<'a>(pub &'a ValueError);
+
+impl std::fmt::Display for Value<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        use firmware::link::message::{Field, Problem};
+        let field = match self.0.field {
+            Field::Position => "position",
+            Field::Orientation => "orientation",
+            Field::Duration => "duration",
+            Field::Speed => "speed",
+            Field::Time => "keyframe time",
+            Field::Joints => "joint values",
+            Field::Velocities => "joint velocities",
+            Field::JointCount => "joint count",
+            Field::JointIndex => "joint index",
+            Field::Origin => "joint origin",
+            Field::Axis => "joint axis",
+            Field::Limits => "joint limits",
+            Field::Servo => "servo mapping",
+            Field::Rate => "telemetry rate",
+            Field::Name => "arm name",
+        };
+        let problem = match self.0.problem {
+            Problem::NotFinite => "not a finite number",
+            Problem::OutOfRange => "out of range",
+            Problem::NotUnit => "not of unit length",
+            Problem::Count => "the wrong number of values",
+        };
+        write!(f, "{field}: {problem}")
+    }
+}
 
 /// A link client over transport `T`.
 pub struct LinkClient<T: Read + Write> {
@@ -198,7 +257,8 @@ impl<T: Read + Write> LinkClient<T> {
                 }
                 polls += 1;
                 self.stats.full_polls += 1;
-                self.status()?;
+                // A ping's ack is short, so it gets through a noisy line more often than a status.
+                self.request(&HostMessage::Ping)?;
             }
         }
         self.request(message)
@@ -250,6 +310,12 @@ impl<T: Read + Write> LinkClient<T> {
             }
         }
         Err(LinkError::GaveUp { seq, attempts: self.config.max_attempts })
+    }
+
+    /// Waits one read timeout of the transport, taking in events (telemetry) meanwhile: the pause
+    /// between status polls, in the transport's own time (a simulated board runs on meanwhile).
+    pub fn wait_once(&mut self) -> Result<(), LinkError> {
+        self.listen_once()
     }
 
     /// One read timeout's worth of listening, for events only.

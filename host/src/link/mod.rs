@@ -1,4 +1,13 @@
 //! The host side of the link protocol ([`firmware::link`]): a client that sends requests with
-//! retransmission and keyframe flow control over any byte transport.
+//! retransmission and keyframe flow control over any byte transport, and the arm configuration
+//! messages built from the host's arm description.
 
+pub mod arm_config;
 pub mod client;
+
+use std::io::{Read, Write};
+
+/// A byte transport to a board: a serial port, or the SIL harness ([`crate::sil::Sil`]).
+pub trait Transport: Read + Write {}
+
+impl<T: Read + Write> Transport for T {}

@@ -135,7 +135,7 @@ impl SerialTransport {
     }
 }
 
-fn open_error(path: &str, e: serialport::Error) -> OpenError {
+pub(crate) fn open_error(path: &str, e: serialport::Error) -> OpenError {
     let path = path.to_string();
     match e.kind {
         serialport::ErrorKind::Io(io::ErrorKind::NotFound) => OpenError::NotFound { path },

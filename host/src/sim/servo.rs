@@ -55,6 +55,9 @@ pub struct SimServo {
     registered: Option<(u16, Vec<u8>)>,
     /// Feetech's error bits (Dynamixel keeps them in its hardware error status item).
     fault_bits: u8,
+    /// Writes that reached the goal position item (a safety monitor tells a lost write from a
+    /// held goal by it).
+    goal_writes: u64,
 }
 
 impl SimServo {
@@ -68,6 +71,7 @@ impl SimServo {
             profile: Profile::hold(0.0, 0),
             registered: None,
             fault_bits: 0,
+            goal_writes: 0,
         };
         servo.set(model.items.id, i64::from(id));
         if let Some(index) = model.baud_index(baud) {
@@ -124,6 +128,11 @@ impl SimServo {
     /// Return delay in nanoseconds, from the return delay item.
     pub fn return_delay_ns(&self) -> u64 {
         self.get(self.model.items.return_delay) as u64 * u64::from(self.model.return_delay_unit_us) * 1000
+    }
+
+    /// Writes that have reached the goal position item.
+    pub fn goal_writes(&self) -> u64 {
+        self.goal_writes
     }
 
     /// Whether torque is on.
@@ -292,8 +301,11 @@ impl SimServo {
                 self.torque_off(t_ns);
             }
         }
-        if overlaps(items.goal_position, at, data.len()) && self.torque() {
-            self.start_move(t_ns);
+        if overlaps(items.goal_position, at, data.len()) {
+            self.goal_writes += 1;
+            if self.torque() {
+                self.start_move(t_ns);
+            }
         }
         Ok(())
     }

@@ -1,0 +1,121 @@
+//! The messages that send an arm to the firmware: [`HostMessage::ConfigureBegin`], one
+//! [`HostMessage::ConfigureJoint`] per joint, [`HostMessage::ConfigureCommit`]. The geometry comes
+//! from the host's arm description ([`ArmSpec`]); the servos (model, ids, speed limits) from a
+//! [`ServoSetup`].
+
+use anyhow::{bail, Result};
+use firmware::bus::table::{Model, STS3215, XM430_W350};
+use firmware::link::message::{HostMessage, JointConfig, JointType, ServoConfig, MAX_JOINTS, MAX_NAME};
+use kinematics::nalgebra::Matrix3;
+use kinematics::JointKind;
+
+use crate::arm::ArmSpec;
+
+/// The servos of an arm.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ServoSetup {
+    /// Their model (all joints alike).
+    pub model: &'static Model,
+    /// Bus ids, base joint first.
+    pub ids: Vec<u8>,
+    /// Joint speed limit, rad/s.
+    pub max_velocity: f64,
+    /// Joint acceleration limit, rad/s².
+    pub max_acceleration: f64,
+}
+
+impl ServoSetup {
+    /// The servos of a preset arm as shipped: SO-101 with STS3215 ids 1 to 5, OpenManipulator-X
+    /// with XM430-W350 ids 11 to 14 (ROBOTIS's numbering). Both at 2 rad/s and 8 rad/s², well
+    /// inside what the servos do under load.
+    pub fn for_arm(name: &str) -> Option<Self> {
+        let (model, ids): (&'static Model, Vec<u8>) = match name {
+            "so101" => (&STS3215, (1..=5).collect()),
+            "open-manipulator-x" => (&XM430_W350, (11..=14).collect()),
+            _ => return None,
+        };
+        Some(Self { model, ids, max_velocity: 2.0, max_acceleration: 8.0 })
+    }
+}
+
+/// Roll, pitch and yaw (URDF's fixed-axis convention, `R = Rz(yaw) Ry(pitch) Rx(roll)`) of a
+/// rotation matrix.
+pub fn rpy(r: &Matrix3<f64>) -> [f64; 3] {
+    let pitch = (-r[(2, 0)]).atan2((r[(2, 1)].powi(2) + r[(2, 2)].powi(2)).sqrt());
+    if r[(2, 0)].abs() < 1.0 - 1e-12 {
+        [r[(2, 1)].atan2(r[(2, 2)]), pitch, r[(1, 0)].atan2(r[(0, 0)])]
+    } else {
+        // Gimbal lock: only roll - yaw (or roll + yaw) is defined; put it all in roll.
+        [(-r[(1, 2)]).atan2(r[(1, 1)]), pitch, 0.0]
+    }
+}
+
+fn f32s(v: [f64; 3]) -> [f32; 3] {
+    v.map(|x| x as f32)
+}
+
+/// The messages that configure `arm` with `servos` on the firmware.
+pub fn configure_messages(arm: &ArmSpec, servos: &ServoSetup) -> Result<Vec<HostMessage>> {
+    let n = arm.joints.len();
+    if n == 0 || n > MAX_JOINTS {
+        bail!("arm {} has {n} joints; the link carries 1 to {MAX_JOINTS}", arm.name);
+    }
+    if servos.ids.len() != n {
+        bail!("arm {} has {n} joints but {} servo ids", arm.name, servos.ids.len());
+    }
+    let mut name = heapless::String::<MAX_NAME>::new();
+    if name.push_str(&arm.name).is_err() {
+        bail!("arm name {:?} is longer than {MAX_NAME} bytes", arm.name);
+    }
+    let tpr = servos.model.ticks_per_revolution;
+    let mut messages = vec![HostMessage::ConfigureBegin {
+        name,
+        joints: n as u8,
+        tool_xyz: f32s(arm.tool.translation.into()),
+        tool_rpy: f32s(rpy(&arm.tool.rotation)),
+        model: servos.model.number,
+    }];
+    for (j, (joint, &id)) in arm.joints.iter().zip(&servos.ids).enumerate() {
+        let kind = match joint.kind {
+            JointKind::Revolute => JointType::Revolute,
+            JointKind::Continuous => JointType::Continuous,
+            JointKind::Prismatic => bail!("joint {}: prismatic joints have no servo mapping yet", joint.name),
+        };
+        messages.push(HostMessage::ConfigureJoint {
+            index: j as u8,
+            joint: JointConfig {
+                kind,
+                origin_xyz: f32s(joint.origin.translation.into()),
+                origin_rpy: f32s(rpy(&joint.origin.rotation)),
+                axis: f32s(joint.axis),
+                lower: joint.lower as f32,
+                upper: joint.upper as f32,
+                max_velocity: servos.max_velocity as f32,
+                max_acceleration: servos.max_acceleration as f32,
+                servo: ServoConfig { id, ticks_per_revolution: tpr, zero: (tpr / 2) as i32, reversed: false },
+            },
+        });
+    }
+    messages.push(HostMessage::ConfigureCommit);
+    for m in &messages {
+        if let Err(e) = m.validate() {
+            bail!("arm {} cannot be sent: {:?} is {:?}", arm.name, e.field, e.problem);
+        }
+    }
+    Ok(messages)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use kinematics::Pose;
+
+    #[test]
+    fn rpy_inverts_from_xyz_rpy() {
+        for rpy_in in [[0.1, -0.4, 2.0], [0.0, 0.0, 0.0], [-3.0, 1.2, -0.7], [1.0, std::f64::consts::FRAC_PI_2, 0.0]] {
+            let pose = Pose::<f64>::from_xyz_rpy([0.0; 3], rpy_in);
+            let back = Pose::<f64>::from_xyz_rpy([0.0; 3], rpy(&pose.rotation));
+            assert!((back.rotation - pose.rotation).amax() < 1e-7, "{rpy_in:?}");
+        }
+    }
+}

@@ -1,0 +1,363 @@
+//! Software in the loop: the firmware application ([`firmware::app`]) compiled for the host, the
+//! simulated servo bus and the host link, all in memory on one virtual clock.
+//!
+//! [`Sil`] is the host's end of the link: a `Read + Write` byte transport for
+//! [`crate::link::client::LinkClient`], exactly like a serial port. Time stands still while the
+//! host computes and moves while it waits: a read runs the simulated board (its link input, its
+//! control ticks at the firmware's period, the servo bus) until a byte arrives or the read timeout
+//! of virtual time has passed. Every byte costs 10 bit times at its line's baud rate, on the link
+//! as on the bus, and each servo answers after its return delay. Compute time on the board is not
+//! charged (the HIL tests measure it). The same options and seed give the same run.
+//!
+//! - [`wire`]: one direction of the link (timing, dropped bytes, flipped bits).
+//! - [`board`]: the firmware and its bus master, for any joint count.
+//! - [`monitor`]: the safety monitor that checks every goal the servos receive.
+
+pub mod board;
+pub mod monitor;
+pub mod wire;
+
+use std::io::{self, ErrorKind, Read, Write};
+
+use anyhow::{bail, Result};
+use firmware::app::{Board, Firmware};
+use firmware::builtin;
+use firmware::bus::master::{BusConfig, Master, NoDirectionPin};
+use firmware::bus::table::{Model, STS3215, XM430_W350};
+use firmware::controller::{Config, TickReport};
+
+use crate::sim::{connect, Faults, SharedBus, SimBus, VirtualClock};
+use board::{SimBoard, SimFirmware, QUEUE};
+pub use monitor::{GoalState, SafetyMonitor, Violation};
+use wire::Wire;
+
+/// The arms the harness simulates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SimArm {
+    /// SO-101 on a Feetech bus: the firmware's built-in arm, STS3215 servos 1 to 5.
+    So101,
+    /// OpenManipulator-X on a Dynamixel bus: XM430-W350 servos 11 to 14, configured by the host
+    /// (the firmware starts without an arm).
+    OpenManipulatorX,
+}
+
+impl SimArm {
+    /// The arm called `name` (`so101` or `open-manipulator-x`).
+    pub fn parse(name: &str) -> Result<Self> {
+        match name {
+            "so101" => Ok(Self::So101),
+            "open-manipulator-x" => Ok(Self::OpenManipulatorX),
+            _ => bail!("no simulated arm {name:?}: use so101 (Feetech) or open-manipulator-x (Dynamixel)"),
+        }
+    }
+
+    /// Its preset name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::So101 => "so101",
+            Self::OpenManipulatorX => "open-manipulator-x",
+        }
+    }
+
+    /// The servo model.
+    pub fn model(self) -> &'static Model {
+        match self {
+            Self::So101 => &STS3215,
+            Self::OpenManipulatorX => &XM430_W350,
+        }
+    }
+
+    /// The servo ids, base first.
+    pub fn ids(self) -> Vec<u8> {
+        match self {
+            Self::So101 => (1..=5).collect(),
+            Self::OpenManipulatorX => (11..=14).collect(),
+        }
+    }
+}
+
+/// How the harness is set up.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SilOptions {
+    /// The arm.
+    pub arm: SimArm,
+    /// Host link baud rate (10 bits per byte).
+    pub link_baud: u32,
+    /// Servo bus baud rate.
+    pub bus_baud: u32,
+    /// Faults on the host link, both directions (its `seed`, `drop_rate` and `bit_flip_rate`).
+    pub link_faults: Faults,
+    /// Faults on the servo bus.
+    pub bus_faults: Faults,
+    /// The firmware's control loop.
+    pub control: Config,
+    /// Virtual time a host read waits before it times out, ms.
+    pub read_timeout_ms: u64,
+}
+
+impl SilOptions {
+    /// The defaults for `arm`: 1 Mbps link and bus, no faults, 100 Hz, 20 ms read timeout.
+    pub fn new(arm: &str) -> Result<Self> {
+        Ok(Self {
+            arm: SimArm::parse(arm)?,
+            link_baud: 1_000_000,
+            bus_baud: 1_000_000,
+            link_faults: Faults::default(),
+            bus_faults: Faults::default(),
+            control: Config::default(),
+            read_timeout_ms: 20,
+        })
+    }
+}
+
+/// One control tick as the harness saw it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TraceSample {
+    /// Virtual time at the tick's start, s.
+    pub time: f64,
+    /// Setpoints sent (rad).
+    pub setpoints: Vec<f64>,
+    /// Positions read back (rad).
+    pub measured: Vec<f64>,
+}
+
+/// Counts of the run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SilStats {
+    /// Control ticks run.
+    pub ticks: u64,
+    /// Ticks that started later than their slot (the previous tick or link work overran).
+    pub late_ticks: u64,
+    /// Ticks whose work took longer than the period.
+    pub overruns: u64,
+    /// Bytes the host sent and received.
+    pub host_bytes: (u64, u64),
+}
+
+/// The SIL harness; the host's end of the link.
+pub struct Sil {
+    clock: VirtualClock,
+    bus: SharedBus,
+    model: &'static Model,
+    board: Box<dyn SimFirmware>,
+    to_board: Wire,
+    to_host: Wire,
+    next_tick_ns: u64,
+    period_ns: u64,
+    read_timeout_ns: u64,
+    monitor: SafetyMonitor,
+    trace: Option<Vec<TraceSample>>,
+    last_report: Option<TickReport>,
+    stats: SilStats,
+    scratch: Vec<u8>,
+}
+
+impl Sil {
+    /// A board with its servos at rest at their middle position, torque off, at time 0.
+    pub fn new(options: &SilOptions) -> Result<Self> {
+        let arm = options.arm;
+        let model = arm.model();
+        let bus =
+            SimBus::new(model.protocol, model, &arm.ids(), options.bus_baud).with_faults(options.bus_faults.clone());
+        let (bus, port, clock) = connect(bus);
+        let bus_config = BusConfig::new(model.protocol, options.bus_baud);
+        let board = Board { bus: bus_config, model, control: options.control };
+        let master = Master::new(port, NoDirectionPin, clock.clone(), bus_config);
+        let board: Box<dyn SimFirmware> = match arm {
+            SimArm::So101 => {
+                let setup = builtin::setup().map_err(|e| anyhow::anyhow!("built-in arm: {e}"))?;
+                let firmware = Firmware::<{ builtin::JOINTS }, QUEUE>::new(board, Some(setup))
+                    .map_err(|e| anyhow::anyhow!("simulated board: {e}"))?;
+                Box::new(SimBoard { firmware, master })
+            }
+            SimArm::OpenManipulatorX => {
+                let firmware =
+                    Firmware::<4, QUEUE>::new(board, None).map_err(|e| anyhow::anyhow!("simulated board: {e}"))?;
+                Box::new(SimBoard { firmware, master })
+            }
+        };
+        let period_ns = u64::from(board.period_us()) * 1000;
+        // The link's faults get their own seed stream per direction, so the two differ.
+        let mut upstream = options.link_faults.clone();
+        upstream.seed = upstream.seed.wrapping_add(0x5EED);
+        Ok(Self {
+            clock,
+            bus,
+            model,
+            board,
+            to_board: Wire::new(options.link_baud, options.link_faults.clone()),
+            to_host: Wire::new(options.link_baud, upstream),
+            next_tick_ns: 0,
+            period_ns,
+            read_timeout_ns: options.read_timeout_ms * 1_000_000,
+            monitor: SafetyMonitor::default(),
+            trace: None,
+            last_report: None,
+            stats: SilStats::default(),
+            scratch: Vec::new(),
+        })
+    }
+
+    /// Virtual time, s.
+    pub fn now_s(&self) -> f64 {
+        self.clock.now_ns() as f64 * 1e-9
+    }
+
+    /// The simulated servo bus (to change faults or inspect servos mid-run).
+    pub fn bus(&self) -> &SharedBus {
+        &self.bus
+    }
+
+    /// The host link's fault settings (host to board, board to host).
+    pub fn link_faults_mut(&mut self) -> (&mut Faults, &mut Faults) {
+        (self.to_board.faults_mut(), self.to_host.faults_mut())
+    }
+
+    /// Bytes lost and bits flipped on the link so far (host to board, board to host).
+    pub fn link_fault_stats(&self) -> (crate::sim::FaultStats, crate::sim::FaultStats) {
+        (self.to_board.fault_stats(), self.to_host.fault_stats())
+    }
+
+    /// The safety monitor's findings.
+    pub fn monitor(&self) -> &SafetyMonitor {
+        &self.monitor
+    }
+
+    /// The firmware side (setpoints, measured values, bounds).
+    pub fn board(&self) -> &dyn SimFirmware {
+        self.board.as_ref()
+    }
+
+    /// The last tick's report.
+    pub fn last_report(&self) -> Option<&TickReport> {
+        self.last_report.as_ref()
+    }
+
+    /// Counts of the run.
+    pub fn stats(&self) -> SilStats {
+        self.stats
+    }
+
+    /// Starts recording every tick (setpoints and measured values).
+    pub fn record(&mut self) {
+        self.trace = Some(Vec::new());
+    }
+
+    /// The recorded ticks (empty when not recording).
+    pub fn take_trace(&mut self) -> Vec<TraceSample> {
+        self.trace.as_mut().map(std::mem::take).unwrap_or_default()
+    }
+
+    /// Lets `seconds` of virtual time pass with the host silent.
+    pub fn run_for(&mut self, seconds: f64) {
+        let until = self.clock.now_ns() + (seconds * 1e9) as u64;
+        while self.step(until) {}
+        self.clock.advance_to(until);
+    }
+
+    /// Runs the next board event (link input or a control tick) if it is due by `limit_ns`;
+    /// false when none is.
+    fn step(&mut self, limit_ns: u64) -> bool {
+        let input = self.to_board.next_arrival_ns();
+        let next = input.map_or(self.next_tick_ns, |t| t.min(self.next_tick_ns));
+        if next > limit_ns {
+            return false;
+        }
+        self.clock.advance_to(next);
+        let now_ns = self.clock.now_ns();
+        self.scratch.clear();
+        if self.to_board.take_arrived(now_ns, &mut self.scratch, usize::MAX) > 0 {
+            let mut replies = Vec::new();
+            self.board.receive(&self.scratch, now_ns / 1000, &mut replies);
+            self.to_host.send(&replies, self.clock.now_ns());
+        }
+        if self.next_tick_ns <= now_ns {
+            self.run_tick(now_ns);
+        }
+        true
+    }
+
+    fn run_tick(&mut self, now_ns: u64) {
+        if now_ns > self.next_tick_ns + self.period_ns / 2 {
+            self.stats.late_ticks += 1;
+        }
+        let mut telemetry = Vec::new();
+        let report = self.board.tick(now_ns / 1000, &mut telemetry);
+        self.stats.ticks += 1;
+        if report.is_some_and(|r| u64::from(r.loop_us) * 1000 > self.period_ns) {
+            self.stats.overruns += 1;
+        }
+        self.last_report = report;
+        self.to_host.send(&telemetry, self.clock.now_ns());
+        // The next slot on the fixed schedule; after an overrun the next tick starts at once
+        // (slots already missed are skipped, not made up).
+        self.next_tick_ns += self.period_ns;
+        if self.next_tick_ns < self.clock.now_ns() {
+            self.next_tick_ns = self.clock.now_ns();
+        }
+        let time = now_ns as f64 * 1e-9;
+        let goals = self.goals();
+        let bounds = self.board.bounds();
+        self.monitor.check(time, self.period_ns as f64 * 1e-9, &bounds, goals);
+        if let Some(trace) = &mut self.trace {
+            trace.push(TraceSample { time, setpoints: self.board.setpoints(), measured: self.board.measured() });
+        }
+    }
+
+    /// Every servo's goal (ticks) and goal write count, read from the simulated servos; `None`
+    /// while any torque is off.
+    fn goals(&self) -> Option<Vec<GoalState>> {
+        if !self.board.torque() {
+            return None;
+        }
+        let bus = self.bus.borrow();
+        let item = self.model.items.goal_position;
+        self.board
+            .bounds()
+            .iter()
+            .map(|b| {
+                bus.servo(b.id).filter(|s| s.torque()).map(|s| GoalState { goal: s.get(item), writes: s.goal_writes() })
+            })
+            .collect()
+    }
+}
+
+impl Read for Sil {
+    /// The bytes that have arrived, after running the board until one does; `TimedOut` after the
+    /// read timeout of virtual time without any.
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        if buf.is_empty() {
+            return Ok(0);
+        }
+        let deadline = self.clock.now_ns() + self.read_timeout_ns;
+        loop {
+            let now_ns = self.clock.now_ns();
+            let mut got = Vec::new();
+            let n = self.to_host.take_arrived(now_ns, &mut got, buf.len());
+            if n > 0 {
+                buf[..n].copy_from_slice(&got);
+                self.stats.host_bytes.1 += n as u64;
+                return Ok(n);
+            }
+            let limit = self.to_host.next_arrival_ns().map_or(deadline, |t| t.min(deadline));
+            if !self.step(limit) {
+                self.clock.advance_to(limit);
+                if limit >= deadline && self.to_host.next_arrival_ns().is_none_or(|t| t > deadline) {
+                    return Err(io::Error::new(ErrorKind::TimedOut, "no bytes from the simulated board"));
+                }
+            }
+        }
+    }
+}
+
+impl Write for Sil {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        self.to_board.send(buf, self.clock.now_ns());
+        self.stats.host_bytes.0 += buf.len() as u64;
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        Ok(())
+    }
+}
