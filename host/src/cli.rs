@@ -91,6 +91,10 @@ enum BenchCommand {
     /// Wire time of one control cycle (sync write goals + sync read positions), computed and
     /// simulated with the firmware's cycle against simulated servos.
     Bus(crate::bench_bus::BusBenchArgs),
+    /// Control rate of the firmware's controller (6 servos, a joint move in progress) against
+    /// simulated servos on the virtual clock, ticking back to back and on its fixed period,
+    /// compared with the bus's wire-time limit. Compute time is free on the virtual clock.
+    Rate(crate::bench_rate::RateBenchArgs),
 }
 
 #[derive(Args, Debug)]
@@ -213,6 +217,7 @@ fn run(command: Command, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32
         }
         Command::Ik(args) => return ik(&args, out, err),
         Command::Bench { what: BenchCommand::Bus(args) } => return crate::bench_bus::run(&args, out),
+        Command::Bench { what: BenchCommand::Rate(args) } => return crate::bench_rate::run(&args, out),
         Command::Servo(args) => return crate::servo::cli::run(args, out, err),
         Command::Sim { what } => return crate::sim::cli::run(what, out, err),
         Command::Trajectory { what: TrajectoryCommand::Sample(args) } => {

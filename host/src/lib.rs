@@ -5,8 +5,10 @@
 pub mod arm;
 pub mod bench;
 pub mod bench_bus;
+pub mod bench_rate;
 pub mod bus_args;
 pub mod cli;
+pub mod demo_plot;
 pub mod dof;
 pub mod kcompare;
 pub mod link;

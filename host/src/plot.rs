@@ -29,11 +29,11 @@ const COLOURS: [RGBColor; 12] = [
     RGBColor(128, 128, 0),
 ];
 
-fn colour(joint: usize) -> RGBColor {
+pub(crate) fn colour(joint: usize) -> RGBColor {
     COLOURS[joint % COLOURS.len()]
 }
 
-fn register_font() {
+pub(crate) fn register_font() {
     static FONT: Once = Once::new();
     FONT.call_once(|| {
         // The embedded font is valid TrueType; should it ever fail to load, text is just missing.
@@ -54,7 +54,7 @@ fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
 /// A panel's name and the per-joint values it plots from a row.
 type Quantity = (&'static str, fn(&Row) -> &Vec<f64>);
 
-fn error(e: impl std::fmt::Display) -> anyhow::Error {
+pub(crate) fn error(e: impl std::fmt::Display) -> anyhow::Error {
     anyhow!("{e}")
 }
 
