@@ -19,12 +19,17 @@ use std::io::{BufRead, Write};
 #[derive(Parser, Debug)]
 #[command(name = "armctl", version, about)]
 struct Cli {
+    #[command(flatten)]
+    link: crate::drive::cli::LinkArgs,
     #[command(subcommand)]
     command: Command,
 }
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// The whole product without hardware: a simulated arm driven through the firmware in
+    /// software in the loop, to Cartesian targets and along a streamed pick-and-place path.
+    Demo(crate::demo::DemoArgs),
     /// Forward kinematics: tool pose and every joint frame for joint values.
     Fk {
         #[command(flatten)]
@@ -60,6 +65,9 @@ enum Command {
     },
     /// Serial bus servo set-up on a real port: scan, read, write, set-id, set-baud, torque.
     Servo(crate::servo::cli::ServoArgs),
+    /// Driving an arm (after --port PORT or --sim): move, joints, play, status, stop, torque.
+    #[command(flatten)]
+    Drive(crate::drive::cli::DriveCommand),
 }
 
 #[derive(Subcommand, Debug)]
@@ -170,7 +178,7 @@ where
             return 2;
         }
     };
-    match run(cli.command, out, err) {
+    match run(&cli.link, cli.command, out, err) {
         Ok(code) => code,
         // The reader closed the pipe (`armctl ... | head`): it has what it wanted.
         Err(e) if e.downcast_ref::<std::io::Error>().is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe) => 0,
@@ -185,8 +193,13 @@ fn load(arm: &ArmArgs) -> Result<Box<dyn DynArm>> {
     dof::build(ArmSpec::load(&arm.arm, arm.tip.as_deref())?)
 }
 
-fn run(command: Command, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+fn run(link: &crate::drive::cli::LinkArgs, command: Command, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+    if !matches!(command, Command::Drive(_)) {
+        link.refuse_for_other_commands()?;
+    }
     match command {
+        Command::Drive(command) => return crate::drive::cli::run(link, command, out, err),
+        Command::Demo(args) => return crate::demo::run(&args, out),
         Command::Fk { arm, q } => {
             let arm = load(&arm)?;
             let q = parse::numbers(&q, "--q")?;

@@ -1,0 +1,350 @@
+//! `armctl demo`: the whole product on the PC, without hardware. The firmware application runs
+//! in software in the loop ([`crate::sil`]) against simulated servos; the host drives it over the
+//! simulated link exactly as it drives a board: the tool goes to Cartesian targets (IK on the
+//! firmware), then plays a pick-and-place path streamed as Cartesian keyframes with flow control.
+//! It prints what was reached and how the loop ran, and plots planned against measured motion.
+//!
+//! - [`scenario`]: the targets and the path of each arm.
+//! - [`run`](self::run): the run, its measurements and the report.
+
+mod scenario;
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use firmware::link::message::{CartesianKeyframe, CartesianTarget, HostMessage, NakReason, RunState, Status, Timing};
+use serde_json::{json, Value};
+
+use crate::demo_plot::{write_demo_png, DemoTrace};
+use crate::dof::DynArm;
+use crate::drive::connection::handshake;
+use crate::link::client::{LinkClient, LinkConfig, LinkError};
+use crate::sil::{Sil, SilOptions, TraceSample};
+use scenario::Scenario;
+
+/// `armctl demo` options.
+#[derive(Args, Debug)]
+pub struct DemoArgs {
+    /// The simulated arm: so101 (Feetech STS3215 bus) or open-manipulator-x (Dynamixel XM430 bus).
+    #[arg(long, default_value = "so101")]
+    arm: String,
+    /// Where to write the PNG plot (default demo-ARM.png in the current directory).
+    #[arg(long)]
+    plot: Option<PathBuf>,
+    /// Do not write a plot.
+    #[arg(long, conflicts_with = "plot")]
+    no_plot: bool,
+    /// Print the results as one JSON object.
+    #[arg(long)]
+    json: bool,
+}
+
+type Client = LinkClient<Sil>;
+
+/// One point-to-point move's outcome.
+struct Reached {
+    target: [f32; 3],
+    reached: [f64; 3],
+    error_mm: f64,
+    time_s: f64,
+    ticks_to_1mm: Option<usize>,
+    ik_iterations: u16,
+}
+
+fn distance(a: [f64; 3], b: [f32; 3]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (x - f64::from(y)).powi(2)).sum::<f64>().sqrt()
+}
+
+fn tool(arm: &dyn DynArm, q: &[f64]) -> Result<[f64; 3]> {
+    let p = arm.tool_pose(q)?.translation;
+    Ok([p.x, p.y, p.z])
+}
+
+fn to_f64(q: &[f32]) -> Vec<f64> {
+    q.iter().map(|x| f64::from(*x)).collect()
+}
+
+/// Torque on once the firmware has read every servo (it refuses before).
+fn torque_on(c: &mut Client) -> Result<()> {
+    for _ in 0..100 {
+        match c.request(&HostMessage::Torque { on: true }) {
+            Ok(_) => return Ok(()),
+            Err(LinkError::Nak(NakReason::NotReady)) => c.transport().run_for(0.01),
+            Err(e) => return Err(e.into()),
+        }
+    }
+    bail!("the simulated servos never reported their positions")
+}
+
+/// Polls status every 20 ms of virtual time until the arm is at rest.
+fn wait_rest(c: &mut Client, timeout_s: f64) -> Result<Status> {
+    let end = c.transport().now_s() + timeout_s;
+    loop {
+        let s = c.status()?;
+        if s.state == RunState::Idle {
+            return Ok(s);
+        }
+        if c.transport().now_s() > end {
+            bail!("the arm did not come to rest within {timeout_s} s (state {:?})", s.state);
+        }
+        c.transport().run_for(0.02);
+    }
+}
+
+/// Moves the tool to each target in turn and measures how it got there.
+fn reach_targets(
+    c: &mut Client,
+    arm: &dyn DynArm,
+    scenario: &Scenario,
+    trace: &mut Vec<TraceSample>,
+) -> Result<Vec<Reached>> {
+    let mut out = Vec::new();
+    for &target in &scenario.targets {
+        let start = c.transport().now_s();
+        trace.extend(c.transport().take_trace());
+        let first_tick = trace.len();
+        let message = HostMessage::MoveTo {
+            target: CartesianTarget { position: target, orientation: None },
+            timing: Timing::MaxSpeed(scenario.speed),
+        };
+        c.request(&message).with_context(|| format!("move to {target:?}"))?;
+        // The status right after the move was accepted reports the IK solve that accepted it.
+        let ik_iterations = c.status()?.ik.iterations;
+        let end = wait_rest(c, 20.0)?;
+        trace.extend(c.transport().take_trace());
+        let mut ticks_to_1mm = None;
+        for (i, sample) in trace[first_tick..].iter().enumerate() {
+            if distance(tool(arm, &sample.measured)?, target) < 1e-3 {
+                ticks_to_1mm = Some(i + 1);
+                break;
+            }
+        }
+        let reached = tool(arm, &to_f64(&end.measured))?;
+        out.push(Reached {
+            target,
+            reached,
+            error_mm: distance(reached, target) * 1e3,
+            time_s: c.transport().now_s() - start,
+            ticks_to_1mm,
+            ik_iterations,
+        });
+    }
+    Ok(out)
+}
+
+/// How the streamed path went.
+struct Streamed {
+    keyframes: usize,
+    acked: usize,
+    tool_rms_mm: f64,
+    tool_max_mm: f64,
+    joint_rms: f64,
+    joint_max: f64,
+    final_error_mm: f64,
+    duration_s: f64,
+}
+
+/// Streams the pick-and-place keyframes (flow control by the client), starts once the queue holds
+/// a second of path, and measures the tracking while it plays.
+fn pick_and_place(
+    c: &mut Client,
+    arm: &dyn DynArm,
+    scenario: &Scenario,
+    trace: &mut Vec<TraceSample>,
+) -> Result<Streamed> {
+    trace.extend(c.transport().take_trace());
+    let first_tick = trace.len();
+    let start = c.transport().now_s();
+    let keyframes = scenario.keyframes();
+    let mut acked = 0;
+    let mut started = false;
+    for &(time, position) in &keyframes {
+        let k = CartesianKeyframe { time, target: CartesianTarget { position, orientation: None } };
+        c.push(&HostMessage::PushCartesianKeyframe(k)).with_context(|| format!("keyframe at {time} s"))?;
+        acked += 1;
+        if !started && time >= 1.0 {
+            c.request(&HostMessage::Start)?;
+            started = true;
+        }
+    }
+    if !started {
+        c.request(&HostMessage::Start)?;
+    }
+    let end = wait_rest(c, 60.0)?;
+    trace.extend(c.transport().take_trace());
+    let (mut tool_sq, mut tool_max, mut joint_sq, mut joint_max, mut n) = (0.0, 0.0f64, 0.0, 0.0f64, 0usize);
+    for s in &trace[first_tick..] {
+        let e = distance(tool(arm, &s.measured)?, tool(arm, &s.setpoints)?.map(|x| x as f32)) * 1e3;
+        tool_sq += e * e;
+        tool_max = tool_max.max(e);
+        for (a, b) in s.setpoints.iter().zip(&s.measured) {
+            joint_sq += (a - b).powi(2);
+            joint_max = joint_max.max((a - b).abs());
+        }
+        n += 1;
+    }
+    let joints = arm.spec().dof().max(1);
+    let last = keyframes.last().map_or([0.0; 3], |k| k.1);
+    Ok(Streamed {
+        keyframes: keyframes.len(),
+        acked,
+        tool_rms_mm: (tool_sq / n.max(1) as f64).sqrt(),
+        tool_max_mm: tool_max,
+        joint_rms: (joint_sq / (n.max(1) * joints) as f64).sqrt(),
+        joint_max,
+        final_error_mm: distance(tool(arm, &to_f64(&end.measured))?, last) * 1e3,
+        duration_s: c.transport().now_s() - start,
+    })
+}
+
+fn plot(
+    path: &std::path::Path,
+    arm: &dyn DynArm,
+    scenario: &Scenario,
+    trace: &[TraceSample],
+    phases: Vec<(f64, String)>,
+) -> Result<()> {
+    let samples: Vec<&TraceSample> = trace.iter().filter(|s| !s.setpoints.is_empty()).collect();
+    let mut data = DemoTrace {
+        arm: arm.spec().name.clone(),
+        joint_names: arm.spec().joints.iter().map(|j| j.name.clone()).collect(),
+        time: samples.iter().map(|s| s.time).collect(),
+        planned: samples.iter().map(|s| s.setpoints.clone()).collect(),
+        measured: samples.iter().map(|s| s.measured.clone()).collect(),
+        tool_planned: Vec::new(),
+        tool_measured: Vec::new(),
+        targets: scenario
+            .targets
+            .iter()
+            .chain(scenario.waypoints.iter().map(|w| &w.1))
+            .map(|p| p.map(f64::from))
+            .collect(),
+        phases,
+    };
+    for s in &samples {
+        data.tool_planned.push(tool(arm, &s.setpoints)?);
+        data.tool_measured.push(tool(arm, &s.measured)?);
+    }
+    write_demo_png(path, &data)
+}
+
+fn fmt3(p: [f64; 3]) -> String {
+    format!("{:7.4} {:7.4} {:7.4}", p[0], p[1], p[2])
+}
+
+/// Runs `armctl demo`.
+pub fn run(args: &DemoArgs, out: &mut dyn Write) -> Result<i32> {
+    let wall = Instant::now();
+    let scenario = Scenario::for_arm(&args.arm)
+        .with_context(|| format!("no demo for arm {:?}: use so101 or open-manipulator-x", args.arm))?;
+    let options = SilOptions::new(&args.arm)?;
+    let mut sil = Sil::new(&options)?;
+    sil.record();
+    let mut c = LinkClient::new(sil, LinkConfig::default());
+    let (info, spec) = handshake(&mut c, Some(&args.arm))?;
+    let arm = crate::dof::build(spec)?;
+    torque_on(&mut c)?;
+    let mut trace = Vec::new();
+    let t_targets = c.transport().now_s();
+    let reached = reach_targets(&mut c, arm.as_ref(), &scenario, &mut trace)?;
+    let t_stream = c.transport().now_s();
+    let streamed = pick_and_place(&mut c, arm.as_ref(), &scenario, &mut trace)?;
+    let status = c.status()?;
+    trace.extend(c.transport().take_trace());
+    let plot_path =
+        (!args.no_plot).then(|| args.plot.clone().unwrap_or_else(|| PathBuf::from(format!("demo-{}.png", args.arm))));
+    if let Some(path) = &plot_path {
+        let phases = vec![(t_targets, "move to targets".to_string()), (t_stream, "pick and place".to_string())];
+        plot(path, arm.as_ref(), &scenario, &trace, phases)?;
+    }
+    let sil = c.transport();
+    let stats = sil.stats();
+    let monitor = sil.monitor().clone();
+    let simulated_s = sil.now_s();
+    let link = c.stats();
+    let model = options.arm.model();
+    let bus = format!(
+        "{} x {} on {} at {} baud",
+        options.arm.ids().len(),
+        model.name,
+        if model.protocol == firmware::bus::protocol::Protocol::Dxl2 { "Dynamixel 2.0" } else { "Feetech" },
+        options.bus_baud
+    );
+    let wall_s = wall.elapsed().as_secs_f64();
+    if args.json {
+        let targets: Vec<Value> = reached
+            .iter()
+            .map(|r| {
+                json!({"target": r.target, "reached": r.reached, "error_mm": r.error_mm, "time_s": r.time_s,
+                "ticks_to_1mm": r.ticks_to_1mm, "ik_iterations": r.ik_iterations})
+            })
+            .collect();
+        let report = json!({
+            "arm": info.arm_name.as_str(), "bus": bus, "control_rate_hz": info.control_rate_hz,
+            "targets": targets,
+            "pick_and_place": {"keyframes": streamed.keyframes, "acked": streamed.acked, "tool_error_rms_mm": streamed.tool_rms_mm,
+                "tool_error_max_mm": streamed.tool_max_mm, "joint_error_rms_rad": streamed.joint_rms, "joint_error_max_rad": streamed.joint_max,
+                "final_error_mm": streamed.final_error_mm, "duration_s": streamed.duration_s},
+            "loop": {"ticks": stats.ticks, "late_ticks": stats.late_ticks, "overruns": stats.overruns,
+                "loop_time_mean_us": status.timing.mean_us, "deadline_misses": status.timing.overruns,
+                "bus_timeouts": status.errors.bus_timeouts, "bus_errors": status.errors.bus_errors, "underruns": status.errors.underruns,
+                "link_requests": link.requests, "link_retransmissions": link.retransmissions},
+            "safety": {"goals_checked": monitor.checked, "violations": monitor.violation_count, "largest_step_of_limit": monitor.max_step_ratio},
+            "plot": plot_path.as_ref().map(|p| p.display().to_string()),
+            "simulated_s": simulated_s, "wall_s": wall_s,
+        });
+        writeln!(out, "{report}")?;
+    } else {
+        writeln!(
+            out,
+            "armctl demo: {} ({} joints), {bus}; firmware control loop at {} Hz, in software in the loop",
+            info.arm_name, info.joints, info.control_rate_hz
+        )?;
+        writeln!(out)?;
+        writeln!(out, "Cartesian targets (IK on the firmware, tool at most {} m/s):", scenario.speed)?;
+        writeln!(
+            out,
+            "  {:<23}  {:<23}  {:>10}  {:>8}  {:>12}  {:>13}",
+            "target (m)", "reached (m)", "error (mm)", "time (s)", "ticks to 1mm", "IK iterations"
+        )?;
+        for r in &reached {
+            let ticks = r.ticks_to_1mm.map_or("never".to_string(), |t| t.to_string());
+            writeln!(
+                out,
+                "  {}  {}  {:>10.3}  {:>8.2}  {:>12}  {:>13}",
+                fmt3(r.target.map(f64::from)),
+                fmt3(r.reached),
+                r.error_mm,
+                r.time_s,
+                ticks,
+                r.ik_iterations
+            )?;
+        }
+        writeln!(out)?;
+        writeln!(
+            out,
+            "Pick and place: {} Cartesian keyframes streamed, {} acknowledged, {:.2} s",
+            streamed.keyframes, streamed.acked, streamed.duration_s
+        )?;
+        writeln!(out, "  tool tracking error (measured against planned): rms {:.2} mm, max {:.2} mm; joints rms {:.4} rad, max {:.4} rad", streamed.tool_rms_mm, streamed.tool_max_mm, streamed.joint_rms, streamed.joint_max)?;
+        writeln!(out, "  final tool error to the last keyframe: {:.3} mm", streamed.final_error_mm)?;
+        writeln!(out)?;
+        writeln!(out, "Loop: {} ticks, {} late, {} deadline misses; bus time per tick {} us mean; bus timeouts {}, bus errors {}, queue underruns {}", stats.ticks, stats.late_ticks, status.timing.overruns, status.timing.mean_us, status.errors.bus_timeouts, status.errors.bus_errors, status.errors.underruns)?;
+        writeln!(out, "Link: {} requests, {} retransmissions", link.requests, link.retransmissions)?;
+        writeln!(
+            out,
+            "Safety monitor: {} goals checked, {} violations, largest step {:.0}% of the velocity limit",
+            monitor.checked,
+            monitor.violation_count,
+            monitor.max_step_ratio * 100.0
+        )?;
+        if let Some(path) = &plot_path {
+            writeln!(out, "Plot: {}", path.display())?;
+        }
+        writeln!(out, "{simulated_s:.1} s simulated in {wall_s:.2} s")?;
+    }
+    Ok(if monitor.violation_count == 0 { 0 } else { 1 })
+}

@@ -1,0 +1,317 @@
+//! The arm-driving commands: each checks what the user typed before connecting ([`Request::parse`]),
+//! then runs against the connected firmware ([`run`]).
+
+use std::io::Write;
+
+use anyhow::{anyhow, bail, Result};
+use firmware::link::message::{
+    CartesianTarget, HostMessage, Joints, RunState, Status, Timing, MAX_JOINTS, MAX_REACH, MAX_SPEED, MAX_TIME,
+    QUATERNION_TOLERANCE,
+};
+use kinematics::JointKind;
+use serde_json::json;
+
+use super::cli::{DriveCommand, JointsArgs, MoveArgs, OnOff};
+use super::interrupt;
+use super::play::{self, Plan};
+use super::session::{fmt3, fmt_list, Driver, Waited};
+use crate::parse;
+
+/// The tool speed of `move` without --speed or --duration (m/s): slow enough to watch.
+pub const DEFAULT_TOOL_SPEED: f64 = 0.1;
+
+/// A command with its input checked and converted.
+pub enum Request {
+    /// `move`.
+    Move {
+        /// Where, as the user typed it (checked).
+        target: CartesianTarget,
+        /// How fast.
+        timing: Timing,
+        /// Controller seconds to wait.
+        timeout: f64,
+    },
+    /// `joints`.
+    Joints {
+        /// Joint values (count checked against the arm after connecting).
+        q: Vec<f64>,
+        /// How fast.
+        timing: Timing,
+        /// Controller seconds to wait.
+        timeout: f64,
+    },
+    /// `play`.
+    Play(Plan),
+    /// `status`.
+    Status,
+    /// `stop`.
+    Stop,
+    /// `torque on|off`.
+    Torque(bool),
+}
+
+impl Request {
+    /// Checks a command's arguments (and reads a `play` file) without connecting.
+    pub fn parse(command: &DriveCommand) -> Result<Self> {
+        Ok(match command {
+            DriveCommand::Move(args) => parse_move(args)?,
+            DriveCommand::Joints(args) => parse_joints(args)?,
+            DriveCommand::Play(args) => Request::Play(Plan::read(&args.file, args.timeout)?),
+            DriveCommand::Status => Request::Status,
+            DriveCommand::Stop => Request::Stop,
+            DriveCommand::Torque { state } => Request::Torque(*state == OnOff::On),
+        })
+    }
+}
+
+/// A positive finite number no larger than `max`.
+fn positive(value: f64, max: f64, what: &str, unit: &str) -> Result<f32> {
+    if !(value.is_finite() && value > 0.0 && value <= max) {
+        bail!("{what}: {value} {unit} must be above 0 and at most {max} {unit}");
+    }
+    Ok(value as f32)
+}
+
+fn parse_move(args: &MoveArgs) -> Result<Request> {
+    let position = parse::fixed::<3>(&args.to, "--to")?;
+    for (value, axis) in position.iter().zip(["x", "y", "z"]) {
+        if value.abs() > f64::from(MAX_REACH) {
+            bail!("--to: {axis} = {value} m is more than {MAX_REACH} m from the base, beyond any desk arm");
+        }
+    }
+    let orientation = args
+        .quat
+        .as_deref()
+        .map(|text| {
+            let q = parse::fixed::<4>(text, "--quat")?;
+            let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+            if (norm - 1.0).abs() > f64::from(QUATERNION_TOLERANCE) {
+                bail!("--quat: w,x,y,z must be a unit quaternion; its norm is {norm:.6}");
+            }
+            Ok(q.map(|x| x as f32))
+        })
+        .transpose()?;
+    let timing = match args.duration {
+        Some(d) => Timing::Duration(positive(d, f64::from(MAX_TIME), "--duration", "s")?),
+        None => Timing::MaxSpeed(positive(
+            args.speed.unwrap_or(DEFAULT_TOOL_SPEED),
+            f64::from(MAX_SPEED),
+            "--speed",
+            "m/s",
+        )?),
+    };
+    positive(args.timeout, f64::from(MAX_TIME), "--timeout", "s")?;
+    Ok(Request::Move {
+        target: CartesianTarget { position: position.map(|x| x as f32), orientation },
+        timing,
+        timeout: args.timeout,
+    })
+}
+
+fn parse_joints(args: &JointsArgs) -> Result<Request> {
+    let q = parse::numbers(&args.q, "--q")?;
+    if q.is_empty() {
+        bail!("--q: no joint values given");
+    }
+    let timing = match (args.duration, args.speed) {
+        (Some(d), _) => Timing::Duration(positive(d, f64::from(MAX_TIME), "--duration", "s")?),
+        (None, Some(s)) => Timing::MaxSpeed(positive(s, f64::from(MAX_SPEED), "--speed", "rad/s")?),
+        // As fast as the joint limits allow: they are far below this.
+        (None, None) => Timing::MaxSpeed(MAX_SPEED),
+    };
+    positive(args.timeout, f64::from(MAX_TIME), "--timeout", "s")?;
+    Ok(Request::Joints { q, timing, timeout: args.timeout })
+}
+
+/// Checks joint values against the arm: the count, and each value within its joint's limits.
+/// `what` starts each error (e.g. `--q` or `file.csv: line 3`).
+pub fn check_joints(driver: &Driver, q: &[f64], what: &str) -> Result<Joints> {
+    let arm = driver.arm();
+    if q.len() != driver.joints() {
+        bail!("{what}: {} joint values, but the arm {} has {} joints", q.len(), arm.name, driver.joints());
+    }
+    for (j, (value, joint)) in q.iter().zip(&arm.joints).enumerate() {
+        if joint.kind != JointKind::Continuous && !(joint.lower..=joint.upper).contains(value) {
+            bail!(
+                "{what}: joint {} ({}) value {value} is outside its limits {}..={}",
+                j + 1,
+                joint.name,
+                joint.lower,
+                joint.upper
+            );
+        }
+    }
+    // The joint count fits: the arm was checked against MAX_JOINTS when it was connected.
+    Joints::from_slice(&q.iter().map(|&x| x as f32).collect::<Vec<_>>())
+        .map_err(|_| anyhow!("{what}: more than {MAX_JOINTS} joints"))
+}
+
+/// Runs a checked request against the connected firmware; returns the exit code.
+pub fn run(driver: &mut Driver, request: Request, json: bool, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+    match request {
+        Request::Status => {
+            let status = driver.status()?;
+            print_status(driver, &status, json, out)?;
+            Ok(0)
+        }
+        Request::Stop => {
+            let status = driver.stop()?;
+            let at = driver.tool_position(&status.measured)?;
+            if json {
+                writeln!(
+                    out,
+                    "{}",
+                    json!({"command": "stop", "state": status.state, "tool": at, "joints": status.measured})
+                )?;
+            } else {
+                writeln!(
+                    out,
+                    "stopped: {:?} at {} m (joints {})",
+                    status.state,
+                    fmt3(&at),
+                    fmt_list(&status.measured)
+                )?;
+            }
+            Ok(0)
+        }
+        Request::Torque(on) => {
+            let result = if on { driver.torque_on() } else { driver.request(&HostMessage::Torque { on }) };
+            result.map_err(|e| anyhow!("torque {}: {e}", if on { "on" } else { "off" }))?;
+            let status = driver.status()?;
+            if json {
+                writeln!(out, "{}", json!({"command": "torque", "on": on, "state": status.state}))?;
+            } else {
+                writeln!(out, "torque {}: state {:?}", if on { "on" } else { "off" }, status.state)?;
+            }
+            Ok(0)
+        }
+        Request::Move { target, timing, timeout } => {
+            let (start, switched) = driver.ready_to_move()?;
+            interrupt::catch();
+            let message = HostMessage::MoveTo { target, timing };
+            let shown = fmt3(&target.position.map(f64::from));
+            if let Err(e) = driver.request(&message) {
+                bail!("move to {shown} m: {e}; nothing moved{}", driver.undo_torque(switched));
+            }
+            Driver::note_torque(switched, err)?;
+            let status = match driver.wait_until_rest(timeout)? {
+                Waited::Done(status) => status,
+                Waited::Interrupted => return driver.stop_after_interrupt(err),
+            };
+            let pose = driver.tool_pose(&status.measured)?;
+            let reached: [f64; 3] = pose.translation.into();
+            let goal = target.position.map(f64::from);
+            let error_mm = 1e3 * (0..3).map(|i| (reached[i] - goal[i]).powi(2)).sum::<f64>().sqrt();
+            let angle_deg = target.orientation.map(|q| angle(&q.map(f64::from), &pose.quaternion_wxyz()).to_degrees());
+            let took = f64::from(status.time - start.time);
+            if json {
+                let v = json!({
+                    "command": "move",
+                    "target": goal,
+                    "quaternion_wxyz": target.orientation,
+                    "reached": reached,
+                    "error_mm": error_mm,
+                    "orientation_error_deg": angle_deg,
+                    "time_s": took,
+                    "joints": status.measured,
+                });
+                writeln!(out, "{v}")?;
+            } else {
+                let angle = angle_deg.map(|a| format!(", orientation error {a:.2} deg")).unwrap_or_default();
+                writeln!(
+                    out,
+                    "move: target {shown} m, reached {} m, error {error_mm:.2} mm{angle}, took {took:.2} s",
+                    fmt3(&reached)
+                )?;
+            }
+            Ok(0)
+        }
+        Request::Joints { q, timing, timeout } => {
+            let positions = check_joints(driver, &q, "--q")?;
+            let (start, switched) = driver.ready_to_move()?;
+            interrupt::catch();
+            let message = HostMessage::MoveJoints { positions: positions.clone(), timing };
+            if let Err(e) = driver.request(&message) {
+                bail!("joints {}: {e}; nothing moved{}", fmt_list(&positions), driver.undo_torque(switched));
+            }
+            Driver::note_torque(switched, err)?;
+            let status = match driver.wait_until_rest(timeout)? {
+                Waited::Done(status) => status,
+                Waited::Interrupted => return driver.stop_after_interrupt(err),
+            };
+            let max_error = positions.iter().zip(&status.measured).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+            let tool = driver.tool_position(&status.measured)?;
+            let took = f64::from(status.time - start.time);
+            if json {
+                let v = json!({
+                    "command": "joints",
+                    "target": positions,
+                    "reached": status.measured,
+                    "max_error": max_error,
+                    "tool": tool,
+                    "time_s": took,
+                });
+                writeln!(out, "{v}")?;
+            } else {
+                writeln!(
+                    out,
+                    "joints: target {}, reached {} (largest error {max_error:.4}), tool at {} m, took {took:.2} s",
+                    fmt_list(&positions),
+                    fmt_list(&status.measured),
+                    fmt3(&tool)
+                )?;
+            }
+            Ok(0)
+        }
+        Request::Play(plan) => play::run(driver, plan, json, out, err),
+    }
+}
+
+/// Angle between the rotations of two unit quaternions w, x, y, z (q and -q are one rotation).
+fn angle(a: &[f64; 4], b: &[f64; 4]) -> f64 {
+    let dot = a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>().abs().min(1.0);
+    2.0 * dot.acos()
+}
+
+fn print_status(driver: &Driver, s: &Status, json: bool, out: &mut dyn Write) -> Result<()> {
+    let tool = driver.tool_position(&s.measured)?;
+    if json {
+        let mut v = serde_json::to_value(s)?;
+        v["arm"] = json!(driver.arm().name);
+        v["tool"] = json!(tool);
+        writeln!(out, "{v}")?;
+        return Ok(());
+    }
+    let ik = &s.ik;
+    let e = &s.errors;
+    let state = match s.state {
+        RunState::Idle => "Idle (holding)".to_string(),
+        other => format!("{other:?}"),
+    };
+    writeln!(out, "arm        {} ({} joints)", driver.arm().name, driver.joints())?;
+    writeln!(out, "state      {state}")?;
+    writeln!(out, "time       {:.3} s", s.time)?;
+    writeln!(out, "measured   {}", fmt_list(&s.measured))?;
+    writeln!(out, "setpoints  {}", fmt_list(&s.setpoints))?;
+    writeln!(out, "tool       {} m (measured)", fmt3(&tool))?;
+    writeln!(out, "queue      {} queued, {} free", s.queued, s.free_slots)?;
+    writeln!(
+        out,
+        "ik         {}, {} iterations, position error {:.3e} m, orientation error {:.3e} rad",
+        if ik.converged { "converged" } else { "not converged" },
+        ik.iterations,
+        ik.position_error,
+        ik.orientation_error
+    )?;
+    writeln!(
+        out,
+        "loop       mean {} us, max {} us, {} overruns",
+        s.timing.mean_us, s.timing.max_us, s.timing.overruns
+    )?;
+    writeln!(
+        out,
+        "errors     link corrupt {}, oversized {}, naks {}, bus timeouts {}, bus errors {}, underruns {}",
+        e.link_corrupt, e.link_oversized, e.naks, e.bus_timeouts, e.bus_errors, e.underruns
+    )?;
+    Ok(())
+}

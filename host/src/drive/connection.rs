@@ -1,0 +1,97 @@
+//! Opening the link to a board (a serial port) or to the simulated board (SIL), with the handshake
+//! and, when asked, the arm configuration.
+
+use std::time::Duration;
+
+use anyhow::{anyhow, bail, Context, Result};
+use firmware::link::message::Info;
+
+use crate::arm::ArmSpec;
+use crate::link::arm_config::{configure_messages, ServoSetup};
+use crate::link::client::{LinkClient, LinkConfig};
+use crate::link::Transport;
+use crate::servo::transport::open_error;
+use crate::sil::{Sil, SilOptions};
+
+/// How long a read of the link waits (real time on a port, virtual time in SIL); the client's
+/// backoff counts in these.
+pub const READ_TIMEOUT: Duration = Duration::from_millis(20);
+
+/// Where the firmware runs.
+pub enum Target {
+    /// A board on a serial port.
+    Port {
+        /// Its path (`/dev/ttyACM0`, `COM3`).
+        path: String,
+        /// Baud rate (ignored by USB CDC boards).
+        baud: u32,
+    },
+    /// The firmware core simulated in this process.
+    Sim(SilOptions),
+}
+
+/// An open link after the handshake.
+pub struct Connection {
+    /// The link client.
+    pub client: LinkClient<Box<dyn Transport>>,
+    /// The firmware's answer to the handshake (after any configuration).
+    pub info: Info,
+    /// The arm the firmware runs, for forward kinematics on the host.
+    pub arm: ArmSpec,
+}
+
+/// Sends `arm` to the firmware (joint by joint) and repeats the handshake.
+fn configure<T: Transport>(client: &mut LinkClient<T>, arm: &ArmSpec) -> Result<Info> {
+    let servos = ServoSetup::for_arm(&arm.name).ok_or_else(|| {
+        anyhow!("arm {} has no servo mapping (the presets so101 and open-manipulator-x have one)", arm.name)
+    })?;
+    for message in configure_messages(arm, &servos)? {
+        client.request(&message).with_context(|| format!("configuring arm {}", arm.name))?;
+    }
+    Ok(client.hello()?)
+}
+
+/// Opens `target`, shakes hands and makes sure the firmware runs an arm: `arm` if given (sent to
+/// the board unless it already runs it), else the one it has.
+pub fn open(target: Target, arm: Option<&str>) -> Result<Connection> {
+    let (transport, sim_arm): (Box<dyn Transport>, Option<&'static str>) = match target {
+        Target::Port { path, baud } => {
+            let port = serialport::new(&path, baud).timeout(READ_TIMEOUT).open().map_err(|e| open_error(&path, e))?;
+            (Box::new(port), None)
+        }
+        Target::Sim(mut options) => {
+            options.read_timeout_ms = READ_TIMEOUT.as_millis() as u64;
+            let name = options.arm.name();
+            if arm.is_some_and(|a| a != name) {
+                bail!("the simulated board runs {name}; --arm {} is not one it can drive", arm.unwrap_or_default());
+            }
+            (Box::new(Sil::new(&options)?), Some(name))
+        }
+    };
+    let mut client = LinkClient::new(transport, LinkConfig::default());
+    let (info, spec) = handshake(&mut client, arm.or(sim_arm))?;
+    Ok(Connection { client, info, arm: spec })
+}
+
+/// The handshake over an open link: makes sure the firmware runs `arm` if given (sending it
+/// unless it already runs it), else any arm this host knows; returns its info and description.
+pub fn handshake<T: Transport>(client: &mut LinkClient<T>, arm: Option<&str>) -> Result<(Info, ArmSpec)> {
+    let mut info = client.hello().context("handshake with the firmware")?;
+    let spec = match arm {
+        Some(name) => {
+            let spec = ArmSpec::load(name, None)?;
+            if info.arm_name.as_str() != spec.name {
+                info = configure(client, &spec)?;
+            }
+            spec
+        }
+        None if info.arm_name.is_empty() => bail!("the board has no arm configured: pass --arm"),
+        None => ArmSpec::load(info.arm_name.as_str(), None).with_context(|| {
+            format!("the board runs arm {}, which this host does not know; pass --arm", info.arm_name)
+        })?,
+    };
+    if usize::from(info.joints) != spec.dof() {
+        bail!("the firmware drives {} joints, arm {} has {}", info.joints, spec.name, spec.dof());
+    }
+    Ok((info, spec))
+}

@@ -1,0 +1,319 @@
+//! `armctl play FILE`: streams a keyframe file to the firmware's queue and waits until it has
+//! played.
+//!
+//! The whole file is read and checked first (joint count and limits against the connected arm),
+//! so a bad file sends nothing. Then the queue is filled up to its capacity before `Start`, and
+//! the rest is pushed as slots free up (the firmware reports its free slots with every ack and
+//! status). Every keyframe must be acknowledged: the count is reported. A Cartesian keyframe the
+//! firmware cannot reach is refused at its push; before `Start` the queue is then dropped and
+//! nothing moves, after it the arm is stopped.
+
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+
+use anyhow::{anyhow, bail, Context, Result};
+use firmware::link::message::{
+    CartesianKeyframe, CartesianTarget, FirmwareMessage, HostMessage, JointKeyframe, Joints, RunState, Status,
+    MAX_JOINT_VELOCITY, MAX_TIME,
+};
+use serde_json::json;
+
+use super::cartesian_file::{self, parse_cartesian_keyframes, CartesianKeyframes};
+use super::commands::check_joints;
+use super::interrupt;
+use super::progress::Progress;
+use super::session::{fmt3, Driver};
+use crate::trajectory::{self, Keyframes};
+
+/// The keyframes of a file, in either format.
+pub enum Frames {
+    /// Joint keyframes (`t,q1,...,qN[,v1,...,vN]`).
+    Joint(Keyframes),
+    /// Cartesian keyframes (`t,x,y,z[,qw,qx,qy,qz]`).
+    Cartesian(CartesianKeyframes),
+}
+
+/// A keyframe file, read and checked on its own.
+pub struct Plan {
+    path: PathBuf,
+    frames: Frames,
+    timeout: f64,
+}
+
+impl Plan {
+    /// Reads and parses `path`, telling the format by its header.
+    pub fn read(path: &Path, timeout: f64) -> Result<Self> {
+        if !(timeout.is_finite() && timeout > 0.0) {
+            bail!("--timeout: {timeout} s must be a positive number");
+        }
+        let shown = path.display().to_string();
+        let text = std::fs::read_to_string(path).with_context(|| format!("cannot read keyframe file {shown}"))?;
+        let Some((line, header)) = cartesian_file::header(&text) else {
+            bail!(
+                "{shown}: empty file: expected a header t,q1,...,qN (joint keyframes) or t,x,y,z (Cartesian keyframes)"
+            );
+        };
+        let second = header.split(',').nth(1).map(str::trim).unwrap_or_default();
+        let frames = if cartesian_file::is_cartesian_header(header) {
+            Frames::Cartesian(parse_cartesian_keyframes(&text).context(shown.clone())?)
+        } else if second.starts_with('q') {
+            Frames::Joint(trajectory::parse_keyframes(&text).context(shown.clone())?)
+        } else {
+            bail!(
+                "{shown}: line {line}: the header must be t,q1,...,qN[,v1,...,vN] (joint keyframes) or \
+                 t,x,y,z[,qw,qx,qy,qz] (Cartesian keyframes); found {:?}",
+                header.trim()
+            );
+        };
+        let plan = Self { path: path.to_path_buf(), frames, timeout };
+        plan.check_times()?;
+        Ok(plan)
+    }
+
+    fn times_and_lines(&self) -> (&[f64], &[usize]) {
+        match &self.frames {
+            Frames::Joint(k) => (&k.times, &k.lines),
+            Frames::Cartesian(k) => (&k.times, &k.lines),
+        }
+    }
+
+    /// Times the firmware accepts, still strictly increasing in its f32.
+    fn check_times(&self) -> Result<()> {
+        let (times, lines) = self.times_and_lines();
+        let mut previous: Option<f32> = None;
+        for (&t, line) in times.iter().zip(lines) {
+            let at = self.at(*line);
+            if !(0.0..=f64::from(MAX_TIME)).contains(&t) {
+                bail!("{at}: time {t} s is outside 0..={MAX_TIME} s");
+            }
+            if previous.is_some_and(|p| t as f32 <= p) {
+                bail!("{at}: time {t} s is too close to the previous keyframe's to tell apart in the firmware's f32");
+            }
+            previous = Some(t as f32);
+        }
+        Ok(())
+    }
+
+    fn at(&self, line: usize) -> String {
+        format!("{}: line {line}", self.path.display())
+    }
+
+    /// The last keyframe's time (s).
+    pub fn seconds(&self) -> f64 {
+        self.times_and_lines().0.last().copied().unwrap_or(0.0)
+    }
+
+    /// The push messages with their file lines, checked against the connected arm.
+    fn messages(&self, driver: &Driver) -> Result<Vec<(usize, HostMessage)>> {
+        match &self.frames {
+            Frames::Joint(k) => (0..k.times.len())
+                .map(|i| {
+                    let at = self.at(k.lines[i]);
+                    let positions = check_joints(driver, &k.positions[i], &at)?;
+                    let velocities = match &k.velocities {
+                        None => None,
+                        Some(v) => {
+                            if let Some(bad) = v[i].iter().find(|x| x.abs() > f64::from(MAX_JOINT_VELOCITY)) {
+                                bail!("{at}: velocity {bad} is beyond the largest the link carries ({MAX_JOINT_VELOCITY})");
+                            }
+                            let v: Vec<f32> = v[i].iter().map(|&x| x as f32).collect();
+                            Some(Joints::from_slice(&v).map_err(|_| anyhow!("{at}: too many velocities"))?)
+                        }
+                    };
+                    let keyframe = JointKeyframe { time: k.times[i] as f32, positions, velocities };
+                    Ok((k.lines[i], HostMessage::PushKeyframe(keyframe)))
+                })
+                .collect(),
+            Frames::Cartesian(k) => Ok((0..k.times.len())
+                .map(|i| {
+                    let target = CartesianTarget {
+                        position: k.positions[i].map(|x| x as f32),
+                        orientation: k.orientations.as_ref().map(|o| o[i].map(|x| x as f32)),
+                    };
+                    (k.lines[i], HostMessage::PushCartesianKeyframe(CartesianKeyframe { time: k.times[i] as f32, target }))
+                })
+                .collect()),
+        }
+    }
+}
+
+/// Pushes one keyframe; fails unless it was acknowledged.
+fn push(driver: &mut Driver, message: &HostMessage) -> Result<()> {
+    match driver.push(message)? {
+        FirmwareMessage::Ack { .. } => Ok(()),
+        other => bail!("unexpected reply {other:?} to a keyframe push"),
+    }
+}
+
+/// Where the arm stands, for messages.
+fn failed_at(driver: &mut Driver) -> String {
+    match driver.status() {
+        Ok(s) => driver.tool_position(&s.measured).map(|p| format!("the arm is at {} m", fmt3(&p))).unwrap_or_default(),
+        Err(e) => format!("status unknown: {e}"),
+    }
+}
+
+/// Plays a checked plan; returns the exit code.
+pub fn run(driver: &mut Driver, plan: Plan, json: bool, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+    let messages = plan.messages(driver)?;
+    let total = messages.len();
+    let status = driver.status()?;
+    if !matches!(status.state, RunState::Idle | RunState::TorqueOff) {
+        bail!("the arm is busy ({:?}): wait, or `stop` it first; nothing was sent", status.state);
+    }
+    let (status, switched) = driver.ready_to_move()?;
+    if status.queued > 0 {
+        // Left over from an interrupted run: playing them first would not be what the file says.
+        driver.request(&HostMessage::Stop)?;
+        writeln!(err, "dropped {} keyframes left in the queue from before", status.queued)?;
+    }
+    interrupt::catch();
+    let underruns_before = status.errors.underruns;
+    let mut progress = Progress::new(total, plan.seconds(), std::io::stderr().is_terminal());
+    let mut pushed = 0usize;
+
+    // Fill the queue before starting, so the start does not wait on the link.
+    while pushed < total.min(driver.queue_capacity().max(1)) {
+        if interrupt::requested() {
+            driver.request(&HostMessage::Stop)?;
+            let undone = driver.undo_torque(switched);
+            writeln!(
+                err,
+                "stopped by Ctrl-C before the start: nothing moved; {pushed} of {total} keyframes were queued and \
+                 dropped{undone}"
+            )?;
+            return Ok(interrupt::EXIT_CODE);
+        }
+        let (line, message) = &messages[pushed];
+        if let Err(e) = push(driver, message) {
+            let dropped = driver.request(&HostMessage::Stop).is_ok();
+            bail!(
+                "{}: {e:#}; nothing moved{}{}",
+                plan.at(*line),
+                if dropped { ", the queued keyframes were dropped" } else { "" },
+                driver.undo_torque(switched)
+            );
+        }
+        pushed += 1;
+    }
+    let start = driver.status()?;
+    driver.request(&HostMessage::Start)?;
+    Driver::note_torque(switched, err)?;
+    let played = |s: &Status, pushed: usize| pushed.saturating_sub(usize::from(s.queued));
+    let clock = |s: &Status| f64::from(s.time - start.time);
+
+    // Keep pushing as slots free up, then wait until the arm is at rest.
+    let deadline = plan.seconds() + plan.timeout;
+    let started = std::time::Instant::now();
+    let mut restarts = 0u32;
+    let last = loop {
+        if interrupt::requested() {
+            progress.clear(err);
+            writeln!(err, "play: {pushed} of {total} keyframes had been pushed")?;
+            return driver.stop_after_interrupt(err);
+        }
+        if pushed < total && driver.free_slots() > 0 {
+            let (line, message) = &messages[pushed];
+            if let Err(e) = push(driver, message) {
+                progress.clear(err);
+                let stopped = driver.request(&HostMessage::Stop).is_ok();
+                bail!(
+                    "{}: {e:#}; {} after {pushed} of {total} keyframes, {}",
+                    plan.at(*line),
+                    if stopped { "stopped the arm" } else { "could not stop the arm" },
+                    failed_at(driver)
+                );
+            }
+            pushed += 1;
+            continue;
+        }
+        let status = driver.status()?;
+        progress.update(err, played(&status, pushed), clock(&status));
+        match status.state {
+            RunState::Idle if pushed == total && status.queued == 0 => break driver.settle(status)?,
+            RunState::Idle if status.queued > 0 => {
+                // The player ran dry (an underrun) and the controller went to hold: go on.
+                restarts += 1;
+                driver.request(&HostMessage::Start)?;
+            }
+            RunState::TorqueOff | RunState::EStopped => {
+                progress.clear(err);
+                bail!(
+                    "the arm stopped ({:?}) after {} of {total} keyframes; {pushed} had been pushed",
+                    status.state,
+                    played(&status, pushed)
+                );
+            }
+            _ => {}
+        }
+        let waited = clock(&status);
+        if waited > deadline || started.elapsed().as_secs_f64() > 4.0 * deadline + 10.0 {
+            progress.clear(err);
+            let stopped = driver.request(&HostMessage::Stop).is_ok();
+            bail!(
+                "timed out after {waited:.1} s with the arm still {:?}; {}",
+                status.state,
+                if stopped { "sent stop" } else { "stop was not acknowledged" }
+            );
+        }
+        if status.free_slots == 0 || pushed == total {
+            driver.pause()?;
+        }
+    };
+    let took = clock(&last);
+    progress.finish(err, total, plan.seconds());
+    let underruns = last.errors.underruns.saturating_sub(underruns_before);
+    if underruns > 0 || restarts > 0 {
+        writeln!(
+            err,
+            "warning: the queue ran dry {underruns} times (restarted {restarts} times): keyframes came too slowly"
+        )?;
+    }
+    let tool = driver.tool_position(&last.measured)?;
+    // Where the arm ended against the last keyframe: the firmware keeps within the joint limits,
+    // so a file that asks for more than they allow can end elsewhere.
+    let (format, end_error, unit, tolerance) = match &plan.frames {
+        Frames::Joint(k) => {
+            let goal = k.positions.last().map(Vec::as_slice).unwrap_or_default();
+            let error = goal.iter().zip(&last.measured).map(|(g, m)| (g - f64::from(*m)).abs()).fold(0.0, f64::max);
+            ("joint", error, "rad", 0.01)
+        }
+        Frames::Cartesian(k) => {
+            let goal = k.positions.last().copied().unwrap_or_default();
+            let error = (0..3).map(|i| (goal[i] - tool[i]).powi(2)).sum::<f64>().sqrt();
+            ("cartesian", error, "m", 0.002)
+        }
+    };
+    if end_error > tolerance {
+        writeln!(
+            err,
+            "warning: the arm ended {end_error:.4} {unit} from the last keyframe (beyond {tolerance} {unit})"
+        )?;
+    }
+    if json {
+        let v = json!({
+            "command": "play",
+            "file": plan.path.display().to_string(),
+            "format": format,
+            "keyframes": total,
+            "pushed": pushed,
+            "trajectory_s": plan.seconds(),
+            "time_s": took,
+            "underruns": underruns,
+            "end_error": end_error,
+            "tool": tool,
+            "joints": last.measured,
+        });
+        writeln!(out, "{v}")?;
+    } else {
+        writeln!(
+            out,
+            "play {}: {pushed} of {total} {format} keyframes pushed and acknowledged, {:.2} s of trajectory in {took:.2} s; \
+             the arm is at {} m",
+            plan.path.display(),
+            plan.seconds(),
+            fmt3(&tool)
+        )?;
+    }
+    Ok(0)
+}

@@ -1,0 +1,73 @@
+//! `armctl demo` end to end as a process: both simulated arms reach every target within a
+//! millimetre, stream every keyframe, keep every goal safe, and write the plot.
+
+use serde_json::Value;
+use std::process::Command;
+
+fn demo(args: &[&str]) -> (i32, String, String) {
+    let dir = std::env::temp_dir();
+    let out = Command::new(env!("CARGO_BIN_EXE_armctl")).arg("demo").args(args).current_dir(dir).output().unwrap();
+    (out.status.code().unwrap_or(-1), String::from_utf8(out.stdout).unwrap(), String::from_utf8(out.stderr).unwrap())
+}
+
+fn json(args: &[&str]) -> Value {
+    let (code, out, err) = demo(args);
+    assert_eq!(code, 0, "stderr: {err}");
+    serde_json::from_str(&out).unwrap_or_else(|e| panic!("not JSON ({e}): {out}"))
+}
+
+fn check(report: &Value) {
+    let targets = report["targets"].as_array().unwrap();
+    assert_eq!(targets.len(), 4);
+    for t in targets {
+        assert!(t["error_mm"].as_f64().unwrap() < 1.0, "{t}");
+        // The tool gets within 1 mm while moving at most 0.15 m/s over at most ~0.3 m, at 100 Hz.
+        let ticks = t["ticks_to_1mm"].as_u64().unwrap();
+        assert!(ticks > 10 && ticks < 300, "{t}");
+        assert!(t["ik_iterations"].as_u64().unwrap() > 0);
+    }
+    let pp = &report["pick_and_place"];
+    assert_eq!(pp["keyframes"], pp["acked"]);
+    assert!(pp["keyframes"].as_u64().unwrap() > 32, "more keyframes than the queue holds: flow control is used");
+    assert!(pp["final_error_mm"].as_f64().unwrap() < 1.0, "{pp}");
+    assert!(pp["tool_error_max_mm"].as_f64().unwrap() < 10.0, "{pp}");
+    assert_eq!(report["loop"]["deadline_misses"], 0);
+    assert_eq!(report["loop"]["underruns"], 0);
+    assert_eq!(report["safety"]["violations"], 0);
+    assert!(report["safety"]["largest_step_of_limit"].as_f64().unwrap() <= 1.0);
+}
+
+#[test]
+fn so101_on_feetech() {
+    let report = json(&["--json", "--no-plot"]);
+    assert_eq!(report["arm"], "so101");
+    assert!(report["bus"].as_str().unwrap().contains("STS3215"));
+    check(&report);
+}
+
+#[test]
+fn open_manipulator_x_on_dynamixel() {
+    let report = json(&["--arm", "open-manipulator-x", "--json", "--no-plot"]);
+    assert!(report["bus"].as_str().unwrap().contains("Dynamixel"));
+    check(&report);
+}
+
+#[test]
+fn the_table_and_the_plot() {
+    let path = std::env::temp_dir().join(format!("armctl-demo-test-{}.png", std::process::id()));
+    let (code, out, err) = demo(&["--plot", path.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("ticks to 1mm") && out.contains("Safety monitor: ") && out.contains("0 violations"), "{out}");
+    let png = std::fs::read(&path).unwrap();
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    std::fs::remove_file(&path).unwrap();
+}
+
+#[test]
+fn an_unknown_arm_is_a_one_line_error() {
+    let (code, out, err) = demo(&["--arm", "ur5e"]);
+    assert_eq!(code, 1);
+    assert!(out.is_empty());
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.starts_with("error: ") && err.contains("so101"), "{err}");
+}
