@@ -348,3 +348,18 @@ fn the_same_seed_gives_the_same_run() {
     assert_eq!(a, b);
     assert_eq!(sa, sb);
 }
+
+#[test]
+fn keyframes_faster_than_the_limits_are_followed_with_lag_and_idle_means_at_rest() {
+    let options = SilOptions::new("so101").unwrap();
+    let mut c = client(&options);
+    torque_on(&mut c);
+    // 1 rad in 0.2 s asks for 5 rad/s or more; the limit is 2 rad/s.
+    let k = JointKeyframe { time: 0.2, positions: [1.0, 0.0, 0.0, 0.0, 0.0].into_iter().collect(), velocities: None };
+    c.push(&HostMessage::PushKeyframe(k)).unwrap();
+    c.request(&HostMessage::Start).unwrap();
+    let s = wait_idle(&mut c, 5.0);
+    assert_eq!(s.state, RunState::Idle);
+    assert!((s.setpoints[0] - 1.0).abs() < 1e-4, "idle only once the setpoint is on the keyframe: {:?}", s.setpoints);
+    assert_safe(&mut c);
+}

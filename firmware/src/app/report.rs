@@ -93,6 +93,8 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
         errors.ik_failures = counters.ik_failures;
         let state = match c.mode() {
             Mode::Idle => RunState::TorqueOff,
+            // Holding a goal the setpoint has not reached yet (the limits made it lag): moving.
+            Mode::Holding if c.setpoint().velocity.iter().any(|v| *v != 0.0) => RunState::Moving,
             Mode::Holding => RunState::Idle,
             Mode::Playing if c.paused() => RunState::Paused,
             Mode::Playing | Mode::Tracking => RunState::Moving,
