@@ -530,3 +530,56 @@ pub fn link_frames(data: &[u8]) {
     link_payload::<HostMessage>(data);
     link_payload::<FirmwareMessage>(data);
 }
+
+/// The `firmware_app` target: the whole firmware application of the built-in arm. The input is
+/// split in two: link bytes from the host (fed in chunks, a control tick after each) and reply
+/// segments for the servo bus (see [`FakePort`]). Every request must be answered without a panic,
+/// every tick must end, and while the torque is on the setpoint must stay inside the joint limits
+/// whatever was asked and whatever the servos reported.
+pub fn firmware_app(data: &[u8]) {
+    use firmware::app::{Board, Firmware};
+    use firmware::bus::table::STS3215;
+    use firmware::controller::Config;
+    let Some((&split, rest)) = data.split_first() else { return };
+    let at = (usize::from(split) * rest.len()) / 255;
+    let (link, replies) = rest.split_at(at.min(rest.len()));
+    let now = Rc::new(Cell::new(0));
+    let readings = Rc::new(Cell::new(0));
+    let port = FakePort {
+        protocol: Protocol::Feetech,
+        input: replies,
+        now: now.clone(),
+        queue: VecDeque::new(),
+        burst: 8,
+        sent: Vec::new(),
+        packets: Rc::new(RefCell::new(0)),
+    };
+    let clock = FakeClock { now: now.clone(), readings: readings.clone() };
+    let bus = BusConfig::new(Protocol::Feetech, 1_000_000);
+    let mut master: Master<_, _, _, 256> = Master::new(port, NoDirectionPin, clock, bus);
+    let board = Board { bus, model: &STS3215, control: Config::default() };
+    let setup = firmware::builtin::setup().expect("the built-in arm is valid");
+    let mut app = Firmware::<{ firmware::builtin::JOINTS }, 32>::new(board, Some(setup)).expect("the board is valid");
+    let mut tx = Vec::new();
+    for chunk in link.chunks(24) {
+        let _ = app.receive(chunk, now.get(), &mut tx);
+        readings.set(0);
+        let _ = app.tick(&mut master, now.get(), &mut tx);
+        assert!(readings.get() < HANG, "a tick did not end");
+        now.set(now.get() + 10_000);
+        let c = app.controller().expect("the built-in arm runs");
+        if !c.torque() {
+            // Limp, the setpoint follows whatever the servos report.
+            continue;
+        }
+        let limits = c.limits();
+        for j in 0..firmware::builtin::JOINTS {
+            let p = c.setpoint().position[j];
+            assert!(p >= limits.lower[j] && p <= limits.upper[j], "joint {j}: setpoint {p} outside the limits");
+        }
+    }
+    // Every byte written back is a whole frame of at most MAX_FRAME bytes.
+    for frame in tx.split(|&b| b == 0).filter(|f| !f.is_empty()) {
+        assert!(frame.len() < firmware::link::frame::MAX_FRAME, "reply frame of {} bytes", frame.len());
+    }
+}

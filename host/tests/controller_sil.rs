@@ -384,3 +384,23 @@ fn estop_with_torque_off_turns_every_servo_limp_until_torque_on() {
     }
     assert!(max_abs(&(r.present() - here)) < 0.002);
 }
+
+#[test]
+fn torque_on_is_refused_while_a_joint_was_moved_beyond_its_limits() {
+    let mut r = rig_with(Faults::default());
+    // Joint 3 (the elbow, limits about ±1.7 rad) turned by hand to tick 0, -π.
+    let now = r.clock.now_ns();
+    r.bus.borrow_mut().servo_mut(3).unwrap().set_position(0, now);
+    r.tick();
+    assert_eq!(r.command(Command::TorqueOn), Err(Refusal::OutOfRange { joint: 2 }));
+    r.tick();
+    assert!(!r.ctl.torque());
+    // Back inside the limits, torque comes on and holds there.
+    let now = r.clock.now_ns();
+    r.bus.borrow_mut().servo_mut(3).unwrap().set_position(1500, now);
+    r.tick();
+    r.command(Command::TorqueOn).unwrap();
+    r.tick();
+    assert!(r.ctl.torque());
+    assert_eq!(r.goals()[2], 1500);
+}

@@ -20,7 +20,8 @@ pub enum Pace {
 /// A command from the host.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Command<const N: usize> {
-    /// Torque on, holding the present position. Also leaves an emergency stop.
+    /// Torque on, holding the present position (refused if a joint reads beyond its limits). Also
+    /// leaves an emergency stop.
     TorqueOn,
     /// Torque off: the arm goes limp. Drops any motion.
     TorqueOff,
@@ -118,6 +119,10 @@ impl core::fmt::Display for Refusal {
     }
 }
 
+/// How far beyond its limits (rad) a joint may read at torque on and still be held (clamped onto
+/// the limit): a servo resting on its limit reads a tick or two either side.
+const HOLD_TOLERANCE: f32 = 0.02;
+
 impl<const N: usize, const Q: usize> Controller<N, Q> {
     /// Carries out `cmd`, received at `now_us`; on refusal nothing changes.
     pub fn command(&mut self, cmd: Command<N>, now_us: u64) -> Result<(), Refusal> {
@@ -140,7 +145,15 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
                     return Ok(());
                 }
                 // Hold where the arm is: the servos get that goal before their torque comes on.
-                self.setpoint.position = self.measured;
+                // An arm moved by hand beyond its limits is refused: holding it there would
+                // send a goal outside the limits, and pulling it back would jump.
+                if let Some(joint) = (0..N).find(|&j| {
+                    self.measured[j] < self.limits.lower[j] - HOLD_TOLERANCE
+                        || self.measured[j] > self.limits.upper[j] + HOLD_TOLERANCE
+                }) {
+                    return Err(Refusal::OutOfRange { joint });
+                }
+                self.setpoint.position = self.clamped(&self.measured);
                 self.setpoint.velocity = SVector::zeros();
                 self.pending_torque = Some(true);
                 self.enter_hold();
@@ -158,9 +171,11 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             Command::EStop { torque_off } => {
                 self.mode = Mode::EStopped;
                 self.tool = None;
-                self.setpoint.position = self.measured;
+                // Where the arm is, within the limits (a reading beyond them is a servo's noise
+                // or a reply gone wrong, never a place to hold).
+                self.setpoint.position = self.clamped(&self.measured);
                 self.setpoint.velocity = SVector::zeros();
-                self.hold = self.measured;
+                self.hold = self.setpoint.position;
                 self.reset_player();
                 if torque_off {
                     self.pending_torque = Some(false);
@@ -203,6 +218,11 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
                 Ok(())
             }
         }
+    }
+
+    /// `q` clamped into the joint limits.
+    fn clamped(&self, q: &SVector<f32, N>) -> SVector<f32, N> {
+        q.zip_zip_map(&self.limits.lower, &self.limits.upper, |x, lo, hi| x.clamp(lo, hi))
     }
 
     /// Refuses motion while e-stopped or limp.
