@@ -30,6 +30,22 @@ pub fn fixed<const K: usize>(text: &str, what: &str) -> Result<[f64; K]> {
     }
 }
 
+/// Parses the fields of a CSV row (line `line` of a file whose header names the columns `names`)
+/// as finite numbers; the error names the line and the column.
+pub fn csv_row<S: std::fmt::Display>(line: usize, fields: &[&str], names: &[S]) -> Result<Vec<f64>> {
+    let mut values = Vec::with_capacity(fields.len());
+    for (field, name) in fields.iter().zip(names) {
+        let Ok(value) = field.parse::<f64>() else {
+            bail!("line {line}, column {name}: {field:?} is not a number");
+        };
+        if !value.is_finite() {
+            bail!("line {line}, column {name}: {field} is not a finite number");
+        }
+        values.push(value);
+    }
+    Ok(values)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -160,15 +160,7 @@ pub fn parse_keyframes(text: &str) -> Result<Keyframes> {
         if k.times.len() == MAX_KEYFRAMES {
             bail!("line {line}: more than {MAX_KEYFRAMES} keyframes (armctl's capacity)");
         }
-        let mut values = Vec::with_capacity(fields.len());
-        for (field, name) in fields.iter().zip(&names) {
-            let value =
-                field.parse::<f64>().map_err(|_| anyhow!("line {line}, column {name}: {field:?} is not a number"))?;
-            if !value.is_finite() {
-                bail!("line {line}, column {name}: {field} is not a finite number");
-            }
-            values.push(value);
-        }
+        let values = crate::parse::csv_row(line, &fields, &names)?;
         let t = values[0];
         if let (Some(&previous), Some(&previous_line)) = (k.times.last(), k.lines.last()) {
             if t <= previous {

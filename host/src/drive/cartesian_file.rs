@@ -5,7 +5,7 @@
 //! arm's base frame. As in the joint keyframe files of `armctl trajectory`, blank lines and lines
 //! starting with `#` are skipped, and every error names the file line (the header is line 1).
 
-use anyhow::{anyhow, bail, Result};
+use anyhow::{bail, Result};
 use firmware::link::message::{MAX_REACH, MAX_TIME, QUATERNION_TOLERANCE};
 
 /// Keyframes as read from a file.
@@ -64,15 +64,7 @@ pub fn parse_cartesian_keyframes(text: &str) -> Result<CartesianKeyframes> {
         if fields.len() != names.len() {
             bail!("line {line}: {} fields, but the header has {}", fields.len(), names.len());
         }
-        let mut values = Vec::with_capacity(fields.len());
-        for (field, name) in fields.iter().zip(&names) {
-            let value =
-                field.parse::<f64>().map_err(|_| anyhow!("line {line}, column {name}: {field:?} is not a number"))?;
-            if !value.is_finite() {
-                bail!("line {line}, column {name}: {field} is not a finite number");
-            }
-            values.push(value);
-        }
+        let values = crate::parse::csv_row(line, &fields, &names)?;
         let t = values[0];
         if !(0.0..=f64::from(MAX_TIME)).contains(&t) {
             bail!("line {line}: time {t} s is outside 0..={MAX_TIME} s");
