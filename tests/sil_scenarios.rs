@@ -363,3 +363,45 @@ fn keyframes_faster_than_the_limits_are_followed_with_lag_and_idle_means_at_rest
     assert!((s.setpoints[0] - 1.0).abs() < 1e-4, "idle only once the setpoint is on the keyframe: {:?}", s.setpoints);
     assert_safe(&mut c);
 }
+
+#[test]
+fn telemetry_pause_resume_and_emergency_stop_over_the_link() {
+    let options = SilOptions::new("so101").unwrap();
+    let mut c = client(&options);
+    torque_on(&mut c);
+    // Telemetry at 50 Hz: frames arrive unasked while the host waits.
+    c.request(&HostMessage::SetTelemetry { rate_hz: 50 }).unwrap();
+    c.wait_once().unwrap();
+    let t = c.telemetry().expect("telemetry arrived").time;
+    c.wait_once().unwrap();
+    c.wait_once().unwrap();
+    assert!(c.telemetry().unwrap().time > t, "telemetry keeps coming");
+    c.request(&HostMessage::SetTelemetry { rate_hz: 0 }).unwrap();
+    // Pause slows the playback to a standstill on its path; start resumes it.
+    for k in wave(30, 5) {
+        c.push(&HostMessage::PushKeyframe(k)).unwrap();
+    }
+    c.request(&HostMessage::Start).unwrap();
+    poll_for(&mut c, 0.5);
+    c.request(&HostMessage::Pause).unwrap();
+    let paused = poll_for(&mut c, 0.5);
+    assert_eq!(paused.state, RunState::Paused);
+    let still = poll_for(&mut c, 0.2);
+    assert_eq!(still.setpoints, paused.setpoints, "paused means still");
+    assert!(still.queued > 0, "the queue is kept");
+    c.request(&HostMessage::Start).unwrap();
+    assert_eq!(poll_for(&mut c, 0.2).state, RunState::Moving);
+    // Emergency stop with torque off: the servos go limp; only torque on leaves it.
+    c.request(&HostMessage::EStop { mode: firmware::link::message::EStopMode::TorqueOff }).unwrap();
+    let s = poll_for(&mut c, 0.1);
+    assert_eq!(s.state, RunState::TorqueOff);
+    let bus = c.transport().bus().clone();
+    assert!(bus.borrow().servos().iter().all(|s| !s.torque()), "every servo limp");
+    let back = HostMessage::MoveJoints { positions: [0.0; 5].into_iter().collect(), timing: Timing::Duration(1.0) };
+    assert!(matches!(c.request(&back), Err(LinkError::Nak(NakReason::EStopped))));
+    torque_on(&mut c);
+    c.request(&back).unwrap();
+    let s = wait_idle(&mut c, 5.0);
+    assert!(s.measured.iter().all(|m| m.abs() < 0.01), "{:?}", s.measured);
+    assert_safe(&mut c);
+}

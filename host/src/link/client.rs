@@ -9,6 +9,10 @@
 //! time but never a duplicate. After [`LinkConfig::max_attempts`] sends the client gives up with
 //! [`LinkError::GaveUp`].
 //!
+//! Telemetry frames arrive unasked; each one ends a wait slot like a read timeout (the firmware
+//! sends at most one per control tick, so at the fastest rate, 100 Hz against a 20 ms timeout, the
+//! waits are half as long as without telemetry, never endless).
+//!
 //! Flow control: every ack (and status) reports the free keyframe slots. A keyframe push is only
 //! sent while the last report says a slot is free; otherwise the client polls with a ping, waiting one
 //! read timeout between polls, until one is. The count is unknown (zero) at the start and after a
@@ -359,8 +363,11 @@ impl<T: Read + Write> LinkClient<T> {
                         }
                         FrameKind::Event => match message {
                             FirmwareMessage::Telemetry(status) => {
+                                // A telemetry frame ends this wait slot as a timeout would: with
+                                // telemetry at least as fast as the read timeout, reads never
+                                // time out, and the client would wait for ever.
                                 self.telemetry = Some(status);
-                                continue;
+                                Heard::Nothing
                             }
                             FirmwareMessage::Nak { .. } if seq.is_some() => Heard::Broken,
                             _ => continue,
