@@ -405,3 +405,69 @@ fn telemetry_pause_resume_and_emergency_stop_over_the_link() {
     assert!(s.measured.iter().all(|m| m.abs() < 0.01), "{:?}", s.measured);
     assert_safe(&mut c);
 }
+
+#[test]
+fn a_home_built_arm_from_an_arm_file_with_servos_is_configured_and_driven() {
+    // The OpenManipulator-X geometry as an arm file of someone's own, with its first servo
+    // mounted the other way round and the third off-centre.
+    let file = std::env::temp_dir().join(format!("sil-arm-{}.toml", std::process::id()));
+    std::fs::write(
+        &file,
+        r#"
+name = "my-arm"
+[[joint]]
+type = "revolute"
+xyz = [0.012, 0, 0.017]
+axis = [0, 0, 1]
+limits = [-2.8, 2.8]
+[[joint]]
+type = "revolute"
+xyz = [0, 0, 0.0595]
+axis = [0, 1, 0]
+limits = [-1.79, 1.57]
+[[joint]]
+type = "revolute"
+xyz = [0.024, 0, 0.128]
+axis = [0, 1, 0]
+limits = [-0.94, 1.38]
+[[joint]]
+type = "revolute"
+xyz = [0.124, 0, 0]
+axis = [0, 1, 0]
+limits = [-1.79, 2.04]
+[tool]
+xyz = [0.126, 0, 0]
+[servos]
+model = "XM430-W350"
+ids = [11, 12, 13, 14]
+zero = [2048, 2048, 1948, 2048]
+reversed = [true, false, false, false]
+max_velocity = 1.5
+max_acceleration = 6.0
+"#,
+    )
+    .unwrap();
+    let options = SilOptions::new("open-manipulator-x").unwrap();
+    let mut c = LinkClient::new(Sil::new(&options).unwrap(), LinkConfig::default());
+    let (info, arm) = armctl::drive::connection::handshake(&mut c, Some(file.to_str().unwrap())).unwrap();
+    std::fs::remove_file(&file).unwrap();
+    assert_eq!(info.arm_name.as_str(), "my-arm");
+    torque_on(&mut c);
+    // Joint 3 reads -100 ticks off its zero: the firmware knows its mapping.
+    let s = c.status().unwrap();
+    assert!((s.measured[2] - 100.0 * std::f32::consts::TAU / 4096.0).abs() < 1e-3, "{:?}", s.measured);
+    let target = [0.18f32, 0.06, 0.08];
+    c.request(&HostMessage::MoveTo {
+        target: CartesianTarget { position: target, orientation: None },
+        timing: Timing::MaxSpeed(0.1),
+    })
+    .unwrap();
+    let s = wait_idle(&mut c, 10.0);
+    let reached = tool_position(&arm, &s.measured);
+    assert!(distance(reached, target) < 1e-3, "reached {reached:?}");
+    // The reversed servo turned the other way: its ticks fall as joint 1 rises.
+    let goal =
+        c.transport().bus().borrow().servo(11).unwrap().get(firmware::bus::table::XM430_W350.items.goal_position);
+    assert!((s.measured[0] > 0.0) == (goal < 2048), "joint 1 at {} rad, servo 11 goal {goal}", s.measured[0]);
+    assert_safe(&mut c);
+}

@@ -36,6 +36,9 @@ pub struct ArmSpec {
     pub joints: Vec<JointSpec>,
     /// Tool frame relative to the last joint's frame.
     pub tool: Pose<f64>,
+    /// The servos driving the joints, when the description names them (the arm file's
+    /// `[servos]`); the presets' are in [`crate::link::arm_config::ServoSetup::for_arm`].
+    pub servos: Option<crate::link::arm_config::ServoSetup>,
 }
 
 impl ArmSpec {
@@ -87,7 +90,7 @@ impl ArmSpec {
                 upper: j.limits.upper,
             })
             .collect();
-        Self { name: name.to_string(), joints, tool: *chain.tool() }
+        Self { name: name.to_string(), joints, tool: *chain.tool(), servos: None }
     }
 
     /// Loads `arm`: a preset name (`ur5e`, `planar:4`, ...), a `.urdf` file (needs `tip`), or a

@@ -16,6 +16,14 @@
 //! [tool]                   # optional: tool frame after the last joint
 //! xyz = [0.1, 0, 0]
 //! rpy = [0, 0, 0]
+//!
+//! [servos]                 # optional: the servos, to drive the arm through the firmware
+//! model = "STS3215"        # STS3215, XL430-W250, XM430-W350 or XL330-M288
+//! ids = [1, 2, 3]          # one per joint, base first
+//! zero = [2048, 2048, 1024] # optional: ticks at joint value 0 (default half a turn)
+//! reversed = [false, true, false] # optional: servos turning against the joint axis
+//! max_velocity = 2.0       # rad/s, every joint
+//! max_acceleration = 8.0   # rad/s², every joint
 //! ```
 //!
 //! With `convention = "dh"` or `"modified-dh"` each `[[joint]]` holds a DH row instead of
@@ -42,6 +50,18 @@ struct ArmFile {
     #[serde(rename = "joint", default)]
     joints: Vec<Spanned<JointEntry>>,
     tool: Option<Spanned<ToolEntry>>,
+    servos: Option<Spanned<ServosEntry>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ServosEntry {
+    model: String,
+    ids: Vec<u8>,
+    zero: Option<Vec<i32>>,
+    reversed: Option<Vec<bool>>,
+    max_velocity: f64,
+    max_acceleration: f64,
 }
 
 #[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
@@ -203,7 +223,51 @@ pub fn parse(text: &str) -> Result<ArmSpec> {
         }
     };
     let tool = if convention == Convention::Dh { previous_link.compose(&tool) } else { tool };
-    Ok(ArmSpec { name: file.name, joints, tool })
+    let servos = match &file.servos {
+        None => None,
+        Some(entry) => {
+            Some(servos(&format!("{}: [servos]", position(text, entry.span().start)), entry.get_ref(), joints.len())?)
+        }
+    };
+    Ok(ArmSpec { name: file.name, joints, tool, servos })
+}
+
+/// The `[servos]` table, checked against the joint count.
+fn servos(at: &str, entry: &ServosEntry, joints: usize) -> Result<crate::link::arm_config::ServoSetup> {
+    let model =
+        firmware::bus::table::MODELS.into_iter().find(|m| m.name.eq_ignore_ascii_case(&entry.model)).ok_or_else(
+            || anyhow!("{at}: unknown servo model {:?} (STS3215, XL430-W250, XM430-W350, XL330-M288)", entry.model),
+        )?;
+    let count = |key: &str, n: usize| -> Result<()> {
+        if n != joints {
+            bail!("{at}: {key} has {n} entries for {joints} joints");
+        }
+        Ok(())
+    };
+    count("ids", entry.ids.len())?;
+    if let Some(z) = &entry.zero {
+        count("zero", z.len())?;
+    }
+    if let Some(r) = &entry.reversed {
+        count("reversed", r.len())?;
+    }
+    let mut seen = std::collections::BTreeSet::new();
+    if let Some(id) = entry.ids.iter().find(|id| !seen.insert(**id) || **id > 252) {
+        bail!("{at}: servo id {id} is repeated or above 252");
+    }
+    for (key, v) in [("max_velocity", entry.max_velocity), ("max_acceleration", entry.max_acceleration)] {
+        if !(v.is_finite() && v > 0.0) {
+            bail!("{at}: {key} must be a positive number, not {v}");
+        }
+    }
+    Ok(crate::link::arm_config::ServoSetup {
+        model,
+        ids: entry.ids.clone(),
+        zero: entry.zero.clone(),
+        reversed: entry.reversed.clone(),
+        max_velocity: entry.max_velocity,
+        max_acceleration: entry.max_acceleration,
+    })
 }
 
 /// Standard DH `Rz(theta) Tz(d) Tx(a) Rx(alpha)`, computed by the kinematics crate: a one-row
@@ -439,5 +503,28 @@ mod tests {
         let spec = parse(text).unwrap();
         let e = spec.chain::<f64, 1>().unwrap_err().to_string();
         assert!(e.contains("zero") && e.contains("wrist"), "{e}");
+    }
+
+    #[test]
+    fn servos_are_read_and_checked() {
+        let arm = "name = \"a\"\n[[joint]]\ntype = \"revolute\"\naxis = [0, 0, 1]\nlimits = [-1, 1]\n[[joint]]\ntype = \"revolute\"\naxis = [0, 1, 0]\nlimits = [-1, 1]\n";
+        let ok = format!("{arm}[servos]\nmodel = \"sts3215\"\nids = [3, 4]\nreversed = [false, true]\nmax_velocity = 2\nmax_acceleration = 8\n");
+        let servos = parse(&ok).unwrap().servos.unwrap();
+        assert_eq!(servos.model.name, "STS3215");
+        assert_eq!(servos.ids, vec![3, 4]);
+        assert_eq!(servos.reversed, Some(vec![false, true]));
+        assert_eq!(servos.zero, None);
+        assert!(parse(arm).unwrap().servos.is_none());
+        let bad = |servos: &str| error(&format!("{arm}[servos]\n{servos}"));
+        assert!(bad("model = \"mx-28\"\nids = [1, 2]\nmax_velocity = 2\nmax_acceleration = 8")
+            .contains("unknown servo model \"mx-28\""));
+        assert!(bad("model = \"STS3215\"\nids = [1]\nmax_velocity = 2\nmax_acceleration = 8")
+            .contains("ids has 1 entries for 2 joints"));
+        assert!(bad("model = \"STS3215\"\nids = [1, 1]\nmax_velocity = 2\nmax_acceleration = 8")
+            .contains("servo id 1 is repeated"));
+        assert!(bad("model = \"STS3215\"\nids = [1, 2]\nmax_velocity = 0\nmax_acceleration = 8")
+            .contains("max_velocity must be a positive number"));
+        assert!(bad("model = \"STS3215\"\nids = [1, 2]\nmax_velocity = 1\nmax_acceleration = 8\nspeed = 3")
+            .contains("unknown field"));
     }
 }

@@ -181,7 +181,7 @@ pub fn parse(text: &str, tip: Option<&str>) -> Result<ArmSpec> {
         });
         pending = Pose::identity();
     }
-    Ok(ArmSpec { name: robot_name.to_string(), joints: specs, tool: pending })
+    Ok(ArmSpec { name: robot_name.to_string(), joints: specs, tool: pending, servos: None })
 }
 
 fn read_joint<'a>(node: Node<'a, 'a>, line: u32) -> Result<UrdfJoint<'a>> {

@@ -7,7 +7,7 @@ use anyhow::{anyhow, bail, Context, Result};
 use firmware::link::message::Info;
 
 use crate::arm::ArmSpec;
-use crate::link::arm_config::{configure_messages, ServoSetup};
+use crate::link::arm_config::{configure_messages, servos_of};
 use crate::link::client::{LinkClient, LinkConfig};
 use crate::link::Transport;
 use crate::servo::transport::open_error;
@@ -42,8 +42,12 @@ pub struct Connection {
 
 /// Sends `arm` to the firmware (joint by joint) and repeats the handshake.
 fn configure<T: Transport>(client: &mut LinkClient<T>, arm: &ArmSpec) -> Result<Info> {
-    let servos = ServoSetup::for_arm(&arm.name).ok_or_else(|| {
-        anyhow!("arm {} has no servo mapping (the presets so101 and open-manipulator-x have one)", arm.name)
+    let servos = servos_of(arm).ok_or_else(|| {
+        anyhow!(
+            "arm {} has no servo mapping: add a [servos] table to its arm file (the presets so101 and \
+             open-manipulator-x have one)",
+            arm.name
+        )
     })?;
     for message in configure_messages(arm, &servos)? {
         client.request(&message).with_context(|| format!("configuring arm {}", arm.name))?;

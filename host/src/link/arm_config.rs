@@ -18,6 +18,10 @@ pub struct ServoSetup {
     pub model: &'static Model,
     /// Bus ids, base joint first.
     pub ids: Vec<u8>,
+    /// Ticks at joint value zero, per joint (`None`: half a turn, the servo's middle).
+    pub zero: Option<Vec<i32>>,
+    /// Servos turning against their joint's axis, per joint (`None`: none).
+    pub reversed: Option<Vec<bool>>,
     /// Joint speed limit, rad/s.
     pub max_velocity: f64,
     /// Joint acceleration limit, rad/s².
@@ -34,7 +38,7 @@ impl ServoSetup {
             "open-manipulator-x" => (&XM430_W350, (11..=14).collect()),
             _ => return None,
         };
-        Some(Self { model, ids, max_velocity: 2.0, max_acceleration: 8.0 })
+        Some(Self { model, ids, zero: None, reversed: None, max_velocity: 2.0, max_acceleration: 8.0 })
     }
 }
 
@@ -54,6 +58,11 @@ fn f32s(v: [f64; 3]) -> [f32; 3] {
     v.map(|x| x as f32)
 }
 
+/// The servos of `arm`: those its arm file names, else those of the preset of its name.
+pub fn servos_of(arm: &ArmSpec) -> Option<ServoSetup> {
+    arm.servos.clone().or_else(|| ServoSetup::for_arm(&arm.name))
+}
+
 /// The messages that configure `arm` with `servos` on the firmware.
 pub fn configure_messages(arm: &ArmSpec, servos: &ServoSetup) -> Result<Vec<HostMessage>> {
     let n = arm.joints.len();
@@ -62,6 +71,9 @@ pub fn configure_messages(arm: &ArmSpec, servos: &ServoSetup) -> Result<Vec<Host
     }
     if servos.ids.len() != n {
         bail!("arm {} has {n} joints but {} servo ids", arm.name, servos.ids.len());
+    }
+    if servos.zero.as_ref().is_some_and(|z| z.len() != n) || servos.reversed.as_ref().is_some_and(|r| r.len() != n) {
+        bail!("arm {}: the servo zero and reversed lists need one entry per joint ({n})", arm.name);
     }
     let mut name = heapless::String::<MAX_NAME>::new();
     if name.push_str(&arm.name).is_err() {
@@ -92,7 +104,12 @@ pub fn configure_messages(arm: &ArmSpec, servos: &ServoSetup) -> Result<Vec<Host
                 upper: joint.upper as f32,
                 max_velocity: servos.max_velocity as f32,
                 max_acceleration: servos.max_acceleration as f32,
-                servo: ServoConfig { id, ticks_per_revolution: tpr, zero: (tpr / 2) as i32, reversed: false },
+                servo: ServoConfig {
+                    id,
+                    ticks_per_revolution: tpr,
+                    zero: servos.zero.as_ref().map_or((tpr / 2) as i32, |z| z[j]),
+                    reversed: servos.reversed.as_ref().is_some_and(|r| r[j]),
+                },
             },
         });
     }
