@@ -53,6 +53,7 @@ fn sim(model: &'static Model, ids: &[u8], faults: Faults, duplicates: &[u8]) -> 
         baud: BAUD,
         faults,
         duplicates: duplicates.to_vec(),
+        fixed_baud: false,
     })
     .expect("pty server starts")
 }

@@ -513,6 +513,7 @@ fn the_pty_server_answers_a_ping() {
         baud: BAUD,
         faults: Faults::default(),
         duplicates: Vec::new(),
+        fixed_baud: false,
     })
     .unwrap();
     let expected = ping_reply(Protocol::Dxl2, 1, &[0x24, 0x04, 46]);
@@ -533,6 +534,7 @@ fn a_ping_behind_a_false_header_in_noise_is_answered() {
         baud: BAUD,
         faults: Faults::default(),
         duplicates: Vec::new(),
+        fixed_baud: false,
     })
     .unwrap();
     let noisy_ping = [0xFF, 0xFF, 0x00, 0x20, 0xFF, 0xFF, 0x01, 0x02, 0x01, 0xFB];

@@ -36,6 +36,10 @@ pub struct SimServosArgs {
     /// Serve on a pseudo-terminal (required: the only transport for now).
     #[arg(long)]
     pub pty: bool,
+    /// Keep --baud whatever baud rate the other end sets on the pty (QEMU's UARTs set the
+    /// standard rate nearest their divider: 921600 for 1 Mbps).
+    #[arg(long)]
+    pub fixed_baud: bool,
     /// Servos that never answer (repeatable).
     #[arg(long, num_args = 1..)]
     pub silent: Vec<u8>,
@@ -103,7 +107,15 @@ pub fn config(args: &SimServosArgs) -> Result<SimConfig> {
         drop_rate: args.drop_rate,
         bit_flip_rate: 0.0,
     };
-    Ok(SimConfig { protocol, model, ids, baud: args.baud, faults, duplicates: args.duplicate.clone() })
+    Ok(SimConfig {
+        protocol,
+        model,
+        ids,
+        baud: args.baud,
+        faults,
+        duplicates: args.duplicate.clone(),
+        fixed_baud: args.fixed_baud,
+    })
 }
 
 /// Runs a `sim` command. Bad arguments are one `error:` line on `err` and exit code 2.

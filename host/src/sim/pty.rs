@@ -39,6 +39,9 @@ pub struct SimConfig {
     pub faults: Faults,
     /// Ids that get a second servo ([`TWIN_OFFSET_TICKS`] away from the first).
     pub duplicates: Vec<u8>,
+    /// Keep `baud` whatever the other end sets on the pty. QEMU's UARTs set the standard rate
+    /// nearest their divider (921600 for 1 Mbps), which real servos would not notice.
+    pub fixed_baud: bool,
 }
 
 impl SimConfig {
@@ -74,7 +77,7 @@ impl PtyServer {
         let flag = stop.clone();
         let thread = std::thread::Builder::new()
             .name("sim-servos".into())
-            .spawn(move || serve(&mut master, &slave, config.build(), &flag))?;
+            .spawn(move || serve(&mut master, &slave, config.build(), !config.fixed_baud, &flag))?;
         Ok(PtyServer { path, stop, thread: Some(thread) })
     }
 
@@ -112,7 +115,13 @@ impl Drop for PtyServer {
 /// Serves until stopped. The slave end is held open (a pty without one reports errors) and asked
 /// for its speed before each burst: a program that sets another baud rate (after `armctl servo
 /// set-baud`, say) is then heard only by servos set to that rate, as on a real bus.
-fn serve(master: &mut TTYPort, slave: &TTYPort, mut bus: SimBus, stop: &AtomicBool) -> std::io::Result<()> {
+fn serve(
+    master: &mut TTYPort,
+    slave: &TTYPort,
+    mut bus: SimBus,
+    follow_baud: bool,
+    stop: &AtomicBool,
+) -> std::io::Result<()> {
     let start = Instant::now();
     let mut buf = [0u8; 512];
     while !stop.load(Ordering::Relaxed) {
@@ -134,7 +143,7 @@ fn serve(master: &mut TTYPort, slave: &TTYPort, mut bus: SimBus, stop: &AtomicBo
         if n == 0 {
             continue;
         }
-        if let Ok(baud) = slave.baud_rate() {
+        if let (true, Ok(baud)) = (follow_baud, slave.baud_rate()) {
             bus.set_baud(baud);
         }
         let now_ns = u64::try_from(start.elapsed().as_nanos()).unwrap_or(u64::MAX);

@@ -1,0 +1,90 @@
+//! The CMSDK APB UART of the MPS2 boards (Arm's "Cortex-M System Design Kit" UART), as an
+//! `embedded-io` serial port. Registers: DATA (0x00), STATE (0x04: bit 0 TX buffer full, bit 1 RX
+//! buffer full), CTRL (0x08: bit 0 TX enable, bit 1 RX enable), BAUDDIV (0x10).
+
+use core::ptr::{read_volatile, write_volatile};
+
+const DATA: usize = 0x00;
+const STATE: usize = 0x04;
+const CTRL: usize = 0x08;
+const BAUDDIV: usize = 0x10;
+const TX_FULL: u32 = 1 << 0;
+const RX_FULL: u32 = 1 << 1;
+
+/// UART0: the host link.
+pub const UART0: usize = 0x4000_4000;
+/// UART1: the servo bus.
+pub const UART1: usize = 0x4000_5000;
+
+/// One UART, owned by whoever holds this value (the board's main creates each once).
+pub struct Uart {
+    base: usize,
+}
+
+impl Uart {
+    /// Enables the UART at `base` at `baud` for a `sysclk_hz` peripheral clock.
+    pub fn new(base: usize, sysclk_hz: u32, baud: u32) -> Self {
+        let uart = Self { base };
+        // The divider must be at least 16 (CMSDK); QEMU does not time the line anyway.
+        uart.write_reg(BAUDDIV, (sysclk_hz / baud.max(1)).max(16));
+        uart.write_reg(CTRL, 0b11);
+        uart
+    }
+
+    fn read_reg(&self, offset: usize) -> u32 {
+        // SAFETY: `base` is one of the UART blocks of the MPS2 memory map (UART0/UART1 above), so
+        // `base + offset` is a valid, aligned device register for volatile access.
+        unsafe { read_volatile((self.base + offset) as *const u32) }
+    }
+
+    fn write_reg(&self, offset: usize, value: u32) {
+        // SAFETY: as in `read_reg`; the registers written (DATA, CTRL, BAUDDIV) have no effect
+        // beyond this UART.
+        unsafe { write_volatile((self.base + offset) as *mut u32, value) }
+    }
+
+    fn rx_ready(&self) -> bool {
+        self.read_reg(STATE) & RX_FULL != 0
+    }
+}
+
+impl embedded_io::ErrorType for Uart {
+    type Error = core::convert::Infallible;
+}
+
+impl embedded_io::ReadReady for Uart {
+    fn read_ready(&mut self) -> Result<bool, Self::Error> {
+        Ok(self.rx_ready())
+    }
+}
+
+impl embedded_io::Read for Uart {
+    /// Blocks until a byte has come, then returns what is there (the UART holds one byte).
+    fn read(&mut self, buf: &mut [u8]) -> Result<usize, Self::Error> {
+        if buf.is_empty() {
+            return Ok(0);
+        }
+        while !self.rx_ready() {}
+        let mut n = 0;
+        while n < buf.len() && self.rx_ready() {
+            buf[n] = self.read_reg(DATA) as u8;
+            n += 1;
+        }
+        Ok(n)
+    }
+}
+
+impl embedded_io::Write for Uart {
+    fn write(&mut self, buf: &[u8]) -> Result<usize, Self::Error> {
+        for &byte in buf {
+            while self.read_reg(STATE) & TX_FULL != 0 {}
+            self.write_reg(DATA, u32::from(byte));
+        }
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> Result<(), Self::Error> {
+        while self.read_reg(STATE) & TX_FULL != 0 {}
+        Ok(())
+    }
+}
