@@ -135,8 +135,9 @@ impl<const N: usize, const Q: usize> Firmware<N, Q> {
     pub fn receive<W: Write>(&mut self, bytes: &[u8], now_us: u64, tx: &mut W) -> Result<(), W::Error> {
         let mut result = Ok(());
         let mut out = [0u8; MAX_FRAME];
+        // The link's error counts as the status reports them; they change only when a frame ends.
+        let mut link = report::LinkCounts::of(&self.decoder.stats(), &self.session.stats());
         for &byte in bytes {
-            let link = report::LinkCounts::of(&self.decoder.stats(), &self.session.stats());
             let written = match self.decoder.push(byte) {
                 None => continue,
                 Some(Ok(frame)) => {
@@ -150,6 +151,7 @@ impl<const N: usize, const Q: usize> Firmware<N, Q> {
                 }
                 Some(Err(error)) => self.session.nak_broken(&error, &mut out),
             };
+            link = report::LinkCounts::of(&self.decoder.stats(), &self.session.stats());
             // A reply always fits a frame (every message's bound is below MAX_FRAME); should one
             // not, the host times out and retransmits.
             if let Ok(n) = written {
