@@ -53,11 +53,8 @@ enum Command {
         #[command(subcommand)]
         what: BenchCommand,
     },
-    /// Simulated servo buses (served on a pseudo-terminal).
-    Sim {
-        #[command(subcommand)]
-        what: crate::sim::cli::SimCommand,
-    },
+    /// Simulated servo buses (served on a pseudo-terminal), or the firmware under QEMU (--qemu).
+    Sim(crate::sim::cli::SimArgs),
     /// Joint trajectories through keyframes.
     Trajectory {
         #[command(subcommand)]
@@ -232,7 +229,7 @@ fn run(link: &crate::drive::cli::LinkArgs, command: Command, out: &mut dyn Write
         Command::Bench { what: BenchCommand::Bus(args) } => return crate::bench_bus::run(&args, out),
         Command::Bench { what: BenchCommand::Rate(args) } => return crate::bench_rate::run(&args, out),
         Command::Servo(args) => return crate::servo::cli::run(args, out, err),
-        Command::Sim { what } => return crate::sim::cli::run(what, out, err),
+        Command::Sim(args) => return crate::sim::cli::run(args, out, err),
         Command::Trajectory { what: TrajectoryCommand::Sample(args) } => {
             return trajectory::run_sample(&args, out, err)
         }

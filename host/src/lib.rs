@@ -16,6 +16,7 @@ pub mod kcompare;
 pub mod link;
 pub mod parse;
 pub mod plot;
+pub mod qemu;
 pub mod servo;
 pub mod sil;
 pub mod sim;

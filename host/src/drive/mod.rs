@@ -13,7 +13,7 @@ mod cartesian_file;
 pub mod cli;
 mod commands;
 pub mod connection;
-mod interrupt;
+pub(crate) mod interrupt;
 mod play;
 mod progress;
 mod session;

@@ -56,6 +56,8 @@ pub struct SimBus {
     faults: FaultState,
     now_ns: u64,
     last_rx_ns: u64,
+    /// The gap after which a partial packet is dropped ([`INTER_BYTE_TIMEOUT_NS`] unless changed).
+    inter_byte_timeout_ns: u64,
     stats: BusStats,
 }
 
@@ -75,8 +77,15 @@ impl SimBus {
             faults: FaultState::new(Faults::default()),
             now_ns: 0,
             last_rx_ns: 0,
+            inter_byte_timeout_ns: INTER_BYTE_TIMEOUT_NS,
             stats: BusStats::default(),
         }
+    }
+
+    /// Sets the gap after which the servos drop a partial packet: longer than the servos' own for a
+    /// master whose bytes come with gaps its line does not have (an emulator's UART on a pty).
+    pub fn set_inter_byte_timeout(&mut self, ns: u64) {
+        self.inter_byte_timeout_ns = ns;
     }
 
     /// The same bus with `faults`.
@@ -163,7 +172,7 @@ impl SimBus {
     pub fn receive(&mut self, bytes: &[u8], at_ns: u64) -> Vec<WireByte> {
         let first_ns = at_ns.saturating_sub(wire_time_ns(bytes.len(), self.baud));
         let mut pending = Vec::new();
-        if first_ns.saturating_sub(self.last_rx_ns) > INTER_BYTE_TIMEOUT_NS {
+        if first_ns.saturating_sub(self.last_rx_ns) > self.inter_byte_timeout_ns {
             self.expire_partial(&mut pending);
         }
         self.last_rx_ns = at_ns;
@@ -198,7 +207,7 @@ impl SimBus {
         if !self.decoder.holds_partial() {
             return;
         }
-        let t = self.last_rx_ns.saturating_add(INTER_BYTE_TIMEOUT_NS);
+        let t = self.last_rx_ns.saturating_add(self.inter_byte_timeout_ns);
         self.decoder.expire();
         while let Some(frame) = self.decoder.next_frame() {
             let mut frame = frame.to_vec();

@@ -1,6 +1,9 @@
-//! `armctl sim servos`: a simulated servo bus served on a pseudo-terminal.
+//! `armctl sim servos`: a simulated servo bus served on a pseudo-terminal; `armctl sim --qemu`:
+//! the real firmware binary under QEMU on such a bus, for `armctl --port`.
 
 use std::io::Write;
+use std::path::PathBuf;
+use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
@@ -9,6 +12,63 @@ use firmware::bus::{dxl2, feetech, Protocol};
 use super::faults::Faults;
 use super::pty::{PtyServer, SimConfig};
 use crate::bus_args::{model_for, ModelArg, ProtocolArg};
+use crate::qemu::{self, Qemu, QemuConfig};
+
+/// Arguments of `armctl sim`: a subcommand, or `--qemu`.
+#[derive(Args, Debug)]
+#[command(args_conflicts_with_subcommands = true)]
+pub struct SimArgs {
+    /// Run the real firmware (the MPS2 AN386 Cortex-M4F binary, built if needed) under
+    /// qemu-system-arm, its servo bus on simulated SO-101 servos (Feetech STS3215, ids 1-5, 1 Mbps).
+    /// Prints the host link's port on the first line of stdout and the firmware's log on stderr,
+    /// then runs until interrupted.
+    #[arg(long)]
+    pub qemu: bool,
+    /// The firmware ELF to run instead of building the board crate's.
+    #[arg(long, requires = "qemu")]
+    pub elf: Option<PathBuf>,
+    /// Faults of the simulated servos under QEMU.
+    #[command(flatten)]
+    pub faults: FaultArgs,
+    /// What to simulate.
+    #[command(subcommand)]
+    pub what: Option<SimCommand>,
+}
+
+/// Faults of a simulated bus.
+#[derive(Args, Debug, Clone)]
+pub struct FaultArgs {
+    /// Servos that never answer (repeatable).
+    #[arg(long, num_args = 1..)]
+    pub silent: Vec<u8>,
+    /// Probability that a reply is corrupted (one bit flipped).
+    #[arg(long, default_value_t = 0.0)]
+    pub corrupt_rate: f64,
+    /// Probability per byte, both directions, that it is lost.
+    #[arg(long, default_value_t = 0.0)]
+    pub drop_rate: f64,
+    /// Seed of the random faults.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+}
+
+impl FaultArgs {
+    /// The faults, once the probabilities are checked.
+    pub fn faults(&self) -> Result<Faults> {
+        for (name, p) in [("--corrupt-rate", self.corrupt_rate), ("--drop-rate", self.drop_rate)] {
+            if !(0.0..=1.0).contains(&p) {
+                bail!("{name} must be a probability between 0 and 1");
+            }
+        }
+        Ok(Faults {
+            seed: self.seed,
+            silent: self.silent.clone(),
+            corrupt_rate: self.corrupt_rate,
+            drop_rate: self.drop_rate,
+            bit_flip_rate: 0.0,
+        })
+    }
+}
 
 /// What to simulate.
 #[derive(Subcommand, Debug)]
@@ -40,21 +100,12 @@ pub struct SimServosArgs {
     /// standard rate nearest their divider: 921600 for 1 Mbps).
     #[arg(long)]
     pub fixed_baud: bool,
-    /// Servos that never answer (repeatable).
-    #[arg(long, num_args = 1..)]
-    pub silent: Vec<u8>,
-    /// Probability that a reply is corrupted (one bit flipped).
-    #[arg(long, default_value_t = 0.0)]
-    pub corrupt_rate: f64,
-    /// Probability per byte, both directions, that it is lost.
-    #[arg(long, default_value_t = 0.0)]
-    pub drop_rate: f64,
+    /// Faults.
+    #[command(flatten)]
+    pub faults: FaultArgs,
     /// An id that gets a second servo (their replies collide).
     #[arg(long)]
     pub duplicate: Vec<u8>,
-    /// Seed of the random faults.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
 }
 
 /// Parses `1-6`, `1,3,5`, `1-3,7` into ids in the order given, without repeats.
@@ -87,7 +138,7 @@ pub fn config(args: &SimServosArgs) -> Result<SimConfig> {
     };
     let model = model_for(protocol, args.model)?;
     let ids = parse_ids(&args.ids)?;
-    let all = ids.iter().chain(&args.silent).chain(&args.duplicate);
+    let all = ids.iter().chain(&args.faults.silent).chain(&args.duplicate);
     if let Some(id) = all.into_iter().find(|&&id| id > max_id) {
         bail!("id {id} is outside {}'s range 0-{max_id}", protocol.name());
     }
@@ -95,18 +146,7 @@ pub fn config(args: &SimServosArgs) -> Result<SimConfig> {
         let known: Vec<String> = model.bauds.iter().map(|(_, b)| b.to_string()).collect();
         bail!("{} has no baud index for {} (it knows {})", model.name, args.baud, known.join(", "));
     }
-    for (name, p) in [("--corrupt-rate", args.corrupt_rate), ("--drop-rate", args.drop_rate)] {
-        if !(0.0..=1.0).contains(&p) {
-            bail!("{name} must be a probability between 0 and 1");
-        }
-    }
-    let faults = Faults {
-        seed: args.seed,
-        silent: args.silent.clone(),
-        corrupt_rate: args.corrupt_rate,
-        drop_rate: args.drop_rate,
-        bit_flip_rate: 0.0,
-    };
+    let faults = args.faults.faults()?;
     Ok(SimConfig {
         protocol,
         model,
@@ -119,8 +159,88 @@ pub fn config(args: &SimServosArgs) -> Result<SimConfig> {
 }
 
 /// Runs a `sim` command. Bad arguments are one `error:` line on `err` and exit code 2.
-pub fn run(command: SimCommand, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
-    let SimCommand::Servos(args) = command;
+pub fn run(args: SimArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+    match args.what {
+        Some(SimCommand::Servos(servos)) => run_servos(servos, out, err),
+        None if args.qemu => run_qemu(args.elf, &args.faults, out, err),
+        None => {
+            writeln!(err, "error: name what to simulate: `armctl sim servos ...` or `armctl sim --qemu`")?;
+            Ok(2)
+        }
+    }
+}
+
+/// The SO-101's bus as the built-in firmware expects it.
+pub fn so101_bus(faults: Faults) -> SimConfig {
+    use firmware::bus::table::STS3215;
+    SimConfig {
+        protocol: STS3215.protocol,
+        model: &STS3215,
+        ids: (1..=firmware::builtin::JOINTS as u8).collect(),
+        baud: 1_000_000,
+        faults,
+        duplicates: Vec::new(),
+        // QEMU sets the pty to 921600 for its 1 Mbps divider; the servos stay at 1 Mbps.
+        fixed_baud: true,
+    }
+}
+
+/// `armctl sim --qemu`.
+fn run_qemu(elf: Option<PathBuf>, faults: &FaultArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+    let faults = match faults.faults() {
+        Ok(f) => f,
+        Err(e) => {
+            writeln!(err, "error: {e:#}")?;
+            return Ok(2);
+        }
+    };
+    if !qemu::available() {
+        writeln!(err, "error: qemu-system-arm is not installed (apt-get install qemu-system-arm)")?;
+        return Ok(1);
+    }
+    let elf = match elf {
+        Some(elf) => elf,
+        None => qemu::build(qemu::FIRMWARE_BIN)?,
+    };
+    let bus = PtyServer::spawn(so101_bus(faults)).context("cannot open a pseudo-terminal")?;
+    let mut board = Qemu::start(&QemuConfig { elf, bus: Some(bus.path().to_string()) })?;
+    writeln!(out, "{}", board.link_path())?;
+    out.flush()?;
+    writeln!(
+        err,
+        "firmware under QEMU: host link on {link} (e.g. `armctl --port {link} status`), servo bus on {}; \
+         interrupt to stop",
+        bus.path(),
+        link = board.link_path()
+    )?;
+    err.flush()?;
+    let interruptible = crate::drive::interrupt::catch();
+    let mut logged = 0;
+    loop {
+        let lines = board.log().lines_from(logged);
+        logged += lines.len();
+        for line in lines {
+            writeln!(err, "firmware: {line}")?;
+        }
+        err.flush()?;
+        if let Some(status) = board.exited()? {
+            writeln!(err, "error: QEMU ended ({status})")?;
+            return Ok(1);
+        }
+        if bus.is_finished() {
+            bus.stop().context("the simulated bus stopped")?;
+            return Ok(1);
+        }
+        if interruptible && crate::drive::interrupt::requested() {
+            // Dropping `board` and `bus` stops QEMU and removes its working directory.
+            return Ok(crate::drive::interrupt::EXIT_CODE);
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+/// `armctl sim servos`.
+fn run_servos(args: SimServosArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
     if !args.pty {
         writeln!(err, "error: --pty is required (the simulated bus is served on a pseudo-terminal)")?;
         return Ok(2);

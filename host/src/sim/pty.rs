@@ -9,7 +9,7 @@
 
 use std::io::{Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -18,7 +18,7 @@ use firmware::bus::Protocol;
 use serialport::{SerialPort, TTYPort};
 
 use super::bus::SimBus;
-use super::faults::Faults;
+use super::faults::{FaultState, Faults};
 
 /// Ticks between a duplicate servo's position and its twin's, so that their replies to a position
 /// read differ and collide visibly (two real servos never stand at the same tick).
@@ -39,8 +39,10 @@ pub struct SimConfig {
     pub faults: Faults,
     /// Ids that get a second servo ([`TWIN_OFFSET_TICKS`] away from the first).
     pub duplicates: Vec<u8>,
-    /// Keep `baud` whatever the other end sets on the pty. QEMU's UARTs set the standard rate
-    /// nearest their divider (921600 for 1 Mbps), which real servos would not notice.
+    /// The other end is an emulated UART that does not time its line (QEMU): keep `baud` whatever
+    /// it sets on the pty (QEMU sets the standard rate nearest its divider, 921600 for 1 Mbps,
+    /// which real servos would not notice), and do not take the gaps between its bytes, which are
+    /// the emulator's scheduling, for the end of a packet.
     pub fixed_baud: bool,
 }
 
@@ -56,13 +58,29 @@ impl SimConfig {
         }
         bus
     }
+
+    /// The bus as served on a pty: for an emulated master, a partial packet is dropped only after
+    /// [`EMULATED_LINE_GAP_NS`].
+    fn build_for_pty(&self) -> SimBus {
+        let mut bus = self.build();
+        if self.fixed_baud {
+            bus.set_inter_byte_timeout(EMULATED_LINE_GAP_NS);
+        }
+        bus
+    }
 }
+
+/// The longest gap within one packet from an emulated UART: QEMU's pty output is paced by its own
+/// scheduling, with gaps of milliseconds inside a packet that a real line would not have.
+pub const EMULATED_LINE_GAP_NS: u64 = 50_000_000;
 
 /// A simulated bus on a pseudo-terminal; dropping it stops the serving thread.
 #[derive(Debug)]
 pub struct PtyServer {
     path: String,
     stop: Arc<AtomicBool>,
+    /// New faults for the serving thread to take up (hardware-in-the-loop tests change them mid-run).
+    new_faults: Arc<Mutex<Option<Faults>>>,
     thread: Option<JoinHandle<std::io::Result<()>>>,
 }
 
@@ -74,11 +92,19 @@ impl PtyServer {
         // Short reads so that the thread notices a stop request quickly.
         master.set_timeout(Duration::from_millis(20)).map_err(std::io::Error::from)?;
         let stop = Arc::new(AtomicBool::new(false));
-        let flag = stop.clone();
+        let new_faults = Arc::new(Mutex::new(None));
+        let control = Control { stop: stop.clone(), new_faults: new_faults.clone() };
         let thread = std::thread::Builder::new()
             .name("sim-servos".into())
-            .spawn(move || serve(&mut master, &slave, config.build(), !config.fixed_baud, &flag))?;
-        Ok(PtyServer { path, stop, thread: Some(thread) })
+            .spawn(move || serve(&mut master, &slave, config.build_for_pty(), !config.fixed_baud, &control))?;
+        Ok(PtyServer { path, stop, new_faults, thread: Some(thread) })
+    }
+
+    /// Replaces the bus's faults from the next burst on (the random stream restarts from their seed).
+    pub fn set_faults(&self, faults: Faults) {
+        if let Ok(mut slot) = self.new_faults.lock() {
+            *slot = Some(faults);
+        }
     }
 
     /// The slave end's path (e.g. `/dev/pts/5`) for other programs to open.
@@ -112,6 +138,12 @@ impl Drop for PtyServer {
     }
 }
 
+/// What the owner tells the serving thread.
+struct Control {
+    stop: Arc<AtomicBool>,
+    new_faults: Arc<Mutex<Option<Faults>>>,
+}
+
 /// Serves until stopped. The slave end is held open (a pty without one reports errors) and asked
 /// for its speed before each burst: a program that sets another baud rate (after `armctl servo
 /// set-baud`, say) is then heard only by servos set to that rate, as on a real bus.
@@ -120,11 +152,14 @@ fn serve(
     slave: &TTYPort,
     mut bus: SimBus,
     follow_baud: bool,
-    stop: &AtomicBool,
+    control: &Control,
 ) -> std::io::Result<()> {
     let start = Instant::now();
     let mut buf = [0u8; 512];
-    while !stop.load(Ordering::Relaxed) {
+    while !control.stop.load(Ordering::Relaxed) {
+        if let Some(faults) = control.new_faults.lock().ok().and_then(|mut slot| slot.take()) {
+            *bus.faults() = FaultState::new(faults);
+        }
         let n = match master.read(&mut buf) {
             Ok(n) => n,
             Err(e) if matches!(e.kind(), std::io::ErrorKind::TimedOut | std::io::ErrorKind::WouldBlock) => {

@@ -4,55 +4,117 @@
 #![no_std]
 #![no_main]
 
-mod clock;
-mod uart;
+use core::mem::MaybeUninit;
+use core::ptr::addr_of_mut;
+use core::sync::atomic::{AtomicBool, Ordering};
 
+use board_mps2_an386::clock::{self, SysTickClock};
+use board_mps2_an386::uart::{self, Uart};
+use board_mps2_an386::{halt, irq, stack};
 use cortex_m_rt::entry;
 use embedded_io::{Read, ReadReady};
 use firmware::app::{Board, Firmware};
 use firmware::bus::master::{BusConfig, Master, NoDirectionPin};
 use firmware::bus::table::STS3215;
-use firmware::controller::Config;
-
-use clock::SysTickClock;
-use uart::Uart;
+use firmware::controller::{Config, ConfigError};
 
 /// Host link and servo bus baud rate.
 const BAUD: u32 = 1_000_000;
+/// The built-in arm's joints.
+const JOINTS: usize = firmware::builtin::JOINTS;
+/// Keyframe queue slots.
+const QUEUE: usize = 32;
+/// How often the stack's high-water mark is checked and, when it grew, logged.
+const STACK_CHECK_US: u64 = 1_000_000;
+
+type App = Firmware<JOINTS, QUEUE>;
+type BusMaster = Master<Uart, NoDirectionPin, SysTickClock>;
+
+/// The firmware state, in static RAM so that the stack holds only call frames. The constructor's
+/// result is written straight into it: built on the stack and moved, a 6 KB state would need its
+/// size in stack again at start-up.
+static mut APP: MaybeUninit<Result<App, ConfigError>> = MaybeUninit::uninit();
+static mut MASTER: MaybeUninit<BusMaster> = MaybeUninit::uninit();
+static STARTED: AtomicBool = AtomicBool::new(false);
 
 #[entry]
 fn main() -> ! {
-    let Some(core) = cortex_m::Peripherals::take() else { halt() };
+    stack::paint();
+    let Some((app, master, link)) = start() else { halt() };
+    defmt::info!(
+        "static state: firmware {=usize} bytes, bus master {=usize} bytes; start-up stack {=usize} bytes",
+        core::mem::size_of::<App>(),
+        core::mem::size_of::<BusMaster>(),
+        stack::high_water()
+    );
+    run(app, master, link)
+}
+
+/// Brings up the hardware and the firmware core; `None` if the built-in arm is refused or this ran
+/// before (the statics are written once).
+#[inline(never)]
+fn start() -> Option<(&'static mut App, &'static mut BusMaster, Uart)> {
+    if STARTED.swap(true, Ordering::Relaxed) {
+        return None;
+    }
+    let core = cortex_m::Peripherals::take()?;
     clock::start(core.SYST);
-    let clock = SysTickClock;
     let mut link = Uart::new(uart::UART0, clock::SYSCLK_HZ, BAUD);
-    let bus_port = Uart::new(uart::UART1, clock::SYSCLK_HZ, BAUD);
+    irq::enable_link_wakeup(&mut link);
     let bus = BusConfig::new(STS3215.protocol, BAUD);
     let board = Board { bus, model: &STS3215, control: Config::default() };
-    let Ok(setup) = firmware::builtin::setup() else { halt() };
-    let Ok(mut app) = Firmware::<{ firmware::builtin::JOINTS }, 32>::new(board, Some(setup)) else { halt() };
-    let mut master: Master<Uart, NoDirectionPin, SysTickClock> = Master::new(bus_port, NoDirectionPin, clock, bus);
+    let setup = firmware::builtin::setup().ok()?;
+    // SAFETY: STARTED guarantees this runs once, so these are the only references to the statics.
+    let (app_slot, master_slot) = unsafe { (&mut *addr_of_mut!(APP), &mut *addr_of_mut!(MASTER)) };
+    let app = app_slot.write(App::new(board, Some(setup))).as_mut().ok()?;
+    let port = Uart::new(uart::UART1, clock::SYSCLK_HZ, BAUD);
+    let master = master_slot.write(BusMaster::new(port, NoDirectionPin, SysTickClock, bus));
+    defmt::info!(
+        "mps2-an386: so101, {=usize} joints, {=usize} queue slots, {=u32} us period, link and bus at {=u32} baud",
+        JOINTS,
+        QUEUE,
+        app.period_us(),
+        BAUD
+    );
+    Some((app, master, link))
+}
+
+/// The control loop: host bytes as they come, a tick on the fixed schedule, and sleep in between
+/// (SysTick wakes the core every millisecond, a host byte at once).
+#[inline(never)]
+fn run(app: &'static mut App, master: &'static mut BusMaster, mut link: Uart) -> ! {
+    let clock = SysTickClock;
     let period = u64::from(app.period_us());
     let mut next_tick = clock.now();
+    let mut next_stack_check = next_tick + STACK_CHECK_US;
+    let mut stack_logged = 0;
     let mut received = [0u8; 64];
     loop {
         while link.read_ready().unwrap_or(false) {
             let n = link.read(&mut received).unwrap_or(0);
-            let _ = app.receive(&received[..n], clock.now(), &mut link);
+            let _ = app.receive(received.get(..n).unwrap_or_default(), clock.now(), &mut link);
         }
         let now = clock.now();
         if now >= next_tick {
-            let _ = app.tick(&mut master, now, &mut link);
+            let _ = app.tick(master, now, &mut link);
             // The next slot on the fixed schedule; missed slots are skipped, not made up.
             next_tick = (next_tick + period).max(clock.now());
         }
-    }
-}
-
-/// Stops the core for good (a broken start-up; the host sees no handshake).
-fn halt() -> ! {
-    loop {
-        cortex_m::asm::wfi();
+        // Interrupts off between the last check and `wfi`, so a byte that comes in between wakes
+        // it (a pending interrupt ends `wfi` even while masked) instead of waiting for SysTick.
+        cortex_m::interrupt::free(|_| {
+            if !link.read_ready().unwrap_or(true) && clock.now() < next_tick {
+                cortex_m::asm::wfi();
+            }
+        });
+        if now >= next_stack_check {
+            next_stack_check = now + STACK_CHECK_US;
+            let depth = stack::high_water();
+            if depth > stack_logged {
+                stack_logged = depth;
+                defmt::info!("stack high-water: {=usize} bytes", depth);
+            }
+        }
     }
 }
 

@@ -1,15 +1,19 @@
 //! The CMSDK APB UART of the MPS2 boards (Arm's "Cortex-M System Design Kit" UART), as an
 //! `embedded-io` serial port. Registers: DATA (0x00), STATE (0x04: bit 0 TX buffer full, bit 1 RX
-//! buffer full), CTRL (0x08: bit 0 TX enable, bit 1 RX enable), BAUDDIV (0x10).
+//! buffer full), CTRL (0x08: bit 0 TX enable, bit 1 RX enable, bit 3 RX interrupt enable),
+//! INTSTATUS/INTCLEAR (0x0C: bit 1 RX), BAUDDIV (0x10).
 
 use core::ptr::{read_volatile, write_volatile};
 
 const DATA: usize = 0x00;
 const STATE: usize = 0x04;
 const CTRL: usize = 0x08;
+const INTCLEAR: usize = 0x0C;
 const BAUDDIV: usize = 0x10;
 const TX_FULL: u32 = 1 << 0;
 const RX_FULL: u32 = 1 << 1;
+const ENABLE_TX_RX: u32 = 0b11;
+const RX_INTERRUPT: u32 = 1 << 3;
 
 /// UART0: the host link.
 pub const UART0: usize = 0x4000_4000;
@@ -27,8 +31,19 @@ impl Uart {
         let uart = Self { base };
         // The divider must be at least 16 (CMSDK); QEMU does not time the line anyway.
         uart.write_reg(BAUDDIV, (sysclk_hz / baud.max(1)).max(16));
-        uart.write_reg(CTRL, 0b11);
+        uart.write_reg(CTRL, ENABLE_TX_RX);
         uart
+    }
+
+    /// Raises the UART's receive interrupt when a byte comes, so that a core sleeping in `wfi`
+    /// wakes for it (the interrupt itself only needs [`clear_rx_interrupt`](Self::clear_rx_interrupt)).
+    pub fn enable_rx_interrupt(&mut self) {
+        self.write_reg(CTRL, ENABLE_TX_RX | RX_INTERRUPT);
+    }
+
+    /// Acknowledges the receive interrupt (the byte stays in DATA until read).
+    pub fn clear_rx_interrupt(base: usize) {
+        Self { base }.write_reg(INTCLEAR, RX_FULL);
     }
 
     fn read_reg(&self, offset: usize) -> u32 {
@@ -38,8 +53,8 @@ impl Uart {
     }
 
     fn write_reg(&self, offset: usize, value: u32) {
-        // SAFETY: as in `read_reg`; the registers written (DATA, CTRL, BAUDDIV) have no effect
-        // beyond this UART.
+        // SAFETY: as in `read_reg`; the registers written (DATA, CTRL, INTCLEAR, BAUDDIV) have no
+        // effect beyond this UART.
         unsafe { write_volatile((self.base + offset) as *mut u32, value) }
     }
 

@@ -1,0 +1,17 @@
+//! The MPS2 AN386 board support shared by the firmware binary (`main.rs`) and the instruction-count
+//! benchmark (`bin/opcount.rs`): the UARTs, the SysTick time base, defmt logging over semihosting
+//! and stack painting. `unsafe` lives only in this crate, each block with a SAFETY line.
+#![no_std]
+
+pub mod clock;
+pub mod irq;
+pub mod log;
+pub mod stack;
+pub mod uart;
+
+/// Stops the core for good (a broken start-up, or a panic).
+pub fn halt() -> ! {
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
