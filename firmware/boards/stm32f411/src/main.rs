@@ -1,0 +1,114 @@
+//! The firmware for an STM32F411 "Black Pill" (STM32F411CEU6, 25 MHz crystal): USART1 is the host
+//! link to a USB-serial adapter, USART2 the servo bus (Feetech, 1 Mbps, one wire), TIM2 the time
+//! base; the built-in SO-101 arm. Everything else is the firmware core
+//! ([`firmware::app::Firmware`]): this file only wires the hardware to it.
+//!
+//! | pin  | use                                                                   |
+//! |------|-----------------------------------------------------------------------|
+//! | PA9  | USART1 TX, host link (to the adapter's RX)                            |
+//! | PA10 | USART1 RX, host link (from the adapter's TX)                          |
+//! | PA2  | USART2 TX/RX, servo bus data, open drain, external pull-up to 3.3 V   |
+//! | PA1  | bus direction, high while transmitting (for a tri-state buffer board) |
+#![no_std]
+#![no_main]
+
+mod clock;
+mod half_duplex;
+mod serial;
+
+use cortex_m_rt::entry;
+use defmt_rtt as _;
+use embedded_io::{Read, ReadReady};
+use firmware::app::{Board, Firmware};
+use firmware::bus::master::{BusConfig, Master};
+use firmware::bus::table::STS3215;
+use firmware::controller::Config;
+use stm32f4xx_hal::gpio::{Output, PinState, PA1};
+use stm32f4xx_hal::pac;
+use stm32f4xx_hal::prelude::*;
+use stm32f4xx_hal::rcc;
+use stm32f4xx_hal::serial::{config::Config as SerialConfig, Serial};
+
+use clock::Tim2Clock;
+use half_duplex::HalfDuplex;
+use serial::Link;
+
+/// Host link and servo bus baud rate.
+const BAUD: u32 = 1_000_000;
+
+/// The bus direction output: high while the board transmits on the bus.
+///
+/// Driving it costs one pin and makes both wirings work with the same binary: the servo data line
+/// straight on PA2 (PA1 left unconnected; the USART's single-wire mode needs no direction signal),
+/// or a 74HC126 + 74HC04 tri-state buffer adapter whose transmit buffer PA1 enables (and, inverted,
+/// whose receive buffer it disables). The master raises it before the first byte and lowers it after
+/// `flush`, which waits for transmission complete.
+type DirectionPin = PA1<Output>;
+type App = Firmware<{ firmware::builtin::JOINTS }, 32>;
+type BusMaster = Master<HalfDuplex, DirectionPin, Tim2Clock>;
+
+#[entry]
+fn main() -> ! {
+    let Some(dp) = pac::Peripherals::take() else { halt() };
+    // 25 MHz crystal, PLL to 96 MHz: USART1 (APB2, 96 MHz) and USART2 (APB1, 48 MHz) both divide
+    // exactly to 1 Mbps, and the PLL's 48 MHz output is ready for USB later.
+    let mut rcc = dp.RCC.freeze(rcc::Config::hse(25.MHz()).sysclk(96.MHz()));
+    let Some(clock) = Tim2Clock::start(dp.TIM2, &mut rcc) else { halt() };
+    let gpioa = dp.GPIOA.split(&mut rcc);
+
+    let link_config = SerialConfig::default().baudrate(BAUD.bps());
+    // The pull-up holds RX idle (high) with the adapter unplugged, instead of reading noise as bytes.
+    let link_rx = gpioa.pa10.internal_pull_up(true);
+    let Ok(usart1) = Serial::new(dp.USART1, (gpioa.pa9, link_rx), link_config, &mut rcc) else { halt() };
+    let mut link = Link::new(usart1);
+
+    // The internal pull-up (~40 kΩ) only keeps the line defined with nothing attached; the bus
+    // needs the external ~1 kΩ one for 1 Mbps edges.
+    let _bus_pin = gpioa.pa2.into_alternate_open_drain::<7>().internal_pull_up(true);
+    let direction: DirectionPin = gpioa.pa1.into_push_pull_output_in_state(PinState::Low);
+    let Some(bus_port) = HalfDuplex::new(dp.USART2, BAUD, &mut rcc) else { halt() };
+    // The receiver is off while the board transmits (see half_duplex.rs): no echo to skip.
+    let bus = BusConfig { echo: false, ..BusConfig::new(STS3215.protocol, BAUD) };
+
+    defmt::info!(
+        "stm32f411: link USART1 {=u32} bps (PA9/PA10), bus USART2 {=u32} bps one-wire PA2, sysclk {=u32} Hz",
+        BAUD,
+        BAUD,
+        rcc.clocks.sysclk().raw()
+    );
+
+    let board = Board { bus, model: &STS3215, control: Config::default() };
+    let Ok(setup) = firmware::builtin::setup() else { halt() };
+    let Ok(app) = App::new(board, Some(setup)) else { halt() };
+    // The state lives in static RAM, so the stack holds only call frames.
+    let Some(app) = cortex_m::singleton!(APP: App = app) else { halt() };
+    let master = BusMaster::new(bus_port, direction, clock, bus);
+    let Some(master) = cortex_m::singleton!(MASTER: BusMaster = master) else { halt() };
+    let period = u64::from(app.period_us());
+    let mut next_tick = clock.now();
+    let mut received = [0u8; 64];
+    loop {
+        while link.read_ready().unwrap_or(false) {
+            let n = link.read(&mut received).unwrap_or(0);
+            let _ = app.receive(&received[..n], clock.now(), &mut link);
+        }
+        let now = clock.now();
+        if now >= next_tick {
+            let _ = app.tick(master, now, &mut link);
+            // The next slot on the fixed schedule; missed slots are skipped, not made up.
+            next_tick = (next_tick + period).max(clock.now());
+        }
+    }
+}
+
+/// Stops the core for good (a broken start-up; the host sees no handshake).
+fn halt() -> ! {
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+#[panic_handler]
+fn panic(_: &core::panic::PanicInfo) -> ! {
+    halt()
+}
