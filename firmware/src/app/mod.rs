@@ -154,9 +154,9 @@ impl<const N: usize, const Q: usize> Firmware<N, Q> {
             link = report::LinkCounts::of(&self.decoder.stats(), &self.session.stats());
             // A reply always fits a frame (every message's bound is below MAX_FRAME); should one
             // not, the host times out and retransmits.
-            if let Ok(n) = written {
+            if let Some(frame) = written.ok().and_then(|n| out.get(..n)) {
                 if result.is_ok() {
-                    result = tx.write_all(&out[..n]);
+                    result = tx.write_all(frame);
                 }
             }
         }
@@ -187,8 +187,9 @@ impl<const N: usize, const Q: usize> Firmware<N, Q> {
                 let link = report::LinkCounts::of(&self.decoder.stats(), &self.session.stats());
                 let status = self.core.status(now_us, link);
                 let mut out = [0u8; MAX_FRAME];
-                if let Ok(n) = self.session.event(&FirmwareMessage::Telemetry(status), &mut out) {
-                    tx.write_all(&out[..n])?;
+                let written = self.session.event(&FirmwareMessage::Telemetry(status), &mut out);
+                if let Some(frame) = written.ok().and_then(|n| out.get(..n)) {
+                    tx.write_all(frame)?;
                 }
             }
         }

@@ -82,10 +82,11 @@ impl<const N: usize> ServoGroup<N> {
         }
         let mut raw = [0u8; MAX_GROUP * 4];
         let len = item.len();
-        let report = master.sync_read(item.address, u16::from(item.size), &self.ids, &mut raw[..N * len])?;
-        for (i, v) in values.iter_mut().enumerate() {
+        let raw = raw.get_mut(..N * len).unwrap_or_default();
+        let report = master.sync_read(item.address, u16::from(item.size), &self.ids, raw)?;
+        for (i, (v, bytes)) in values.iter_mut().zip(raw.chunks_exact(len.max(1))).enumerate() {
             if report.answered & (1 << i) != 0 {
-                if let Ok(x) = item.decode(&raw[i * len..(i + 1) * len], self.model.endian) {
+                if let Ok(x) = item.decode(bytes, self.model.endian) {
                     // Only an unsigned 4-byte item can exceed i32; no position item is one.
                     *v = x.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
                 }

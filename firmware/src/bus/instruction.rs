@@ -165,13 +165,14 @@ pub fn sync_write_records(length: u16, data: &[u8]) -> Option<impl Iterator<Item
 
 /// The records of a bulk read, or `None` when `records` is not a whole number of 5-byte records.
 pub fn bulk_read_records(records: &[u8]) -> Option<impl Iterator<Item = BulkReadRecord> + '_> {
-    if !records.len().is_multiple_of(5) {
+    let (whole, rest) = records.as_chunks::<5>();
+    if !rest.is_empty() {
         return None;
     }
-    Some(records.chunks_exact(5).map(|r| BulkReadRecord {
-        id: r[0],
-        address: u16::from_le_bytes([r[1], r[2]]),
-        length: u16::from_le_bytes([r[3], r[4]]),
+    Some(whole.iter().map(|&[id, a0, a1, l0, l1]| BulkReadRecord {
+        id,
+        address: u16::from_le_bytes([a0, a1]),
+        length: u16::from_le_bytes([l0, l1]),
     }))
 }
 

@@ -407,7 +407,8 @@ where
         }
         self.decoder.clear();
         self.direction.set_high().map_err(|_| MasterError::DirectionPin)?;
-        let sent = self.port.write_all(&self.tx[..n]).and_then(|()| self.port.flush());
+        let packet = self.tx.get(..n).ok_or(MasterError::BadRequest { reason: "packet longer than the buffer" })?;
+        let sent = self.port.write_all(packet).and_then(|()| self.port.flush());
         // Back to receive even when the write failed, so the bus is not left driven.
         let released = self.direction.set_low();
         sent.map_err(MasterError::Io)?;
@@ -450,10 +451,10 @@ where
             self.stats.bytes_received = self.stats.bytes_received.wrapping_add(got as u64);
             let skip = self.echo_left.min(got);
             self.echo_left -= skip;
-            let mut rest = &chunk[skip..got];
+            let mut rest = chunk.get(skip..got).unwrap_or_default();
             while !rest.is_empty() {
                 let taken = self.decoder.extend(rest);
-                rest = &rest[taken..];
+                rest = rest.get(taken..).unwrap_or_default();
                 if !rest.is_empty() && self.drain(&mut on_status) {
                     break 'wait true;
                 }
@@ -633,10 +634,11 @@ where
         for attempt in 0..=self.config.retries {
             // The servos still missing (all of them on the first attempt), in their order.
             let mut n = 0;
-            for id in report.missing(ids) {
-                asked[n] = id;
+            for (slot, id) in asked.iter_mut().zip(report.missing(ids)) {
+                *slot = id;
                 n += 1;
             }
+            let asked = asked.get(..n).unwrap_or_default();
             if n == 0 {
                 break;
             }
@@ -644,15 +646,14 @@ where
                 self.stats.retries = self.stats.retries.wrapping_add(1);
             }
             report.attempts = attempt + 1;
-            let instruction = Instruction::SyncRead { address, length, ids: &asked[..n] };
+            let instruction = Instruction::SyncRead { address, length, ids: asked };
             self.send(&InstructionPacket { id: BROADCAST, instruction })?;
             let timeout_us = self.reply_timeout_us(n, len);
             let mut pending = n;
             self.receive(timeout_us, |status| {
                 let Some(i) = ids.iter().position(|&id| id == status.id) else { return Flow::More };
-                if !asked[..n].contains(&status.id)
-                    || !report.book(i, protocol, status.error, status.params, &mut out[i * len..(i + 1) * len])
-                {
+                let Some(slot) = out.get_mut(i * len..(i + 1) * len) else { return Flow::More };
+                if !asked.contains(&status.id) || !report.book(i, protocol, status.error, status.params, slot) {
                     return Flow::More;
                 }
                 countdown(&mut pending)

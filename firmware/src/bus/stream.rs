@@ -112,9 +112,16 @@ impl<const CAP: usize> StreamDecoder<CAP> {
     }
 
     fn drop_front(&mut self, n: usize) {
-        let n = n.min(self.len);
-        self.buf.copy_within(n..self.len, 0);
-        self.len -= n;
+        // Bounded by CAP here, not by the invariant alone, so the copy has no panic path.
+        let len = self.len.min(CAP);
+        let n = n.min(len);
+        self.buf.copy_within(n..len, 0);
+        self.len = len - n;
+    }
+
+    /// The bytes held.
+    fn held(&self) -> &[u8] {
+        self.buf.get(..self.len).unwrap_or_default()
     }
 
     /// Appends as many of `bytes` as fit; returns how many were taken. Fewer than all means the
@@ -126,9 +133,10 @@ impl<const CAP: usize> StreamDecoder<CAP> {
         if n > 0 {
             self.idle = false;
         }
-        self.buf[self.len..self.len + n].copy_from_slice(&bytes[..n]);
-        self.len += n;
-        n
+        let free = self.buf.iter_mut().skip(self.len);
+        let taken = free.zip(bytes).map(|(slot, &b)| *slot = b).count();
+        self.len += taken;
+        taken
     }
 
     /// Appends one byte and returns the frame it completes, if any. Used alone, `push` always has
@@ -153,7 +161,7 @@ impl<const CAP: usize> StreamDecoder<CAP> {
     fn next_frame_len(&mut self) -> Option<usize> {
         loop {
             // Skip to the first byte that can start a header (both protocols start with 0xFF).
-            let start = self.buf[..self.len].iter().position(|&b| b == 0xFF).unwrap_or(self.len);
+            let start = self.held().iter().position(|&b| b == 0xFF).unwrap_or(self.len);
             if start > 0 {
                 self.stats.garbage_bytes = self.stats.garbage_bytes.wrapping_add(start as u32);
                 self.drop_front(start);
@@ -161,7 +169,7 @@ impl<const CAP: usize> StreamDecoder<CAP> {
             if self.len == 0 {
                 return None;
             }
-            match self.protocol.frame_len(&self.buf[..self.len]) {
+            match self.protocol.frame_len(self.held()) {
                 FrameLen::NotAFrame => {
                     self.stats.garbage_bytes = self.stats.garbage_bytes.wrapping_add(1);
                     self.drop_front(1);
@@ -175,7 +183,7 @@ impl<const CAP: usize> StreamDecoder<CAP> {
                     self.drop_front(1);
                 }
                 FrameLen::NeedMore(_) => return None,
-                FrameLen::Complete(n) => match self.protocol.verify(&self.buf[..n.min(self.len)]) {
+                FrameLen::Complete(n) => match self.protocol.verify(self.held().get(..n).unwrap_or(self.held())) {
                     Ok(()) => {
                         self.stats.frames = self.stats.frames.wrapping_add(1);
                         self.delivered = n.min(self.len);

@@ -222,7 +222,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
 
     /// `q` clamped into the joint limits.
     fn clamped(&self, q: &SVector<f32, N>) -> SVector<f32, N> {
-        q.zip_zip_map(&self.limits.lower, &self.limits.upper, |x, lo, hi| x.clamp(lo, hi))
+        q.zip_zip_map(&self.limits.lower, &self.limits.upper, super::limiter::within)
     }
 
     /// Refuses motion while e-stopped or limp.

@@ -51,27 +51,44 @@ pub fn limit_step<const N: usize>(
         let v = from.velocity[j];
         let (vmax, amax) = (limits.max_velocity[j], limits.max_acceleration[j]);
         let target = if desired[j].is_finite() { desired[j] } else { p };
-        let target = target.clamp(limits.lower[j], limits.upper[j]);
+        let target = within(target, limits.lower[j], limits.upper[j]);
         let error = target - p;
         let moving = if desired_velocity[j].is_finite() { libm::fabsf(desired_velocity[j]) } else { 0.0 };
         let cap = vmax.min(stopping_speed(libm::fabsf(error), amax, dt) + moving);
         let raw = error / dt;
         let dv = amax * dt;
-        let velocity = raw.clamp(-cap, cap).clamp(v - dv, v + dv);
+        let velocity = within(within(raw, -cap, cap), v - dv, v + dv);
         // Unclamped, the step lands on the target exactly (not one rounding off it), so a
         // setpoint that has arrived comes to rest with a velocity of exactly zero.
         let position =
-            if velocity == raw { target } else { (p + velocity * dt).clamp(limits.lower[j], limits.upper[j]) };
+            if velocity == raw { target } else { within(p + velocity * dt, limits.lower[j], limits.upper[j]) };
         next.position[j] = position;
         next.velocity[j] = (position - p) / dt;
     }
     next
 }
 
+/// `x` limited to `lo..=hi`. Unlike `f32::clamp` it has no panic for `lo > hi` (the firmware links
+/// no panic path; see the board's panic handler): then it returns `hi`, and a NaN `x` gives `lo`.
+#[inline]
+pub fn within(x: f32, lo: f32, hi: f32) -> f32 {
+    x.max(lo).min(hi)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use kinematics::nalgebra::Vector2;
+
+    #[test]
+    fn within_limits_like_clamp_and_never_panics() {
+        assert_eq!(within(0.5, -1.0, 1.0), 0.5);
+        assert_eq!(within(3.0, -1.0, 1.0), 1.0);
+        assert_eq!(within(-3.0, -1.0, 1.0), -1.0);
+        assert_eq!(within(f32::NAN, -1.0, 1.0), -1.0);
+        // Where f32::clamp would panic (lo > hi), the upper bound wins.
+        assert_eq!(within(0.0, 1.0, -1.0), -1.0);
+    }
 
     fn limits() -> JointLimits<f32, 2> {
         JointLimits::new(Vector2::repeat(-1.0), Vector2::repeat(1.0), Vector2::repeat(2.0), Vector2::repeat(10.0))

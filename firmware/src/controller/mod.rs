@@ -156,7 +156,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             return Err(ConfigError::PeriodTooShort { minimum_us: 1 });
         }
         let start = chain.middle();
-        let start = start.zip_zip_map(&limits.lower, &limits.upper, |x, lo, hi| x.clamp(lo, hi));
+        let start = start.zip_zip_map(&limits.lower, &limits.upper, limiter::within);
         let player = Player::new(start, limits).map_err(|e| match e {
             kinematics::trajectory::LimitError::InvalidLimits { joint } => ConfigError::BadLimits { joint },
             _ => ConfigError::BadLimits { joint: 0 },

@@ -105,10 +105,10 @@ pub fn decode(src: &[u8], dst: &mut [u8]) -> Result<usize, CobsError> {
             return Err(CobsError::ZeroByte { index: i });
         }
         let end = i + usize::from(code);
-        if end > src.len() {
+        let Some(block) = src.get(i + 1..end) else {
             return Err(CobsError::Truncated { required: end, available: src.len() });
-        }
-        for (k, &byte) in src[i + 1..end].iter().enumerate() {
+        };
+        for (k, &byte) in block.iter().enumerate() {
             if byte == 0 {
                 return Err(CobsError::ZeroByte { index: i + 1 + k });
             }

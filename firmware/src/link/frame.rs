@@ -159,7 +159,8 @@ pub fn encode_message<M: Serialize>(
 
 /// Header and CRC into `raw[..end + CRC_LEN]`, then COBS and the delimiter into `out`.
 fn finish(seq: u8, kind: FrameKind, raw: &mut [u8; MAX_RAW], end: usize, out: &mut [u8]) -> Result<usize, FrameError> {
-    if end + CRC_LEN > MAX_RAW {
+    // Written so that no addition can wrap: the bound is then known to the slicing below.
+    if end > MAX_RAW - CRC_LEN {
         return Err(FrameError::BufferTooSmall);
     }
     raw[0] = seq;
@@ -271,8 +272,9 @@ impl<const CAP: usize> FrameDecoder<CAP> {
         if len == 0 {
             return None;
         }
-        let result = match cobs::decode(&self.encoded[..len], &mut self.raw) {
-            Ok(n) => parse_raw(&self.raw[..n]),
+        let encoded = self.encoded.get(..len).unwrap_or_default();
+        let result = match cobs::decode(encoded, &mut self.raw) {
+            Ok(n) => parse_raw(self.raw.get(..n).unwrap_or_default()),
             Err(e) => Err(FrameError::Cobs(e)),
         };
         match &result {

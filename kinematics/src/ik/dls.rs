@@ -119,14 +119,21 @@ fn damped_step<T: Real, const N: usize, const M: usize>(
     for _round in 0..=N {
         let dq = solve_damped::<T, N, M>(&j, &e, lambda)?;
         let mut froze = false;
-        for (k, joint) in chain.joints().iter().enumerate() {
+        // Indexed by a range over N (not by the joint slice's enumeration), so that every index
+        // below is provably in bounds and the firmware links no panic path.
+        for k in 0..N {
+            let Some(joint) = chain.joints().get(k) else { break };
             if frozen[k] {
                 continue;
             }
             let (value, clamped) = joint.saturate(q[k] + dq[k]);
             if clamped {
                 at_limit[k] = value - q[k];
-                e -= j.column(k) * at_limit[k];
+                // Element by element: `column * scalar` builds its result from an iterator, whose
+                // length check nalgebra asserts (a panic path on the firmware).
+                for (e_i, j_i) in e.iter_mut().zip(j.column(k).iter()) {
+                    *e_i -= *j_i * at_limit[k];
+                }
                 j.column_mut(k).fill(T::zero());
                 frozen[k] = true;
                 froze = true;

@@ -90,7 +90,7 @@ fn main() -> ! {
     loop {
         while link.read_ready().unwrap_or(false) {
             let n = link.read(&mut received).unwrap_or(0);
-            let _ = app.receive(&received[..n], clock.now(), &mut link);
+            let _ = app.receive(received.get(..n).unwrap_or_default(), clock.now(), &mut link);
         }
         let now = clock.now();
         if now >= next_tick {

@@ -124,12 +124,17 @@ impl Item {
             // Two's complement truncated to the width: in range, so nothing is lost.
             _ => value as u32,
         };
-        match (self.size, endian) {
-            (1, _) => out.copy_from_slice(&[raw as u8]),
-            (2, _) => out.copy_from_slice(&encode_u16(raw as u16, endian)),
-            (_, Endian::Little) => out.copy_from_slice(&raw.to_le_bytes()),
-            (_, Endian::Big) => out.copy_from_slice(&raw.to_be_bytes()),
-        }
+        let bytes = match (self.size, endian) {
+            (1, _) => [raw as u8, 0, 0, 0],
+            (2, _) => {
+                let [a, b] = encode_u16(raw as u16, endian);
+                [a, b, 0, 0]
+            }
+            (_, Endian::Little) => raw.to_le_bytes(),
+            (_, Endian::Big) => raw.to_be_bytes(),
+        };
+        // `out` is exactly `self.len()` bytes long (1, 2 or 4): a zip, so no length check can panic.
+        out.iter_mut().zip(bytes).for_each(|(o, b)| *o = b);
         Ok(())
     }
 
