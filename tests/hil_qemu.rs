@@ -109,7 +109,7 @@ fn move_to(c: &mut Client, arm: &ArmSpec, target: [f32; 3]) {
 
 /// The stack high-water mark the firmware logged last (it logs it each second it grows).
 fn logged_stack(board: &Qemu) -> usize {
-    let line = board.log().wait_for("stack high-water", Duration::from_secs(5)).expect("the firmware logs its stack");
+    let line = board.log().wait_for("control loop stack high-water", Duration::from_secs(5)).expect("the firmware logs its stack");
     line.split_whitespace().rev().nth(1).and_then(|n| n.parse().ok()).expect("a byte count")
 }
 
