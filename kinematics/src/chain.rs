@@ -183,21 +183,21 @@ fn dh_joint<T: Real>(origin: Pose<T>, row: &DhRow<T>) -> Joint<T> {
 
 /// `Rz(theta) Tz(d) Tx(a) Rx(alpha)` as one transform.
 fn standard_link<T: Real>(row: &DhRow<T>) -> Pose<T> {
-    let (st, ct) = row.theta.sin_cos();
+    let (st, ct) = row.theta.sin_cos_fast();
     let rz = Matrix3::new(ct, -st, T::zero(), st, ct, T::zero(), T::zero(), T::zero(), T::one());
     Pose { rotation: rz * rx(row.alpha), translation: Vector3::new(row.a * ct, row.a * st, row.d) }
 }
 
 /// `Rx(alpha) Tx(a) Rz(theta) Tz(d)` as one transform.
 fn modified_link<T: Real>(row: &DhRow<T>) -> Pose<T> {
-    let (st, ct) = row.theta.sin_cos();
-    let (sa, ca) = row.alpha.sin_cos();
+    let (st, ct) = row.theta.sin_cos_fast();
+    let (sa, ca) = row.alpha.sin_cos_fast();
     let rz = Matrix3::new(ct, -st, T::zero(), st, ct, T::zero(), T::zero(), T::zero(), T::one());
     Pose { rotation: rx(row.alpha) * rz, translation: Vector3::new(row.a, -row.d * sa, row.d * ca) }
 }
 
 fn rx<T: Real>(alpha: T) -> Matrix3<T> {
-    let (s, c) = alpha.sin_cos();
+    let (s, c) = alpha.sin_cos_fast();
     Matrix3::new(T::one(), T::zero(), T::zero(), T::zero(), c, -s, T::zero(), s, c)
 }
 

@@ -25,9 +25,11 @@ impl<T: Real, const N: usize> Chain<T, N> {
                     Pose { rotation: m.fixed_part, translation: joint.origin.translation + m.slide * q[k] }
                 }
                 JointKind::Revolute | JointKind::Continuous => {
-                    let (s, c) = q[k].sin_cos();
+                    let (s, c) = q[k].sin_cos_fast();
                     Pose {
-                        rotation: m.cos_part * c + m.sin_part * s + m.fixed_part,
+                        // One pass over the nine entries: written as three matrix operations,
+                        // the sum builds two temporaries (a third of FK's time on the M4F).
+                        rotation: m.cos_part.zip_zip_map(&m.sin_part, &m.fixed_part, |a, b, f| a * c + b * s + f),
                         translation: joint.origin.translation,
                     }
                 }

@@ -30,6 +30,7 @@ pub mod presets;
 mod real;
 mod rng;
 pub mod trajectory;
+pub mod trig;
 
 pub use chain::{Chain, ChainError, DhRow};
 pub use fk::Frames;

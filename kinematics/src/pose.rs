@@ -35,9 +35,9 @@ impl<T: Real> Pose<T> {
     /// URDF `<origin xyz rpy>`: translation, then fixed-axis roll about x, pitch about y, yaw about
     /// z, i.e. `R = Rz(yaw) * Ry(pitch) * Rx(roll)` (URDF specification, joint origin).
     pub fn from_xyz_rpy(xyz: [T; 3], rpy: [T; 3]) -> Self {
-        let (sr, cr) = rpy[0].sin_cos();
-        let (sp, cp) = rpy[1].sin_cos();
-        let (sy, cy) = rpy[2].sin_cos();
+        let (sr, cr) = rpy[0].sin_cos_fast();
+        let (sp, cp) = rpy[1].sin_cos_fast();
+        let (sy, cy) = rpy[2].sin_cos_fast();
         #[rustfmt::skip]
         let rotation = Matrix3::new(
             cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr,
@@ -98,7 +98,7 @@ impl<T: Real> Pose<T> {
 /// Rodrigues: `R = I + sin(a) K + (1 - cos(a)) K^2` for the unit axis `k`.
 #[inline]
 pub fn axis_angle_matrix<T: Real>(k: &Vector3<T>, angle: T) -> Matrix3<T> {
-    let (s, c) = angle.sin_cos();
+    let (s, c) = angle.sin_cos_fast();
     let v = T::one() - c;
     let (x, y, z) = (k.x, k.y, k.z);
     #[rustfmt::skip]

@@ -15,6 +15,9 @@ pub trait Real: RealField + Copy + core::fmt::Debug + Default {
     fn to_f64(self) -> f64;
     /// True unless NaN or infinite.
     fn finite(self) -> bool;
+    /// `(sin, cos)`, in the type's own precision: for `f32` computed in `f32` ([`crate::trig`]),
+    /// not through `libm`'s `f64` path, which a single-precision FPU runs in software.
+    fn sin_cos_fast(self) -> (Self, Self);
 }
 
 impl Real for f32 {
@@ -28,6 +31,9 @@ impl Real for f32 {
     fn finite(self) -> bool {
         self.is_finite()
     }
+    fn sin_cos_fast(self) -> (Self, Self) {
+        crate::trig::sin_cos(self)
+    }
 }
 
 impl Real for f64 {
@@ -40,5 +46,9 @@ impl Real for f64 {
     }
     fn finite(self) -> bool {
         self.is_finite()
+    }
+    fn sin_cos_fast(self) -> (Self, Self) {
+        // nalgebra's (libm without std): f64 is the FPU-less path anyway.
+        nalgebra::ComplexField::sin_cos(self)
     }
 }

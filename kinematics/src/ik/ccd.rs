@@ -148,7 +148,7 @@ fn best_angle<T: Real>(joint: &crate::Joint<T>, current: T, sin_part: T, cos_par
         return current;
     }
     let gain = |value: T| {
-        let (s, c) = (value - current).sin_cos();
+        let (s, c) = (value - current).sin_cos_fast();
         cos_part * c + sin_part * s
     };
     let optimum = joint.normalise(current + sin_part.atan2(cos_part));

@@ -131,7 +131,7 @@ impl<T: Real> Quaternion<T> {
             return Err(bad);
         }
         let n = Self::new([T::zero(), axis.x, axis.y, axis.z])?.q;
-        let (s, c) = (angle * T::of(0.5)).sin_cos();
+        let (s, c) = (angle * T::of(0.5)).sin_cos_fast();
         Ok(Self::renormalised([c, n[1] * s, n[2] * s, n[3] * s]))
     }
 
@@ -273,7 +273,7 @@ fn exp_unchecked<T: Real>(v: &Vector3<T>) -> Quaternion<T> {
         return Quaternion::identity();
     }
     let a = m * (v / m).norm();
-    let (s, c) = a.sin_cos();
+    let (s, c) = a.sin_cos_fast();
     // sin(a) / a is accurate for every a > 0 (no cancellation); below eps it is 1 to rounding.
     let k = if a > T::EPSILON { s / a } else { T::one() };
     Quaternion::renormalised([c, v.x * k, v.y * k, v.z * k])
@@ -300,12 +300,12 @@ fn slerp_path<T: Real>(a: &[T; 4], b: &[T; 4], t: T) -> [T; 4] {
         [u * a[0] + t * b[0], u * a[1] + t * b[1], u * a[2] + t * b[2], u * a[3] + t * b[3]]
     } else if T::pi() - w < small {
         let c = [-a[1], a[0], -a[3], a[2]];
-        let (s, co) = (t * w).sin_cos();
+        let (s, co) = (t * w).sin_cos_fast();
         [co * a[0] + s * c[0], co * a[1] + s * c[1], co * a[2] + s * c[2], co * a[3] + s * c[3]]
     } else {
-        let sw = w.sin();
-        let ka = ((one - t) * w).sin() / sw;
-        let kb = (t * w).sin() / sw;
+        let sw = w.sin_cos_fast().0;
+        let ka = ((one - t) * w).sin_cos_fast().0 / sw;
+        let kb = (t * w).sin_cos_fast().0 / sw;
         [ka * a[0] + kb * b[0], ka * a[1] + kb * b[1], ka * a[2] + kb * b[2], ka * a[3] + kb * b[3]]
     };
     Quaternion::renormalised(r).q
@@ -321,8 +321,8 @@ fn left_jacobian<T: Real>(phi: &Vector3<T>, v: &Vector3<T>) -> Vector3<T> {
             T::of(1.0 / 6.0) - x2 / T::of(120.0) + x2 * x2 / T::of(5040.0),
         )
     } else {
-        let h = (x * T::of(0.5)).sin() / x;
-        (T::of(2.0) * h * h, (x - x.sin()) / (x2 * x))
+        let h = (x * T::of(0.5)).sin_cos_fast().0 / x;
+        (T::of(2.0) * h * h, (x - x.sin_cos_fast().0) / (x2 * x))
     };
     let c = phi.cross(v);
     v + c * a + phi.cross(&c) * b
@@ -335,7 +335,7 @@ fn left_jacobian_inverse<T: Real>(phi: &Vector3<T>, v: &Vector3<T>) -> Vector3<T
     let k = if x < T::of(0.03) {
         T::of(1.0 / 12.0) + x2 / T::of(720.0) + x2 * x2 / T::of(30240.0)
     } else {
-        let (s, c) = x.sin_cos();
+        let (s, c) = x.sin_cos_fast();
         let k = T::one() / x2 - (T::one() + c) / (T::of(2.0) * x * s);
         // Singular only at a full turn (|phi| = 2 pi), which the curve does not reach.
         if k.finite() {
