@@ -8,8 +8,8 @@
 //!
 //! Nothing here panics.
 
-/// The table for one byte at a time (see [`crate::crc16`]).
-const TABLE: [u16; 256] = crate::crc16::msb_first_table(0x1021);
+/// The table for one nibble at a time (see [`crate::crc16`]).
+const TABLE: [u16; 16] = crate::crc16::msb_first_table(0x1021);
 
 /// The initial register value.
 pub const INIT: u16 = 0xFFFF;

@@ -8,8 +8,8 @@
 /// The generator polynomial, x^16 + x^15 + x^2 + 1.
 const POLY: u16 = 0x8005;
 
-/// One entry per value of the byte entering the register (see [`crate::crc16`]).
-static TABLE: [u16; 256] = crate::crc16::msb_first_table(POLY);
+/// One entry per value of the nibble entering the register (see [`crate::crc16`]).
+static TABLE: [u16; 16] = crate::crc16::msb_first_table(POLY);
 
 /// Continues a CRC over more bytes: `crc16_update(crc16(a), b) == crc16(a ++ b)`. Fast sync read
 /// replies need the running value, since every servo appends the CRC of the packet so far.
