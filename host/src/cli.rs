@@ -100,6 +100,9 @@ enum BenchCommand {
     /// simulated servos on the virtual clock, ticking back to back and on its fixed period,
     /// compared with the bus's wire-time limit. Compute time is free on the virtual clock.
     Rate(crate::bench_rate::RateBenchArgs),
+    /// Instructions per operation on the Cortex-M4F (FK, IK, player tick, bus packets), counted by
+    /// the firmware's `opcount` binary under `qemu-system-arm -icount shift=0`.
+    Mcu(crate::bench_mcu::McuBenchArgs),
 }
 
 #[derive(Args, Debug)]
@@ -228,6 +231,7 @@ fn run(link: &crate::drive::cli::LinkArgs, command: Command, out: &mut dyn Write
         Command::Ik(args) => return ik(&args, out, err),
         Command::Bench { what: BenchCommand::Bus(args) } => return crate::bench_bus::run(&args, out),
         Command::Bench { what: BenchCommand::Rate(args) } => return crate::bench_rate::run(&args, out),
+        Command::Bench { what: BenchCommand::Mcu(args) } => return crate::bench_mcu::run(&args, out),
         Command::Servo(args) => return crate::servo::cli::run(args, out, err),
         Command::Sim(args) => return crate::sim::cli::run(args, out, err),
         Command::Trajectory { what: TrajectoryCommand::Sample(args) } => {

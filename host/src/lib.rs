@@ -5,6 +5,7 @@
 pub mod arm;
 pub mod bench;
 pub mod bench_bus;
+pub mod bench_mcu;
 pub mod bench_rate;
 pub mod bus_args;
 pub mod cli;

@@ -1,0 +1,310 @@
+//! Instruction counts of the firmware's per-tick operations on the Cortex-M4F, under
+//! `qemu-system-arm -icount shift=0` (`armctl bench mcu` runs it and prints the table).
+//!
+//! With `-icount shift=0` QEMU runs one guest instruction per virtual nanosecond, and SysTick on the
+//! 25 MHz core clock counts one tick per 40 ns, so one tick is 40 instructions, the same on every
+//! run and every host. DWT CYCCNT reads 0 under QEMU, which is why SysTick is the counter.
+//!
+//! Each operation runs `reps` times between two SysTick reads; the host subtracts the cost of a
+//! loop of the same shape doing nothing (`op empty`) and divides by `reps`. The inputs go through
+//! `black_box`, and so do the results, so the compiler can neither hoist the work out of the loop
+//! nor drop it. `op calib_nop` checks the tick-to-instruction factor itself: a loop of a known
+//! number of instructions (hand-written, so the compiler cannot change it).
+//!
+//! Output, one defmt line per operation: `op NAME reps=R ticks=T [more key=value]`, or
+//! `op NAME reps=R wrapped` when a batch overran the 24-bit counter (it would then be wrong).
+#![no_std]
+#![no_main]
+
+use core::hint::black_box;
+
+use board_mps2_an386::{clock, halt};
+use cortex_m::peripheral::syst::SystClkSource;
+use cortex_m::peripheral::SYST;
+use cortex_m_rt::entry;
+use firmware::bus::instruction::RecordWriter;
+use firmware::bus::master::MAX_GROUP;
+use firmware::bus::stream::StreamDecoder;
+use firmware::bus::table::{Model, STS3215, XL430_W250};
+use firmware::bus::{Id, Instruction, InstructionPacket, Status, BROADCAST};
+use firmware::controller::Config;
+use firmware::tracking::Tracker;
+use kinematics::ik::{DampedLeastSquares, IkConfig, IkMethod, IkStatus, Residual, Target};
+use kinematics::nalgebra::{ComplexField, SVector, Vector3};
+use kinematics::trajectory::{JointLimits, Player, PlayerKeyframe};
+use kinematics::{presets, Pose};
+
+/// Guest instructions per SysTick tick: 1 instruction per ns (`-icount shift=0`) over a 25 MHz clock.
+const INSTRUCTIONS_PER_TICK: u32 = 1_000_000_000 / clock::SYSCLK_HZ;
+/// Repetitions of each operation: enough that the 40-instruction resolution of a tick is below one
+/// instruction per operation, few enough that the slowest batch (about 50,000 instructions an IK
+/// step) stays far inside the counter's 2^24 ticks (671 million instructions).
+const REPS: u32 = 100;
+/// Repetitions of the empty loop: more than [`REPS`], so its few instructions are resolved to a
+/// hundredth (it is subtracted from every operation).
+const EMPTY_REPS: u32 = 10_000;
+/// Iterations of the calibration loop (10 instructions each: a million instructions, 25,000 ticks).
+const CALIB_ITERATIONS: u32 = 100_000;
+/// Instructions in one iteration of the calibration loop.
+const CALIB_INSTRUCTIONS: u32 = 10;
+/// The joints of the measured arm (the UR5e preset: the 6-joint case).
+const J: usize = 6;
+/// The bus master's default buffer size (`Master<P, D, C>` without a `BUF`).
+const BUF: usize = 256;
+/// The joint values the arm sits at: away from the UR5e's singularities (elbow bent, wrist not
+/// aligned with the shoulder), as a tracking arm would be.
+const SEED: [f32; J] = [0.3, -1.2, 1.4, -1.6, -1.5, 0.2];
+
+#[entry]
+fn main() -> ! {
+    let Some(core) = cortex_m::Peripherals::take() else { halt() };
+    let mut syst = core.SYST;
+    // Free-running over the full 24 bits and without the interrupt: `clock::start` interrupts
+    // every millisecond, and its handler's instructions would be counted as the operation's.
+    syst.set_clock_source(SystClkSource::Core);
+    syst.set_reload(0x00FF_FFFF);
+    syst.clear_current();
+    syst.disable_interrupt();
+    syst.enable_counter();
+    defmt::info!(
+        "clock core_hz={=u32} instructions_per_tick={=u32} (-icount shift=0: 1 instruction per ns)",
+        clock::SYSCLK_HZ,
+        INSTRUCTIONS_PER_TICK
+    );
+
+    let ticks = measure(&mut syst, 1, || nops(CALIB_ITERATIONS));
+    report_with("calib_nop", CALIB_ITERATIONS, ticks, "expected", CALIB_INSTRUCTIONS);
+
+    report("empty", EMPTY_REPS, measure(&mut syst, EMPTY_REPS, || black_box(0u32)));
+    kinematics_ops(&mut syst);
+    bus_ops(&mut syst, &STS3215, "sts");
+    bus_ops(&mut syst, &XL430_W250, "dxl2");
+
+    defmt::info!("done");
+    cortex_m_semihosting::debug::exit(cortex_m_semihosting::debug::EXIT_SUCCESS);
+    halt()
+}
+
+/// FK, one DLS iteration, a tracking IK step and a player tick on the 6-joint arm, in `f32` as the
+/// firmware's controller runs them.
+fn kinematics_ops(syst: &mut SYST) {
+    let Ok(chain) = presets::ur5e::<f32>() else { halt() };
+    let q = SVector::<f32, J>::from(SEED);
+    report("fk6", REPS, measure(syst, REPS, || chain.tool_pose(black_box(&q))));
+    // FK's sine and cosine of each joint, apart: the kinematics' own f32 version, and libm's
+    // `sincosf` for comparison, which computes in f64 (software on the M4F's single-precision FPU).
+    let angle = SEED[3];
+    report("sincos", REPS, measure(syst, REPS, || kinematics::trig::sin_cos(black_box(angle))));
+    report("sincos_libm", REPS, measure(syst, REPS, || <f32 as ComplexField>::sin_cos(black_box(angle))));
+
+    // The tracking goal moves 1 cm (6 mm in x, 8 mm in y), orientation kept: a full-pose target,
+    // the harder of the two the tracker takes.
+    let here = chain.tool_pose(&q);
+    let target =
+        Target::Pose(Pose { rotation: here.rotation, translation: here.translation + Vector3::new(0.006, 0.008, 0.0) });
+
+    // One iteration of the default solver's descent, as `Chain::solve` runs it (an FK and the
+    // error at the start, the damped step, an FK and the error of the trial), without the
+    // solve's validation and final check.
+    let residual = Residual::new(target, &IkConfig::default());
+    let descent = DampedLeastSquares.descend(&chain, &residual, q, 1);
+    let ticks =
+        measure(syst, REPS, || DampedLeastSquares.descend(black_box(&chain), black_box(&residual), black_box(q), 1));
+    report_with("dls_iter", REPS, ticks, "iterations", descent.iterations);
+
+    // The firmware's tracking step with its own budget (`Config::default().ik_iterations_per_tick`),
+    // warm-started from where the arm is; a fresh tracker each time, so every repetition solves
+    // the same step.
+    let budget = Config::default().ik_iterations_per_tick;
+    let solution = Tracker::new(q, budget).step(&chain, target);
+    let ticks = measure(syst, REPS, || Tracker::new(black_box(q), budget).step(&chain, black_box(target)));
+    report_with("ik_track_1cm", REPS, ticks, "iterations", solution.iterations);
+    if solution.status != IkStatus::Converged {
+        defmt::warn!("ik_track_1cm did not converge within {=u32} iterations", budget);
+    }
+
+    // The player as the controller ticks it: 32 keyframes queued, the clock at 1 kHz inside the
+    // first segment (as the host-side criterion bench `player_tick` does).
+    let Ok(limits) = JointLimits::<f32, J>::new(
+        SVector::repeat(-3.0),
+        SVector::repeat(3.0),
+        SVector::repeat(2.0),
+        SVector::repeat(10.0),
+    ) else {
+        halt()
+    };
+    let Ok(mut player) = Player::<f32, J, 32>::new(SVector::zeros(), limits) else { halt() };
+    for i in 1..=32u16 {
+        let p = SVector::from_fn(|j, _| 0.05 * f32::from((i + j as u16) % 5));
+        if player.push(PlayerKeyframe::new(0.5 * f32::from(i), p)).is_err() {
+            halt()
+        }
+    }
+    player.tick(0.0);
+    let mut now = 0.0f32;
+    let ticks = measure(syst, REPS, || {
+        now += 0.001;
+        player.tick(black_box(now))
+    });
+    report("hermite6", REPS, ticks);
+}
+
+/// Encoding the sync write of six goals and decoding the six replies of a sync read, for `model`.
+fn bus_ops(syst: &mut SYST, model: &'static Model, protocol: &'static str) {
+    let ids: [Id; J] = [1, 2, 3, 4, 5, 6];
+    let goals: [i32; J] = [1024, 1536, 2048, 2560, 3072, 3584];
+    let mut tx = [0u8; BUF];
+    let name = if protocol == "sts" { "sync_write6_sts" } else { "sync_write6_dxl2" };
+    let bytes = encode_sync_write(model, &ids, &goals, &mut tx).unwrap_or(0);
+    let ticks =
+        measure(syst, REPS, || encode_sync_write(model, black_box(&ids), black_box(&goals), black_box(&mut tx)));
+    report_with(name, REPS, ticks, "bytes", bytes as u32);
+
+    // The replies as the servos send them, back to back, encoded once by the crate's own encoder.
+    let mut replies = [0u8; BUF];
+    let mut len = 0;
+    for (&id, &goal) in ids.iter().zip(&goals) {
+        let item = model.items.present_position;
+        let mut data = [0u8; 4];
+        if item.encode(i64::from(goal), model.endian, &mut data).is_err() {
+            halt()
+        }
+        let status = Status { id, error: 0, params: &data[..item.len()] };
+        let Ok(n) = model.protocol.encode_status(&status, &mut replies[len..]) else { halt() };
+        len += n;
+    }
+    let replies = &replies[..len];
+    let mut decoder = StreamDecoder::<BUF>::new(model.protocol);
+    let mut positions = [0i32; J];
+    let answered = decode_sync_read(model, &ids, replies, &mut decoder, &mut positions);
+    if answered != 0b11_1111 || positions != goals {
+        defmt::error!("sync read decoding lost replies: answered {=u32:#b}", answered);
+    }
+    let name = if protocol == "sts" { "sync_read6_sts" } else { "sync_read6_dxl2" };
+    let ticks = measure(syst, REPS, || {
+        decode_sync_read(model, black_box(&ids), black_box(replies), &mut decoder, black_box(&mut positions))
+    });
+    report_with(name, REPS, ticks, "bytes", len as u32);
+}
+
+/// What `ServoGroup::write_all` and `Master::send` compute for a sync write of goal positions: the
+/// records, then the packet into the transmit buffer. Returns the packet's length.
+fn encode_sync_write(model: &Model, ids: &[Id; J], goals: &[i32; J], tx: &mut [u8]) -> Option<usize> {
+    let item = model.items.goal_position;
+    let mut records = [0u8; MAX_GROUP * 5];
+    let mut writer = RecordWriter::new(&mut records);
+    let mut value = [0u8; 4];
+    for (&id, &goal) in ids.iter().zip(goals) {
+        item.encode(i64::from(goal), model.endian, &mut value).ok()?;
+        writer.sync_write(id, &value[..item.len()]).ok()?;
+    }
+    let len = writer.records().len();
+    let instruction =
+        Instruction::SyncWrite { address: item.address, length: u16::from(item.size), data: &records[..len] };
+    model.protocol.encode_instruction(&InstructionPacket { id: BROADCAST, instruction }, tx).ok()
+}
+
+/// What `Master::receive` and `ServoGroup::read_all` compute from the bytes of a sync read's
+/// replies, without the port and the clock: 32-byte chunks into the stream decoder, each frame
+/// parsed and its data booked by id, then the positions decoded. Returns the answered mask.
+fn decode_sync_read(
+    model: &Model,
+    ids: &[Id; J],
+    replies: &[u8],
+    decoder: &mut StreamDecoder<BUF>,
+    positions: &mut [i32; J],
+) -> u32 {
+    let item = model.items.present_position;
+    let len = item.len();
+    let mut raw = [0u8; MAX_GROUP * 4];
+    let mut answered = 0u32;
+    decoder.clear();
+    for chunk in replies.chunks(32) {
+        let mut rest = chunk;
+        while !rest.is_empty() {
+            let taken = decoder.extend(rest);
+            rest = &rest[taken..];
+            while let Some(frame) = decoder.next_frame() {
+                let Ok(status) = model.protocol.parse_status(frame) else { continue };
+                let Some(i) = ids.iter().position(|&id| id == status.id) else { continue };
+                if status.params.len() == len && answered & (1 << i) == 0 {
+                    raw[i * len..(i + 1) * len].copy_from_slice(status.params);
+                    answered |= 1 << i;
+                }
+            }
+        }
+    }
+    for (i, v) in positions.iter_mut().enumerate() {
+        if answered & (1 << i) != 0 {
+            if let Ok(x) = item.decode(&raw[i * len..(i + 1) * len], model.endian) {
+                *v = x.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
+            }
+        }
+    }
+    answered
+}
+
+/// SysTick ticks taken by `reps` calls of `op`, or `None` if the 24-bit counter wrapped (the batch
+/// took 2^24 ticks or more, and the difference of the two reads would be wrong).
+fn measure<R>(syst: &mut SYST, reps: u32, mut op: impl FnMut() -> R) -> Option<u32> {
+    // Restarting the counter puts it at the top of its range, so a wrap means an overrun.
+    syst.clear_current();
+    let start = loop {
+        let now = SYST::get_current();
+        // Just after the clear the counter reads 0 until it reloads.
+        if now != 0 {
+            break now;
+        }
+    };
+    // Reading COUNTFLAG clears it: the reload after the clear must not count as a wrap.
+    let _ = syst.has_wrapped();
+    for _ in 0..reps {
+        black_box(op());
+    }
+    let end = SYST::get_current();
+    if syst.has_wrapped() {
+        None
+    } else {
+        Some(start - end)
+    }
+}
+
+/// Runs a loop of exactly [`CALIB_INSTRUCTIONS`] instructions per iteration `iterations` times
+/// (at least once).
+#[inline(never)]
+fn nops(iterations: u32) {
+    // SAFETY: the loop uses only the register it is given (counting it down to zero) and the
+    // flags, touches no memory and no stack.
+    unsafe {
+        core::arch::asm!(
+            "2:",
+            "nop", "nop", "nop", "nop", "nop", "nop", "nop", "nop",
+            "subs {n}, {n}, #1",
+            "bne 2b",
+            n = inout(reg) iterations.max(1) => _,
+            options(nomem, nostack),
+        );
+    }
+}
+
+fn report(name: &str, reps: u32, ticks: Option<u32>) {
+    match ticks {
+        Some(ticks) => defmt::info!("op {=str} reps={=u32} ticks={=u32}", name, reps, ticks),
+        None => defmt::error!("op {=str} reps={=u32} wrapped", name, reps),
+    }
+}
+
+/// [`report`] with one more `key=value` field.
+fn report_with(name: &str, reps: u32, ticks: Option<u32>, key: &str, value: u32) {
+    match ticks {
+        Some(ticks) => {
+            defmt::info!("op {=str} reps={=u32} ticks={=u32} {=str}={=u32}", name, reps, ticks, key, value)
+        }
+        None => defmt::error!("op {=str} reps={=u32} wrapped", name, reps),
+    }
+}
+
+#[panic_handler]
+fn panic(_: &core::panic::PanicInfo) -> ! {
+    halt()
+}
