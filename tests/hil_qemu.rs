@@ -12,12 +12,13 @@ use std::time::Duration;
 use armctl::arm::ArmSpec;
 use armctl::drive::connection::{open, Connection, Target};
 use armctl::link::arm_config::{configure_messages, ServoSetup};
-use armctl::link::client::{LinkClient, LinkError};
+use armctl::link::client::LinkClient;
+use armctl::link::ready::{request_when_ready, wait_idle};
 use armctl::link::Transport;
 use armctl::qemu::{self, Qemu, QemuConfig};
 use armctl::sim::cli::so101_bus;
 use armctl::sim::{Faults, PtyServer};
-use firmware::link::message::{CartesianTarget, HostMessage, JointKeyframe, NakReason, RunState, Status, Timing};
+use firmware::link::message::{CartesianTarget, HostMessage, JointKeyframe, RunState, Status, Timing};
 
 type Client = LinkClient<Box<dyn Transport>>;
 
@@ -49,31 +50,8 @@ fn rig() -> Option<Rig> {
     Some(Rig { link, bus, board })
 }
 
-/// Torque on once the firmware has read every servo (it refuses until then).
 fn torque_on(c: &mut Client) {
-    for _ in 0..200 {
-        match c.request(&HostMessage::Torque { on: true }) {
-            Err(LinkError::Nak(NakReason::NotReady)) => c.wait_once().unwrap(),
-            other => {
-                other.unwrap();
-                return;
-            }
-        }
-    }
-    panic!("torque never came on");
-}
-
-/// Polls status until the arm is at rest (or `polls` status requests pass).
-fn wait_idle(c: &mut Client, polls: usize) -> Status {
-    let mut status = c.status().unwrap();
-    for _ in 0..polls {
-        if status.state == RunState::Idle {
-            break;
-        }
-        c.wait_once().unwrap();
-        status = c.status().unwrap();
-    }
-    status
+    request_when_ready(c, &HostMessage::Torque { on: true }).unwrap();
 }
 
 /// Polls status for about `duration` of wall time (the firmware runs at about real-time pace).
@@ -101,16 +79,15 @@ fn move_to(c: &mut Client, arm: &ArmSpec, target: [f32; 3]) {
         timing: Timing::MaxSpeed(0.2),
     })
     .unwrap();
-    let status = wait_idle(c, 2000);
+    let status = wait_idle(c, 2000).unwrap();
     assert_eq!(status.state, RunState::Idle);
     let error = tool_error(arm, &status.measured, target);
     assert!(error < 1e-3, "target {target:?} missed by {error} m");
 }
 
-/// The stack high-water mark the firmware logged last (it logs it each second it grows).
-fn logged_stack(board: &Qemu) -> usize {
-    let line = board.log().wait_for("control loop stack high-water", Duration::from_secs(5)).expect("the firmware logs its stack");
-    line.split_whitespace().rev().nth(1).and_then(|n| n.parse().ok()).expect("a byte count")
+/// The control loop's stack high-water mark, as the firmware logged it last.
+fn logged_stack(board: &Qemu) -> u64 {
+    armctl::footprint::measure::logged_bytes(board.log(), "control loop stack high-water").unwrap()
 }
 
 #[test]
@@ -139,7 +116,7 @@ fn the_real_firmware_reaches_targets_and_follows_a_streamed_trajectory() {
             c.request(&HostMessage::Start).unwrap();
         }
     }
-    let status = wait_idle(c, 5000);
+    let status = wait_idle(c, 5000).unwrap();
     assert_eq!(status.state, RunState::Idle);
     assert_eq!(status.errors.underruns, before.errors.underruns, "the host kept the queue fed");
     let last = &keyframes.last().unwrap().positions;
@@ -180,7 +157,7 @@ fn faults_on_the_servo_side_are_reported_and_survived() {
     assert!(status.errors.bus_timeouts >= 5);
     rig.bus.set_faults(Faults::default());
     poll_for(c, Duration::from_millis(300));
-    let status = wait_idle(c, 2000);
+    let status = wait_idle(c, 2000).unwrap();
     assert_eq!(status.lost_servos, 0, "servo 3 back");
     assert_eq!(status.state, RunState::Idle);
     assert!((status.measured[2] + 0.3).abs() < 0.01, "joint 3 reached its goal: {}", status.measured[2]);

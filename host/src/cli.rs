@@ -53,6 +53,8 @@ enum Command {
         #[command(subcommand)]
         what: BenchCommand,
     },
+    /// Flash, static RAM, panic paths and stack depth of each board binary, against the goals.
+    Footprint(crate::footprint::FootprintArgs),
     /// Simulated servo buses (served on a pseudo-terminal), or the firmware under QEMU (--qemu).
     Sim(crate::sim::cli::SimArgs),
     /// Joint trajectories through keyframes.
@@ -231,6 +233,7 @@ fn run(link: &crate::drive::cli::LinkArgs, command: Command, out: &mut dyn Write
         Command::Ik(args) => return ik(&args, out, err),
         Command::Bench { what: BenchCommand::Bus(args) } => return crate::bench_bus::run(&args, out),
         Command::Bench { what: BenchCommand::Rate(args) } => return crate::bench_rate::run(&args, out),
+        Command::Footprint(args) => return crate::footprint::run(&args, out, err),
         Command::Bench { what: BenchCommand::Mcu(args) } => return crate::bench_mcu::run(&args, out),
         Command::Servo(args) => return crate::servo::cli::run(args, out, err),
         Command::Sim(args) => return crate::sim::cli::run(args, out, err),

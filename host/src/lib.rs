@@ -13,6 +13,7 @@ pub mod demo;
 pub mod demo_plot;
 pub mod dof;
 pub mod drive;
+pub mod footprint;
 pub mod kcompare;
 pub mod link;
 pub mod parse;

@@ -4,6 +4,7 @@
 
 pub mod arm_config;
 pub mod client;
+pub mod ready;
 
 use std::io::{Read, Write};
 
