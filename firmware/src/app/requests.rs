@@ -63,6 +63,10 @@ fn vector<const N: usize>(values: &Joints, field: Field) -> Result<SVector<f32, 
 
 impl<const N: usize, const Q: usize> Core<N, Q> {
     /// Carries out `message` (already checked by [`HostMessage::validate`]) received at `now_us`.
+    ///
+    /// Never inlined: its frame (every request's temporaries) then exists only while a request is
+    /// carried out, not under every control tick of the board's main loop.
+    #[inline(never)]
     pub(super) fn apply(&mut self, message: &HostMessage, now_us: u64, link: LinkCounts) -> FirmwareMessage {
         match self.carry_out(message, now_us, link) {
             Ok(reply) => reply,
