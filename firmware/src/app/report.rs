@@ -61,6 +61,7 @@ fn joints(values: impl Iterator<Item = f32>) -> Joints {
 
 impl<const N: usize, const Q: usize> Core<N, Q> {
     /// The status at `now_us`; resets the "max since last status" loop time.
+    #[inline(never)]
     pub(super) fn status(&mut self, now_us: u64, link: LinkCounts) -> Status {
         let (mean_us, max_us) = self.loops.take();
         let time = (now_us as f64 * 1e-6) as f32;

@@ -92,6 +92,7 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
     }
 
     /// Swaps the arm, which needs the torque off: a new arm starts limp and reads its servos.
+    #[inline(never)]
     fn switch_arm(&mut self, setup: &super::ArmSetup<N>) -> Result<(), NakReason> {
         if self.running.as_ref().is_some_and(|r| r.controller.torque()) {
             return Err(NakReason::NotReady);
@@ -99,6 +100,30 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
         let controller = setup.controller(&self.board).map_err(|_| bad(Field::Limits, Problem::OutOfRange))?;
         self.running = Some(Running { name: setup.name.clone(), controller });
         Ok(())
+    }
+
+    /// The staged arm becomes the running one. Never inlined, like the two below: an arm's
+    /// set-up and controller are large values, and inlined their room would be reserved in the
+    /// frame of every request.
+    #[inline(never)]
+    fn commit_arm(&mut self) -> Result<FirmwareMessage, NakReason> {
+        if self.running.as_ref().is_some_and(|r| r.controller.torque()) {
+            return Err(NakReason::NotReady);
+        }
+        let setup = self.staging.commit(&self.board)?;
+        self.switch_arm(&setup)?;
+        Ok(self.ack())
+    }
+
+    /// The built-in arm becomes the running one again.
+    #[inline(never)]
+    fn use_builtin_arm(&mut self) -> Result<FirmwareMessage, NakReason> {
+        // Taken out and put back rather than cloned: one arm set-up on the stack, not two.
+        let builtin = self.builtin.take().ok_or(NakReason::NotReady)?;
+        let switched = self.switch_arm(&builtin);
+        self.builtin = Some(builtin);
+        switched?;
+        Ok(self.ack())
     }
 
     fn carry_out(
@@ -141,19 +166,8 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
                 self.staging.joint(*index, joint)?;
                 return Ok(self.ack());
             }
-            HostMessage::ConfigureCommit => {
-                if self.running.as_ref().is_some_and(|r| r.controller.torque()) {
-                    return Err(NakReason::NotReady);
-                }
-                let setup = self.staging.commit(&self.board)?;
-                self.switch_arm(&setup)?;
-                return Ok(self.ack());
-            }
-            HostMessage::UseBuiltinArm => {
-                let builtin = self.builtin.clone().ok_or(NakReason::NotReady)?;
-                self.switch_arm(&builtin)?;
-                return Ok(self.ack());
-            }
+            HostMessage::ConfigureCommit => return self.commit_arm(),
+            HostMessage::UseBuiltinArm => return self.use_builtin_arm(),
             _ => {}
         }
         let running = self.running.as_mut().ok_or(NakReason::NotReady)?;
