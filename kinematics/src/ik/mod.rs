@@ -138,10 +138,14 @@ impl<T: Real, const N: usize> Chain<T, N> {
             }
         }
 
-        // The status comes from FK on exactly the values returned, not from the method's claim.
+        // The status comes from the error at exactly the values returned, not from the method's
+        // claim. Left unchanged by normalising, they are the point the method measured its error
+        // at (a `Descent`'s error is its `q`'s), and FK, being deterministic, would give the same
+        // bits again: that error is reused, one FK less per solve (a tenth of a tracking step on
+        // the M4F). Values that normalising changed are measured afresh.
         let mut q = best.q;
         self.normalise(&mut q);
-        let error = residual.error(&self.tool_pose(&q));
+        let error = if q == best.q { best.error } else { residual.error(&self.tool_pose(&q)) };
         let status = if residual.converged(&error) && self.admits(&q) {
             IkStatus::Converged
         } else if best.end == DescentEnd::OutOfBudget {
