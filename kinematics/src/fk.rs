@@ -18,31 +18,43 @@ impl<T: Real, const N: usize> Chain<T, N> {
     pub fn forward(&self, q: &SVector<T, N>) -> Frames<T, N> {
         let mut current = Pose::identity();
         let joints = core::array::from_fn(|k| {
-            let joint = &self.joints()[k];
-            let m = &self.motion[k];
-            let local = match joint.kind {
-                JointKind::Prismatic => {
-                    Pose { rotation: m.fixed_part, translation: joint.origin.translation + m.slide * q[k] }
-                }
-                JointKind::Revolute | JointKind::Continuous => {
-                    let (s, c) = q[k].sin_cos_fast();
-                    Pose {
-                        // One pass over the nine entries: written as three matrix operations,
-                        // the sum builds two temporaries (a third of FK's time on the M4F).
-                        rotation: m.cos_part.zip_zip_map(&m.sin_part, &m.fixed_part, |a, b, f| a * c + b * s + f),
-                        translation: joint.origin.translation,
-                    }
-                }
-            };
-            current = current.compose(&local);
+            let local = self.local_pose(k, q[k]);
+            // The base frame is the identity: the first joint's pose is its local one.
+            current = if k == 0 { local } else { current.compose(&local) };
             current
         });
         Frames { joints, tool: current.compose(self.tool()) }
     }
 
-    /// Tool pose only.
+    /// Tool pose only: the same products as [`Chain::forward`] without keeping every frame (on the
+    /// M4F the stores of N poses are a fifth of the pass).
     pub fn tool_pose(&self, q: &SVector<T, N>) -> Pose<T> {
-        self.forward(q).tool
+        let mut current = Pose::identity();
+        for k in 0..N {
+            let local = self.local_pose(k, q[k]);
+            current = if k == 0 { local } else { current.compose(&local) };
+        }
+        current.compose(self.tool())
+    }
+
+    /// Joint `k`'s frame relative to its parent at joint value `q`.
+    #[inline]
+    fn local_pose(&self, k: usize, q: T) -> Pose<T> {
+        let (Some(joint), Some(m)) = (self.joints().get(k), self.motion.get(k)) else { return Pose::identity() };
+        match joint.kind {
+            JointKind::Prismatic => {
+                Pose { rotation: m.fixed_part, translation: joint.origin.translation + m.slide * q }
+            }
+            JointKind::Revolute | JointKind::Continuous => {
+                let (s, c) = q.sin_cos_fast();
+                Pose {
+                    // One pass over the nine entries: written as three matrix operations, the sum
+                    // builds two temporaries (a third of FK's time on the M4F).
+                    rotation: m.cos_part.zip_zip_map(&m.sin_part, &m.fixed_part, |a, b, f| a * c + b * s + f),
+                    translation: joint.origin.translation,
+                }
+            }
+        }
     }
 
     /// Geometric Jacobian of the tool frame at `q`: rows linear x, y, z then angular x, y, z (base
