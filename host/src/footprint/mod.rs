@@ -16,9 +16,8 @@ pub mod measure;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use serde::Serialize;
 
@@ -96,31 +95,12 @@ impl Board {
     fn build(self) -> Result<PathBuf> {
         match self {
             Board::Mps2An386 => crate::qemu::build(crate::qemu::FIRMWARE_BIN),
-            Board::Stm32f411 => build_board(
+            Board::Stm32f411 => crate::qemu::build_board(
                 &Path::new(env!("CARGO_MANIFEST_DIR")).join("../firmware/boards/stm32f411"),
                 "board-stm32f411",
             ),
         }
     }
-}
-
-/// Builds the board binary `bin` (release) in the board crate at `dir`, its own cargo workspace
-/// with its target in `.cargo/config.toml`; returns the ELF's path. (`qemu::build` is this for the
-/// MPS2 crate.)
-pub fn build_board(dir: &Path, bin: &str) -> Result<PathBuf> {
-    let status = Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()))
-        .args(["build", "--release", "--quiet", "--bin", bin])
-        .current_dir(dir)
-        // The host build's settings (`cargo test`, `cargo run`) are not the board's.
-        .env_remove("CARGO_TARGET_DIR")
-        .env_remove("RUSTFLAGS")
-        .env_remove("CARGO_ENCODED_RUSTFLAGS")
-        .status()
-        .with_context(|| format!("cannot run cargo in {}", dir.display()))?;
-    if !status.success() {
-        bail!("building the {bin} binary in {} failed", dir.display());
-    }
-    Ok(dir.join("target/thumbv7em-none-eabihf/release").join(bin))
 }
 
 /// A figure against its goal.

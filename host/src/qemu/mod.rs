@@ -1,6 +1,7 @@
 //! The firmware binary for the MPS2 AN386 (Cortex-M4F) under `qemu-system-arm`: building it,
 //! starting QEMU with UART0 (host link) on a pseudo-terminal and UART1 on the simulated servo bus,
-//! and following its defmt log. Used by `armctl sim --qemu`, `armctl bench mcu` and the HIL tests.
+//! and following its defmt log. Used by `armctl sim --qemu`, `armctl bench mcu`, `armctl footprint`
+//! and the HIL tests. ([`build_board`] builds any board crate, the STM32 one too.)
 
 pub mod log;
 
@@ -31,12 +32,17 @@ pub fn available() -> bool {
     Command::new("qemu-system-arm").arg("--version").stdout(Stdio::null()).stderr(Stdio::null()).status().is_ok()
 }
 
-/// Builds the board binary `bin` (release) with cargo and returns the ELF's path.
+/// Builds the MPS2 board crate's binary `bin` (release) and returns the ELF's path.
 pub fn build(bin: &str) -> Result<PathBuf> {
-    let dir = board_dir();
+    build_board(&board_dir(), bin)
+}
+
+/// Builds the binary `bin` (release) of the board crate at `dir` (its own cargo workspace, with
+/// its target in `.cargo/config.toml`); returns the ELF's path.
+pub fn build_board(dir: &Path, bin: &str) -> Result<PathBuf> {
     let status = Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()))
         .args(["build", "--release", "--quiet", "--bin", bin])
-        .current_dir(&dir)
+        .current_dir(dir)
         // The host build's settings (`cargo test`, `cargo run`) are not the board's.
         .env_remove("CARGO_TARGET_DIR")
         .env_remove("RUSTFLAGS")
