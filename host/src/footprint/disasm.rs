@@ -392,15 +392,16 @@ fn is_branch(op: &str) -> bool {
         || base.strip_prefix('b').is_some_and(|c| CONDITIONS.contains(&c))
 }
 
-/// The symbol a branch goes to, from `0x800a41a <_defmt_timestamp>`, without a `+0x4` offset.
+/// The function a branch enters, from `0x800a41a <_defmt_timestamp>`. A target with an offset
+/// (`<start+0x33e>`) is inside a function, not a call: a branch within the function itself, or
+/// alignment padding that llvm-objdump decodes as an instruction.
 fn branch_target(operands: &str) -> Option<&str> {
     let start = operands.find('<')?;
     let end = operands.rfind('>')?;
     let target = operands.get(start + 1..end)?;
-    let target = match target.rsplit_once('+') {
-        Some((symbol, offset)) if offset.starts_with("0x") => symbol,
-        _ => target,
-    };
+    if target.rsplit_once('+').is_some_and(|(_, offset)| offset.starts_with("0x")) {
+        return None;
+    }
     (!target.starts_with('$')).then_some(target)
 }
 

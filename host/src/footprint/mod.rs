@@ -79,7 +79,7 @@ impl Board {
     fn roots(self) -> &'static [&'static str] {
         match self {
             Board::Mps2An386 => &["board_mps2_an386::start", "board_mps2_an386::run"],
-            Board::Stm32f411 => &["board_stm32f411::__cortex_m_rt_main"],
+            Board::Stm32f411 => &["board_stm32f411::start", "board_stm32f411::run"],
         }
     }
 

@@ -16,13 +16,17 @@ mod clock;
 mod half_duplex;
 mod serial;
 
+use core::mem::MaybeUninit;
+use core::ptr::addr_of_mut;
+use core::sync::atomic::{AtomicBool, Ordering};
+
 use cortex_m_rt::entry;
 use defmt_rtt as _;
 use embedded_io::{Read, ReadReady};
 use firmware::app::{Board, Firmware};
 use firmware::bus::master::{BusConfig, Master};
 use firmware::bus::table::STS3215;
-use firmware::controller::Config;
+use firmware::controller::{Config, ConfigError};
 use stm32f4xx_hal::gpio::{Output, PinState, PA1};
 use stm32f4xx_hal::pac;
 use stm32f4xx_hal::prelude::*;
@@ -47,26 +51,45 @@ type DirectionPin = PA1<Output>;
 type App = Firmware<{ firmware::builtin::JOINTS }, 32>;
 type BusMaster = Master<HalfDuplex, DirectionPin, Tim2Clock>;
 
+/// The firmware state, in static RAM so that the stack holds only call frames. The constructor's
+/// result is written straight into it (as on the MPS2 board): built on the stack and moved, it
+/// would need its size in stack again at start-up.
+static mut APP: MaybeUninit<Result<App, ConfigError>> = MaybeUninit::uninit();
+static mut MASTER: MaybeUninit<BusMaster> = MaybeUninit::uninit();
+static STARTED: AtomicBool = AtomicBool::new(false);
+
 #[entry]
 fn main() -> ! {
-    let Some(dp) = pac::Peripherals::take() else { halt() };
+    let Some((app, master, link, clock)) = start() else { halt() };
+    run(app, master, link, clock)
+}
+
+/// Brings up the clocks, the two USARTs, the timer and the firmware core; `None` if anything is
+/// refused or this ran before (the statics are written once). Never inlined, so that its frame is
+/// gone before the control loop starts.
+#[inline(never)]
+fn start() -> Option<(&'static mut App, &'static mut BusMaster, Link, Tim2Clock)> {
+    if STARTED.swap(true, Ordering::Relaxed) {
+        return None;
+    }
+    let dp = pac::Peripherals::take()?;
     // 25 MHz crystal, PLL to 96 MHz: USART1 (APB2, 96 MHz) and USART2 (APB1, 48 MHz) both divide
     // exactly to 1 Mbps, and the PLL's 48 MHz output is ready for USB later.
     let mut rcc = dp.RCC.freeze(rcc::Config::hse(25.MHz()).sysclk(96.MHz()));
-    let Some(clock) = Tim2Clock::start(dp.TIM2, &mut rcc) else { halt() };
+    let clock = Tim2Clock::start(dp.TIM2, &mut rcc)?;
     let gpioa = dp.GPIOA.split(&mut rcc);
 
     let link_config = SerialConfig::default().baudrate(BAUD.bps());
     // The pull-up holds RX idle (high) with the adapter unplugged, instead of reading noise as bytes.
     let link_rx = gpioa.pa10.internal_pull_up(true);
-    let Ok(usart1) = Serial::new(dp.USART1, (gpioa.pa9, link_rx), link_config, &mut rcc) else { halt() };
-    let mut link = Link::new(usart1);
+    let usart1 = Serial::new(dp.USART1, (gpioa.pa9, link_rx), link_config, &mut rcc).ok()?;
+    let link = Link::new(usart1);
 
     // The internal pull-up (~40 kΩ) only keeps the line defined with nothing attached; the bus
     // needs the external ~1 kΩ one for 1 Mbps edges.
     let _bus_pin = gpioa.pa2.into_alternate_open_drain::<7>().internal_pull_up(true);
     let direction: DirectionPin = gpioa.pa1.into_push_pull_output_in_state(PinState::Low);
-    let Some(bus_port) = HalfDuplex::new(dp.USART2, BAUD, &mut rcc) else { halt() };
+    let bus_port = HalfDuplex::new(dp.USART2, BAUD, &mut rcc)?;
     // The receiver is off while the board transmits (see half_duplex.rs): no echo to skip.
     let bus = BusConfig { echo: false, ..BusConfig::new(STS3215.protocol, BAUD) };
 
@@ -78,12 +101,17 @@ fn main() -> ! {
     );
 
     let board = Board { bus, model: &STS3215, control: Config::default() };
-    let Ok(setup) = firmware::builtin::setup() else { halt() };
-    let Ok(app) = App::new(board, Some(setup)) else { halt() };
-    // The state lives in static RAM, so the stack holds only call frames.
-    let Some(app) = cortex_m::singleton!(APP: App = app) else { halt() };
-    let master = BusMaster::new(bus_port, direction, clock, bus);
-    let Some(master) = cortex_m::singleton!(MASTER: BusMaster = master) else { halt() };
+    let setup = firmware::builtin::setup().ok()?;
+    // SAFETY: STARTED guarantees this runs once, so these are the only references to the statics.
+    let (app_slot, master_slot) = unsafe { (&mut *addr_of_mut!(APP), &mut *addr_of_mut!(MASTER)) };
+    let app = app_slot.write(App::new(board, Some(setup))).as_mut().ok()?;
+    let master = master_slot.write(BusMaster::new(bus_port, direction, clock, bus));
+    Some((app, master, link, clock))
+}
+
+/// The control loop: host bytes as they come, a tick on the fixed schedule.
+#[inline(never)]
+fn run(app: &'static mut App, master: &'static mut BusMaster, mut link: Link, clock: Tim2Clock) -> ! {
     let period = u64::from(app.period_us());
     let mut next_tick = clock.now();
     let mut received = [0u8; 64];
