@@ -51,7 +51,7 @@ fn rig() -> Option<Rig> {
 }
 
 fn torque_on(c: &mut Client) {
-    request_when_ready(c, &HostMessage::Torque { on: true }).unwrap();
+    request_when_ready(c, &HostMessage::Torque { on: true }, 200).unwrap();
 }
 
 /// Polls status for about `duration` of wall time (the firmware runs at about real-time pace).

@@ -119,16 +119,7 @@ impl Driver {
     /// read every servo yet and refuses (`NotReady`) for a tick or two: that is retried for up to
     /// 25 read timeouts (0.5 s) before it counts as a failure.
     pub fn torque_on(&mut self) -> Result<FirmwareMessage, LinkError> {
-        let mut tries = 0;
-        loop {
-            match self.request(&HostMessage::Torque { on: true }) {
-                Err(LinkError::Nak(firmware::link::message::NakReason::NotReady)) if tries < 25 => {
-                    tries += 1;
-                    self.conn.client.wait_once()?;
-                }
-                other => return other,
-            }
-        }
+        crate::link::ready::request_when_ready(&mut self.conn.client, &HostMessage::Torque { on: true }, 25)
     }
 
     /// Switches torque off again if [`Driver::ready_to_move`] switched it on, so that a refused

@@ -22,6 +22,9 @@ use crate::sim::{Faults, PtyServer};
 /// The firmware checks its high-water mark once a second: this long after the last operation, the
 /// mark it reached is logged.
 const SETTLE: Duration = Duration::from_millis(1500);
+/// Wait slots a request refused with `NotReady` is retried for (4 s at the 20 ms read timeout:
+/// start-up under QEMU reads every servo first).
+const NOT_READY_WAITS: usize = 200;
 /// How long a log line may take to show up once due.
 const LOG_TIMEOUT: Duration = Duration::from_secs(10);
 
@@ -41,7 +44,7 @@ pub fn measure(elf: &Path) -> Result<MeasuredStack> {
     let board = Qemu::start(&QemuConfig { elf: elf.to_path_buf(), bus: Some(bus.path().to_string()) })?;
     let mut link = open(Target::Port { path: board.link_path().to_string(), baud: 1_000_000 }, None)?;
     let c = &mut link.client;
-    request_when_ready(c, &HostMessage::Torque { on: true }).context("torque on")?;
+    request_when_ready(c, &HostMessage::Torque { on: true }, NOT_READY_WAITS).context("torque on")?;
     c.request(&HostMessage::MoveTo {
         target: CartesianTarget { position: [0.2, 0.05, 0.15], orientation: None },
         timing: Timing::MaxSpeed(0.2),
@@ -64,7 +67,7 @@ pub fn measure(elf: &Path) -> Result<MeasuredStack> {
     let so101 = ArmSpec::load("so101", None)?;
     let servos = ServoSetup::for_arm("so101").context("no servo set-up for so101")?;
     for message in configure_messages(&so101, &servos)? {
-        request_when_ready(c, &message).context("sending the so101 arm over the link")?;
+        request_when_ready(c, &message, NOT_READY_WAITS).context("sending the so101 arm over the link")?;
     }
     std::thread::sleep(SETTLE);
     let log = board.log();

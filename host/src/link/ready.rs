@@ -1,6 +1,7 @@
 //! Waiting on the firmware through the link: requests it refuses with `NotReady` until its next
 //! ticks (torque on before every servo was read, a new arm before torque off took effect), and
-//! polling until the arm is at rest. Shared by `armctl footprint`'s QEMU session and the HIL tests.
+//! polling until the arm is at rest. Shared by the drive commands, `armctl footprint`'s QEMU
+//! session and the HIL tests.
 
 use anyhow::{bail, Result};
 use firmware::link::message::{FirmwareMessage, HostMessage, NakReason, RunState, Status};
@@ -8,18 +9,23 @@ use firmware::link::message::{FirmwareMessage, HostMessage, NakReason, RunState,
 use super::client::{LinkClient, LinkError};
 use super::Transport;
 
-/// How many `NotReady` answers are waited out (a wait slot each) before giving up.
-const NOT_READY_TRIES: usize = 200;
-
-/// Sends `message`, again after each `NotReady`; returns the firmware's reply.
-pub fn request_when_ready<T: Transport>(c: &mut LinkClient<T>, message: &HostMessage) -> Result<FirmwareMessage> {
-    for _ in 0..NOT_READY_TRIES {
+/// Sends `message`, again after each `NotReady` for up to `waits` wait slots (a read timeout
+/// each); returns the firmware's reply, or its last refusal.
+pub fn request_when_ready<T: Transport>(
+    c: &mut LinkClient<T>,
+    message: &HostMessage,
+    waits: usize,
+) -> Result<FirmwareMessage, LinkError> {
+    let mut waited = 0;
+    loop {
         match c.request(message) {
-            Err(LinkError::Nak(NakReason::NotReady)) => c.wait_once()?,
-            other => return Ok(other?),
+            Err(LinkError::Nak(NakReason::NotReady)) if waited < waits => {
+                waited += 1;
+                c.wait_once()?;
+            }
+            other => return other,
         }
     }
-    bail!("the firmware kept answering NotReady to {message:?}")
 }
 
 /// Polls status until the arm is at rest; fails if it is still moving after `polls` requests.
