@@ -1,5 +1,5 @@
 //! Hardware in the loop, simulated: the real firmware binary for the MPS2 AN386 (Cortex-M4F) runs
-//! under `qemu-system-arm -icount shift=0` (`armctl::qemu`), its UART1 on the simulated servo bus's
+//! under `qemu-system-arm -icount shift=0` (`armctl::places::qemu`), its UART1 on the simulated servo bus's
 //! pty and its UART0 on a pty that the host opens as a serial port (the serialport crate), exactly
 //! as `armctl --port` does with a board. The SIL scenarios' expectations are checked again here:
 //! targets within a millimetre, a streamed trajectory with no keyframe lost, faults on the servo
@@ -9,14 +9,15 @@
 use std::sync::Mutex;
 use std::time::Duration;
 
+use armctl::arm::servos::ServoSetup;
 use armctl::arm::ArmSpec;
 use armctl::drive::connection::{open, Connection, Target};
-use armctl::link::arm_config::{configure_messages, ServoSetup};
+use armctl::link::arm_config::configure_messages;
 use armctl::link::client::LinkClient;
 use armctl::link::ready::{request_when_ready, wait_idle};
 use armctl::link::Transport;
-use armctl::qemu::{self, Qemu, QemuConfig};
-use armctl::sim::cli::so101_bus;
+use armctl::places::qemu::{self, Qemu, QemuConfig};
+use armctl::sim::so101_bus;
 use armctl::sim::{Faults, PtyServer};
 use firmware::link::message::{CartesianTarget, HostMessage, JointKeyframe, RunState, Status, Timing};
 
@@ -68,7 +69,7 @@ fn poll_for(c: &mut Client, duration: Duration) -> Status {
 
 fn tool_error(arm: &ArmSpec, q: &[f32], target: [f32; 3]) -> f64 {
     let q: Vec<f64> = q.iter().map(|x| f64::from(*x)).collect();
-    let reached = armctl::dof::build(arm.clone()).unwrap().tool_pose(&q).unwrap().translation;
+    let reached = armctl::arm::dof::build(arm.clone()).unwrap().tool_pose(&q).unwrap().translation;
     let d = [reached.x - f64::from(target[0]), reached.y - f64::from(target[1]), reached.z - f64::from(target[2])];
     d.iter().map(|x| x * x).sum::<f64>().sqrt()
 }

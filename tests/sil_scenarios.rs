@@ -1,12 +1,13 @@
 //! SIL scenarios: the firmware application behind the host link, on simulated servos, driven by
-//! the host's link client, all on one virtual clock (`armctl::sil`). The safety monitor checks
+//! the host's link client, all on one virtual clock (`armctl::places::sil`). The safety monitor checks
 //! every goal the simulated servos receive against the joint limits and the per-period velocity
 //! limit; every scenario ends by asserting it saw nothing wrong.
 
+use armctl::arm::servos::ServoSetup;
 use armctl::arm::ArmSpec;
-use armctl::link::arm_config::{configure_messages, ServoSetup};
+use armctl::link::arm_config::configure_messages;
 use armctl::link::client::{LinkClient, LinkConfig, LinkError};
-use armctl::sil::{Sil, SilOptions};
+use armctl::places::sil::{Sil, SilOptions};
 use firmware::link::frame::{decode_payload, encode_message, FrameDecoder, FrameKind, MAX_ENCODED, MAX_FRAME};
 use firmware::link::message::{
     CartesianKeyframe, CartesianTarget, FirmwareMessage, HostMessage, JointKeyframe, NakReason, RunState, Status,
@@ -68,7 +69,7 @@ fn poll_for(c: &mut Client, seconds: f64) -> Status {
 
 fn tool_position(arm: &ArmSpec, q: &[f32]) -> [f64; 3] {
     let q: Vec<f64> = q.iter().map(|x| f64::from(*x)).collect();
-    let pose = armctl::dof::build(arm.clone()).unwrap().tool_pose(&q).unwrap();
+    let pose = armctl::arm::dof::build(arm.clone()).unwrap().tool_pose(&q).unwrap();
     [pose.translation.x, pose.translation.y, pose.translation.z]
 }
 

@@ -1,25 +1,24 @@
 //! The host side of the servo-arm project: the `armctl` command-line tool as a library, so that
 //! integration tests run exactly the code the binary runs.
+//!
+//! The modules, top to bottom (a module uses only those below it):
+//! - [`cli`]: the command line, which uses everything;
+//! - [`demo`], [`bench`], [`footprint`], [`drive`], [`motion`], [`servo`]: what armctl does;
+//! - [`places`]: where the firmware core runs on this PC (SIL, QEMU);
+//! - [`link`] and [`sim`]: the host link and its transports, the servo-bus simulator;
+//! - [`arm`], [`args`] and [`plot`]: arm descriptions, typed values, PNG drawing.
 #![warn(missing_docs)]
 
+pub mod args;
 pub mod arm;
 pub mod bench;
-pub mod bench_bus;
-pub mod bench_mcu;
-pub mod bench_rate;
-pub mod bus_args;
 pub mod cli;
 pub mod demo;
-pub mod demo_plot;
-pub mod dof;
 pub mod drive;
 pub mod footprint;
-pub mod kcompare;
 pub mod link;
-pub mod parse;
+pub mod motion;
+pub mod places;
 pub mod plot;
-pub mod qemu;
 pub mod servo;
-pub mod sil;
 pub mod sim;
-pub mod trajectory;

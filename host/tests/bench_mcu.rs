@@ -20,7 +20,7 @@ const OPERATIONS: [&str; 8] = [
 ];
 
 fn qemu_available() -> bool {
-    let found = armctl::qemu::available();
+    let found = armctl::places::qemu::available();
     if !found {
         assert!(std::env::var_os("CI").is_none(), "qemu-system-arm is missing, and CI is set: bench mcu must run");
         eprintln!("SKIPPED: qemu-system-arm is not installed (apt-get install qemu-system-arm); bench mcu did not run");

@@ -1,7 +1,7 @@
 //! The `armctl demo` plot: a synthetic trace becomes a PNG of the documented size; bad traces give
 //! one-line errors and leave no file; odd but valid traces draw without panicking.
 
-use armctl::demo_plot::{write_demo_png, DemoTrace, MIN_HEIGHT, WIDTH};
+use armctl::demo::plot::{write_demo_png, DemoTrace, MIN_HEIGHT, WIDTH};
 use std::path::PathBuf;
 
 /// Five joints following sinusoids for 10 s at 50 Hz; the servos lag 40 ms and droop slightly.

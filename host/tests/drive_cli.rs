@@ -65,7 +65,7 @@ fn fk(q: &[f64]) -> [f64; 3] {
 
 /// SO-101 tool position and orientation (w, x, y, z) at `q`.
 fn fk_pose(q: &[f64]) -> ([f64; 3], [f64; 4]) {
-    let arm = armctl::dof::build(armctl::arm::ArmSpec::load("so101", None).unwrap()).unwrap();
+    let arm = armctl::arm::dof::build(armctl::arm::ArmSpec::load("so101", None).unwrap()).unwrap();
     let pose = arm.tool_pose(q).unwrap();
     (pose.translation.into(), pose.quaternion_wxyz())
 }

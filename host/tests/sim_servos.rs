@@ -592,7 +592,7 @@ fn armctl_sim_servos_serves_a_pty_and_refuses_bad_input() {
 
 #[test]
 fn id_lists_parse() {
-    assert_eq!(armctl::sim::cli::parse_ids("1-3,7").unwrap(), [1, 2, 3, 7]);
-    assert_eq!(armctl::sim::cli::parse_ids("1,3,5").unwrap(), [1, 3, 5]);
-    assert!(armctl::sim::cli::parse_ids("").is_err());
+    assert_eq!(armctl::args::numbers::ids("1-3,7", u8::MAX, "--ids").unwrap(), [1, 2, 3, 7]);
+    assert_eq!(armctl::args::numbers::ids("1,3,5", u8::MAX, "--ids").unwrap(), [1, 3, 5]);
+    assert!(armctl::args::numbers::ids("", u8::MAX, "--ids").is_err());
 }

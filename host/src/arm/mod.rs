@@ -1,8 +1,10 @@
 //! Arms as the host knows them: a run-time joint list ([`ArmSpec`]) read from a preset name, a URDF
 //! file or the project's TOML arm file, turned into the kinematics crate's fixed-size chain for the
-//! joint count it has (see [`crate::dof`]).
+//! joint count it has (see [`dof`]).
 
+pub mod dof;
 pub mod presets;
+pub mod servos;
 pub mod toml_file;
 pub mod urdf;
 
@@ -37,8 +39,8 @@ pub struct ArmSpec {
     /// Tool frame relative to the last joint's frame.
     pub tool: Pose<f64>,
     /// The servos driving the joints, when the description names them (the arm file's
-    /// `[servos]`); the presets' are in [`crate::link::arm_config::ServoSetup::for_arm`].
-    pub servos: Option<crate::link::arm_config::ServoSetup>,
+    /// `[servos]`); the presets' are in [`servos::ServoSetup::for_arm`].
+    pub servos: Option<servos::ServoSetup>,
 }
 
 impl ArmSpec {

@@ -12,7 +12,7 @@ pub fn by_name(name: &str) -> Result<ArmSpec> {
     let invalid = |e| anyhow!("preset {name} is invalid: {e}");
     if let Some(n) = name.strip_prefix("planar:") {
         let n: usize = n.parse().with_context(|| format!("planar:N needs a joint count, got {name:?}"))?;
-        return crate::dof::planar_spec(n);
+        return super::dof::planar_spec(n);
     }
     Ok(match name {
         "ur5e" => ArmSpec::from_chain(name, &presets::ur5e().map_err(invalid)?),

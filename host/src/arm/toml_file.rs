@@ -233,7 +233,7 @@ pub fn parse(text: &str) -> Result<ArmSpec> {
 }
 
 /// The `[servos]` table, checked against the joint count.
-fn servos(at: &str, entry: &ServosEntry, joints: usize) -> Result<crate::link::arm_config::ServoSetup> {
+fn servos(at: &str, entry: &ServosEntry, joints: usize) -> Result<super::servos::ServoSetup> {
     let model =
         firmware::bus::table::MODELS.into_iter().find(|m| m.name.eq_ignore_ascii_case(&entry.model)).ok_or_else(
             || anyhow!("{at}: unknown servo model {:?} (STS3215, XL430-W250, XM430-W350, XL330-M288)", entry.model),
@@ -260,7 +260,7 @@ fn servos(at: &str, entry: &ServosEntry, joints: usize) -> Result<crate::link::a
             bail!("{at}: {key} must be a positive number, not {v}");
         }
     }
-    Ok(crate::link::arm_config::ServoSetup {
+    Ok(super::servos::ServoSetup {
         model,
         ids: entry.ids.clone(),
         zero: entry.zero.clone(),

@@ -1,5 +1,5 @@
 //! `armctl demo`: the whole product on the PC, without hardware. The firmware application runs
-//! in software in the loop ([`crate::sil`]) against simulated servos; the host drives it over the
+//! in software in the loop ([`crate::places::sil`]) against simulated servos; the host drives it over the
 //! simulated link exactly as it drives a board: the tool goes to Cartesian targets (IK on the
 //! firmware), then plays a pick-and-place path streamed as Cartesian keyframes with flow control.
 //! It prints what was reached and how the loop ran, and plots planned against measured motion.
@@ -7,6 +7,7 @@
 //! - [`scenario`]: the targets and the path of each arm.
 //! - [`run`](self::run): the run, its measurements and the report.
 
+pub mod plot;
 mod scenario;
 
 use std::io::Write;
@@ -18,11 +19,11 @@ use clap::Args;
 use firmware::link::message::{CartesianKeyframe, CartesianTarget, HostMessage, NakReason, RunState, Status, Timing};
 use serde_json::{json, Value};
 
-use crate::demo_plot::{write_demo_png, DemoTrace};
-use crate::dof::DynArm;
+use crate::arm::dof::DynArm;
+use crate::demo::plot::{write_demo_png, DemoTrace};
 use crate::drive::connection::handshake;
 use crate::link::client::{LinkClient, LinkConfig, LinkError};
-use crate::sil::{Sil, SilOptions, TraceSample};
+use crate::places::sil::{Sil, SilOptions, TraceSample};
 use scenario::Scenario;
 
 /// `armctl demo` options.
@@ -245,7 +246,7 @@ pub fn run(args: &DemoArgs, out: &mut dyn Write) -> Result<i32> {
     sil.record();
     let mut c = LinkClient::new(sil, LinkConfig::default());
     let (info, spec) = handshake(&mut c, Some(&args.arm))?;
-    let arm = crate::dof::build(spec)?;
+    let arm = crate::arm::dof::build(spec)?;
     torque_on(&mut c)?;
     let mut trace = Vec::new();
     let t_targets = c.transport().now_s();

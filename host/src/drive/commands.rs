@@ -5,17 +5,15 @@ use std::io::Write;
 
 use anyhow::{anyhow, bail, Result};
 use firmware::link::message::{
-    CartesianTarget, HostMessage, Joints, RunState, Status, Timing, MAX_JOINTS, MAX_REACH, MAX_SPEED, MAX_TIME,
-    QUATERNION_TOLERANCE,
+    CartesianTarget, HostMessage, RunState, Status, Timing, MAX_REACH, MAX_SPEED, MAX_TIME, QUATERNION_TOLERANCE,
 };
-use kinematics::JointKind;
 use serde_json::json;
 
-use super::cli::{DriveCommand, JointsArgs, MoveArgs, OnOff};
+use super::args::{DriveCommand, JointsArgs, MoveArgs, OnOff};
 use super::interrupt;
 use super::play::{self, Plan};
-use super::session::{fmt3, fmt_list, Driver, Waited};
-use crate::parse;
+use super::session::{check_joints, fmt3, fmt_list, Driver, Waited};
+use crate::args::numbers as parse;
 
 /// The tool speed of `move` without --speed or --duration (m/s): slow enough to watch.
 pub const DEFAULT_TOOL_SPEED: f64 = 0.1;
@@ -57,9 +55,9 @@ impl Request {
             DriveCommand::Move(args) => parse_move(args)?,
             DriveCommand::Joints(args) => parse_joints(args)?,
             DriveCommand::Play(args) => Request::Play(Plan::read(&args.file, args.timeout)?),
-            DriveCommand::Status => Request::Status,
-            DriveCommand::Stop => Request::Stop,
-            DriveCommand::Torque { state } => Request::Torque(*state == OnOff::On),
+            DriveCommand::Status(_) => Request::Status,
+            DriveCommand::Stop(_) => Request::Stop,
+            DriveCommand::Torque(args) => Request::Torque(args.state == OnOff::On),
         })
     }
 }
@@ -121,29 +119,6 @@ fn parse_joints(args: &JointsArgs) -> Result<Request> {
     };
     positive(args.timeout, f64::from(MAX_TIME), "--timeout", "s")?;
     Ok(Request::Joints { q, timing, timeout: args.timeout })
-}
-
-/// Checks joint values against the arm: the count, and each value within its joint's limits.
-/// `what` starts each error (e.g. `--q` or `file.csv: line 3`).
-pub fn check_joints(driver: &Driver, q: &[f64], what: &str) -> Result<Joints> {
-    let arm = driver.arm();
-    if q.len() != driver.joints() {
-        bail!("{what}: {} joint values, but the arm {} has {} joints", q.len(), arm.name, driver.joints());
-    }
-    for (j, (value, joint)) in q.iter().zip(&arm.joints).enumerate() {
-        if joint.kind != JointKind::Continuous && !(joint.lower..=joint.upper).contains(value) {
-            bail!(
-                "{what}: joint {} ({}) value {value} is outside its limits {}..={}",
-                j + 1,
-                joint.name,
-                joint.lower,
-                joint.upper
-            );
-        }
-    }
-    // The joint count fits: the arm was checked against MAX_JOINTS when it was connected.
-    Joints::from_slice(&q.iter().map(|&x| x as f32).collect::<Vec<_>>())
-        .map_err(|_| anyhow!("{what}: more than {MAX_JOINTS} joints"))
 }
 
 /// Runs a checked request against the connected firmware; returns the exit code.

@@ -6,12 +6,13 @@ use std::time::Duration;
 use anyhow::{anyhow, bail, Context, Result};
 use firmware::link::message::Info;
 
+use crate::arm::servos::servos_of;
 use crate::arm::ArmSpec;
-use crate::link::arm_config::{configure_messages, servos_of};
+use crate::link::arm_config::configure_messages;
 use crate::link::client::{LinkClient, LinkConfig};
+use crate::link::serial::open_error;
 use crate::link::Transport;
-use crate::servo::transport::open_error;
-use crate::sil::{Sil, SilOptions};
+use crate::places::sil::{Sil, SilOptions};
 
 /// How long a read of the link waits (real time on a port, virtual time in SIL); the client's
 /// backoff counts in these.

@@ -9,8 +9,7 @@
 //! `move`, `joints` and `play` wait until the arm is at rest again; Ctrl-C while they wait stops
 //! the arm (decelerating within its limits) and exits with code 130.
 
-mod cartesian_file;
-pub mod cli;
+pub mod args;
 mod commands;
 pub mod connection;
 pub(crate) mod interrupt;
@@ -18,4 +17,18 @@ mod play;
 mod progress;
 mod session;
 
-pub use cartesian_file::{parse_cartesian_keyframes, CartesianKeyframes};
+use std::io::Write;
+
+use anyhow::Result;
+
+use args::{DriveCommand, LinkArgs};
+
+/// Runs an arm-driving command; returns the exit code.
+pub fn run(link: &LinkArgs, command: DriveCommand, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+    // Everything the user typed is checked before connecting, so bad input changes nothing.
+    let link = link.merged(command.link())?;
+    let request = commands::Request::parse(&command)?;
+    let (target, arm) = link.target()?;
+    let mut driver = session::Driver::open(target, arm)?;
+    commands::run(&mut driver, request, link.json, out, err)
+}

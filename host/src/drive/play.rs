@@ -18,12 +18,11 @@ use firmware::link::message::{
 };
 use serde_json::json;
 
-use super::cartesian_file::{self, parse_cartesian_keyframes, CartesianKeyframes};
-use super::commands::check_joints;
 use super::interrupt;
 use super::progress::Progress;
-use super::session::{fmt3, Driver};
-use crate::trajectory::{self, Keyframes};
+use super::session::{check_joints, fmt3, Driver};
+use crate::motion::cartesian_file::{self, parse_cartesian_keyframes, CartesianKeyframes};
+use crate::motion::trajectory::{self, Keyframes};
 
 /// The keyframes of a file, in either format.
 pub enum Frames {

@@ -5,13 +5,14 @@
 use std::io::Write;
 use std::time::Instant;
 
-use anyhow::{bail, Result};
-use firmware::link::message::{FirmwareMessage, HostMessage, RunState, Status};
+use anyhow::{anyhow, bail, Result};
+use firmware::link::message::{FirmwareMessage, HostMessage, Joints, RunState, Status, MAX_JOINTS};
+use kinematics::JointKind;
 
 use super::connection::{self, Connection, Target};
 use super::interrupt;
+use crate::arm::dof::{self, DynArm};
 use crate::arm::ArmSpec;
-use crate::dof::{self, DynArm};
 use crate::link::client::LinkError;
 
 /// Longest wait for the arm to come to rest after a stop (controller seconds).
@@ -235,4 +236,27 @@ pub fn fmt3(p: &[f64; 3]) -> String {
 /// Joint values with 4 decimals.
 pub fn fmt_list(q: &[f32]) -> String {
     q.iter().map(|x| format!("{x:.4}")).collect::<Vec<_>>().join(", ")
+}
+
+/// Checks joint values against the arm: the count, and each value within its joint's limits.
+/// `what` starts each error (e.g. `--q` or `file.csv: line 3`).
+pub fn check_joints(driver: &Driver, q: &[f64], what: &str) -> Result<Joints> {
+    let arm = driver.arm();
+    if q.len() != driver.joints() {
+        bail!("{what}: {} joint values, but the arm {} has {} joints", q.len(), arm.name, driver.joints());
+    }
+    for (j, (value, joint)) in q.iter().zip(&arm.joints).enumerate() {
+        if joint.kind != JointKind::Continuous && !(joint.lower..=joint.upper).contains(value) {
+            bail!(
+                "{what}: joint {} ({}) value {value} is outside its limits {}..={}",
+                j + 1,
+                joint.name,
+                joint.lower,
+                joint.upper
+            );
+        }
+    }
+    // The joint count fits: the arm was checked against MAX_JOINTS when it was connected.
+    Joints::from_slice(&q.iter().map(|&x| x as f32).collect::<Vec<_>>())
+        .map_err(|_| anyhow!("{what}: more than {MAX_JOINTS} joints"))
 }

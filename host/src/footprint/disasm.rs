@@ -15,8 +15,10 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{bail, Context, Result};
 use serde::Serialize;
+
+use crate::places::board;
 
 /// The two LLVM tools used.
 #[derive(Clone, Debug)]
@@ -27,28 +29,14 @@ pub struct Tools {
 
 impl Tools {
     /// Finds `llvm-objdump` in the toolchain that `rust-toolchain.toml` pins (rustc run from the
-    /// workspace, so rustup picks that toolchain): `$(rustc --print sysroot)/lib/rustlib/<host>/bin`.
+    /// board crates, so rustup picks that toolchain): `$(rustc --print sysroot)/lib/rustlib/<host>/bin`,
+    /// installing the `llvm-tools` component first where it is missing.
     /// `llvm-addr2line` is taken from there too, else from `PATH` (the component does not ship it
     /// in every release); without it the panic sites are listed without their source lines.
     pub fn find() -> Result<Tools> {
-        let workspace = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-        let rustc = |args: &[&str]| -> Result<String> {
-            let output = Command::new(std::env::var_os("RUSTC").unwrap_or_else(|| "rustc".into()))
-                .args(args)
-                .current_dir(&workspace)
-                .output()
-                .context("cannot run rustc")?;
-            if !output.status.success() {
-                bail!("rustc {} failed: {}", args.join(" "), String::from_utf8_lossy(&output.stderr).trim());
-            }
-            Ok(String::from_utf8_lossy(&output.stdout).trim().to_string())
-        };
-        let sysroot = rustc(&["--print", "sysroot"])?;
-        let host = rustc(&["-vV"])?
-            .lines()
-            .find_map(|l| l.strip_prefix("host: ").map(str::to_string))
-            .ok_or_else(|| anyhow!("rustc -vV names no host triple"))?;
-        let bin = Path::new(&sysroot).join("lib/rustlib").join(host).join("bin");
+        let boards = board::boards_dir();
+        board::ensure_toolchain(&boards)?;
+        let bin = board::Toolchain::of(&boards)?.llvm_bin();
         let objdump = bin.join("llvm-objdump");
         if !objdump.is_file() {
             bail!(

@@ -11,13 +11,13 @@ use anyhow::{bail, Context, Result};
 use firmware::link::message::{CartesianTarget, HostMessage, JointKeyframe, Timing};
 use serde::Serialize;
 
+use crate::arm::servos::ServoSetup;
 use crate::arm::ArmSpec;
 use crate::drive::connection::{open, Target};
-use crate::link::arm_config::{configure_messages, ServoSetup};
+use crate::link::arm_config::configure_messages;
 use crate::link::ready::{request_when_ready, wait_idle};
-use crate::qemu::{DefmtLog, Qemu, QemuConfig};
-use crate::sim::cli::so101_bus;
-use crate::sim::{Faults, PtyServer};
+use crate::places::qemu::{DefmtLog, Qemu, QemuConfig};
+use crate::sim::{so101_bus, Faults, PtyServer};
 
 /// The firmware checks its high-water mark once a second: this long after the last operation, the
 /// mark it reached is logged.

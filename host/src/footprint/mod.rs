@@ -94,11 +94,10 @@ impl Board {
     /// Builds the release binary and returns its path.
     fn build(self) -> Result<PathBuf> {
         match self {
-            Board::Mps2An386 => crate::qemu::build(crate::qemu::FIRMWARE_BIN),
-            Board::Stm32f411 => crate::qemu::build_board(
-                &Path::new(env!("CARGO_MANIFEST_DIR")).join("../firmware/boards/stm32f411"),
-                "board-stm32f411",
-            ),
+            Board::Mps2An386 => crate::places::qemu::build(crate::places::qemu::FIRMWARE_BIN),
+            Board::Stm32f411 => {
+                crate::places::board::build(&crate::places::board::boards_dir().join("stm32f411"), "board-stm32f411")
+            }
         }
     }
 }
@@ -236,7 +235,7 @@ fn report(
         (None, Some("not measured: QEMU emulates only the mps2-an386 board".to_string()))
     } else if args.no_qemu {
         (None, Some("not measured (--no-qemu)".to_string()))
-    } else if !crate::qemu::available() {
+    } else if !crate::places::qemu::available() {
         (None, Some("not measured: qemu-system-arm is missing (apt-get install qemu-system-arm)".to_string()))
     } else {
         writeln!(err, "measuring the stack under QEMU (move, streamed keyframes, arm sent over the link)...")?;

@@ -15,7 +15,7 @@ use firmware::bus::{Id, Protocol};
 
 use super::commands::{self, Target};
 use super::session::Session;
-use crate::bus_args::ProtocolArg;
+use crate::args::bus::ProtocolArg;
 
 /// Serial bus servos: scan, read and write the control table, set id and baud rate, torque.
 #[derive(Args, Debug)]
@@ -40,7 +40,7 @@ enum ServoCommand {
         all_bauds: bool,
     },
     /// Read bytes of a servo's control table: the bytes in hex, then `name = value` for every
-    /// known item among them.
+    /// known item among them; or named items (`--item present_position,present_load`).
     Read {
         #[command(flatten)]
         bus: BusArgs,
@@ -48,11 +48,15 @@ enum ServoCommand {
         #[arg(long, value_parser = clap::value_parser!(u8).range(0..=253))]
         id: u8,
         /// First address.
-        #[arg(long)]
-        addr: u16,
+        #[arg(long, required_unless_present = "item", requires = "len")]
+        addr: Option<u16>,
         /// Bytes to read.
-        #[arg(long, value_parser = clap::value_parser!(u16).range(1..=128))]
-        len: u16,
+        #[arg(long, value_parser = clap::value_parser!(u16).range(1..=128), requires = "addr")]
+        len: Option<u16>,
+        /// Items by name instead of --addr and --len, comma-separated (as `read` prints them:
+        /// present_position, goal_position, ...); read in one transaction.
+        #[arg(long, conflicts_with_all = ["addr", "len"], value_delimiter = ',')]
+        item: Vec<String>,
     },
     /// Write a value at an address, in the model's byte order and encoding.
     Write {
@@ -161,24 +165,8 @@ impl BusArgs {
 struct IdList(Vec<Id>);
 
 fn parse_ids(text: &str) -> Result<IdList, String> {
-    let one = |s: &str| {
-        s.trim().parse::<Id>().ok().filter(|id| *id <= 253).ok_or_else(|| format!("{s:?} is not an id (0-253)"))
-    };
-    let mut ids = Vec::new();
-    for part in text.split(',') {
-        match part.split_once('-') {
-            Some((a, b)) => {
-                let (a, b) = (one(a)?, one(b)?);
-                if a > b {
-                    return Err(format!("empty range {part}"));
-                }
-                ids.extend(a..=b);
-            }
-            None => ids.push(one(part)?),
-        }
-    }
+    let mut ids = crate::args::numbers::ids(text, 253, "--ids").map_err(|e| e.to_string())?;
     ids.sort_unstable();
-    ids.dedup();
     Ok(IdList(ids))
 }
 
@@ -257,9 +245,10 @@ pub fn run(args: ServoArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
             let bauds = if all_bauds { commands::protocol_bauds(protocol) } else { vec![config.baud] };
             commands::scan(&bus.port, config, &bauds, &ids, out, err)
         }
-        ServoCommand::Read { bus, id, addr, len } => {
+        ServoCommand::Read { bus, id, addr: Some(addr), len: Some(len), .. } => {
             commands::read(&mut bus.open()?, id, addr, usize::from(len), out, err)
         }
+        ServoCommand::Read { bus, id, item, .. } => commands::read_items(&mut bus.open()?, id, &item, out, err),
         ServoCommand::Write { bus, id, addr, value, len } => {
             commands::write(&mut bus.open()?, id, addr, value, len, out, err)
         }

@@ -134,6 +134,48 @@ pub fn read<P: Port, C: Clock>(
     finish(session, err)
 }
 
+/// The most bytes one `read` asks for (as `--len` allows).
+pub const MAX_READ: usize = 128;
+
+/// `read --item a,b`: the named items of the servo's model, read in one transaction spanning them
+/// all; prints the bytes in hex, then `name = value` for each item asked for, in the order asked.
+pub fn read_items<P: Port, C: Clock>(
+    session: &mut Session<P, C>,
+    id: Id,
+    names: &[String],
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> Result<i32> {
+    let servo = session.identify(id)?;
+    let model = servo.known_model()?;
+    let mut wanted = Vec::with_capacity(names.len());
+    for name in names.iter().map(|n| n.trim()) {
+        let Some(item) = items::named(model, name) else {
+            let known: Vec<&str> = items::all(model).iter().map(|i| i.name).collect();
+            bail!("servo {id}: model {} has no item {name:?} (it has {})", model.name, known.join(", "));
+        };
+        wanted.push(item);
+    }
+    let (Some(first), Some(end)) =
+        (wanted.iter().map(|i| i.address).min(), wanted.iter().map(|i| usize::from(i.address) + i.len()).max())
+    else {
+        bail!("--item names no item");
+    };
+    let span = end - usize::from(first);
+    if span > MAX_READ {
+        bail!("the items lie {span} bytes apart, more than one read of {MAX_READ} bytes: read them in two calls");
+    }
+    let mut bytes = vec![0u8; span];
+    session.read(id, first, &mut bytes)?;
+    writeln!(out, "{}", hex(&bytes))?;
+    for item in wanted {
+        let start = usize::from(item.address - first);
+        let value = item.decode(&bytes[start..start + item.len()], model.endian).map_err(value_error)?;
+        writeln!(out, "{} = {value}", item.name)?;
+    }
+    finish(session, err)
+}
+
 /// The item a write of `len` bytes (or of the item's own size) at `address` means.
 fn write_target(servo: &Servo, address: u16, len: Option<u8>) -> Result<Item> {
     let known = servo.model.and_then(|m| items::at(m, address));

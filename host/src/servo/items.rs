@@ -37,7 +37,7 @@ const XSERIES: [Item; 24] = [
 ];
 
 /// The STS3215 items.
-const STS3215: [Item; 22] = [
+const STS3215: [Item; 23] = [
     sts3215::FIRMWARE_MAJOR_VERSION,
     sts3215::FIRMWARE_MINOR_VERSION,
     sts3215::MODEL_NUMBER,
@@ -57,6 +57,7 @@ const STS3215: [Item; 22] = [
     sts3215::LOCK,
     sts3215::PRESENT_POSITION,
     sts3215::PRESENT_VELOCITY,
+    sts3215::PRESENT_LOAD,
     sts3215::PRESENT_VOLTAGE,
     sts3215::PRESENT_TEMPERATURE,
     sts3215::MOVING,
@@ -75,6 +76,11 @@ pub fn all(model: &Model) -> &'static [Item] {
 /// The item that starts at `address`, if any.
 pub fn at(model: &Model, address: u16) -> Option<Item> {
     all(model).iter().copied().find(|i| i.address == address)
+}
+
+/// The item named `name` (as armctl prints it: `present_position`), if the model has it.
+pub fn named(model: &Model, name: &str) -> Option<Item> {
+    all(model).iter().copied().find(|i| i.name == name)
 }
 
 /// The items that lie wholly inside `len` bytes from `address`, in address order.
@@ -133,5 +139,8 @@ mod tests {
         assert_eq!(names, ["present_velocity", "present_position"]);
         assert_eq!(at(model, 116).map(|i| i.name), Some("goal_position"));
         assert_eq!(within(model, 133, 3).count(), 0);
+        assert_eq!(named(model, "present_position").map(|i| i.address), Some(132));
+        assert_eq!(named(&firmware::bus::table::STS3215, "present_load").map(|i| (i.address, i.size)), Some((60, 2)));
+        assert!(named(model, "present_lod").is_none());
     }
 }

@@ -4,10 +4,11 @@
 //!
 //! The bus code is the firmware's ([`firmware::bus`]): its codecs, its [`Master`] with timeouts and
 //! retries, its model tables. This module adds only what a PC needs around it:
-//! - [`transport`]: a `serialport` port as an `embedded-io` stream, and a `std` clock;
+//! - [`crate::link::serial`] (below it): a `serialport` port as an `embedded-io` stream, and a `std` clock;
 //! - [`items`]: every named control-table item of a model, to decode what a read returns;
 //! - [`session`]: an open bus, with servo identification and one-line error texts;
 //! - [`commands`]: the commands themselves;
+//! - [`ports`]: `armctl ports`, the USB serial ports and the device behind each;
 //! - [`cli`]: their command-line arguments.
 //!
 //! [`Master`]: firmware::bus::master::Master
@@ -15,5 +16,5 @@
 pub mod cli;
 pub mod commands;
 pub mod items;
+pub mod ports;
 pub mod session;
-pub mod transport;

@@ -8,7 +8,7 @@ use firmware::bus::master::{Answer, BusConfig, Clock, Master, MasterError, NoDir
 use firmware::bus::table::{Item, Model, ValueError, MODELS};
 use firmware::bus::{Id, Protocol};
 
-use super::transport::{OpenError, SerialTransport, StdClock, TransportError};
+use crate::link::serial::{OpenError, SerialTransport, StdClock, TransportError};
 
 /// A byte stream the bus master runs on: a serial port here, the simulator's in-memory line in
 /// tests. Its errors go into `anyhow` errors, hence `Send + Sync + 'static`.

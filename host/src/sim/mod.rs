@@ -8,13 +8,11 @@
 //! - [`bus`]: the line: instruction decoding, reply timing, collisions.
 //! - [`port`]: the master's end of an in-memory line, an `embedded-io` port on the virtual clock.
 //! - [`pty`]: a bus served on a pseudo-terminal, on real time.
-//! - [`cli`]: `armctl sim servos`.
 //!
 //! The codecs, control tables and wire-time arithmetic are the firmware's own
 //! ([`firmware::bus`]): the simulator exercises the same code the boards run.
 
 pub mod bus;
-pub mod cli;
 pub mod clock;
 pub mod faults;
 pub mod motion;
@@ -26,7 +24,7 @@ pub use bus::{BusStats, SimBus, WireByte};
 pub use clock::VirtualClock;
 pub use faults::{FaultStats, Faults};
 pub use port::{PortStats, SharedBus, SimPort};
-pub use pty::{PtyServer, SimConfig};
+pub use pty::{so101_bus, PtyServer, SimConfig};
 pub use servo::SimServo;
 
 /// A bus shared with a port on a fresh virtual clock: what a SIL test connects a master to.

@@ -191,3 +191,18 @@ fn serve(
     }
     Ok(())
 }
+
+/// The SO-101's bus as the built-in firmware expects it.
+pub fn so101_bus(faults: super::Faults) -> SimConfig {
+    use firmware::bus::table::STS3215;
+    SimConfig {
+        protocol: STS3215.protocol,
+        model: &STS3215,
+        ids: (1..=firmware::builtin::JOINTS as u8).collect(),
+        baud: 1_000_000,
+        faults,
+        duplicates: Vec::new(),
+        // QEMU sets the pty to 921600 for its 1 Mbps divider; the servos stay at 1 Mbps.
+        fixed_baud: true,
+    }
+}

@@ -44,6 +44,9 @@ pub const LOCK: Item = Item::new("lock", 55, 1, ReadWrite, Unsigned);
 pub const PRESENT_POSITION: Item = Item::new("present_position", 56, 2, Read, SignMagnitude(15));
 /// Present velocity in steps/s.
 pub const PRESENT_VELOCITY: Item = Item::new("present_velocity", 58, 2, Read, SignMagnitude(15));
+/// Present load in 0.1 % of the maximum torque, sign (direction) in bit 10 (LeRobot's
+/// `Present_Load`, encoding bit 10).
+pub const PRESENT_LOAD: Item = Item::new("present_load", 60, 2, Read, SignMagnitude(10));
 /// Voltage in 0.1 V.
 pub const PRESENT_VOLTAGE: Item = Item::new("present_voltage", 62, 1, Read, Unsigned);
 /// Temperature in °C.

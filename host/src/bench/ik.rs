@@ -6,8 +6,8 @@
 //! Success is judged here, by f64 forward kinematics on the joint values a solver returns, not by
 //! the solver's own claim, so our solver and `k` are held to exactly the same test.
 
-use crate::dof::{DynArm, IkRequest, Scalar, SolverName};
-use crate::kcompare::KArm;
+use crate::arm::dof::{DynArm, IkRequest, Scalar, SolverName};
+use crate::bench::k::KArm;
 use anyhow::Result;
 use kinematics::ik::IkConfig;
 use kinematics::{rotation_error, Pose, SplitMix64};
@@ -181,7 +181,7 @@ pub fn run(arm: &dyn DynArm, protocol: &Protocol) -> Result<Report> {
         let k_arm = KArm::new(arm.spec())?;
         let seed = arm.middle();
         let mut tally =
-            Tally::new(&format!("k JacobianIkSolver (f64, {} tries)", crate::kcompare::K_MAX_TRY), protocol.n);
+            Tally::new(&format!("k JacobianIkSolver (f64, {} tries)", crate::bench::k::K_MAX_TRY), protocol.n);
         for target in &targets {
             let outcome = k_arm.solve(target, &seed, tolerances.0, tolerances.1);
             tally.add(outcome.solve_time, reaches(arm, &outcome.q, target, tolerances), outcome.claimed);

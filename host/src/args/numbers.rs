@@ -1,4 +1,4 @@
-//! Parsing of the numbers people type on the command line.
+//! Parsing of the numbers people type on the command line and in CSV files.
 
 use anyhow::{bail, Result};
 
@@ -28,6 +28,31 @@ pub fn fixed<const K: usize>(text: &str, what: &str) -> Result<[f64; K]> {
         Ok(a) => Ok(a),
         Err(_) => bail!("{what}: expected {K} comma-separated numbers, got {}", v.len()),
     }
+}
+
+/// Parses servo ids and ranges (`1-6`, `1,3,5`, `1-3,7`) into ids in the order given, without
+/// repeats; every id at most `max`. `what` names the option in the error.
+pub fn ids(text: &str, max: u8, what: &str) -> Result<Vec<u8>> {
+    let mut ids = Vec::new();
+    for part in text.split(',').map(str::trim) {
+        let number = |s: &str| match s.trim().parse::<u8>() {
+            Ok(id) if id <= max => Ok(id),
+            _ => Err(anyhow::anyhow!("{what}: `{}` is not an id (0-{max})", s.trim())),
+        };
+        let (lo, hi) = match part.split_once('-') {
+            Some((a, b)) => (number(a)?, number(b)?),
+            None => (number(part)?, number(part)?),
+        };
+        if lo > hi {
+            bail!("{what}: range `{part}` runs backwards");
+        }
+        for id in lo..=hi {
+            if !ids.contains(&id) {
+                ids.push(id);
+            }
+        }
+    }
+    Ok(ids)
 }
 
 /// Parses the fields of a CSV row (line `line` of a file whose header names the columns `names`)

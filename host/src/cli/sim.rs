@@ -9,10 +9,9 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
 use firmware::bus::{dxl2, feetech, Protocol};
 
-use super::faults::Faults;
-use super::pty::{PtyServer, SimConfig};
-use crate::bus_args::{model_for, ModelArg, ProtocolArg};
-use crate::qemu::{self, Qemu, QemuConfig};
+use crate::args::bus::{model_for, ModelArg, ProtocolArg};
+use crate::places::qemu::{self, Qemu, QemuConfig};
+use crate::sim::{so101_bus, Faults, PtyServer, SimConfig};
 
 /// Arguments of `armctl sim`: a subcommand, or `--qemu`.
 #[derive(Args, Debug)]
@@ -108,27 +107,6 @@ pub struct SimServosArgs {
     pub duplicate: Vec<u8>,
 }
 
-/// Parses `1-6`, `1,3,5`, `1-3,7` into ids in the order given, without repeats.
-pub fn parse_ids(text: &str) -> Result<Vec<u8>> {
-    let mut ids = Vec::new();
-    for part in text.split(',').map(str::trim) {
-        let number = |s: &str| s.trim().parse::<u8>().with_context(|| format!("--ids: `{s}` is not an id (0-255)"));
-        let (lo, hi) = match part.split_once('-') {
-            Some((a, b)) => (number(a)?, number(b)?),
-            None => (number(part)?, number(part)?),
-        };
-        if lo > hi {
-            bail!("--ids: range `{part}` runs backwards");
-        }
-        for id in lo..=hi {
-            if !ids.contains(&id) {
-                ids.push(id);
-            }
-        }
-    }
-    Ok(ids)
-}
-
 /// Checks the arguments and builds the bus description.
 pub fn config(args: &SimServosArgs) -> Result<SimConfig> {
     let protocol = Protocol::from(args.protocol);
@@ -137,7 +115,7 @@ pub fn config(args: &SimServosArgs) -> Result<SimConfig> {
         Protocol::Feetech => feetech::MAX_ID,
     };
     let model = model_for(protocol, args.model)?;
-    let ids = parse_ids(&args.ids)?;
+    let ids = crate::args::numbers::ids(&args.ids, u8::MAX, "--ids")?;
     let all = ids.iter().chain(&args.faults.silent).chain(&args.duplicate);
     if let Some(id) = all.into_iter().find(|&&id| id > max_id) {
         bail!("id {id} is outside {}'s range 0-{max_id}", protocol.name());
@@ -167,21 +145,6 @@ pub fn run(args: SimArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i3
             writeln!(err, "error: name what to simulate: `armctl sim servos ...` or `armctl sim --qemu`")?;
             Ok(2)
         }
-    }
-}
-
-/// The SO-101's bus as the built-in firmware expects it.
-pub fn so101_bus(faults: Faults) -> SimConfig {
-    use firmware::bus::table::STS3215;
-    SimConfig {
-        protocol: STS3215.protocol,
-        model: &STS3215,
-        ids: (1..=firmware::builtin::JOINTS as u8).collect(),
-        baud: 1_000_000,
-        faults,
-        duplicates: Vec::new(),
-        // QEMU sets the pty to 921600 for its 1 Mbps divider; the servos stay at 1 Mbps.
-        fixed_baud: true,
     }
 }
 

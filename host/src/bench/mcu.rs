@@ -19,7 +19,7 @@ use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
 use serde_json::{json, Value};
 
-use crate::qemu::{self, Qemu, QemuConfig};
+use crate::places::qemu::{self, Qemu, QemuConfig};
 
 /// The board binary that counts.
 pub const OPCOUNT_BIN: &str = "opcount";
@@ -144,7 +144,7 @@ pub fn measure() -> Result<McuReport> {
     parse(&lines).with_context(|| format!("reading the log of {OPCOUNT_BIN}:\n{}", lines.join("\n")))
 }
 
-/// Reads `opcount`'s log lines (as `armctl::qemu` decodes them: level, then the message).
+/// Reads `opcount`'s log lines (as `armctl::places::qemu` decodes them: level, then the message).
 pub fn parse(lines: &[String]) -> Result<McuReport> {
     let mut instructions_per_tick = None;
     let mut raw = Vec::new();
@@ -298,7 +298,7 @@ mod tests {
         text.lines().map(str::to_string).collect()
     }
 
-    /// The parse of a log as `armctl::qemu` decodes it: ticks to instructions, empty loop off.
+    /// The parse of a log as `armctl::places::qemu` decodes it: ticks to instructions, empty loop off.
     #[test]
     fn parses_the_counts_and_subtracts_the_empty_loop() {
         let log = lines(

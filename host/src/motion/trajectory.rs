@@ -5,16 +5,14 @@
 //! at the keyframes, used by `--method hermite`). Blank lines and lines starting with `#` are
 //! skipped. Every error names the file line it is about (the header is line 1).
 
-use crate::plot;
 use anyhow::{anyhow, bail, Context, Result};
-use clap::{Args, ValueEnum};
+use clap::ValueEnum;
 use kinematics::nalgebra::SVector;
 use kinematics::trajectory::{
     time_scale, Curve, EndCondition, Interpolation, JointLimits, Keyframe, KochanekBartels, LimitError, TrajectoryError,
 };
 use serde_json::{json, Value};
 use std::io::Write;
-use std::path::PathBuf;
 
 /// The largest joint count `armctl trajectory` handles.
 pub const MAX_JOINTS: usize = 12;
@@ -41,7 +39,8 @@ pub enum Method {
 }
 
 impl Method {
-    fn name(self) -> &'static str {
+    /// The name on the command line.
+    pub fn name(self) -> &'static str {
         match self {
             Method::Linear => "linear",
             Method::CatmullRom => "catmull-rom",
@@ -60,45 +59,6 @@ pub enum Ends {
     Zero,
     /// Zero acceleration at the first and last keyframe.
     Natural,
-}
-
-/// Arguments of `armctl trajectory sample`.
-#[derive(Args, Debug)]
-pub struct SampleArgs {
-    /// Keyframe CSV file: header `t,q1,...,qN` plus optional `v1,...,vN` velocity columns.
-    #[arg(long)]
-    pub keyframes: PathBuf,
-    /// Interpolation method.
-    #[arg(long, value_enum)]
-    pub method: Method,
-    /// Samples per second, from the first to the last keyframe time inclusive.
-    #[arg(long, default_value_t = 100.0)]
-    pub rate: f64,
-    /// Kochanek-Bartels tension (`--method kb`).
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
-    pub tension: f64,
-    /// Kochanek-Bartels continuity (`--method kb`; non-zero gives corners).
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
-    pub continuity: f64,
-    /// Kochanek-Bartels bias (`--method kb`).
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
-    pub bias: f64,
-    /// End condition of `catmull-rom` and `kb`.
-    #[arg(long, value_enum, default_value = "zero")]
-    pub ends: Ends,
-    /// Joint limits as KEY=VALUE pairs, comma-separated: `v` (max |velocity|) and `a` (max
-    /// |acceleration|) are required, `lo`/`hi` (position range) optional. A value is one number for
-    /// every joint or one per joint separated by `:`, e.g. `v=1.5,a=4` or `v=1:1:2,a=4,lo=-3,hi=3`.
-    /// A trajectory that breaks them is slowed down (never moved), and a note with the new
-    /// duration goes to stderr.
-    #[arg(long, allow_hyphen_values = true)]
-    pub limits: Option<String>,
-    /// Write JSON (one line) instead of CSV.
-    #[arg(long)]
-    pub json: bool,
-    /// Also draw position, velocity and acceleration per joint to this PNG file.
-    #[arg(long)]
-    pub plot: Option<PathBuf>,
 }
 
 /// Keyframes as read from a file, before the joint count is fixed at compile time.
@@ -160,7 +120,7 @@ pub fn parse_keyframes(text: &str) -> Result<Keyframes> {
         if k.times.len() == MAX_KEYFRAMES {
             bail!("line {line}: more than {MAX_KEYFRAMES} keyframes (armctl's capacity)");
         }
-        let values = crate::parse::csv_row(line, &fields, &names)?;
+        let values = crate::args::numbers::csv_row(line, &fields, &names)?;
         let t = values[0];
         if let (Some(&previous), Some(&previous_line)) = (k.times.last(), k.lines.last()) {
             if t <= previous {
@@ -210,7 +170,7 @@ pub fn parse_limits(text: &str) -> Result<LimitSpec> {
             bail!("--limits: {item:?} is not KEY=VALUE (keys v, a, lo, hi)");
         };
         let key = key.trim();
-        let numbers = crate::parse::numbers(&value.replace(':', ","), &format!("--limits {key}"))?;
+        let numbers = crate::args::numbers::numbers(&value.replace(':', ","), &format!("--limits {key}"))?;
         if numbers.is_empty() {
             bail!("--limits: {key} has no value");
         }
@@ -349,7 +309,7 @@ fn vector<const J: usize>(values: &[f64], what: &str) -> Result<SVector<f64, J>>
 }
 
 /// Refuses options the chosen method would ignore, so nothing the user gave is dropped silently
-/// (velocity columns are only noted, see `run_sample`: one file is often sampled by several methods).
+/// (velocity columns are only noted, see `super::sample::run`: one file is often sampled by several methods).
 fn check_unused(options: &Options) -> Result<()> {
     if options.tcb != [0.0; 3] && options.method != Method::Kb {
         bail!("--tension, --continuity and --bias apply only to --method kb");
@@ -527,46 +487,6 @@ pub fn to_json(s: &Sampled) -> Value {
         "keyframes": keyframes,
         "samples": samples,
     })
-}
-
-/// Runs `armctl trajectory sample`.
-pub fn run_sample(args: &SampleArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
-    let limits = args.limits.as_deref().map(parse_limits).transpose()?;
-    if !(args.rate.is_finite() && args.rate > 0.0) {
-        bail!("--rate must be a positive finite number of samples per second");
-    }
-    let keyframes = read_keyframes(&args.keyframes)?;
-    if keyframes.velocities.is_some() && args.method != Method::Hermite {
-        writeln!(err, "note: --method {} ignores the velocity columns (only hermite uses them)", args.method.name())?;
-    }
-    let options = Options {
-        method: args.method,
-        tcb: [args.tension, args.continuity, args.bias],
-        ends: args.ends,
-        rate: args.rate,
-        limits,
-    };
-    let sampled = sample(&keyframes, &options).with_context(|| args.keyframes.display().to_string())?;
-    if let Some(r) = &sampled.retiming {
-        writeln!(
-            err,
-            "note: time-scaled to meet --limits: duration {} s -> {} s (slowest segment x{:.3}{})",
-            r.old_duration,
-            r.new_duration,
-            r.max_stretch,
-            if r.range_clamped { ", velocities reduced to stay inside lo/hi" } else { "" }
-        )?;
-    }
-    if let Some(path) = &args.plot {
-        let title = format!("{} ({})", args.keyframes.display(), args.method.name());
-        plot::draw(path, &sampled, &title).with_context(|| format!("cannot write plot {}", path.display()))?;
-    }
-    if args.json {
-        writeln!(out, "{}", to_json(&sampled))?;
-    } else {
-        write_csv(out, &sampled)?;
-    }
-    Ok(0)
 }
 
 #[cfg(test)]

@@ -5,7 +5,7 @@
 //! [`MAX_JOINTS`], and hides the chain behind the object-safe [`DynArm`], so the rest of the host
 //! is written once.
 
-use crate::arm::ArmSpec;
+use super::ArmSpec;
 use anyhow::{anyhow, bail, Result};
 use kinematics::ik::{
     CyclicCoordinateDescent, DampedLeastSquares, GradientDescent, IkConfig, IkProblem, IkStatus, JacobianTranspose,

@@ -1,14 +1,12 @@
-//! The arguments of the arm-driving commands and their dispatch: the options before the command
+//! The arguments of the arm-driving commands: the options before the command
 //! (`--port`/`--sim`, `--baud`, `--arm`, `--json`) and the commands `move`, `joints`, `play`,
 //! `status`, `stop` and `torque`.
 
-use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::{bail, Result};
 use clap::{Args, Subcommand, ValueEnum};
 
-use super::commands;
 use super::connection::Target;
 
 /// The simulated arm of `--sim` when `--arm` is not given.
@@ -16,11 +14,12 @@ pub const DEFAULT_SIM_ARM: &str = "so101";
 /// The baud rate of `--port` when `--baud` is not given.
 pub const DEFAULT_BAUD: u32 = 1_000_000;
 
-/// Which arm to drive: options given before the command.
-#[derive(Args, Debug, Default)]
+/// Which arm to drive. Accepted before the command or after it (`armctl --sim move --to ... --json`
+/// as well as `armctl move --sim --to ...`), as global options are.
+#[derive(Args, Debug, Default, Clone, PartialEq)]
 pub struct LinkArgs {
-    /// Drive the board running the firmware on this serial port (before move, joints, play,
-    /// status, stop, torque).
+    /// Drive the board running the firmware on this serial port (for move, joints, play, status,
+    /// stop, torque).
     #[arg(long, value_name = "PORT", conflicts_with = "sim")]
     pub port: Option<String>,
     /// Baud rate of --port [default: 1000000].
@@ -39,6 +38,24 @@ pub struct LinkArgs {
 }
 
 impl LinkArgs {
+    /// These options given before the command together with those given after it. One given in
+    /// both places must have the same value.
+    pub fn merged(&self, after: &LinkArgs) -> Result<LinkArgs> {
+        fn one<T: Clone + PartialEq + std::fmt::Debug>(name: &str, a: &Option<T>, b: &Option<T>) -> Result<Option<T>> {
+            match (a, b) {
+                (Some(x), Some(y)) if x != y => bail!("{name} is given twice, with different values ({x:?} and {y:?})"),
+                _ => Ok(a.clone().or_else(|| b.clone())),
+            }
+        }
+        Ok(LinkArgs {
+            port: one("--port", &self.port, &after.port)?,
+            baud: one("--baud", &self.baud, &after.baud)?,
+            sim: self.sim || after.sim,
+            arm: one("--arm", &self.arm, &after.arm)?,
+            json: self.json || after.json,
+        })
+    }
+
     /// Refuses these options for a command that does not drive an arm.
     pub fn refuse_for_other_commands(&self) -> Result<()> {
         let given: Vec<&str> = [
@@ -62,7 +79,7 @@ impl LinkArgs {
     }
 
     /// The board or simulation to connect to, and the arm to configure on it.
-    fn target(&self) -> Result<(Target, Option<&str>)> {
+    pub(super) fn target(&self) -> Result<(Target, Option<&str>)> {
         match (&self.port, self.sim) {
             (Some(path), false) => {
                 Ok((Target::Port { path: path.clone(), baud: self.baud.unwrap_or(DEFAULT_BAUD) }, self.arm.as_deref()))
@@ -70,7 +87,7 @@ impl LinkArgs {
             (None, true) if self.baud.is_some() => bail!("--baud is the baud rate of --port; --sim has none"),
             (None, true) => {
                 let arm = self.arm.as_deref().unwrap_or(DEFAULT_SIM_ARM);
-                Ok((Target::Sim(crate::sil::SilOptions::new(arm)?), Some(arm)))
+                Ok((Target::Sim(crate::places::sil::SilOptions::new(arm)?), Some(arm)))
             }
             (Some(_), true) => bail!("--port and --sim exclude each other: give one"),
             (None, false) if self.baud.is_some() => bail!("--baud is the baud rate of --port, which is missing"),
@@ -103,15 +120,43 @@ pub enum DriveCommand {
     /// the keyframes are streamed with flow control. Ctrl-C stops the arm.
     Play(PlayArgs),
     /// The controller's state: run state, joints, queue, IK, loop timing, error counters.
-    Status,
+    Status(OnlyLinkArgs),
     /// Stop: decelerate within the limits, drop queued keyframes and hold.
-    Stop,
+    Stop(OnlyLinkArgs),
     /// Torque on (hold the present position; also leaves an emergency stop) or off (limp).
-    Torque {
-        /// on or off.
-        #[arg(value_enum)]
-        state: OnOff,
-    },
+    Torque(TorqueArgs),
+}
+
+impl DriveCommand {
+    /// The drive options given after the command.
+    pub fn link(&self) -> &LinkArgs {
+        match self {
+            DriveCommand::Move(a) => &a.link,
+            DriveCommand::Joints(a) => &a.link,
+            DriveCommand::Play(a) => &a.link,
+            DriveCommand::Status(a) | DriveCommand::Stop(a) => &a.link,
+            DriveCommand::Torque(a) => &a.link,
+        }
+    }
+}
+
+/// `armctl status` and `armctl stop`: no options but the drive options.
+#[derive(Args, Debug)]
+pub struct OnlyLinkArgs {
+    #[command(flatten)]
+    #[allow(missing_docs)]
+    pub link: LinkArgs,
+}
+
+/// `armctl torque`.
+#[derive(Args, Debug)]
+pub struct TorqueArgs {
+    /// on or off.
+    #[arg(value_enum)]
+    pub state: OnOff,
+    #[command(flatten)]
+    #[allow(missing_docs)]
+    pub link: LinkArgs,
 }
 
 /// `torque on|off`.
@@ -126,6 +171,9 @@ pub enum OnOff {
 /// `armctl move`.
 #[derive(Args, Debug)]
 pub struct MoveArgs {
+    #[command(flatten)]
+    #[allow(missing_docs)]
+    pub link: LinkArgs,
     /// Tool position x,y,z (m, base frame).
     #[arg(long, allow_hyphen_values = true)]
     pub to: String,
@@ -146,6 +194,9 @@ pub struct MoveArgs {
 /// `armctl joints`.
 #[derive(Args, Debug)]
 pub struct JointsArgs {
+    #[command(flatten)]
+    #[allow(missing_docs)]
+    pub link: LinkArgs,
     /// Joint values, comma-separated (rad, m for prismatic joints), one per joint.
     #[arg(long, allow_hyphen_values = true)]
     pub q: String,
@@ -164,19 +215,13 @@ pub struct JointsArgs {
 /// `armctl play`.
 #[derive(Args, Debug)]
 pub struct PlayArgs {
+    #[command(flatten)]
+    #[allow(missing_docs)]
+    pub link: LinkArgs,
     /// Keyframe CSV file.
     pub file: PathBuf,
     /// Give up waiting (and stop the arm) this many seconds of controller time after the last
     /// keyframe's time.
     #[arg(long, default_value_t = 30.0)]
     pub timeout: f64,
-}
-
-/// Runs an arm-driving command; returns the exit code.
-pub fn run(link: &LinkArgs, command: DriveCommand, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
-    // Everything the user typed is checked before connecting, so bad input changes nothing.
-    let request = commands::Request::parse(&command)?;
-    let (target, arm) = link.target()?;
-    let mut driver = super::session::Driver::open(target, arm)?;
-    commands::run(&mut driver, request, link.json, out, err)
 }

@@ -1,12 +1,12 @@
 //! The firmware binary for the MPS2 AN386 (Cortex-M4F) under `qemu-system-arm`: building it,
 //! starting QEMU with UART0 (host link) on a pseudo-terminal and UART1 on the simulated servo bus,
 //! and following its defmt log. Used by `armctl sim --qemu`, `armctl bench mcu`, `armctl footprint`
-//! and the HIL tests. ([`build_board`] builds any board crate, the STM32 one too.)
+//! and the HIL tests. ([`super::board::build`] builds any board crate, the STM32 one too.)
 
 pub mod log;
 
 use std::io::{BufRead, BufReader, Read};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
@@ -17,7 +17,7 @@ pub use log::DefmtLog;
 
 /// The board crate (its own cargo workspace), found from this crate's source directory.
 pub fn board_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../firmware/boards/mps2-an386")
+    super::board::boards_dir().join("mps2-an386")
 }
 
 /// The firmware binary's name (the board crate's main binary).
@@ -34,25 +34,7 @@ pub fn available() -> bool {
 
 /// Builds the MPS2 board crate's binary `bin` (release) and returns the ELF's path.
 pub fn build(bin: &str) -> Result<PathBuf> {
-    build_board(&board_dir(), bin)
-}
-
-/// Builds the binary `bin` (release) of the board crate at `dir` (its own cargo workspace, with
-/// its target in `.cargo/config.toml`); returns the ELF's path.
-pub fn build_board(dir: &Path, bin: &str) -> Result<PathBuf> {
-    let status = Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()))
-        .args(["build", "--release", "--quiet", "--bin", bin])
-        .current_dir(dir)
-        // The host build's settings (`cargo test`, `cargo run`) are not the board's.
-        .env_remove("CARGO_TARGET_DIR")
-        .env_remove("RUSTFLAGS")
-        .env_remove("CARGO_ENCODED_RUSTFLAGS")
-        .status()
-        .with_context(|| format!("cannot run cargo in {}", dir.display()))?;
-    if !status.success() {
-        bail!("building the {bin} binary in {} failed", dir.display());
-    }
-    Ok(dir.join("target/thumbv7em-none-eabihf/release").join(bin))
+    super::board::build(&board_dir(), bin)
 }
 
 /// What to start.

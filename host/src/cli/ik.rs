@@ -1,0 +1,223 @@
+//! `armctl ik`: one target, or a JSON-lines file of them (`--batch`).
+
+use std::io::{BufRead, Write};
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use kinematics::ik::{IkConfig, IkStatus};
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+
+use super::{load, ArmArgs};
+use crate::args::numbers as parse;
+use crate::arm::dof::{IkOutcome, IkRequest, Scalar, SolverName};
+use crate::bench::ik as bench;
+
+#[derive(Args, Debug)]
+pub(crate) struct IkArgs {
+    #[command(flatten)]
+    arm: ArmArgs,
+    /// Target tool position x,y,z (m).
+    #[arg(long, allow_hyphen_values = true, required_unless_present = "batch", conflicts_with = "batch")]
+    target: Option<String>,
+    /// Target orientation as a unit quaternion w,x,y,z (omit for a position-only target).
+    #[arg(long, allow_hyphen_values = true, conflicts_with = "batch")]
+    quat: Option<String>,
+    /// Seed joint values (default: the middle of each joint's limits).
+    #[arg(long, allow_hyphen_values = true, conflicts_with = "batch")]
+    seed: Option<String>,
+    /// JSON-lines file of targets (`-` for standard input); one result line each on stdout.
+    #[arg(long)]
+    batch: Option<String>,
+    /// Method.
+    #[arg(long, value_enum, default_value = "dls")]
+    solver: SolverName,
+    /// Scalar the solver runs in.
+    #[arg(long, value_enum, default_value = "f64")]
+    scalar: Scalar,
+    /// Position tolerance (m); default 1e-5 in f64, 1e-4 in f32. KDL calls it eps.
+    #[arg(long, visible_alias = "tolerance")]
+    position_tolerance: Option<f64>,
+    /// Orientation tolerance (rad); default 1e-5 in f64, 1e-3 in f32.
+    #[arg(long)]
+    orientation_tolerance: Option<f64>,
+    /// Metres of position error one radian of orientation error is worth in the residual.
+    #[arg(long, default_value_t = 1.0)]
+    orientation_weight: f64,
+    /// Iteration budget over all restarts.
+    #[arg(long, default_value_t = 1000)]
+    max_iterations: u32,
+}
+
+fn config(args: &IkArgs) -> Result<IkConfig<f64>> {
+    let (p, o) = args.scalar.default_tolerances();
+    let config = IkConfig {
+        position_tolerance: args.position_tolerance.unwrap_or(p),
+        orientation_tolerance: args.orientation_tolerance.unwrap_or(o),
+        orientation_weight: args.orientation_weight,
+        max_iterations: args.max_iterations,
+        ..IkConfig::default()
+    };
+    let positive = |v: f64| v.is_finite() && v > 0.0;
+    if !(positive(config.position_tolerance) && positive(config.orientation_tolerance)) {
+        bail!("tolerances must be positive finite numbers");
+    }
+    if !positive(config.orientation_weight) {
+        bail!("--orientation-weight must be a positive finite number");
+    }
+    Ok(config)
+}
+
+/// One result as printed: the fields in alphabetical order, as `serde_json`'s maps print them.
+/// `line` only in a batch; `reason` only for a refused input, whose errors are `null` (nothing was
+/// solved); `orientation_error` is `null` for a position-only target.
+#[derive(Serialize)]
+struct Printed<'a> {
+    iterations: u32,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    line: Option<usize>,
+    orientation_error: Option<f64>,
+    position_error: Option<f64>,
+    q: &'a [f64],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    reason: Option<String>,
+    restarts: u32,
+    status: &'static str,
+}
+
+fn printed(outcome: &IkOutcome, position_only: bool, line: Option<usize>) -> Printed<'_> {
+    let refused = match outcome.status {
+        IkStatus::InvalidInput(reason) => Some(reason.to_string()),
+        _ => None,
+    };
+    let solved = refused.is_none();
+    Printed {
+        iterations: outcome.iterations,
+        line,
+        orientation_error: (solved && !position_only).then_some(outcome.orientation_error),
+        position_error: solved.then_some(outcome.position_error),
+        q: &outcome.q,
+        reason: refused,
+        restarts: outcome.restarts,
+        status: outcome.status.as_str(),
+    }
+}
+
+/// Writes one JSON line.
+fn print_line(out: &mut dyn Write, value: &impl Serialize) -> Result<()> {
+    serde_json::to_writer(&mut *out, value)?;
+    out.write_all(b"\n")?;
+    Ok(())
+}
+
+/// The one-line complaint for an outcome the solver refused (input that passed the f64 checks
+/// here but not the solver's, e.g. a value that overflows f32), or `None`.
+fn refusal(outcome: &IkOutcome, scalar: Scalar) -> Option<String> {
+    match outcome.status {
+        IkStatus::InvalidInput(reason) => Some(format!("the solver refused the input in {scalar:?}: {reason}")),
+        _ => None,
+    }
+}
+
+/// Runs `armctl ik`; returns the exit code.
+pub(crate) fn run(args: &IkArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+    let started = Instant::now();
+    let arm = load(&args.arm)?;
+    let config = config(args)?;
+    let request = |position, quaternion_wxyz, seed| IkRequest {
+        position,
+        quaternion_wxyz,
+        seed,
+        solver: args.solver,
+        config,
+        scalar: args.scalar,
+    };
+    let Some(batch) = &args.batch else {
+        // `target` is required by clap whenever `batch` is absent.
+        let position = parse::fixed::<3>(args.target.as_deref().unwrap_or_default(), "--target")?;
+        let quat = args.quat.as_deref().map(|q| parse::fixed::<4>(q, "--quat")).transpose()?;
+        let seed = args.seed.as_deref().map(|s| parse::numbers(s, "--seed")).transpose()?;
+        let outcome = arm.solve(&request(position, quat, seed))?;
+        print_line(out, &printed(&outcome, quat.is_none(), None))?;
+        if let Some(complaint) = refusal(&outcome, args.scalar) {
+            writeln!(err, "error: {complaint}")?;
+            return Ok(1);
+        }
+        return Ok(0);
+    };
+
+    let mut reader: Box<dyn BufRead> = if batch == "-" {
+        Box::new(std::io::BufReader::with_capacity(1 << 16, std::io::stdin()))
+    } else {
+        let file = std::fs::File::open(batch).with_context(|| format!("cannot open batch file {batch}"))?;
+        Box::new(std::io::BufReader::with_capacity(1 << 16, file))
+    };
+    // One write per 64 KiB rather than per line (a terminal's stdout is line-buffered).
+    let mut out = std::io::BufWriter::with_capacity(1 << 16, out);
+    let mut times = Vec::new();
+    let (mut solved, mut rejected, mut lines) = (0usize, 0usize, 0usize);
+    let mut line = String::new();
+    for line_number in 1.. {
+        line.clear();
+        let read = reader.read_line(&mut line).with_context(|| format!("{batch}: cannot read line {line_number}"))?;
+        if read == 0 {
+            break;
+        }
+        if line.trim().is_empty() {
+            continue;
+        }
+        lines += 1;
+        let result = serde_json::from_str::<BatchTarget>(&line)
+            .map_err(anyhow::Error::from)
+            .and_then(|t| arm.solve(&request(t.position, t.quaternion_wxyz, t.seed)).map(|o| (o, t.quaternion_wxyz)));
+        match result {
+            Ok((outcome, quat)) => {
+                print_line(&mut out, &printed(&outcome, quat.is_none(), Some(line_number)))?;
+                match refusal(&outcome, args.scalar) {
+                    Some(complaint) => {
+                        rejected += 1;
+                        writeln!(err, "error: {batch}: line {line_number}: {complaint}")?;
+                    }
+                    None => {
+                        times.push(outcome.solve_time);
+                        solved += usize::from(outcome.status == IkStatus::Converged);
+                    }
+                }
+            }
+            Err(e) => {
+                rejected += 1;
+                let message = format!("line {line_number}: {e:#}");
+                writeln!(err, "error: {batch}: {message}")?;
+                print_line(&mut out, &json!({"line": line_number, "error": message}))?;
+            }
+        }
+    }
+    out.flush()?;
+    let total = times.len() + rejected;
+    let solves = times.len();
+    let bench::SolveTimes { mean_us: mean, median_us: median, p99_us: p99 } = bench::SolveTimes::of(&mut times);
+    // End to end: from the start of the command (arm loaded, file opened) to the last line written.
+    let per_line = started.elapsed().as_secs_f64() * 1e6 / lines.max(1) as f64;
+    let overhead = per_line - mean * solves as f64 / lines.max(1) as f64;
+    writeln!(
+        err,
+        "{}: {solved}/{total} converged ({:.2}%), {rejected} rejected lines; per solve mean {mean:.2} us, median \
+         {median:.2} us, p99 {p99:.2} us; end to end {per_line:.2} us per line, of which {overhead:.2} us \
+         reading, writing and set-up",
+        arm.spec().name,
+        100.0 * solved as f64 / total.max(1) as f64
+    )?;
+    Ok(if rejected > 0 { 1 } else { 0 })
+}
+
+/// One line of an `ik --batch` file.
+#[derive(Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+struct BatchTarget {
+    position: [f64; 3],
+    #[serde(default)]
+    quaternion_wxyz: Option<[f64; 4]>,
+    #[serde(default)]
+    seed: Option<Vec<f64>>,
+}

@@ -1,0 +1,9 @@
+//! Keyframe sources and joint trajectories: joint and Cartesian keyframe files, and
+//! `armctl trajectory sample` (interpolation, limits, sampling, its plot).
+
+pub mod cartesian_file;
+pub mod sample;
+pub mod trajectory;
+pub mod trajectory_plot;
+
+pub use cartesian_file::{parse_cartesian_keyframes, CartesianKeyframes};

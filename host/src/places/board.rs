@@ -1,0 +1,222 @@
+//! Building a board binary, and the toolchain pieces that needs.
+//!
+//! Each board crate under `firmware/boards/` is its own cargo workspace that builds only for
+//! [`TARGET`]. `rust-toolchain.toml` lists that target and the `llvm-tools` component, but rustup
+//! adds a toolchain file's targets and components only when it installs the toolchain: a machine
+//! that already had the pinned Rust has neither. So every board build ([`build`], shared by
+//! `armctl sim --qemu`, `armctl bench mcu`, `armctl footprint` and the HIL tests) first makes sure
+//! they are there ([`ensure_toolchain`]), installing what is missing through rustup once per
+//! process, with one line on stderr saying so.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::Mutex;
+
+use anyhow::{anyhow, bail, Context, Result};
+
+/// The board binaries' target: Cortex-M4F with its single-precision FPU.
+pub const TARGET: &str = "thumbv7em-none-eabihf";
+
+/// The rustup component that ships `llvm-objdump`, which `armctl footprint` reads the ELFs with.
+pub const LLVM_TOOLS: &str = "llvm-tools";
+
+/// The folder holding one cargo workspace per board.
+pub fn boards_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../firmware/boards")
+}
+
+/// Builds the binary `bin` (release) of the board crate at `dir` (its own cargo workspace, with
+/// its target in `.cargo/config.toml`); returns the ELF's path. The target and `llvm-tools` are
+/// installed first where they are missing.
+pub fn build(dir: &Path, bin: &str) -> Result<PathBuf> {
+    ensure_toolchain(dir)?;
+    let status = Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()))
+        .args(["build", "--release", "--quiet", "--bin", bin])
+        .current_dir(dir)
+        // The host build's settings (`cargo test`, `cargo run`) are not the board's.
+        .env_remove("CARGO_TARGET_DIR")
+        .env_remove("RUSTFLAGS")
+        .env_remove("CARGO_ENCODED_RUSTFLAGS")
+        .status()
+        .with_context(|| format!("cannot run cargo in {}", dir.display()))?;
+    if !status.success() {
+        bail!("building the {bin} binary in {} failed", dir.display());
+    }
+    Ok(dir.join("target").join(TARGET).join("release").join(bin))
+}
+
+/// The Rust toolchain that cargo picks in a folder (rustup reads `rust-toolchain.toml` upwards).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Toolchain {
+    /// `rustc --print sysroot`.
+    pub sysroot: PathBuf,
+    /// The host triple (`rustc -vV`).
+    pub host: String,
+}
+
+/// What a board build needs from the toolchain and may lack.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Missing {
+    /// The standard library for [`TARGET`].
+    Target,
+    /// The [`LLVM_TOOLS`] component.
+    LlvmTools,
+}
+
+impl Toolchain {
+    /// Asks `rustc` run in `dir` (so rustup resolves the toolchain the board build will use).
+    pub fn of(dir: &Path) -> Result<Toolchain> {
+        let rustc = |args: &[&str]| -> Result<String> {
+            let output = Command::new("rustc")
+                .args(args)
+                .current_dir(dir)
+                .output()
+                .context("cannot run rustc (install Rust with rustup: https://rustup.rs)")?;
+            if !output.status.success() {
+                bail!("rustc {} failed: {}", args.join(" "), String::from_utf8_lossy(&output.stderr).trim());
+            }
+            Ok(String::from_utf8_lossy(&output.stdout).trim().to_string())
+        };
+        let sysroot = PathBuf::from(rustc(&["--print", "sysroot"])?);
+        let host = rustc(&["-vV"])?
+            .lines()
+            .find_map(|l| l.strip_prefix("host: ").map(str::to_string))
+            .ok_or_else(|| anyhow!("rustc -vV names no host triple"))?;
+        Ok(Toolchain { sysroot, host })
+    }
+
+    /// The folder of the toolchain's LLVM tools (`llvm-objdump`, ...).
+    pub fn llvm_bin(&self) -> PathBuf {
+        self.sysroot.join("lib/rustlib").join(&self.host).join("bin")
+    }
+
+    /// What of [`TARGET`]'s standard library and the LLVM tools is not in the sysroot.
+    pub fn missing(&self) -> Vec<Missing> {
+        let mut missing = Vec::new();
+        if !self.sysroot.join("lib/rustlib").join(TARGET).join("lib").is_dir() {
+            missing.push(Missing::Target);
+        }
+        if !self.llvm_bin().join("llvm-objdump").is_file() {
+            missing.push(Missing::LlvmTools);
+        }
+        missing
+    }
+}
+
+/// Makes sure the toolchain used in `dir` has [`TARGET`] and [`LLVM_TOOLS`], installing what is
+/// missing with rustup. Checked once per process (a failure is remembered and reported again).
+pub fn ensure_toolchain(dir: &Path) -> Result<()> {
+    // A mutex rather than a once-cell, so that parallel tests wait for one install to finish.
+    static CHECKED: Mutex<Option<Result<(), String>>> = Mutex::new(None);
+    let mut checked = CHECKED.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+    if checked.is_none() {
+        let outcome = Toolchain::of(dir).and_then(|toolchain| {
+            let missing = toolchain.missing();
+            install(&missing, "rustup", dir, &toolchain.sysroot)?;
+            match Toolchain::of(dir)?.missing().as_slice() {
+                [] => Ok(()),
+                still => bail!("rustup ran, but the toolchain still lacks {}", names(still)),
+            }
+        });
+        *checked = Some(outcome.map_err(|e| format!("{e:#}")));
+    }
+    match checked.as_ref() {
+        Some(Err(e)) => Err(anyhow!("{e}")),
+        _ => Ok(()),
+    }
+}
+
+fn names(missing: &[Missing]) -> String {
+    missing
+        .iter()
+        .map(|m| match m {
+            Missing::Target => format!("the {TARGET} target"),
+            Missing::LlvmTools => LLVM_TOOLS.to_string(),
+        })
+        .collect::<Vec<_>>()
+        .join(" and ")
+}
+
+/// Installs `missing` with the rustup program `rustup`, run in `dir`; one line on stderr says so.
+/// rustup's own progress output is kept and shown only if it fails. Without rustup, the error
+/// names what to install.
+pub fn install(missing: &[Missing], rustup: &str, dir: &Path, sysroot: &Path) -> Result<()> {
+    if missing.is_empty() {
+        return Ok(());
+    }
+    let what = names(missing);
+    let toolchain = sysroot.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    if Command::new(rustup).arg("--version").output().is_err() {
+        bail!(
+            "the Rust toolchain at {} lacks {what}, and rustup is not installed: install rustup \
+             (https://rustup.rs) and run `rustup target add {TARGET}` and `rustup component add {LLVM_TOOLS}`, \
+             or install {what} for this toolchain",
+            sysroot.display()
+        );
+    }
+    eprintln!("note: the board build needs {what}: installing with rustup for toolchain {toolchain} (once)");
+    for m in missing {
+        let args: [&str; 3] = match m {
+            Missing::Target => ["target", "add", TARGET],
+            Missing::LlvmTools => ["component", "add", LLVM_TOOLS],
+        };
+        let output = Command::new(rustup)
+            .args(args)
+            .current_dir(dir)
+            .output()
+            .with_context(|| format!("cannot run {rustup} {}", args.join(" ")))?;
+        if !output.status.success() {
+            bail!(
+                "{rustup} {} failed: {}",
+                args.join(" "),
+                String::from_utf8_lossy(&output.stderr).trim().replace('\n', "; ")
+            );
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("armctl-board-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    #[test]
+    fn a_sysroot_without_the_target_or_tools_lacks_both_and_one_with_them_lacks_nothing() {
+        let sysroot = scratch("sysroot");
+        let toolchain = Toolchain { sysroot: sysroot.clone(), host: "x86_64-unknown-linux-gnu".into() };
+        assert_eq!(toolchain.missing(), [Missing::Target, Missing::LlvmTools]);
+        std::fs::create_dir_all(sysroot.join("lib/rustlib").join(TARGET).join("lib")).unwrap();
+        assert_eq!(toolchain.missing(), [Missing::LlvmTools]);
+        std::fs::create_dir_all(toolchain.llvm_bin()).unwrap();
+        std::fs::write(toolchain.llvm_bin().join("llvm-objdump"), b"").unwrap();
+        assert_eq!(toolchain.missing(), []);
+        std::fs::remove_dir_all(&sysroot).unwrap();
+    }
+
+    #[test]
+    fn without_rustup_the_error_is_one_line_naming_what_to_install() {
+        let dir = scratch("no-rustup");
+        let e = install(&[Missing::Target], "armctl-test-no-such-rustup", &dir, Path::new("/opt/rust"))
+            .unwrap_err()
+            .to_string();
+        assert!(!e.contains('\n'), "{e}");
+        assert!(e.contains("rustup is not installed") && e.contains(TARGET) && e.contains("/opt/rust"), "{e}");
+        // Nothing missing: nothing to run, so no rustup needed.
+        install(&[], "armctl-test-no-such-rustup", &dir, Path::new("/opt/rust")).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn the_workspace_toolchain_is_found() {
+        let toolchain = Toolchain::of(&boards_dir()).unwrap();
+        assert!(toolchain.sysroot.is_dir(), "{toolchain:?}");
+        assert!(!toolchain.host.is_empty());
+    }
+}
