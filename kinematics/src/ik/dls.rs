@@ -18,23 +18,32 @@ pub struct DampedLeastSquares;
 
 impl<T: Real, const N: usize> IkMethod<T, N> for DampedLeastSquares {
     fn descend(&self, chain: &Chain<T, N>, residual: &Residual<T>, start: SVector<T, N>, budget: u32) -> Descent<T, N> {
-        descend_with(chain, residual, start, budget, T::of(ATTEMPT_PROGRESS))
+        descend_with(chain, residual, start, budget, T::of(ATTEMPT_PROGRESS), ATTEMPT_PATIENCE)
     }
 
     fn polish(&self, chain: &Chain<T, N>, residual: &Residual<T>, start: SVector<T, N>, budget: u32) -> Descent<T, N> {
-        descend_with(chain, residual, start, budget, T::EPSILON.sqrt())
+        descend_with(chain, residual, start, budget, T::EPSILON.sqrt(), POLISH_PATIENCE)
     }
 }
 
 /// An attempt counts as stalled after this many consecutive iterations that each lower the cost
 /// by less than the required fraction (a rejected step lowers it by nothing), plus one per four
-/// joints: a long chain's error falls more slowly through its many coupled joints.
-const PATIENCE: u32 = 5;
+/// joints: a long chain's error falls more slowly through its many coupled joints. Attempts are
+/// cheap to abandon because a restart follows; the final polish, with nothing after it, is given
+/// one iteration more.
+const ATTEMPT_PATIENCE: u32 = 4;
+const POLISH_PATIENCE: u32 = 5;
 
-/// The fraction of the cost an iteration must remove to count as progress during an attempt: an
-/// attempt creeping along at less than 1% per iteration is in the wrong basin, and a restart is
-/// cheaper. Polishing the final best-effort answer only asks for a numerically visible fall.
-const ATTEMPT_PROGRESS: f64 = 0.01;
+/// The fraction of the cost an iteration must remove to count as progress during an attempt.
+/// Near a solution damped least squares converges quadratically (the cost falls by orders of
+/// magnitude per iteration), so an attempt removing less than a tenth per iteration is creeping
+/// towards a local minimum or along a limit, and a restart is cheaper. Measured on ur5e, puma560
+/// and iiwa14 (the `bench ik` protocol), 10% with patience 4 instead of 1% with patience 5 cut
+/// the p99 iterations per solve by about a seventh on ur5e and puma560 at the same solve rate;
+/// an early cut on the cost after a few iterations does not work, because attempts that go on to
+/// converge fall no faster at first than the ones that stall. Polishing the final best-effort
+/// answer only asks for a numerically visible fall.
+const ATTEMPT_PROGRESS: f64 = 0.10;
 
 fn descend_with<T: Real, const N: usize>(
     chain: &Chain<T, N>,
@@ -42,11 +51,12 @@ fn descend_with<T: Real, const N: usize>(
     start: SVector<T, N>,
     budget: u32,
     progress: T,
+    patience: u32,
 ) -> Descent<T, N> {
     if residual.rows() == 3 {
-        descend_task::<T, N, 3>(chain, residual, start, budget, progress)
+        descend_task::<T, N, 3>(chain, residual, start, budget, progress, patience)
     } else {
-        descend_task::<T, N, 6>(chain, residual, start, budget, progress)
+        descend_task::<T, N, 6>(chain, residual, start, budget, progress, patience)
     }
 }
 
@@ -56,6 +66,7 @@ fn descend_task<T: Real, const N: usize, const M: usize>(
     start: SVector<T, N>,
     budget: u32,
     progress: T,
+    patience: u32,
 ) -> Descent<T, N> {
     let mut q = start;
     let mut frames = chain.forward(&q);
@@ -88,7 +99,7 @@ fn descend_task<T: Real, const N: usize, const M: usize>(
                 mu *= T::of(10.0);
             }
         }
-        if mu > mu_max || unproductive >= PATIENCE + N as u32 / 4 {
+        if mu > mu_max || unproductive >= patience + N as u32 / 4 {
             let end = if residual.converged(&error) { DescentEnd::Converged } else { DescentEnd::Stalled };
             return done(q, error, iteration + 1, end);
         }
