@@ -383,6 +383,30 @@ fn batch_of_good_lines_exits_zero() {
     let stderr: Vec<&str> = run.stderr.lines().collect();
     assert_eq!(stderr.len(), 1, "{}", run.stderr);
     assert!(stderr[0].contains("4/4 converged") && stderr[0].contains("0 rejected"), "{}", stderr[0]);
+    // The summary's figures: per solve, and end to end per line with the part that is not solving.
+    let figure = |name: &str| -> f64 {
+        let at = stderr[0].find(name).unwrap_or_else(|| panic!("no {name:?} in {}", stderr[0])) + name.len();
+        stderr[0][at..].trim_start().split(' ').next().unwrap().parse().unwrap()
+    };
+    let (mean, median, p99) = (figure("mean"), figure("median"), figure("p99"));
+    assert!(0.0 < median && median <= p99 && mean <= p99, "{}", stderr[0]);
+    let (per_line, rest) = (figure("end to end"), figure("of which"));
+    assert!(per_line >= mean && rest > 0.0 && rest < per_line, "{}", stderr[0]);
+}
+
+/// `--tolerance` is `--position-tolerance` (KDL's eps), and a tolerance far below the default is
+/// met as asked.
+#[test]
+fn ik_takes_a_tighter_tolerance_and_more_iterations() {
+    let (position, quaternion) = fk("ur5e", &UR5E_Q);
+    let (target, quat) = (join(&position), join(&quaternion));
+    let args = ["ik", "--arm", "ur5e", "--target", &target, "--quat", &quat, "--max-iterations", "5000"];
+    let v = armctl(&[&args[..], &["--tolerance", "1e-12", "--orientation-tolerance", "1e-12"]].concat()).json();
+    assert_eq!(v["status"], "converged", "{v}");
+    assert!(v["position_error"].as_f64().unwrap() <= 1e-12, "{v}");
+    assert!(v["orientation_error"].as_f64().unwrap() <= 1e-12, "{v}");
+    assert_fails(&[&args[..], &["--tolerance", "0"]].concat(), &["tolerances must be positive"]);
+    assert_fails(&[&args[..], &["--tolerance", "1e-6", "--position-tolerance", "1e-6"]].concat(), &["tolerance"]);
 }
 
 #[test]
@@ -428,4 +452,19 @@ fn f32_overflow_is_refused_with_an_error() {
     let stderr = String::from_utf8(out.stderr).unwrap();
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
     assert!(stderr.starts_with("error: ") && stderr.contains("F32"), "{stderr}");
+}
+
+/// `armctl sim --qemu` on a machine without QEMU: one line saying how to install it, before any
+/// board build. The binary runs with an empty PATH, so no qemu-system-arm can be found.
+#[test]
+fn sim_qemu_without_qemu_says_how_to_install_it() {
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_armctl"))
+        .args(["sim", "--qemu"])
+        .env("PATH", "")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("qemu-system-arm is not installed (Debian: apt-get install qemu-system-arm)"), "{stderr}");
 }

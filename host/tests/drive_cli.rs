@@ -283,6 +283,22 @@ fn the_link_options_are_checked() {
     assert_fails(&["--port", "/dev/does-not-exist", "status"], &["/dev/does-not-exist"]);
     assert_fails(&["--sim", "--arm", "no-such-arm", "status"], &["no-such-arm"]);
     assert_fails(&["--sim", "fk", "--arm", "so101", "--q", "0,0,0,0,0"], &["--sim", "only for move"]);
+    assert_fails(&["--arm", "so101", "status", "--sim", "--arm", "open-manipulator-x"], &["--arm is given twice"]);
     assert_fails(&["--baud", "57600", "status"], &["--baud", "--port"]);
     assert_fails(&["--sim", "--baud", "57600", "status"], &["--baud", "--sim"]);
+}
+
+/// The drive options are global: accepted after the command as before it, as clap's global
+/// arguments are.
+#[test]
+fn drive_options_go_before_or_after_the_command() {
+    for args in [&["--sim", "status", "--json"][..], &["status", "--sim", "--json"], &["status", "--json", "--sim"]] {
+        let v = armctl(args).json();
+        assert_eq!(v["arm"], "so101", "{args:?}: {v}");
+    }
+    let v = armctl(&["status", "--sim", "--arm", "open-manipulator-x", "--json"]).json();
+    assert_eq!(v["arm"], "open-manipulator-x", "{v}");
+    let run = armctl(&["--sim", "move", "--to", "0.2,0,0.15", "--json"]);
+    let v = run.json();
+    assert!(v["error_mm"].as_f64().is_some_and(|e| e < 1.0), "{v}");
 }

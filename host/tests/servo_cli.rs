@@ -141,6 +141,24 @@ fn dynamixel_read_write_round_trip() {
     assert_eq!(run.lines()[1..], ["present_velocity = 0", "present_position = 2048"]);
 }
 
+/// `read --item`: the named items, in the order asked, from one read spanning them; an unknown
+/// name is one error line listing the model's items, and --item excludes --addr.
+#[test]
+fn read_by_item_name() {
+    let server = sim(&STS3215, &[1], Faults::default(), &[]);
+    let m = &STS3215;
+    let run = servo(&server, m, &["read"], &["--id", "1", "--item", "present_load,present_position"]).ok();
+    // 56..62: present position, velocity and load, little-endian.
+    assert_eq!(run.lines(), ["00 08 00 00 00 00", "present_load = 0", "present_position = 2048"]);
+    servo(&server, m, &["read"], &["--id", "1", "--item", "present_lod"])
+        .fails(1, &["no item \"present_lod\"", "present_position"]);
+    let run = servo(&server, m, &["read"], &["--id", "1", "--item", "id", "--addr", "5", "--len", "1"]);
+    assert_eq!(run.code, 2, "{}", run.err);
+    let dxl = sim(&XL430_W250, &[1], Faults::default(), &[]);
+    let run = servo(&dxl, &XL430_W250, &["read"], &["--id", "1", "--item", "present_position"]).ok();
+    assert_eq!(run.lines(), ["00 08 00 00", "present_position = 2048"]);
+}
+
 #[test]
 fn feetech_read_write_round_trip_relocks_the_eeprom() {
     let server = sim(&STS3215, &[1], Faults::default(), &[]);

@@ -158,7 +158,7 @@ fn run_qemu(elf: Option<PathBuf>, faults: &FaultArgs, out: &mut dyn Write, err: 
         }
     };
     if !qemu::available() {
-        writeln!(err, "error: qemu-system-arm is not installed (apt-get install qemu-system-arm)")?;
+        writeln!(err, "error: qemu-system-arm is not installed (Debian: apt-get install qemu-system-arm)")?;
         return Ok(1);
     }
     let elf = match elf {

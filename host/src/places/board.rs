@@ -33,8 +33,10 @@ pub fn build(dir: &Path, bin: &str) -> Result<PathBuf> {
     let status = Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()))
         .args(["build", "--release", "--quiet", "--bin", bin])
         .current_dir(dir)
-        // The host build's settings (`cargo test`, `cargo run`) are not the board's.
-        .env_remove("CARGO_TARGET_DIR")
+        // One target folder for every board: the crates they share (firmware, kinematics,
+        // nalgebra, cortex-m...) are built once. The host build's other settings (`cargo test`,
+        // `cargo run`) are not the board's.
+        .env("CARGO_TARGET_DIR", target_dir())
         .env_remove("RUSTFLAGS")
         .env_remove("CARGO_ENCODED_RUSTFLAGS")
         .status()
@@ -42,7 +44,12 @@ pub fn build(dir: &Path, bin: &str) -> Result<PathBuf> {
     if !status.success() {
         bail!("building the {bin} binary in {} failed", dir.display());
     }
-    Ok(dir.join("target").join(TARGET).join("release").join(bin))
+    Ok(target_dir().join(TARGET).join("release").join(bin))
+}
+
+/// The target folder all board builds share: `firmware/boards/target`.
+pub fn target_dir() -> PathBuf {
+    boards_dir().join("target")
 }
 
 /// The Rust toolchain that cargo picks in a folder (rustup reads `rust-toolchain.toml` upwards).
