@@ -9,7 +9,7 @@ use kinematics::ik::{IkConfig, IkStatus};
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 
-use super::{load, ArmArgs};
+use super::{load, print_json, ArmArgs};
 use crate::args::numbers as parse;
 use crate::arm::dof::{IkOutcome, IkRequest, Scalar, SolverName};
 use crate::bench::ik as bench;
@@ -104,13 +104,6 @@ fn printed(outcome: &IkOutcome, position_only: bool, line: Option<usize>) -> Pri
     }
 }
 
-/// Writes one JSON line.
-fn print_line(out: &mut dyn Write, value: &impl Serialize) -> Result<()> {
-    serde_json::to_writer(&mut *out, value)?;
-    out.write_all(b"\n")?;
-    Ok(())
-}
-
 /// The one-line complaint for an outcome the solver refused (input that passed the f64 checks
 /// here but not the solver's, e.g. a value that overflows f32), or `None`.
 fn refusal(outcome: &IkOutcome, scalar: Scalar) -> Option<String> {
@@ -139,7 +132,7 @@ pub(crate) fn run(args: &IkArgs, out: &mut dyn Write, err: &mut dyn Write) -> Re
         let quat = args.quat.as_deref().map(|q| parse::fixed::<4>(q, "--quat")).transpose()?;
         let seed = args.seed.as_deref().map(|s| parse::numbers(s, "--seed")).transpose()?;
         let outcome = arm.solve(&request(position, quat, seed))?;
-        print_line(out, &printed(&outcome, quat.is_none(), None))?;
+        print_json(out, &printed(&outcome, quat.is_none(), None))?;
         if let Some(complaint) = refusal(&outcome, args.scalar) {
             writeln!(err, "error: {complaint}")?;
             return Ok(1);
@@ -173,7 +166,7 @@ pub(crate) fn run(args: &IkArgs, out: &mut dyn Write, err: &mut dyn Write) -> Re
             .and_then(|t| arm.solve(&request(t.position, t.quaternion_wxyz, t.seed)).map(|o| (o, t.quaternion_wxyz)));
         match result {
             Ok((outcome, quat)) => {
-                print_line(&mut out, &printed(&outcome, quat.is_none(), Some(line_number)))?;
+                print_json(&mut out, &printed(&outcome, quat.is_none(), Some(line_number)))?;
                 match refusal(&outcome, args.scalar) {
                     Some(complaint) => {
                         rejected += 1;
@@ -189,7 +182,7 @@ pub(crate) fn run(args: &IkArgs, out: &mut dyn Write, err: &mut dyn Write) -> Re
                 rejected += 1;
                 let message = format!("line {line_number}: {e:#}");
                 writeln!(err, "error: {batch}: {message}")?;
-                print_line(&mut out, &json!({"line": line_number, "error": message}))?;
+                print_json(&mut out, &json!({"line": line_number, "error": message}))?;
             }
         }
     }

@@ -210,7 +210,7 @@ fn run(link: &crate::drive::args::LinkArgs, command: Command, out: &mut dyn Writ
         Command::Ports { json } => {
             let ports = crate::servo::ports::usb_ports(std::path::Path::new("/sys"), std::path::Path::new("/dev"));
             if json {
-                print_json(out, &serde_json::to_value(&ports)?)?;
+                print_json(out, &ports)?;
             } else if ports.is_empty() {
                 writeln!(
                     out,
@@ -250,6 +250,7 @@ fn run(link: &crate::drive::args::LinkArgs, command: Command, out: &mut dyn Writ
                     s.p99_us
                 )?;
             }
+            // Through a `Value`, whose maps print their keys sorted, as this output always has.
             print_json(out, &serde_json::to_value(&report)?)?;
         }
     }
@@ -260,7 +261,9 @@ fn vec3(p: &kinematics::Pose<f64>) -> [f64; 3] {
     p.translation.into()
 }
 
-pub(crate) fn print_json(out: &mut dyn Write, v: &Value) -> Result<()> {
-    writeln!(out, "{v}")?;
+/// Writes `value` as one line of JSON.
+pub(crate) fn print_json(out: &mut dyn Write, value: &impl serde::Serialize) -> Result<()> {
+    serde_json::to_writer(&mut *out, value)?;
+    out.write_all(b"\n")?;
     Ok(())
 }

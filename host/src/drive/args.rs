@@ -1,5 +1,5 @@
-//! The arguments of the arm-driving commands: the options before the command
-//! (`--port`/`--sim`, `--baud`, `--arm`, `--json`) and the commands `move`, `joints`, `play`,
+//! The arguments of the arm-driving commands: the drive options (`--port`/`--sim`, `--baud`,
+//! `--arm`, `--json`, before or after the command) and the commands `move`, `joints`, `play`,
 //! `status`, `stop` and `torque`.
 
 use std::path::PathBuf;

@@ -30,20 +30,13 @@ pub struct Tools {
 impl Tools {
     /// Finds `llvm-objdump` in the toolchain that `rust-toolchain.toml` pins (rustc run from the
     /// board crates, so rustup picks that toolchain): `$(rustc --print sysroot)/lib/rustlib/<host>/bin`,
-    /// installing the `llvm-tools` component first where it is missing.
+    /// installing the `llvm-tools` component first where it is missing ([`board::ensure_toolchain`]).
     /// `llvm-addr2line` is taken from there too, else from `PATH` (the component does not ship it
     /// in every release); without it the panic sites are listed without their source lines.
     pub fn find() -> Result<Tools> {
-        let boards = board::boards_dir();
-        board::ensure_toolchain(&boards)?;
-        let bin = board::Toolchain::of(&boards)?.llvm_bin();
+        // With the component there, as `ensure_toolchain` checks, `llvm-objdump` is in this folder.
+        let bin = board::ensure_toolchain(&board::boards_dir())?.llvm_bin();
         let objdump = bin.join("llvm-objdump");
-        if !objdump.is_file() {
-            bail!(
-                "llvm-objdump is missing from the toolchain ({}): install it with: rustup component add llvm-tools",
-                bin.display()
-            );
-        }
         let on_path = || {
             Command::new("llvm-addr2line")
                 .arg("--version")

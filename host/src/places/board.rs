@@ -111,26 +111,23 @@ impl Toolchain {
 }
 
 /// Makes sure the toolchain used in `dir` has [`TARGET`] and [`LLVM_TOOLS`], installing what is
-/// missing with rustup. Checked once per process (a failure is remembered and reported again).
-pub fn ensure_toolchain(dir: &Path) -> Result<()> {
+/// missing with rustup, and returns it. Checked once per process (a failure is remembered and
+/// reported again).
+pub fn ensure_toolchain(dir: &Path) -> Result<Toolchain> {
     // A mutex rather than a once-cell, so that parallel tests wait for one install to finish.
-    static CHECKED: Mutex<Option<Result<(), String>>> = Mutex::new(None);
+    static CHECKED: Mutex<Option<Result<Toolchain, String>>> = Mutex::new(None);
     let mut checked = CHECKED.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-    if checked.is_none() {
+    let outcome = checked.get_or_insert_with(|| {
         let outcome = Toolchain::of(dir).and_then(|toolchain| {
-            let missing = toolchain.missing();
-            install(&missing, "rustup", dir, &toolchain.sysroot)?;
-            match Toolchain::of(dir)?.missing().as_slice() {
-                [] => Ok(()),
+            install(&toolchain.missing(), "rustup", dir, &toolchain.sysroot)?;
+            match toolchain.missing().as_slice() {
+                [] => Ok(toolchain),
                 still => bail!("rustup ran, but the toolchain still lacks {}", names(still)),
             }
         });
-        *checked = Some(outcome.map_err(|e| format!("{e:#}")));
-    }
-    match checked.as_ref() {
-        Some(Err(e)) => Err(anyhow!("{e}")),
-        _ => Ok(()),
-    }
+        outcome.map_err(|e| format!("{e:#}"))
+    });
+    outcome.clone().map_err(|e| anyhow!("{e}"))
 }
 
 fn names(missing: &[Missing]) -> String {

@@ -51,7 +51,7 @@ enum ServoCommand {
         #[arg(long, required_unless_present = "item", requires = "len")]
         addr: Option<u16>,
         /// Bytes to read.
-        #[arg(long, value_parser = clap::value_parser!(u16).range(1..=128), requires = "addr")]
+        #[arg(long, value_parser = clap::value_parser!(u16).range(1..=commands::MAX_READ as i64), requires = "addr")]
         len: Option<u16>,
         /// Items by name instead of --addr and --len, comma-separated (as `read` prints them:
         /// present_position, goal_position, ...); read in one transaction.

@@ -125,16 +125,28 @@ pub fn read<P: Port, C: Clock>(
     writeln!(out, "{}", hex(&bytes))?;
     // The model only decodes: without it (an odd ping), the bytes are still the answer.
     if let Ok(Servo { model: Some(model), .. }) = session.identify(id) {
-        for item in items::within(model, address, len) {
-            let start = usize::from(item.address - address);
-            let value = item.decode(&bytes[start..start + item.len()], model.endian).map_err(value_error)?;
-            writeln!(out, "{} = {value}", item.name)?;
-        }
+        print_items(out, model, items::within(model, address, len), address, &bytes)?;
     }
     finish(session, err)
 }
 
-/// The most bytes one `read` asks for (as `--len` allows).
+/// `name = value` for each of `items`, decoded from `bytes` read at `address`.
+fn print_items(
+    out: &mut dyn Write,
+    model: &Model,
+    items: impl IntoIterator<Item = Item>,
+    address: u16,
+    bytes: &[u8],
+) -> Result<()> {
+    for item in items {
+        let start = usize::from(item.address - address);
+        let value = item.decode(&bytes[start..start + item.len()], model.endian).map_err(value_error)?;
+        writeln!(out, "{} = {value}", item.name)?;
+    }
+    Ok(())
+}
+
+/// The most bytes one `read` asks for (`--len` and `--item` alike).
 pub const MAX_READ: usize = 128;
 
 /// `read --item a,b`: the named items of the servo's model, read in one transaction spanning them
@@ -168,11 +180,7 @@ pub fn read_items<P: Port, C: Clock>(
     let mut bytes = vec![0u8; span];
     session.read(id, first, &mut bytes)?;
     writeln!(out, "{}", hex(&bytes))?;
-    for item in wanted {
-        let start = usize::from(item.address - first);
-        let value = item.decode(&bytes[start..start + item.len()], model.endian).map_err(value_error)?;
-        writeln!(out, "{} = {value}", item.name)?;
-    }
+    print_items(out, model, wanted, first, &bytes)?;
     finish(session, err)
 }
 
