@@ -10,7 +10,9 @@
 #![warn(missing_docs)]
 
 pub mod args;
-pub mod arm;
+/// Arm descriptions and the joint-count dispatch: the `armctl-arm` crate (`host/arm`), under the
+/// name the modules use.
+pub use armctl_arm as arm;
 pub mod bench;
 pub mod cli;
 pub mod demo;

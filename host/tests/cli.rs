@@ -454,6 +454,31 @@ fn f32_overflow_is_refused_with_an_error() {
     assert!(stderr.starts_with("error: ") && stderr.contains("F32"), "{stderr}");
 }
 
+/// f32 is solved for the joint counts the firmware carries (1 to 8), as the firmware does; planar:8
+/// solves in f32 and planar:9 is refused in one line that says what to use instead.
+#[test]
+fn f32_is_for_the_firmware_joint_counts() {
+    let run = |arm: &str| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_armctl"))
+            .args(["ik", "--arm", arm, "--target", "3,2,0", "--scalar", "f32"])
+            .output()
+            .unwrap()
+    };
+    let eight = run("planar:8");
+    assert_eq!(eight.status.code(), Some(0), "{}", String::from_utf8_lossy(&eight.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&eight.stdout).unwrap();
+    assert_eq!(v["status"], "converged", "{v}");
+    let nine = run("planar:9");
+    assert_eq!(nine.status.code(), Some(1));
+    assert!(nine.stdout.is_empty());
+    let stderr = String::from_utf8(nine.stderr).unwrap();
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.contains("1 to 8 joints") && stderr.contains("planar:9 has 9") && stderr.contains("--scalar f64"),
+        "{stderr}"
+    );
+}
+
 /// `armctl sim --qemu` on a machine without QEMU: one line saying how to install it, before any
 /// board build. The binary runs with an empty PATH, so no qemu-system-arm can be found.
 #[test]

@@ -6,7 +6,7 @@
 //! one-line error and writes nothing. It does not panic on any input: values are required finite
 //! and within ±[`LIMIT`], which keeps every axis range finite and wider than f64 rounding.
 
-use crate::plot::{colour, error, register_font};
+use crate::plot::{colour, error, register_font, write_png};
 use anyhow::{bail, Result};
 use plotters::coord::Shift;
 use plotters::element::DashedPathElement;
@@ -60,15 +60,13 @@ const TARGET: RGBColor = RGBColor(200, 0, 0);
 const TOOL_PLANNED: RGBColor = RGBColor(40, 40, 40);
 const TOOL_MEASURED: RGBColor = RGBColor(31, 119, 180);
 
-/// Draws `trace` to the PNG file `path` (the extension picks the format; use `.png`).
+/// Draws `trace` to the PNG file `path`.
 pub fn write_demo_png(path: &Path, trace: &DemoTrace) -> Result<()> {
     check(trace)?;
     register_font();
     let joints = trace.joint_names.len() as u32;
     let height = MIN_HEIGHT.max(TITLE_HEIGHT + joints * PANEL_HEIGHT);
-    let root = BitMapBackend::new(path, (WIDTH, height)).into_drawing_area();
-    draw(&root, trace)
-        .and_then(|()| root.present().map_err(error))
+    write_png(path, (WIDTH, height), |root| draw(root, trace))
         .map_err(|e| anyhow::anyhow!("cannot write plot {}: {e}", path.display()))
 }
 

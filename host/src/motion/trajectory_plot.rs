@@ -2,8 +2,9 @@
 //! colour per joint, keyframes marked (dots on the position panel, grey lines across all three).
 
 use super::trajectory::{Row, Sampled};
-use crate::plot::{colour, error, range, register_font, SIZE};
+use crate::plot::{colour, error, range, register_font, write_png, SIZE};
 use anyhow::Result;
+use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -13,7 +14,10 @@ type Quantity = (&'static str, fn(&Row) -> &Vec<f64>);
 /// Draws `s` to the PNG file `path`.
 pub fn draw(path: &Path, s: &Sampled, title: &str) -> Result<()> {
     register_font();
-    let root = BitMapBackend::new(path, SIZE).into_drawing_area();
+    write_png(path, SIZE, |root| panels(root, s, title))
+}
+
+fn panels(root: &DrawingArea<BitMapBackend<'_>, Shift>, s: &Sampled, title: &str) -> Result<()> {
     root.fill(&WHITE).map_err(error)?;
     let root = root.titled(title, ("sans-serif", 24)).map_err(error)?;
     let panels = root.split_evenly((3, 1));
@@ -76,6 +80,5 @@ pub fn draw(path: &Path, s: &Sampled, title: &str) -> Result<()> {
                 .map_err(error)?;
         }
     }
-    root.present().map_err(error)?;
     Ok(())
 }

@@ -1,12 +1,41 @@
 //! What every PNG chart of armctl shares: the image size, one colour per joint, the embedded font,
-//! y ranges with padding, and plotters' errors as `anyhow` errors.
+//! y ranges with padding, plotters' errors as `anyhow` errors, and the PNG file itself.
 //!
 //! Text is drawn with plotters' `ab_glyph` renderer and the DejaVu Sans font embedded by the
-//! `dejavu` crate, so no system fonts are needed.
+//! `dejavu` crate, so no system fonts are needed. Charts are drawn into an RGB buffer and encoded
+//! with the `png` crate: plotters' own file output would bring the whole `image` crate, a tenth of
+//! armctl's dependency build, for one format.
 
-use anyhow::anyhow;
+use anyhow::{anyhow, Result};
+use plotters::coord::Shift;
 use plotters::prelude::*;
+use std::io::BufWriter;
+use std::path::Path;
 use std::sync::Once;
+
+/// Draws a chart of `size` pixels with `draw`, then writes it to `path` as an 8-bit RGB PNG. The
+/// file is created only once the chart is drawn, so a chart that fails leaves no file behind.
+pub fn write_png(
+    path: &Path,
+    size: (u32, u32),
+    draw: impl FnOnce(&DrawingArea<BitMapBackend<'_>, Shift>) -> Result<()>,
+) -> Result<()> {
+    let (width, height) = size;
+    let mut rgb = vec![0u8; width as usize * height as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area();
+        draw(&root)?;
+        root.present().map_err(error)?;
+    }
+    let file = std::fs::File::create(path)?;
+    let mut encoder = png::Encoder::new(BufWriter::new(file), width, height);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    let mut writer = encoder.write_header()?;
+    writer.write_image_data(&rgb)?;
+    writer.finish()?;
+    Ok(())
+}
 
 /// Image size in pixels.
 pub const SIZE: (u32, u32) = (1400, 1100);

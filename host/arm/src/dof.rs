@@ -4,6 +4,10 @@
 //! arms whose joint count it learns at run time. [`build`] matches that count once, for 0 to
 //! [`MAX_JOINTS`], and hides the chain behind the object-safe [`DynArm`], so the rest of the host
 //! is written once.
+//!
+//! Every count gets the f64 solvers; only the counts the firmware carries (1 to
+//! [`F32_MAX_JOINTS`]) get the f32 ones, which exist to run the solver as the firmware does. Each
+//! (count, scalar) pair instantiates six solvers, and the build time of the host is mostly these.
 
 use super::ArmSpec;
 use anyhow::{anyhow, bail, Result};
@@ -17,6 +21,9 @@ use std::time::{Duration, Instant};
 
 /// The largest joint count the host dispatches (the kinematics itself has no limit).
 pub const MAX_JOINTS: usize = 32;
+
+/// The largest joint count solved in f32: the firmware's, whose scalar f32 is.
+pub const F32_MAX_JOINTS: usize = firmware::link::message::MAX_JOINTS;
 
 /// Scalar the solver runs in.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -121,10 +128,23 @@ pub trait DynArm {
     fn solve(&self, request: &IkRequest) -> Result<IkOutcome>;
 }
 
+/// A chain in one scalar, solving host requests; boxed so that the f32 chain, and its solvers,
+/// are instantiated only for the counts that have one.
+trait SolveIn<const N: usize> {
+    fn solve(&self, request: &IkRequest, seed: SVector<f64, N>) -> Result<IkOutcome>;
+}
+
+impl<T: Real, const N: usize> SolveIn<N> for Chain<T, N> {
+    fn solve(&self, request: &IkRequest, seed: SVector<f64, N>) -> Result<IkOutcome> {
+        solve_in(self, request, seed)
+    }
+}
+
 struct Arm<const N: usize> {
     spec: ArmSpec,
     f64: Chain<f64, N>,
-    f32: Chain<f32, N>,
+    /// `None` above [`F32_MAX_JOINTS`].
+    f32: Option<Box<dyn SolveIn<N>>>,
 }
 
 impl<const N: usize> Arm<N> {
@@ -173,7 +193,14 @@ impl<const N: usize> DynArm for Arm<N> {
         };
         match request.scalar {
             Scalar::F64 => solve_in(&self.f64, request, seed),
-            Scalar::F32 => solve_in(&self.f32, request, seed),
+            Scalar::F32 => match &self.f32 {
+                Some(chain) => chain.solve(request, seed),
+                None => bail!(
+                    "f32 runs the solver as the firmware does, for arms of 1 to {F32_MAX_JOINTS} joints; \
+                     arm {} has {N} (use --scalar f64)",
+                    self.spec.name
+                ),
+            },
         }
     }
 }
@@ -229,8 +256,13 @@ fn solve_in<T: Real, const N: usize>(
 
 fn build_n<const N: usize>(spec: ArmSpec) -> Result<Box<dyn DynArm>> {
     let f64 = spec.chain::<f64, N>()?;
-    let f32 = spec.chain::<f32, N>()?;
-    Ok(Box::new(Arm { spec, f64, f32 }))
+    Ok(Box::new(Arm { spec, f64, f32: None }))
+}
+
+fn build_with_f32_n<const N: usize>(spec: ArmSpec) -> Result<Box<dyn DynArm>> {
+    let f64 = spec.chain::<f64, N>()?;
+    let f32: Box<dyn SolveIn<N>> = Box::new(spec.chain::<f32, N>()?);
+    Ok(Box::new(Arm { spec, f64, f32: Some(f32) }))
 }
 
 fn planar_n<const N: usize>() -> Result<ArmSpec> {
@@ -253,9 +285,22 @@ macro_rules! dispatch {
     (@call $f:ident, $k:literal, ($($arg:expr),*)) => { $f::<$k>($($arg),*) };
 }
 
+// The list in `dispatch_f32!` is 0 to the firmware's joint count.
+const _: () = assert!(F32_MAX_JOINTS == 8, "dispatch_f32! lists the counts 0 to 8");
+
+/// As [`dispatch!`], for the counts that have f32 solvers (0 to [`F32_MAX_JOINTS`]).
+macro_rules! dispatch_f32 {
+    ($n:expr, $f:ident ( $($arg:expr),* )) => {
+        dispatch!(@arms $n, $f, ($($arg),*), 0 1 2 3 4 5 6 7 8)
+    };
+}
+
 /// The arm of `spec` as a [`DynArm`]; fails for an invalid description or too many joints.
 pub fn build(spec: ArmSpec) -> Result<Box<dyn DynArm>> {
-    dispatch!(spec.dof(), build_n(spec))
+    match spec.dof() {
+        n @ 0..=F32_MAX_JOINTS => dispatch_f32!(n, build_with_f32_n(spec)),
+        n => dispatch!(n, build_n(spec)),
+    }
 }
 
 /// The `planar:N` preset's description.

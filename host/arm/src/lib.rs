@@ -2,6 +2,8 @@
 //! file or the project's TOML arm file, turned into the kinematics crate's fixed-size chain for the
 //! joint count it has (see [`dof`]).
 
+#![warn(missing_docs)]
+
 pub mod dof;
 pub mod presets;
 pub mod servos;
