@@ -7,7 +7,6 @@
 //! the solver's own claim, so our solver and `k` are held to exactly the same test.
 
 use crate::arm::dof::{DynArm, IkRequest, Scalar, SolverName};
-use crate::bench::k::KArm;
 use anyhow::Result;
 use kinematics::ik::IkConfig;
 use kinematics::{rotation_error, Pose, SplitMix64};
@@ -175,10 +174,13 @@ pub fn run(arm: &dyn DynArm, protocol: &Protocol) -> Result<Report> {
         let claimed = outcome.status == kinematics::ik::IkStatus::Converged;
         ours.add(outcome.solve_time, reaches(arm, &outcome.q, target, tolerances), claimed);
     }
+    // Only the k comparison pushes to it.
+    #[cfg_attr(not(feature = "compare-k"), allow(unused_mut))]
     let mut solvers = vec![ours.figures()];
 
+    #[cfg(feature = "compare-k")]
     if protocol.with_k {
-        let k_arm = KArm::new(arm.spec())?;
+        let k_arm = crate::bench::k::KArm::new(arm.spec())?;
         let seed = arm.middle();
         let mut tally =
             Tally::new(&format!("k JacobianIkSolver (f64, {} tries)", crate::bench::k::K_MAX_TRY), protocol.n);

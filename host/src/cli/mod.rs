@@ -98,7 +98,7 @@ enum BenchCommand {
         /// Seed of the target sampler.
         #[arg(long, default_value_t = 1)]
         seed: u64,
-        /// Skip the `k` crate's solver.
+        /// Skip the `k` crate's solver (run only when built with `--features compare-k`).
         #[arg(long)]
         no_k: bool,
     },
@@ -232,6 +232,13 @@ fn run(link: &crate::drive::args::LinkArgs, command: Command, out: &mut dyn Writ
             }
             let arm = load(&arm)?;
             let report = bench::run(arm.as_ref(), &Protocol { n, scalar, seed, with_k: !no_k })?;
+            if !no_k && !cfg!(feature = "compare-k") {
+                writeln!(
+                    err,
+                    "note: k's solver is not beside ours: this armctl was built without the compare-k feature \
+                     (cargo run --release -p armctl --features compare-k -- bench ik ...)"
+                )?;
+            }
             for s in &report.solvers {
                 writeln!(
                     err,
