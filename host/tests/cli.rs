@@ -490,7 +490,8 @@ fn f32_is_for_the_firmware_joint_counts() {
 }
 
 /// `armctl sim --qemu` on a machine without QEMU: one line saying how to install it, before any
-/// board build. The binary runs with an empty PATH, so no qemu-system-arm can be found.
+/// board build. The binary runs with an empty PATH, so no qemu-system-arm can be found. Built
+/// without the `board-tools` feature (`cargo test -p armctl`), the line says how to build it.
 #[test]
 fn sim_qemu_without_qemu_says_how_to_install_it() {
     let output = std::process::Command::new(env!("CARGO_BIN_EXE_armctl"))
@@ -501,5 +502,28 @@ fn sim_qemu_without_qemu_says_how_to_install_it() {
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert_eq!(output.status.code(), Some(1), "{stderr}");
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
-    assert!(stderr.contains("qemu-system-arm is not installed (Debian: apt-get install qemu-system-arm)"), "{stderr}");
+    let expected = if cfg!(feature = "board-tools") {
+        "qemu-system-arm is not installed (Debian: apt-get install qemu-system-arm)"
+    } else {
+        "armctl sim --qemu needs the board-tools feature"
+    };
+    assert!(stderr.contains(expected), "{stderr}");
+}
+
+/// Without the `board-tools` feature, each command that runs or reads a board binary fails at
+/// once, in one line that gives the build that has it; with it, they are tested in bench_mcu.rs,
+/// footprint_cli.rs and tests/hil_qemu.rs.
+#[test]
+#[cfg(not(feature = "board-tools"))]
+fn board_commands_say_which_build_has_them() {
+    for (args, command) in
+        [(&["footprint"][..], "footprint"), (&["bench", "mcu"], "bench mcu"), (&["sim", "--qemu"], "sim --qemu")]
+    {
+        let output = std::process::Command::new(env!("CARGO_BIN_EXE_armctl")).args(args).output().unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(1), "{stderr}");
+        assert!(output.stdout.is_empty());
+        assert_eq!(stderr.lines().count(), 1, "{stderr}");
+        assert!(stderr.contains(&format!("--features board-tools -- {command}")), "{command}: {stderr}");
+    }
 }

@@ -13,18 +13,19 @@
 //! real M4F at zero wait states are somewhat higher.
 
 use std::io::Write;
-use std::time::Duration;
 
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{anyhow, bail, Result};
 use clap::Args;
 use serde_json::{json, Value};
 
+#[cfg(feature = "board-tools")]
 use crate::places::qemu::{self, Qemu, QemuConfig};
 
 /// The board binary that counts.
 pub const OPCOUNT_BIN: &str = "opcount";
 /// How long QEMU may take: building is done before, and the run itself takes a few seconds.
-const RUN_TIMEOUT: Duration = Duration::from_secs(120);
+#[cfg(feature = "board-tools")]
+const RUN_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(120);
 /// The calibration's name in the firmware's output.
 pub const CALIBRATION: &str = "calib_nop";
 /// The empty loop's name: its per-repetition cost is subtracted from every operation.
@@ -130,8 +131,16 @@ pub struct McuReport {
     pub warnings: Vec<String>,
 }
 
-/// Builds `opcount`, runs it under QEMU and reads its counts.
+/// Builds `opcount`, runs it under QEMU and reads its counts (needs the `board-tools` feature).
+#[cfg(not(feature = "board-tools"))]
 pub fn measure() -> Result<McuReport> {
+    Err(crate::places::board::without_tools("bench mcu"))
+}
+
+/// Builds `opcount`, runs it under QEMU and reads its counts.
+#[cfg(feature = "board-tools")]
+pub fn measure() -> Result<McuReport> {
+    use anyhow::Context;
     if !qemu::available() {
         bail!("qemu-system-arm is not installed (apt-get install qemu-system-arm): `bench mcu` runs the firmware under it");
     }

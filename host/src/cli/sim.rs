@@ -3,15 +3,15 @@
 
 use std::io::Write;
 use std::path::PathBuf;
-use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
 use firmware::bus::{dxl2, feetech, Protocol};
 
 use crate::args::bus::{model_for, ModelArg, ProtocolArg};
+#[cfg(feature = "board-tools")]
 use crate::places::qemu::{self, Qemu, QemuConfig};
-use crate::sim::{so101_bus, Faults, PtyServer, SimConfig};
+use crate::sim::{Faults, PtyServer, SimConfig};
 
 /// Arguments of `armctl sim`: a subcommand, or `--qemu`.
 #[derive(Args, Debug)]
@@ -148,7 +148,14 @@ pub fn run(args: SimArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i3
     }
 }
 
+/// `armctl sim --qemu`, in an armctl built without the `board-tools` feature it needs.
+#[cfg(not(feature = "board-tools"))]
+fn run_qemu(_: Option<PathBuf>, _: &FaultArgs, _: &mut dyn Write, _: &mut dyn Write) -> Result<i32> {
+    Err(crate::places::board::without_tools("sim --qemu"))
+}
+
 /// `armctl sim --qemu`.
+#[cfg(feature = "board-tools")]
 fn run_qemu(elf: Option<PathBuf>, faults: &FaultArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
     let faults = match faults.faults() {
         Ok(f) => f,
@@ -165,7 +172,7 @@ fn run_qemu(elf: Option<PathBuf>, faults: &FaultArgs, out: &mut dyn Write, err: 
         Some(elf) => elf,
         None => qemu::build(qemu::FIRMWARE_BIN)?,
     };
-    let bus = PtyServer::spawn(so101_bus(faults)).context("cannot open a pseudo-terminal")?;
+    let bus = PtyServer::spawn(crate::sim::so101_bus(faults)).context("cannot open a pseudo-terminal")?;
     let mut board = Qemu::start(&QemuConfig { elf, bus: Some(bus.path().to_string()) })?;
     writeln!(out, "{}", board.link_path())?;
     out.flush()?;
@@ -198,7 +205,7 @@ fn run_qemu(elf: Option<PathBuf>, faults: &FaultArgs, out: &mut dyn Write, err: 
             // Dropping `board` and `bus` stops QEMU and removes its working directory.
             return Ok(crate::drive::interrupt::EXIT_CODE);
         }
-        std::thread::sleep(Duration::from_millis(100));
+        std::thread::sleep(std::time::Duration::from_millis(100));
     }
 }
 

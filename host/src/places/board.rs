@@ -20,6 +20,16 @@ pub const TARGET: &str = "thumbv7em-none-eabihf";
 /// The rustup component that ships `llvm-objdump`, which `armctl footprint` reads the ELFs with.
 pub const LLVM_TOOLS: &str = "llvm-tools";
 
+/// The error of `armctl COMMAND` in an armctl built without the `board-tools` feature, which the
+/// commands that run a board binary need (`sim --qemu`, `bench mcu`, `footprint`: they decode its
+/// defmt log and read its ELF). One line, with the build that has it.
+pub fn without_tools(command: &str) -> anyhow::Error {
+    anyhow::anyhow!(
+        "armctl {command} needs the board-tools feature, which this armctl was built without: \
+         cargo run --release -p armctl --features board-tools -- {command}"
+    )
+}
+
 /// The folder holding one cargo workspace per board.
 pub fn boards_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../firmware/boards")
