@@ -150,18 +150,21 @@ pub(crate) fn run(args: &IkArgs, out: &mut dyn Write, err: &mut dyn Write) -> Re
     let mut out = std::io::BufWriter::with_capacity(1 << 16, out);
     let mut times = Vec::new();
     let (mut solved, mut rejected, mut lines) = (0usize, 0usize, 0usize);
-    let mut line = String::new();
+    // Bytes, not a String: serde_json checks the UTF-8 of what it parses (a line that is not UTF-8
+    // is an error of that line), so checking the whole line first would be done twice.
+    let mut line = Vec::new();
     for line_number in 1.. {
         line.clear();
-        let read = reader.read_line(&mut line).with_context(|| format!("{batch}: cannot read line {line_number}"))?;
+        let read =
+            reader.read_until(b'\n', &mut line).with_context(|| format!("{batch}: cannot read line {line_number}"))?;
         if read == 0 {
             break;
         }
-        if line.trim().is_empty() {
+        if line.trim_ascii().is_empty() {
             continue;
         }
         lines += 1;
-        let result = serde_json::from_str::<BatchTarget>(&line)
+        let result = serde_json::from_slice::<BatchTarget>(&line)
             .map_err(anyhow::Error::from)
             .and_then(|t| arm.solve(&request(t.position, t.quaternion_wxyz, t.seed)).map(|o| (o, t.quaternion_wxyz)));
         match result {
