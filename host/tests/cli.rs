@@ -367,6 +367,26 @@ fn batch_from_stdin() {
     check_batch(&run, &targets, "-");
 }
 
+/// A line that is not UTF-8 is an error of that line alone: the lines around it are solved.
+#[test]
+fn batch_line_that_is_not_utf8_is_one_bad_line() {
+    let (input, _) = batch_input();
+    let good: Vec<&str> = input.lines().take(2).collect();
+    let file = TempFile::new("utf8", "");
+    let mut bytes = format!("{}\n", good[0]).into_bytes();
+    bytes.extend_from_slice(b"{\"position\": [0.1, 0.2, 0.3], \"seed\": \"\xff\xfe\"}\n");
+    bytes.extend_from_slice(format!("{}\n", good[1]).as_bytes());
+    std::fs::write(&file.0, bytes).unwrap();
+    let run = armctl(&["ik", "--arm", "ur5e", "--batch", file.path()]);
+    assert_eq!(run.code, 1, "stderr: {}", run.stderr);
+    let out = run.json_lines();
+    assert_eq!(out.len(), 3, "{}", run.stdout);
+    assert_eq!(out[0]["status"], "converged");
+    assert!(out[1]["error"].as_str().unwrap().contains("line 2"), "{}", out[1]);
+    assert_eq!(out[2]["status"], "converged");
+    assert_eq!(run.stderr.lines().count(), 2, "{}", run.stderr);
+}
+
 #[test]
 fn batch_of_good_lines_exits_zero() {
     let (input, _) = batch_input();
