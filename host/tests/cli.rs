@@ -387,6 +387,41 @@ fn batch_line_that_is_not_utf8_is_one_bad_line() {
     assert_eq!(run.stderr.lines().count(), 2, "{}", run.stderr);
 }
 
+/// `--batch -` answers each line before the next arrives: a program that writes a target and
+/// waits for its result (a co-process) gets it, although output is buffered.
+#[test]
+fn batch_from_a_pipe_answers_before_the_next_line() {
+    use std::io::{BufRead, BufReader, Write};
+    let (input, _) = batch_input();
+    let lines: Vec<&str> = input.lines().take(2).collect();
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_armctl"))
+        .args(["ik", "--arm", "ur5e", "--batch", "-"])
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    let (sender, results) = std::sync::mpsc::channel();
+    let stdout = child.stdout.take().unwrap();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines() {
+            let _ = sender.send(line.unwrap());
+        }
+    });
+    for (i, line) in lines.iter().enumerate() {
+        writeln!(stdin, "{line}").unwrap();
+        stdin.flush().unwrap();
+        // stdin stays open: the answer must come without the end of the input.
+        let answer = results.recv_timeout(std::time::Duration::from_secs(20)).expect("no answer to a line");
+        let v: serde_json::Value = serde_json::from_str(&answer).unwrap();
+        assert_eq!(v["line"], i + 1, "{v}");
+        assert_eq!(v["status"], "converged", "{v}");
+    }
+    drop(stdin);
+    assert!(child.wait().unwrap().success());
+}
+
 #[test]
 fn batch_of_good_lines_exits_zero() {
     let (input, _) = batch_input();

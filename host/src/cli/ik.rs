@@ -1,6 +1,6 @@
 //! `armctl ik`: one target, or a JSON-lines file of them (`--batch`).
 
-use std::io::{BufRead, Write};
+use std::io::{BufRead, Read, Write};
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
@@ -140,12 +140,12 @@ pub(crate) fn run(args: &IkArgs, out: &mut dyn Write, err: &mut dyn Write) -> Re
         return Ok(0);
     };
 
-    let mut reader: Box<dyn BufRead> = if batch == "-" {
-        Box::new(std::io::BufReader::with_capacity(1 << 16, std::io::stdin()))
+    let source: Box<dyn Read> = if batch == "-" {
+        Box::new(std::io::stdin())
     } else {
-        let file = std::fs::File::open(batch).with_context(|| format!("cannot open batch file {batch}"))?;
-        Box::new(std::io::BufReader::with_capacity(1 << 16, file))
+        Box::new(std::fs::File::open(batch).with_context(|| format!("cannot open batch file {batch}"))?)
     };
+    let mut reader = std::io::BufReader::with_capacity(1 << 16, source);
     // One write per 64 KiB rather than per line (a terminal's stdout is line-buffered).
     let mut out = std::io::BufWriter::with_capacity(1 << 16, out);
     let mut times = Vec::new();
@@ -155,6 +155,11 @@ pub(crate) fn run(args: &IkArgs, out: &mut dyn Write, err: &mut dyn Write) -> Re
     let mut line = Vec::new();
     for line_number in 1.. {
         line.clear();
+        // The results so far go out before a read that may wait: a program that writes a target
+        // and waits for its answer gets it (once per 64 KiB of input otherwise).
+        if reader.buffer().is_empty() {
+            out.flush()?;
+        }
         let read =
             reader.read_until(b'\n', &mut line).with_context(|| format!("{batch}: cannot read line {line_number}"))?;
         if read == 0 {
