@@ -232,13 +232,6 @@ fn run(link: &crate::drive::args::LinkArgs, command: Command, out: &mut dyn Writ
             }
             let arm = load(&arm)?;
             let report = bench::run(arm.as_ref(), &Protocol { n, scalar, seed, with_k: !no_k })?;
-            if !no_k && !cfg!(feature = "compare-k") {
-                writeln!(
-                    err,
-                    "note: k's solver is not beside ours: this armctl was built without the compare-k feature \
-                     (cargo run --release -p armctl --features compare-k -- bench ik ...)"
-                )?;
-            }
             for s in &report.solvers {
                 writeln!(
                     err,
@@ -255,6 +248,13 @@ fn run(link: &crate::drive::args::LinkArgs, command: Command, out: &mut dyn Writ
                     s.mean_us,
                     s.median_us,
                     s.p99_us
+                )?;
+            }
+            if !no_k && !cfg!(feature = "compare-k") {
+                writeln!(
+                    err,
+                    "note: k's solver is not beside ours: this armctl was built without the compare-k feature \
+                     (cargo run --release -p armctl --features compare-k -- bench ik ...)"
                 )?;
             }
             // Through a `Value`, whose maps print their keys sorted, as this output always has.
