@@ -5,7 +5,7 @@
 //! [`MAX_JOINTS`], and hides the chain behind the object-safe [`DynArm`], so the rest of the host
 //! is written once.
 //!
-//! Every count gets the f64 solvers; only the counts the firmware carries (1 to
+//! Every count gets the f64 solvers; only the counts the firmware carries (up to
 //! [`F32_MAX_JOINTS`]) get the f32 ones, which exist to run the solver as the firmware does. Each
 //! (count, scalar) pair instantiates six solvers, and the build time of the host is mostly these.
 

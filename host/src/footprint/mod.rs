@@ -9,7 +9,6 @@
 //! functions of core's checks, with their source lines: the MPS2 release firmware has none (its
 //! panic handler calls an undefined symbol, so a reachable panic fails the link), and `--elf`
 //! reports on any binary, a dev build for instance.
-
 //!
 //! It reads the ELF with `object` and measures under QEMU with the defmt log, so it is built with
 //! the `board-tools` feature; without it, it says so ([`crate::places::board::without_tools`]).
