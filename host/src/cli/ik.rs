@@ -1,6 +1,7 @@
 //! `armctl ik`: one target, or a JSON-lines file of them (`--batch`).
 
-use std::io::{BufRead, Read, Write};
+use std::io::{Read, Write};
+use std::sync::mpsc::TryRecvError;
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
@@ -10,6 +11,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::json;
 
 use super::{load, print_json, ArmArgs};
+use crate::args::json_lines::{self, Line, Parsed};
 use crate::args::numbers as parse;
 use crate::arm::dof::{IkOutcome, IkRequest, Scalar, SolverName};
 use crate::bench::ik as bench;
@@ -140,60 +142,68 @@ pub(crate) fn run(args: &IkArgs, out: &mut dyn Write, err: &mut dyn Write) -> Re
         return Ok(0);
     };
 
-    let source: Box<dyn Read> = if batch == "-" {
+    let source: Box<dyn Read + Send> = if batch == "-" {
         Box::new(std::io::stdin())
     } else {
         Box::new(std::fs::File::open(batch).with_context(|| format!("cannot open batch file {batch}"))?)
     };
-    let mut reader = std::io::BufReader::with_capacity(1 << 16, source);
     // One write per 64 KiB rather than per line (a terminal's stdout is line-buffered).
     let mut out = std::io::BufWriter::with_capacity(1 << 16, out);
     let mut times = Vec::new();
     let (mut solved, mut rejected, mut lines) = (0usize, 0usize, 0usize);
-    // Bytes, not a String: serde_json checks the UTF-8 of what it parses (a line that is not UTF-8
-    // is an error of that line), so checking the whole line first would be done twice.
-    let mut line = Vec::new();
-    for line_number in 1.. {
-        line.clear();
-        // The results so far go out before a read that may wait: a program that writes a target
-        // and waits for its answer gets it (once per 64 KiB of input otherwise).
-        if reader.buffer().is_empty() {
-            out.flush()?;
-        }
-        let read =
-            reader.read_until(b'\n', &mut line).with_context(|| format!("{batch}: cannot read line {line_number}"))?;
-        if read == 0 {
-            break;
-        }
-        if line.trim_ascii().is_empty() {
-            continue;
-        }
-        lines += 1;
-        let result = serde_json::from_slice::<BatchTarget>(&line)
-            .map_err(anyhow::Error::from)
-            .and_then(|t| arm.solve(&request(t.position, t.quaternion_wxyz, t.seed)).map(|o| (o, t.quaternion_wxyz)));
-        match result {
-            Ok((outcome, quat)) => {
-                print_json(&mut out, &printed(&outcome, quat.is_none(), Some(line_number)))?;
-                match refusal(&outcome, args.scalar) {
-                    Some(complaint) => {
-                        rejected += 1;
-                        writeln!(err, "error: {batch}: line {line_number}: {complaint}")?;
+    // The lines are read and parsed on a second thread while this one solves.
+    std::thread::scope(|scope| -> Result<()> {
+        let chunks = json_lines::spawn::<BatchTarget, _>(scope, source);
+        loop {
+            let chunk = match chunks.try_recv() {
+                Ok(chunk) => chunk,
+                // The results so far go out before waiting for more input: a program that writes
+                // a target and waits for its answer gets it.
+                Err(TryRecvError::Empty) => {
+                    out.flush()?;
+                    match chunks.recv() {
+                        Ok(chunk) => chunk,
+                        Err(_) => return Ok(()),
                     }
-                    None => {
-                        times.push(outcome.solve_time);
-                        solved += usize::from(outcome.status == IkStatus::Converged);
+                }
+                Err(TryRecvError::Disconnected) => return Ok(()),
+            };
+            for Line { number, parsed } in chunk {
+                let target = match parsed {
+                    Parsed::Value(target) => Ok(target),
+                    Parsed::Invalid(e) => Err(anyhow::Error::from(e)),
+                    Parsed::Unreadable(e) => {
+                        return Err(anyhow::Error::from(e).context(format!("{batch}: cannot read line {number}")))
+                    }
+                };
+                lines += 1;
+                let result = target.and_then(|t| {
+                    arm.solve(&request(t.position, t.quaternion_wxyz, t.seed)).map(|o| (o, t.quaternion_wxyz))
+                });
+                match result {
+                    Ok((outcome, quat)) => {
+                        print_json(&mut out, &printed(&outcome, quat.is_none(), Some(number)))?;
+                        match refusal(&outcome, args.scalar) {
+                            Some(complaint) => {
+                                rejected += 1;
+                                writeln!(err, "error: {batch}: line {number}: {complaint}")?;
+                            }
+                            None => {
+                                times.push(outcome.solve_time);
+                                solved += usize::from(outcome.status == IkStatus::Converged);
+                            }
+                        }
+                    }
+                    Err(e) => {
+                        rejected += 1;
+                        let message = format!("line {number}: {e:#}");
+                        writeln!(err, "error: {batch}: {message}")?;
+                        print_json(&mut out, &json!({"line": number, "error": message}))?;
                     }
                 }
             }
-            Err(e) => {
-                rejected += 1;
-                let message = format!("line {line_number}: {e:#}");
-                writeln!(err, "error: {batch}: {message}")?;
-                print_json(&mut out, &json!({"line": line_number, "error": message}))?;
-            }
         }
-    }
+    })?;
     out.flush()?;
     let total = times.len() + rejected;
     let solves = times.len();
