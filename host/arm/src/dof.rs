@@ -107,8 +107,9 @@ pub struct IkOutcome {
     pub solve_time: Duration,
 }
 
-/// An arm of any joint count, for the host's commands.
-pub trait DynArm {
+/// An arm of any joint count, for the host's commands. Shared between threads: `ik --batch`
+/// solves on one while another prints.
+pub trait DynArm: Send + Sync {
     /// The description it was built from.
     fn spec(&self) -> &ArmSpec;
     /// Tool pose at `q`.
@@ -130,7 +131,7 @@ pub trait DynArm {
 
 /// A chain in one scalar, solving host requests; boxed so that the f32 chain, and its solvers,
 /// are instantiated only for the counts that have one.
-trait SolveIn<const N: usize> {
+trait SolveIn<const N: usize>: Send + Sync {
     fn solve(&self, request: &IkRequest, seed: SVector<f64, N>) -> Result<IkOutcome>;
 }
 

@@ -14,8 +14,8 @@ use serde::de::DeserializeOwned;
 
 /// Lines per chunk.
 const CHUNK: usize = 256;
-/// Chunks in flight between the threads.
-const IN_FLIGHT: usize = 4;
+/// Chunks in flight between the threads (and between the stages after them).
+pub const IN_FLIGHT: usize = 4;
 
 /// One non-blank line of the input.
 #[derive(Debug)]

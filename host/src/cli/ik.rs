@@ -1,7 +1,7 @@
 //! `armctl ik`: one target, or a JSON-lines file of them (`--batch`).
 
 use std::io::{Read, Write};
-use std::sync::mpsc::TryRecvError;
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TryRecvError};
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
@@ -13,7 +13,7 @@ use serde_json::json;
 use super::{load, print_json, ArmArgs};
 use crate::args::json_lines::{self, Line, Parsed};
 use crate::args::numbers as parse;
-use crate::arm::dof::{IkOutcome, IkRequest, Scalar, SolverName};
+use crate::arm::dof::{DynArm, IkOutcome, IkRequest, Scalar, SolverName};
 use crate::bench::ik as bench;
 
 #[derive(Args, Debug)]
@@ -151,38 +151,32 @@ pub(crate) fn run(args: &IkArgs, out: &mut dyn Write, err: &mut dyn Write) -> Re
     let mut out = std::io::BufWriter::with_capacity(1 << 16, out);
     let mut times = Vec::new();
     let (mut solved, mut rejected, mut lines) = (0usize, 0usize, 0usize);
-    // The lines are read and parsed on a second thread while this one solves.
+    // Three stages, each on its own thread: reading and parsing, solving, and here printing, so
+    // that the solver does nothing else.
     std::thread::scope(|scope| -> Result<()> {
-        let chunks = json_lines::spawn::<BatchTarget, _>(scope, source);
+        let parsed = json_lines::spawn::<BatchTarget, _>(scope, source);
+        let (answers, answered) = sync_channel(json_lines::IN_FLIGHT);
+        let (arm, request) = (&*arm, &request);
+        scope.spawn(move || solve_lines(arm, request, parsed, &answers));
         loop {
-            let chunk = match chunks.try_recv() {
+            let chunk = match answered.try_recv() {
                 Ok(chunk) => chunk,
-                // The results so far go out before waiting for more input: a program that writes
-                // a target and waits for its answer gets it.
+                // The results so far go out before waiting for more: a program that writes a
+                // target and waits for its answer gets it.
                 Err(TryRecvError::Empty) => {
                     out.flush()?;
-                    match chunks.recv() {
+                    match answered.recv() {
                         Ok(chunk) => chunk,
                         Err(_) => return Ok(()),
                     }
                 }
                 Err(TryRecvError::Disconnected) => return Ok(()),
             };
-            for Line { number, parsed } in chunk {
-                let target = match parsed {
-                    Parsed::Value(target) => Ok(target),
-                    Parsed::Invalid(e) => Err(anyhow::Error::from(e)),
-                    Parsed::Unreadable(e) => {
-                        return Err(anyhow::Error::from(e).context(format!("{batch}: cannot read line {number}")))
-                    }
-                };
+            for answer in chunk {
                 lines += 1;
-                let result = target.and_then(|t| {
-                    arm.solve(&request(t.position, t.quaternion_wxyz, t.seed)).map(|o| (o, t.quaternion_wxyz))
-                });
-                match result {
-                    Ok((outcome, quat)) => {
-                        print_json(&mut out, &printed(&outcome, quat.is_none(), Some(number)))?;
+                match answer {
+                    Answer::Solved { number, outcome, position_only } => {
+                        print_json(&mut out, &printed(&outcome, position_only, Some(number)))?;
                         match refusal(&outcome, args.scalar) {
                             Some(complaint) => {
                                 rejected += 1;
@@ -194,11 +188,14 @@ pub(crate) fn run(args: &IkArgs, out: &mut dyn Write, err: &mut dyn Write) -> Re
                             }
                         }
                     }
-                    Err(e) => {
+                    Answer::Bad { number, message } => {
                         rejected += 1;
-                        let message = format!("line {number}: {e:#}");
+                        let message = format!("line {number}: {message}");
                         writeln!(err, "error: {batch}: {message}")?;
                         print_json(&mut out, &json!({"line": number, "error": message}))?;
+                    }
+                    Answer::Unreadable { number, error } => {
+                        return Err(anyhow::Error::from(error).context(format!("{batch}: cannot read line {number}")))
                     }
                 }
             }
@@ -220,6 +217,41 @@ pub(crate) fn run(args: &IkArgs, out: &mut dyn Write, err: &mut dyn Write) -> Re
         100.0 * solved as f64 / total.max(1) as f64
     )?;
     Ok(if rejected > 0 { 1 } else { 0 })
+}
+
+/// What became of one line of an `ik --batch` file, in the solver's thread.
+enum Answer {
+    /// Solved (or refused by the solver, which the outcome says).
+    Solved { number: usize, outcome: IkOutcome, position_only: bool },
+    /// Not a target, or one that cannot be posed (a seed of the wrong length).
+    Bad { number: usize, message: String },
+    /// The input could not be read here; nothing follows.
+    Unreadable { number: usize, error: std::io::Error },
+}
+
+/// The solving stage of `ik --batch`: every parsed line in, one answer each out, chunk for chunk.
+fn solve_lines(
+    arm: &dyn DynArm,
+    request: &(impl Fn([f64; 3], Option<[f64; 4]>, Option<Vec<f64>>) -> IkRequest + Sync),
+    lines: Receiver<Vec<Line<BatchTarget>>>,
+    answers: &SyncSender<Vec<Answer>>,
+) {
+    for chunk in lines {
+        let answered = chunk
+            .into_iter()
+            .map(|Line { number, parsed }| match parsed {
+                Parsed::Value(t) => match arm.solve(&request(t.position, t.quaternion_wxyz, t.seed)) {
+                    Ok(outcome) => Answer::Solved { number, outcome, position_only: t.quaternion_wxyz.is_none() },
+                    Err(e) => Answer::Bad { number, message: format!("{e:#}") },
+                },
+                Parsed::Invalid(e) => Answer::Bad { number, message: e.to_string() },
+                Parsed::Unreadable(error) => Answer::Unreadable { number, error },
+            })
+            .collect();
+        if answers.send(answered).is_err() {
+            return;
+        }
+    }
 }
 
 /// One line of an `ik --batch` file.
