@@ -6,7 +6,7 @@
 //! one-line error and writes nothing. It does not panic on any input: values are required finite
 //! and within ±[`LIMIT`], which keeps every axis range finite and wider than f64 rounding.
 
-use crate::plot::{colour, error, register_font, write_png};
+use crate::plot::{colour, error, write_png};
 use anyhow::{bail, Result};
 use plotters::coord::Shift;
 use plotters::element::DashedPathElement;
@@ -63,7 +63,6 @@ const TOOL_MEASURED: RGBColor = RGBColor(31, 119, 180);
 /// Draws `trace` to the PNG file `path`.
 pub fn write_demo_png(path: &Path, trace: &DemoTrace) -> Result<()> {
     check(trace)?;
-    register_font();
     let joints = trace.joint_names.len() as u32;
     let height = MIN_HEIGHT.max(TITLE_HEIGHT + joints * PANEL_HEIGHT);
     write_png(path, (WIDTH, height), |root| draw(root, trace))

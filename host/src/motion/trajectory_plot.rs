@@ -2,7 +2,7 @@
 //! colour per joint, keyframes marked (dots on the position panel, grey lines across all three).
 
 use super::trajectory::{Row, Sampled};
-use crate::plot::{colour, error, range, register_font, write_png, SIZE};
+use crate::plot::{colour, error, range, write_png, SIZE};
 use anyhow::Result;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -13,7 +13,6 @@ type Quantity = (&'static str, fn(&Row) -> &Vec<f64>);
 
 /// Draws `s` to the PNG file `path`.
 pub fn draw(path: &Path, s: &Sampled, title: &str) -> Result<()> {
-    register_font();
     write_png(path, SIZE, |root| panels(root, s, title))
 }
 

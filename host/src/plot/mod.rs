@@ -13,13 +13,15 @@ use std::io::BufWriter;
 use std::path::Path;
 use std::sync::Once;
 
-/// Draws a chart of `size` pixels with `draw`, then writes it to `path` as an 8-bit RGB PNG. The
-/// file is created only once the chart is drawn, so a chart that fails leaves no file behind.
+/// Draws a chart of `size` pixels with `draw` (the embedded font registered first), then writes it
+/// to `path` as an 8-bit RGB PNG. The file is created only once the chart is drawn, so a chart that
+/// fails leaves no file behind.
 pub fn write_png(
     path: &Path,
     size: (u32, u32),
     draw: impl FnOnce(&DrawingArea<BitMapBackend<'_>, Shift>) -> Result<()>,
 ) -> Result<()> {
+    register_font();
     let (width, height) = size;
     let mut rgb = vec![0u8; width as usize * height as usize * 3];
     {
@@ -62,7 +64,7 @@ pub fn colour(joint: usize) -> RGBColor {
 }
 
 /// Registers the embedded DejaVu Sans as "sans-serif" (once per process).
-pub fn register_font() {
+fn register_font() {
     static FONT: Once = Once::new();
     FONT.call_once(|| {
         // The embedded font is valid TrueType; should it ever fail to load, text is just missing.
