@@ -404,3 +404,51 @@ fn torque_on_is_refused_while_a_joint_was_moved_beyond_its_limits() {
     assert!(r.ctl.torque());
     assert_eq!(r.goals()[2], 1500);
 }
+
+/// Servos left torqued by an earlier run (a board reset, or the previous command of a core hosted
+/// on the PC) are taken over where they stand: the controller reports torque on, holds them at
+/// their present positions, and never sends them toward another goal.
+#[test]
+fn servos_found_torqued_are_held_where_they_stand() {
+    for torqued in [vec![1, 2, 3, 4, 5], vec![2, 4]] {
+        let bus = SimBus::new(STS3215.protocol, &STS3215, &ids(), BAUD);
+        let (bus, port, clock) = connect(bus);
+        {
+            let mut b = bus.borrow_mut();
+            for id in ids() {
+                let s = b.servo_mut(id).unwrap();
+                // Standing off-centre, with a stale goal elsewhere that torque must not chase.
+                s.set_position(2048 + 40 * i64::from(id), 0);
+                s.set(STS3215.items.goal_position, 3000);
+                if torqued.contains(&id) {
+                    s.set(STS3215.items.torque_enable, 1);
+                    s.set(STS3215.items.goal_position, 2048 + 40 * i64::from(id));
+                }
+            }
+        }
+        let master = Master::new(port, NoDirectionPin, clock.clone(), BusConfig::new(STS3215.protocol, BAUD));
+        let chain = builtin::arm().unwrap();
+        let mappings = ids().map(|id| JointMapping::centred(id, 4096));
+        let limits = joint_limits(&chain, &mappings, SVector::repeat(VMAX), SVector::repeat(AMAX)).unwrap();
+        let ctl = Ctl::new(chain, mappings, &STS3215, limits, Config::default()).unwrap();
+        let mut r = Rig { bus, master, clock, ctl, next_us: 0, last_goals: None, max_step: 0 };
+        assert!(!r.ctl.torque_known());
+        r.run(3);
+        assert!(r.ctl.torque_known(), "torqued {torqued:?}");
+        assert!(r.ctl.torque(), "torqued {torqued:?}: the controller should report torque on");
+        assert_eq!(r.ctl.mode(), Mode::Holding);
+        let want: Vec<i64> = ids().iter().map(|&id| 2048 + 40 * i64::from(id)).collect();
+        assert_eq!(r.goals().to_vec(), want, "torqued {torqued:?}: every goal is the present position");
+        assert!(r.item(STS3215.items.torque_enable).iter().all(|&t| t == 1), "torqued {torqued:?}: all on");
+    }
+}
+
+/// Servos found limp stay limp and keep their goals until torque is asked for.
+#[test]
+fn servos_found_limp_are_left_limp() {
+    let mut r = rig_with(Faults::default());
+    r.run(3);
+    assert!(r.ctl.torque_known());
+    assert!(!r.ctl.torque());
+    assert!(r.item(STS3215.items.torque_enable).iter().all(|&t| t == 0));
+}

@@ -129,6 +129,23 @@ impl<const N: usize, const Q: usize> Firmware<N, Q> {
         self.decoder.stats()
     }
 
+    /// A stop from the board itself rather than the host (a stop button; on a PC, the signal that
+    /// ends the process hosting the core): as the host's `Stop`, the arm decelerates within its
+    /// limits, drops its queue and holds. Does nothing before there is an arm.
+    pub fn stop(&mut self, now_us: u64) {
+        if let Some(r) = self.core.running.as_mut() {
+            let _ = r.controller.command(crate::controller::Command::Stop, now_us);
+        }
+    }
+
+    /// Torque off from the board itself (a second signal to the process hosting the core): the
+    /// arm goes limp on the next tick.
+    pub fn torque_off(&mut self, now_us: u64) {
+        if let Some(r) = self.core.running.as_mut() {
+            let _ = r.controller.command(crate::controller::Command::TorqueOff, now_us);
+        }
+    }
+
     /// Takes bytes received from the host at `now_us`; every complete frame is answered on `tx`
     /// (replies to requests, nak events for broken frames). Returns the first write error, after
     /// which the remaining bytes are still decoded but their replies are lost like a broken line's.

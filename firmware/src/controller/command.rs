@@ -221,7 +221,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
     }
 
     /// `q` clamped into the joint limits.
-    fn clamped(&self, q: &SVector<f32, N>) -> SVector<f32, N> {
+    pub(super) fn clamped(&self, q: &SVector<f32, N>) -> SVector<f32, N> {
         q.zip_zip_map(&self.limits.lower, &self.limits.upper, super::limiter::within)
     }
 

@@ -114,6 +114,10 @@ pub struct Controller<const N: usize, const Q: usize> {
     config: Config,
     mode: Mode,
     torque: bool,
+    /// Whether the servos' torque state has been read (or set by a command) since start: the
+    /// servos may have been left torqued by a previous run (a board reset, or the PC's core that
+    /// ended with the last command), and the controller takes over what they hold.
+    torque_known: bool,
     /// A torque change requested by a command, written on the next tick.
     pending_torque: Option<bool>,
     setpoint: Setpoint<N>,
@@ -172,6 +176,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             config,
             mode: Mode::Idle,
             torque: false,
+            torque_known: false,
             pending_torque: None,
             setpoint: Setpoint { position: start, velocity: SVector::zeros() },
             hold: start,
@@ -204,6 +209,12 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
     /// Whether the servos' torque is on (as last written).
     pub fn torque(&self) -> bool {
         self.torque
+    }
+
+    /// Whether the servos' torque state is known yet: read from the servos once every position
+    /// has been seen, or set by a torque command. Until then [`Controller::torque`] says off.
+    pub fn torque_known(&self) -> bool {
+        self.torque_known
     }
 
     /// The counters.

@@ -33,6 +33,9 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         let mut report = TickReport::new(self.mode);
 
         self.read_positions(master, &mut report);
+        if !self.torque_known && self.pending_torque.is_none() && self.all_seen() {
+            self.adopt_torque(master);
+        }
         if let Some(on) = self.pending_torque {
             if self.write_torque(master, on) {
                 self.pending_torque = None;
@@ -112,6 +115,37 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         }
     }
 
+    /// Reads every servo's torque item once, at start: servos left torqued (by a run before a
+    /// reset, or by the previous command of a PC-hosted core) are held where they are, so the
+    /// controller neither reports a torqued arm as limp nor makes it jump. If only some are
+    /// torqued, the rest are switched on too, their goals first: one arm, one state.
+    fn adopt_torque<P, D, C, const BUF: usize>(&mut self, master: &mut Master<P, D, C, BUF>)
+    where
+        P: Read + Write + ReadReady,
+        D: OutputPin,
+        C: Clock,
+    {
+        let mut on = [0i32; N];
+        match self.group.read_all(master, self.group.model.items.torque_enable, &mut on) {
+            Ok(report) if report.complete() => {
+                self.torque_known = true;
+                if on.iter().all(|&v| v == 0) || self.mode == Mode::EStopped {
+                    return;
+                }
+                self.setpoint = Setpoint { position: self.clamped(&self.measured), velocity: SVector::zeros() };
+                self.enter_hold();
+                if on.iter().all(|&v| v != 0) {
+                    self.torque = true;
+                } else {
+                    self.pending_torque = Some(true);
+                }
+            }
+            // Someone did not answer: asked again next tick.
+            Ok(_) => {}
+            Err(_) => self.counters.bus_errors = self.counters.bus_errors.saturating_add(1),
+        }
+    }
+
     /// Writes the torque item of every servo; on torque on, the goals first, so that no servo
     /// starts toward a stale goal. True once written.
     fn write_torque<P, D, C, const BUF: usize>(&mut self, master: &mut Master<P, D, C, BUF>, on: bool) -> bool
@@ -127,6 +161,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         let ok = self.group.write_all(master, item, &[i32::from(on); N]).is_ok();
         if ok {
             self.torque = on;
+            self.torque_known = true;
         } else {
             self.counters.bus_errors = self.counters.bus_errors.saturating_add(1);
         }
