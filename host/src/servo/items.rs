@@ -37,7 +37,7 @@ const XSERIES: [Item; 24] = [
 ];
 
 /// The STS3215 items.
-const STS3215: [Item; 23] = [
+const STS3215: [Item; 27] = [
     sts3215::FIRMWARE_MAJOR_VERSION,
     sts3215::FIRMWARE_MINOR_VERSION,
     sts3215::MODEL_NUMBER,
@@ -47,6 +47,9 @@ const STS3215: [Item; 23] = [
     sts3215::RESPONSE_STATUS_LEVEL,
     sts3215::MIN_POSITION_LIMIT,
     sts3215::MAX_POSITION_LIMIT,
+    sts3215::P_COEFFICIENT,
+    sts3215::D_COEFFICIENT,
+    sts3215::I_COEFFICIENT,
     sts3215::HOMING_OFFSET,
     sts3215::OPERATING_MODE,
     sts3215::TORQUE_ENABLE,
@@ -61,6 +64,7 @@ const STS3215: [Item; 23] = [
     sts3215::PRESENT_VOLTAGE,
     sts3215::PRESENT_TEMPERATURE,
     sts3215::MOVING,
+    sts3215::MAXIMUM_ACCELERATION,
 ];
 
 /// The named items of `model`, in address order.

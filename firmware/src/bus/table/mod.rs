@@ -291,6 +291,20 @@ mod tests {
     }
 
     #[test]
+    fn every_item_a_model_uses_lies_inside_its_table() {
+        for model in MODELS {
+            let i = model.items;
+            let roles = [i.return_delay, i.torque_enable, i.acceleration, i.goal_position, i.present_position];
+            let defaults = model.defaults.iter().map(|(item, _)| *item);
+            // LeRobot's `configure_motors` writes it, so a simulated STS3215 must hold it.
+            let written = (model.protocol == Protocol::Feetech).then_some(sts3215::MAXIMUM_ACCELERATION);
+            for item in roles.into_iter().chain(i.lock).chain(i.hardware_error).chain(defaults).chain(written) {
+                assert!(item.address + u16::from(item.size) <= model.table_len, "{}: {}", model.name, item.name);
+            }
+        }
+    }
+
+    #[test]
     fn models_are_found_by_number_and_baud() {
         assert_eq!(Model::by_number(Protocol::Dxl2, 1060).map(|m| m.name), Some("XL430-W250"));
         assert_eq!(Model::by_number(Protocol::Feetech, 777).map(|m| m.name), Some("STS3215"));

@@ -26,6 +26,12 @@ pub const MIN_POSITION_LIMIT: Item = Item::new("min_position_limit", 9, 2, ReadW
 pub const MAX_POSITION_LIMIT: Item = Item::new("max_position_limit", 11, 2, ReadWrite, Unsigned);
 /// Homing offset in steps, sign in bit 11.
 pub const HOMING_OFFSET: Item = Item::new("homing_offset", 31, 2, ReadWrite, SignMagnitude(11));
+/// Position loop P gain (factory 32: LeRobot `so_follower.py` `configure`, "Default is 32").
+pub const P_COEFFICIENT: Item = Item::new("p_coefficient", 21, 1, ReadWrite, Unsigned);
+/// Position loop D gain (factory 32, as LeRobot's `configure` says).
+pub const D_COEFFICIENT: Item = Item::new("d_coefficient", 22, 1, ReadWrite, Unsigned);
+/// Position loop I gain (factory 0, as LeRobot's `configure` says).
+pub const I_COEFFICIENT: Item = Item::new("i_coefficient", 23, 1, ReadWrite, Unsigned);
 /// Operating mode (0 position).
 pub const OPERATING_MODE: Item = Item::new("operating_mode", 33, 1, ReadWrite, Unsigned);
 /// Torque enable.
@@ -53,11 +59,15 @@ pub const PRESENT_VOLTAGE: Item = Item::new("present_voltage", 62, 1, Read, Unsi
 pub const PRESENT_TEMPERATURE: Item = Item::new("present_temperature", 63, 1, Read, Unsigned);
 /// Moving (1 while the servo runs toward its goal).
 pub const MOVING: Item = Item::new("moving", 66, 1, Read, Unsigned);
+/// The ceiling of the acceleration item, in its unit. It lies among the "factory" items past the
+/// RAM, which Feetech's published memory table leaves out (LeRobot's `tables.py` lists it;
+/// `feetech.py` `configure_motors` writes 254 to it on every connection, so it is read-write).
+pub const MAXIMUM_ACCELERATION: Item = Item::new("maximum_acceleration", 85, 1, ReadWrite, Unsigned);
 
 const BAUDS: [(u8, u32); 8] =
     [(0, 1_000_000), (1, 500_000), (2, 250_000), (3, 128_000), (4, 115_200), (5, 76_800), (6, 57_600), (7, 38_400)];
 
-const DEFAULTS: [(Item, i64); 13] = [
+const DEFAULTS: [(Item, i64); 15] = [
     (FIRMWARE_MAJOR_VERSION, 3),
     (FIRMWARE_MINOR_VERSION, 10),
     (MODEL_NUMBER, 777),
@@ -67,6 +77,8 @@ const DEFAULTS: [(Item, i64); 13] = [
     (RESPONSE_STATUS_LEVEL, 1),
     (MIN_POSITION_LIMIT, 0),
     (MAX_POSITION_LIMIT, 4095),
+    (P_COEFFICIENT, 32),
+    (D_COEFFICIENT, 32),
     (LOCK, 1),
     (PRESENT_VOLTAGE, 74),
     (PRESENT_TEMPERATURE, 30),
@@ -83,7 +95,9 @@ pub const STS3215: Model = Model {
     endian: Endian::Little,
     ticks_per_revolution: 4096,
     eeprom_end: 40,
-    table_len: 71,
+    // Up to the last "factory" item of LeRobot's `tables.py` (86, the acceleration multiplier), so
+    // that a simulated servo holds `maximum_acceleration` (85).
+    table_len: 87,
     bauds: &BAUDS,
     return_delay_unit_us: 2,
     velocity_unit: 1.0,
