@@ -1,9 +1,11 @@
 //! Where the firmware core runs on this PC: [`sil`] (compiled in, on a virtual clock, against
-//! simulated servos) and [`qemu`] (the real board binary under `qemu-system-arm`), with the board
+//! simulated servos), [`pc`] (against real servos on a USB serial adapter) and [`qemu`] (the real
+//! board binary under `qemu-system-arm`), with the board
 //! build ([`board`]) that QEMU, the footprint report and the instruction counts share. [`qemu`]
 //! decodes the firmware's defmt log, so it is built with the `board-tools` feature.
 
 pub mod board;
+pub mod pc;
 #[cfg(feature = "board-tools")]
 pub mod qemu;
 pub mod sil;
