@@ -8,6 +8,7 @@
 //! - [`bus`]: the line: instruction decoding, reply timing, collisions.
 //! - [`port`]: the master's end of an in-memory line, an `embedded-io` port on the virtual clock.
 //! - [`pty`]: a bus served on a pseudo-terminal, on real time.
+//! - [`monitor`]: safety monitors that check every goal the servos receive.
 //!
 //! The codecs, control tables and wire-time arithmetic are the firmware's own
 //! ([`firmware::bus`]): the simulator exercises the same code the boards run.
@@ -15,6 +16,7 @@
 pub mod bus;
 pub mod clock;
 pub mod faults;
+pub mod monitor;
 pub mod motion;
 pub mod port;
 pub mod pty;

@@ -8,22 +8,11 @@ use firmware::controller::{Counters, TickReport};
 use firmware::link::session::SessionStats;
 use kinematics::nalgebra::SVector;
 
+pub use crate::sim::monitor::JointBounds;
 use crate::sim::{SimPort, VirtualClock};
 
 /// Keyframe queue capacity of the simulated firmware (as on the boards).
 pub const QUEUE: usize = 32;
-
-/// What the harness sees of one servo's joint: where goals must stay.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct JointBounds {
-    /// Servo id.
-    pub id: u8,
-    /// Lowest and highest goal allowed (ticks): the joint limits mapped to ticks.
-    pub goal_range: (i64, i64),
-    /// Largest goal change allowed in one control period (ticks): the velocity limit times the
-    /// period, plus one tick of rounding.
-    pub max_step: i64,
-}
 
 /// The firmware side of the SIL harness, for any joint count.
 pub trait SimFirmware {

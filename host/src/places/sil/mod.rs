@@ -11,10 +11,11 @@
 //!
 //! - [`wire`]: one direction of the link (timing, dropped bytes, flipped bits).
 //! - [`board`]: the firmware and its bus master, for any joint count.
-//! - [`monitor`]: the safety monitor that checks every goal the servos receive.
+//!
+//! The safety monitor that checks every goal the servos receive is the simulator's
+//! ([`crate::sim::monitor`]), re-exported here.
 
 pub mod board;
-pub mod monitor;
 pub mod wire;
 
 use std::io::{self, ErrorKind, Read, Write};
@@ -26,9 +27,9 @@ use firmware::bus::master::{BusConfig, Master, NoDirectionPin};
 use firmware::bus::table::{Model, STS3215, XM430_W350};
 use firmware::controller::{Config, TickReport};
 
+pub use crate::sim::monitor::{GoalState, SafetyMonitor, Violation};
 use crate::sim::{connect, Faults, SharedBus, SimBus, VirtualClock};
 use board::{SimBoard, SimFirmware, QUEUE};
-pub use monitor::{GoalState, SafetyMonitor, Violation};
 use wire::Wire;
 
 /// The arms the harness simulates.

@@ -1,10 +1,25 @@
-//! The safety monitor: after every control tick it looks at the goal each simulated servo holds
-//! and checks every goal a servo received against the joint limits, and its change since the goal
-//! received before against the velocity limit over the time between them. It looks at the
-//! servos, not at the firmware, so it judges whatever reached the bus. A goal write lost on a noisy
-//! bus is no violation: the next goal that arrives may then cover the time of both.
+//! The safety monitor of the SIL harness: after every control tick, on its virtual clock, it
+//! checks every goal a servo received against the joint limits, and its change since the goal
+//! received before against the velocity limit over the control periods between them. It looks at
+//! the simulated servos, not at the firmware, so it judges whatever reached the bus. A goal write
+//! lost on a noisy bus is no violation: the next goal that arrives may then cover the time of both.
+//!
+//! It lives in the simulator, beneath `places`, so that any host of simulated servos can use it.
 
-use super::board::JointBounds;
+/// Violations kept in full; those beyond are only counted.
+pub const MAX_VIOLATIONS: usize = 100;
+
+/// What a monitor sees of one servo's joint: where goals must stay.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JointBounds {
+    /// Servo id.
+    pub id: u8,
+    /// Lowest and highest goal allowed (ticks): the joint limits mapped to ticks.
+    pub goal_range: (i64, i64),
+    /// Largest goal change allowed in one control period (ticks): the velocity limit times the
+    /// period, plus one tick of rounding.
+    pub max_step: i64,
+}
 
 /// A goal the servos should never have received.
 #[derive(Clone, Debug, PartialEq)]
@@ -35,9 +50,9 @@ pub struct SafetyMonitor {
     pub checked: u64,
     /// Largest goal change seen as a fraction of the change the velocity limit allows.
     pub max_step_ratio: f64,
-    /// Everything wrong, in order (the first 100).
+    /// Everything wrong, in order (the first [`MAX_VIOLATIONS`]).
     pub violations: Vec<Violation>,
-    /// Violations in all (also those beyond the first 100).
+    /// Violations in all (also those beyond the first [`MAX_VIOLATIONS`]).
     pub violation_count: u64,
 }
 
@@ -74,7 +89,7 @@ impl SafetyMonitor {
 
     fn report(&mut self, time: f64, id: u8, what: String) {
         self.violation_count += 1;
-        if self.violations.len() < 100 {
+        if self.violations.len() < MAX_VIOLATIONS {
             self.violations.push(Violation { time, id, what });
         }
     }
