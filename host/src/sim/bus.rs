@@ -37,6 +37,9 @@ pub struct BusStats {
     pub replies: u64,
     /// Bytes that collided with another servo's.
     pub collisions: u64,
+    /// Group reads decoded (sync read, bulk read, fast sync read): the reads a control tick
+    /// starts with.
+    pub group_reads: u64,
 }
 
 /// A reply as one servo puts it on the wire.
@@ -59,6 +62,8 @@ pub struct SimBus {
     /// The gap after which a partial packet is dropped ([`INTER_BYTE_TIMEOUT_NS`] unless changed).
     inter_byte_timeout_ns: u64,
     stats: BusStats,
+    /// When the group reads of the last [`SimBus::receive`] or [`SimBus::line_idle`] arrived.
+    group_reads_ns: Vec<u64>,
 }
 
 impl SimBus {
@@ -79,6 +84,7 @@ impl SimBus {
             last_rx_ns: 0,
             inter_byte_timeout_ns: INTER_BYTE_TIMEOUT_NS,
             stats: BusStats::default(),
+            group_reads_ns: Vec::new(),
         }
     }
 
@@ -122,6 +128,14 @@ impl SimBus {
     /// Counters so far.
     pub fn stats(&self) -> BusStats {
         self.stats
+    }
+
+    /// When the group reads that the last [`SimBus::receive`] or [`SimBus::line_idle`] carried out
+    /// arrived (the instant their last byte did, in virtual nanoseconds), in order. With
+    /// [`SimServo::goal_written_ns`] it tells which came first of a read and a goal write that
+    /// arrived in one burst.
+    pub fn last_group_reads_ns(&self) -> &[u64] {
+        &self.group_reads_ns
     }
 
     /// The faults, to inspect or change them (e.g. [`FaultState::corrupt_next`]).
@@ -171,6 +185,7 @@ impl SimBus {
     /// before it) and returns the reply bytes they cause with their arrival times, in time order.
     pub fn receive(&mut self, bytes: &[u8], at_ns: u64) -> Vec<WireByte> {
         let first_ns = at_ns.saturating_sub(wire_time_ns(bytes.len(), self.baud));
+        self.group_reads_ns.clear();
         let mut pending = Vec::new();
         if first_ns.saturating_sub(self.last_rx_ns) > self.inter_byte_timeout_ns {
             self.expire_partial(&mut pending);
@@ -197,6 +212,7 @@ impl SimBus {
     /// replies those cause. Call it when the line goes quiet (after a burst in memory, on a read
     /// timeout on a pty); it does nothing when no partial packet is held.
     pub fn line_idle(&mut self) -> Vec<WireByte> {
+        self.group_reads_ns.clear();
         let mut pending = Vec::new();
         self.expire_partial(&mut pending);
         self.stats.replies += pending.len() as u64;
@@ -239,6 +255,13 @@ impl SimBus {
             Err(_) => return,
         };
         let InstructionPacket { id, instruction } = packet;
+        if matches!(
+            instruction,
+            Instruction::SyncRead { .. } | Instruction::BulkRead { .. } | Instruction::FastSyncRead { .. }
+        ) {
+            self.stats.group_reads += 1;
+            self.group_reads_ns.push(t);
+        }
         match instruction {
             Instruction::Ping if id == BROADCAST => {
                 let mut order: Vec<usize> = (0..self.servos.len()).collect();

@@ -58,6 +58,8 @@ pub struct SimServo {
     /// Writes that reached the goal position item (a safety monitor tells a lost write from a
     /// held goal by it).
     goal_writes: u64,
+    /// When the last of them arrived, virtual ns.
+    goal_written_ns: u64,
 }
 
 impl SimServo {
@@ -72,6 +74,7 @@ impl SimServo {
             registered: None,
             fault_bits: 0,
             goal_writes: 0,
+            goal_written_ns: 0,
         };
         servo.set(model.items.id, i64::from(id));
         if let Some(index) = model.baud_index(baud) {
@@ -133,6 +136,11 @@ impl SimServo {
     /// Writes that have reached the goal position item.
     pub fn goal_writes(&self) -> u64 {
         self.goal_writes
+    }
+
+    /// When the last write reached the goal position item, in virtual nanoseconds (0 before any).
+    pub fn goal_written_ns(&self) -> u64 {
+        self.goal_written_ns
     }
 
     /// Whether torque is on.
@@ -303,6 +311,7 @@ impl SimServo {
         }
         if overlaps(items.goal_position, at, data.len()) {
             self.goal_writes += 1;
+            self.goal_written_ns = t_ns;
             if self.torque() {
                 self.start_move(t_ns);
             }
