@@ -25,6 +25,7 @@ pub mod servo;
 pub use bus::{BusStats, SimBus, WireByte};
 pub use clock::VirtualClock;
 pub use faults::{FaultStats, Faults};
+pub use monitor::{limits_of, GoalLimit, MonitorReport, RealTimeMonitor};
 pub use port::{PortStats, SharedBus, SimPort};
 pub use pty::{so101_bus, PtyServer, SimConfig};
 pub use servo::SimServo;

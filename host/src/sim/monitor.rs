@@ -5,6 +5,16 @@
 //! lost on a noisy bus is no violation: the next goal that arrives may then cover the time of both.
 //!
 //! It lives in the simulator, beneath `places`, so that any host of simulated servos can use it.
+//!
+//! - [`realtime`]: the same checks for a bus served in real time (a pty), judged over the real
+//!   time that passed between goals.
+//! - [`arm_limits`]: an arm's goal limits as its firmware maps them, for [`realtime`].
+
+pub mod arm_limits;
+pub mod realtime;
+
+pub use arm_limits::limits_of;
+pub use realtime::{GoalLimit, GoalSample, MonitorReport, RealTimeMonitor, ServoRecord, SLACK};
 
 /// Violations kept in full; those beyond are only counted.
 pub const MAX_VIOLATIONS: usize = 100;
@@ -24,12 +34,18 @@ pub struct JointBounds {
 /// A goal the servos should never have received.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Violation {
-    /// Virtual time, s.
+    /// When, s: virtual time in the SIL harness, real time since the server started on a pty.
     pub time: f64,
     /// Servo id.
     pub id: u8,
     /// What was wrong.
     pub what: String,
+}
+
+impl std::fmt::Display for Violation {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "servo {} at {:.3} s: {}", self.id, self.time, self.what)
+    }
 }
 
 /// What a servo holds after a tick.

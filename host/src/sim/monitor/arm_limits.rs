@@ -1,0 +1,95 @@
+//! The goal limits of an arm's servos, mapped exactly as its firmware maps them: the host sends the
+//! joint limits and speed limit as `f32` with each servo's id, zero and direction
+//! (`crate::link::arm_config`), the firmware builds a [`JointMapping`] per joint with the servo's
+//! whole single-turn range (`firmware::app::arm`) and narrows each joint's range to what the
+//! servo's ticks reach, half a tick inside ([`firmware::controller::joint_limits`]). Its limiter
+//! keeps every goal inside those limits, mapped to ticks.
+
+use anyhow::{anyhow, bail, Result};
+use firmware::bus::mapping::{Direction, JointMapping};
+
+use super::GoalLimit;
+use crate::arm::servos::servos_of;
+use crate::arm::ArmSpec;
+
+/// The goal limits of `arm`'s servos, base joint first: its `[servos]` table, or its preset's.
+pub fn limits_of(arm: &ArmSpec) -> Result<Vec<GoalLimit>> {
+    let servos = servos_of(arm).ok_or_else(|| anyhow!("arm {} has no [servos] table", arm.name))?;
+    let n = arm.joints.len();
+    if servos.ids.len() != n {
+        bail!("arm {} has {n} joints but {} servo ids", arm.name, servos.ids.len());
+    }
+    if servos.zero.as_ref().is_some_and(|z| z.len() != n) || servos.reversed.as_ref().is_some_and(|r| r.len() != n) {
+        bail!("arm {}: the servo zero and reversed lists need one entry per joint ({n})", arm.name);
+    }
+    let tpr = servos.model.ticks_per_revolution;
+    let tpr_ticks = i32::try_from(tpr).unwrap_or(i32::MAX);
+    // The speed limit as the firmware holds it (f32), in ticks.
+    let max_ticks_per_s = f64::from(servos.max_velocity as f32) * f64::from(tpr) / std::f64::consts::TAU;
+    let mut limits = Vec::with_capacity(n);
+    for (j, (joint, &id)) in arm.joints.iter().zip(&servos.ids).enumerate() {
+        let mapping = JointMapping {
+            id,
+            ticks_per_revolution: tpr,
+            zero: servos.zero.as_ref().map_or((tpr / 2) as i32, |z| z[j]),
+            direction: if servos.reversed.as_ref().is_some_and(|r| r[j]) {
+                Direction::Reverse
+            } else {
+                Direction::Forward
+            },
+            min_ticks: 0,
+            max_ticks: tpr_ticks - 1,
+        };
+        let (lo, hi) = mapping.joint_range::<f32>();
+        let half_tick = std::f32::consts::PI / tpr.max(1) as f32;
+        let lower = (joint.lower as f32).max(lo + half_tick);
+        let upper = (joint.upper as f32).min(hi - half_tick);
+        if lower.is_nan() || upper.is_nan() || lower > upper {
+            bail!("arm {}: joint {}'s limits leave it no range within servo {id}'s ticks", arm.name, joint.name);
+        }
+        let a = i64::from(mapping.to_ticks(lower).unwrap_or(mapping.min_ticks));
+        let b = i64::from(mapping.to_ticks(upper).unwrap_or(mapping.max_ticks));
+        limits.push(GoalLimit { id, goal_range: (a.min(b), a.max(b)), max_ticks_per_s });
+    }
+    Ok(limits)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn so101_maps_to_its_servos_ticks() {
+        let arm = ArmSpec::load("so101", None).unwrap();
+        let limits = limits_of(&arm).unwrap();
+        assert_eq!(limits.iter().map(|l| l.id).collect::<Vec<_>>(), [1, 2, 3, 4, 5]);
+        // 2 rad/s on 4096 ticks a turn.
+        assert!((limits[0].max_ticks_per_s - 2.0 * 4096.0 / std::f64::consts::TAU).abs() < 1e-3);
+        for (l, joint) in limits.iter().zip(&arm.joints) {
+            let ticks = |rad: f64| 2048.0 + rad * 4096.0 / std::f64::consts::TAU;
+            let (lo, hi) = (ticks(joint.lower).max(0.0), ticks(joint.upper).min(4095.0));
+            assert!((l.goal_range.0 as f64 - lo).abs() <= 1.0, "{}: {:?} vs {lo}", joint.name, l.goal_range);
+            assert!((l.goal_range.1 as f64 - hi).abs() <= 1.0, "{}: {:?} vs {hi}", joint.name, l.goal_range);
+        }
+    }
+
+    #[test]
+    fn a_reversed_servo_with_its_own_zero_maps_the_other_way() {
+        let mut arm = ArmSpec::load("so101", None).unwrap();
+        let mut servos = servos_of(&arm).unwrap();
+        servos.zero = Some(vec![1000, 2048, 2048, 2048, 2048]);
+        servos.reversed = Some(vec![true, false, false, false, false]);
+        arm.servos = Some(servos);
+        let limits = limits_of(&arm).unwrap();
+        let (lower, upper) = (arm.joints[0].lower, arm.joints[0].upper);
+        let ticks = |rad: f64| (1000.0 - rad * 4096.0 / std::f64::consts::TAU).round() as i64;
+        assert_eq!(limits[0].goal_range, (ticks(upper).max(0), ticks(lower).min(4095)));
+    }
+
+    #[test]
+    fn an_arm_without_servos_is_refused() {
+        let arm = ArmSpec::load("ur5e", None).unwrap();
+        let err = limits_of(&arm).unwrap_err().to_string();
+        assert_eq!(err, "arm ur5e has no [servos] table");
+    }
+}
