@@ -54,6 +54,8 @@ fn sim(model: &'static Model, ids: &[u8], faults: Faults, duplicates: &[u8]) -> 
         faults,
         duplicates: duplicates.to_vec(),
         fixed_baud: false,
+        burst: None,
+        limits: None,
     })
     .expect("pty server starts")
 }

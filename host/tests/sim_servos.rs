@@ -5,7 +5,10 @@
 //! Everything runs on the virtual clock and seeded faults, so results are exact and repeatable;
 //! only the pty tests touch real time, and they assert bytes, not durations.
 
-use armctl::sim::{connect, Faults, PtyServer, SharedBus, SimBus, SimConfig, SimPort, VirtualClock};
+use std::time::{Duration, Instant};
+
+use armctl::link::serial::{SerialTransport, StdClock};
+use armctl::sim::{connect, Faults, GoalLimit, PtyServer, SharedBus, SimBus, SimConfig, SimPort, VirtualClock};
 use firmware::bus::cycle::ServoGroup;
 use firmware::bus::instruction::{BulkReadRecord, RecordWriter};
 use firmware::bus::master::{BusConfig, Master, MasterError, NoDirectionPin, Replies};
@@ -514,6 +517,8 @@ fn the_pty_server_answers_a_ping() {
         faults: Faults::default(),
         duplicates: Vec::new(),
         fixed_baud: false,
+        burst: None,
+        limits: None,
     })
     .unwrap();
     let expected = ping_reply(Protocol::Dxl2, 1, &[0x24, 0x04, 46]);
@@ -535,6 +540,8 @@ fn a_ping_behind_a_false_header_in_noise_is_answered() {
         faults: Faults::default(),
         duplicates: Vec::new(),
         fixed_baud: false,
+        burst: None,
+        limits: None,
     })
     .unwrap();
     let noisy_ping = [0xFF, 0xFF, 0x00, 0x20, 0xFF, 0xFF, 0x01, 0x02, 0x01, 0xFB];
@@ -553,6 +560,117 @@ fn a_ping_behind_a_false_header_in_noise_is_answered() {
         reply.extend_from_slice(&b[..n]);
     }
     assert_eq!(reply, expected);
+}
+
+/// A Feetech bus of STS3215 servos with `ids` on a pty, replies held for `burst`, goals checked
+/// against `limits`.
+fn sts_on_pty(ids: &[u8], burst: Option<Duration>, limits: Option<Vec<GoalLimit>>) -> PtyServer {
+    PtyServer::spawn(SimConfig {
+        protocol: Protocol::Feetech,
+        model: &STS3215,
+        ids: ids.to_vec(),
+        baud: BAUD,
+        faults: Faults::default(),
+        duplicates: Vec::new(),
+        fixed_baud: false,
+        burst,
+        limits,
+    })
+    .expect("pty server starts")
+}
+
+/// The firmware's master on a pty's slave end and the real clock, as on a PC, with a reply margin
+/// and idle gap beyond a latency timer's period (and a loaded machine's hiccups).
+fn pty_master(path: &str) -> Master<SerialTransport, NoDirectionPin, StdClock> {
+    let mut config = BusConfig::new(Protocol::Feetech, BAUD);
+    config.margin_us = 500_000;
+    config.idle_gap_us = 50_000;
+    Master::new(SerialTransport::open(path, BAUD).expect("open pty"), NoDirectionPin, StdClock::new(), config)
+}
+
+/// Pings servo 1 `rounds` times, each right after the reply before; returns the waits, sorted.
+fn ping_waits(server: &PtyServer, rounds: usize) -> Vec<Duration> {
+    let mut port = serialport::new(server.path(), BAUD).timeout(Duration::from_secs(5)).open().expect("open pty");
+    let ping = [0xFF, 0xFF, 0x01, 0x02, 0x01, 0xFB];
+    let expected = ping_reply(Protocol::Feetech, 1, &[]);
+    let mut reply = vec![0u8; expected.len()];
+    let mut waits = Vec::new();
+    // The first round only finds the timer's phase: a reply comes just after an expiry.
+    for _ in 0..=rounds {
+        let sent = Instant::now();
+        port.write_all(&ping).unwrap();
+        port.read_exact(&mut reply).expect("ping reply");
+        waits.push(sent.elapsed());
+        assert_eq!(reply, expected);
+    }
+    waits.remove(0);
+    waits.sort();
+    waits
+}
+
+/// With a 16 ms latency timer, a ping sent just after one reply came (just after the timer
+/// expired) is answered at the next expiry, most of a period later. Only a lower bound is checked,
+/// and on the median: this thread may be woken late for some rounds on a loaded machine, which
+/// shortens their wait, but not for most.
+#[test]
+fn with_a_burst_period_the_replies_wait_for_the_latency_timer() {
+    let server = sts_on_pty(&[1], Some(Duration::from_millis(16)), None);
+    let waits = ping_waits(&server, 8);
+    assert!(waits[waits.len() / 2] >= Duration::from_millis(6), "{waits:?}");
+    server.stop().unwrap();
+}
+
+/// A firmware-like loop over the pty (read positions, write goals), with and without a latency
+/// timer: a slow ramp of goals passes, a jump and a goal outside the range are violations.
+#[test]
+fn the_pty_servers_monitor_checks_every_goal_it_receives() {
+    let items = STS3215.items;
+    for burst in [None, Some(Duration::from_millis(16))] {
+        // Servo 2 ramps down to the bottom of its range.
+        let limit = |id, low| GoalLimit { id, goal_range: (low, 3000), max_ticks_per_s: 500.0 };
+        let server = sts_on_pty(&[1, 2], burst, Some(vec![limit(1, 1000), limit(2, 2030)]));
+        assert_eq!(server.monitor().expect("a monitor").checked, 0);
+        let mut master = pty_master(server.path());
+        for id in [1, 2] {
+            master.write(id, items.torque_enable.address, &[1]).expect("torque on");
+        }
+        let group = ServoGroup { model: &STS3215, ids: [1u8, 2] };
+        let mut positions = [0i32; 2];
+        // A tick: read the positions, then write the goals. The read also makes sure that the
+        // server has seen the goals before it (the bytes arrive in order).
+        let mut tick = |goals: [i32; 2]| {
+            group.read_all(&mut master, items.present_position, &mut positions).expect("read positions");
+            group.write_all(&mut master, items.goal_position, &goals).expect("write goals");
+            group.read_all(&mut master, items.present_position, &mut positions).expect("read positions");
+        };
+        // 2 ticks per tick, never more than 3.5 (5 ms of slack and a tick of rounding) allow.
+        for k in 0..10 {
+            tick([2048 + 2 * k, 2048 - 2 * k]);
+        }
+        let r = server.monitor().unwrap();
+        assert_eq!(r.violation_count, 0, "{burst:?}: {:?}", r.violations);
+        // Torque on (a fresh start each) and 10 goals each.
+        assert_eq!(r.checked, 22, "{burst:?}");
+        assert_eq!(
+            r.servos.iter().map(|s| (s.id, s.checked, s.last_goal)).collect::<Vec<_>>(),
+            [(1, 11, Some(2066)), (2, 11, Some(2030))]
+        );
+        assert!(r.max_step_ratio > 0.0 && r.max_step_ratio < 1.0, "{burst:?}: {}", r.max_step_ratio);
+
+        // 500 ticks at once: 1 s of motion.
+        tick([2566, 2030]);
+        let r = server.monitor().unwrap();
+        assert_eq!(r.violation_count, 1, "{burst:?}: {:?}", r.violations);
+        assert_eq!(r.violations[0].id, 1);
+        assert!(r.violations[0].what.starts_with("goal step 500 ticks"), "{}", r.violations[0].what);
+        // Out of the range, in a small step.
+        tick([2566, 2029]);
+        let r = server.monitor().unwrap();
+        assert_eq!(r.violation_count, 2, "{burst:?}: {:?}", r.violations);
+        assert_eq!(r.violations[1].what, "goal 2029 outside 2030..=3000");
+        assert_eq!((r.servos[0].violations, r.servos[1].violations), (1, 1));
+        server.stop().unwrap();
+    }
 }
 
 #[test]

@@ -133,6 +133,8 @@ pub fn config(args: &SimServosArgs) -> Result<SimConfig> {
         faults,
         duplicates: args.duplicate.clone(),
         fixed_baud: args.fixed_baud,
+        burst: None,
+        limits: None,
     })
 }
 

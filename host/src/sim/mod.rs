@@ -8,6 +8,7 @@
 //! - [`bus`]: the line: instruction decoding, reply timing, collisions.
 //! - [`port`]: the master's end of an in-memory line, an `embedded-io` port on the virtual clock.
 //! - [`pty`]: a bus served on a pseudo-terminal, on real time.
+//! - [`latency`]: a USB serial adapter's latency timer, for the replies on a pty.
 //! - [`monitor`]: safety monitors that check every goal the servos receive.
 //!
 //! The codecs, control tables and wire-time arithmetic are the firmware's own
@@ -16,6 +17,7 @@
 pub mod bus;
 pub mod clock;
 pub mod faults;
+pub mod latency;
 pub mod monitor;
 pub mod motion;
 pub mod port;

@@ -6,6 +6,12 @@
 //! has no baud rate, so wire time and return delays are not waited out in real time (the virtual
 //! clock of [`super::port`] is where timing is checked). The thread keeps the slave end open
 //! too, so a client closing and reopening the path does not hang up the master end.
+//!
+//! Two options make it more like a servo bus behind a USB serial adapter, for a firmware core run
+//! on the PC against the real clock: [`SimConfig::burst`] holds the replies until the adapter's
+//! latency timer expires ([`super::latency`]; bytes from the PC still reach the servos at once),
+//! and [`SimConfig::limits`] checks every goal the servos receive as it arrives
+//! ([`super::monitor::realtime`]), for [`PtyServer::monitor`].
 
 use std::io::{Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -17,8 +23,10 @@ use firmware::bus::table::Model;
 use firmware::bus::Protocol;
 use serialport::{SerialPort, TTYPort};
 
-use super::bus::SimBus;
+use super::bus::{SimBus, WireByte};
 use super::faults::{FaultState, Faults};
+use super::latency::LatencyTimer;
+use super::monitor::{GoalLimit, MonitorReport, RealTimeMonitor};
 
 /// Ticks between a duplicate servo's position and its twin's, so that their replies to a position
 /// read differ and collide visibly (two real servos never stand at the same tick).
@@ -44,6 +52,12 @@ pub struct SimConfig {
     /// which real servos would not notice), and do not take the gaps between its bytes, which are
     /// the emulator's scheduling, for the end of a packet.
     pub fixed_baud: bool,
+    /// The latency timer of a USB serial adapter between the servos and the PC (16 ms is FTDI's
+    /// default, 1 ms tuned): replies are held until its next expiry. `None`: written at once.
+    pub burst: Option<Duration>,
+    /// Goal limits per servo: a safety monitor then checks every goal the servos receive, over
+    /// the real time between them ([`PtyServer::monitor`]). `None`: no monitor.
+    pub limits: Option<Vec<GoalLimit>>,
 }
 
 impl SimConfig {
@@ -74,6 +88,10 @@ impl SimConfig {
 /// scheduling, with gaps of milliseconds inside a packet that a real line would not have.
 pub const EMULATED_LINE_GAP_NS: u64 = 50_000_000;
 
+/// How long a read of the master end waits when no reply is held: short, so that the thread
+/// notices a stop request quickly; a line this long quiet also ends a partial packet.
+const IDLE_READ: Duration = Duration::from_millis(20);
+
 /// A simulated bus on a pseudo-terminal; dropping it stops the serving thread.
 #[derive(Debug)]
 pub struct PtyServer {
@@ -81,23 +99,37 @@ pub struct PtyServer {
     stop: Arc<AtomicBool>,
     /// New faults for the serving thread to take up (hardware-in-the-loop tests change them mid-run).
     new_faults: Arc<Mutex<Option<Faults>>>,
+    /// The safety monitor, when there are limits; the serving thread feeds it.
+    monitor: Option<Arc<Mutex<RealTimeMonitor>>>,
     thread: Option<JoinHandle<std::io::Result<()>>>,
 }
 
 impl PtyServer {
-    /// Opens a pty pair and serves the bus of `config` on it.
+    /// Opens a pty pair and serves the bus of `config` on it. A `burst` of zero is refused.
     pub fn spawn(config: SimConfig) -> std::io::Result<PtyServer> {
+        if config.burst.is_some_and(|b| b.is_zero()) {
+            return Err(std::io::Error::new(std::io::ErrorKind::InvalidInput, "the burst period must be positive"));
+        }
         let (mut master, slave) = TTYPort::pair().map_err(std::io::Error::from)?;
         let path = slave.name().ok_or_else(|| std::io::Error::other("the pty has no path"))?;
-        // Short reads so that the thread notices a stop request quickly.
-        master.set_timeout(Duration::from_millis(20)).map_err(std::io::Error::from)?;
+        master.set_timeout(IDLE_READ).map_err(std::io::Error::from)?;
         let stop = Arc::new(AtomicBool::new(false));
         let new_faults = Arc::new(Mutex::new(None));
-        let control = Control { stop: stop.clone(), new_faults: new_faults.clone() };
-        let thread = std::thread::Builder::new()
-            .name("sim-servos".into())
-            .spawn(move || serve(&mut master, &slave, config.build_for_pty(), !config.fixed_baud, &control))?;
-        Ok(PtyServer { path, stop, new_faults, thread: Some(thread) })
+        let monitor = config.limits.clone().map(|limits| Arc::new(Mutex::new(RealTimeMonitor::new(limits))));
+        let control = Control { stop: stop.clone(), new_faults: new_faults.clone(), monitor: monitor.clone() };
+        let thread = std::thread::Builder::new().name("sim-servos".into()).spawn(move || {
+            let outbox = Outbox { timer: config.burst.map(LatencyTimer::new) };
+            serve(&mut master, &slave, config.build_for_pty(), !config.fixed_baud, &control, outbox)
+        })?;
+        Ok(PtyServer { path, stop, new_faults, monitor, thread: Some(thread) })
+    }
+
+    /// What the safety monitor has found so far (`None` without limits).
+    pub fn monitor(&self) -> Option<MonitorReport> {
+        let monitor = self.monitor.as_ref()?;
+        // A poisoned lock only means the serving thread panicked; what it found stands.
+        let monitor = monitor.lock().unwrap_or_else(|e| e.into_inner());
+        Some(monitor.report().clone())
     }
 
     /// Replaces the bus's faults from the next burst on (the random stream restarts from their seed).
@@ -138,10 +170,68 @@ impl Drop for PtyServer {
     }
 }
 
-/// What the owner tells the serving thread.
+/// What the owner and the serving thread share.
 struct Control {
     stop: Arc<AtomicBool>,
     new_faults: Arc<Mutex<Option<Faults>>>,
+    monitor: Option<Arc<Mutex<RealTimeMonitor>>>,
+}
+
+impl Control {
+    /// Lets the monitor look at the bus after a burst that arrived at `at_ns`.
+    fn observe(&self, bus: &SimBus, at_ns: u64) {
+        if let Some(monitor) = &self.monitor {
+            monitor.lock().unwrap_or_else(|e| e.into_inner()).observe(bus, at_ns);
+        }
+    }
+}
+
+/// Where replies go: to the master end at once, or through the adapter's latency timer.
+struct Outbox {
+    timer: Option<LatencyTimer>,
+}
+
+impl Outbox {
+    /// Sends `replies` produced at `now_ns`, or holds them for the timer.
+    fn send(&mut self, master: &mut TTYPort, replies: &[WireByte], now_ns: u64) -> std::io::Result<()> {
+        match &mut self.timer {
+            Some(timer) => {
+                timer.hold(replies, now_ns);
+                Ok(())
+            }
+            None => write_out(master, replies.iter().map(|&(_, b)| b).collect()),
+        }
+    }
+
+    /// Writes the held bytes that are due by `now_ns`.
+    fn release(&mut self, master: &mut TTYPort, now_ns: u64) -> std::io::Result<()> {
+        match &mut self.timer {
+            Some(timer) => write_out(master, timer.take_due(now_ns)),
+            None => Ok(()),
+        }
+    }
+
+    /// How long the next read may wait: until the next release while bytes are held.
+    fn wait(&self, now_ns: u64) -> Duration {
+        match self.timer.as_ref().and_then(LatencyTimer::next_release_ns) {
+            Some(due) => IDLE_READ.min(Duration::from_nanos(due.saturating_sub(now_ns))),
+            None => IDLE_READ,
+        }
+    }
+}
+
+fn write_out(master: &mut TTYPort, bytes: Vec<u8>) -> std::io::Result<()> {
+    if bytes.is_empty() {
+        return Ok(());
+    }
+    // Writes wait as long as an idle read (the read timeout is the port's only timeout).
+    master.set_timeout(IDLE_READ).map_err(std::io::Error::from)?;
+    master.write_all(&bytes)?;
+    master.flush()
+}
+
+fn elapsed_ns(start: Instant) -> u64 {
+    u64::try_from(start.elapsed().as_nanos()).unwrap_or(u64::MAX)
 }
 
 /// Serves until stopped. The slave end is held open (a pty without one reports errors) and asked
@@ -153,22 +243,28 @@ fn serve(
     mut bus: SimBus,
     follow_baud: bool,
     control: &Control,
+    mut outbox: Outbox,
 ) -> std::io::Result<()> {
     let start = Instant::now();
+    let mut last_rx_ns = 0;
     let mut buf = [0u8; 512];
     while !control.stop.load(Ordering::Relaxed) {
         if let Some(faults) = control.new_faults.lock().ok().and_then(|mut slot| slot.take()) {
             *bus.faults() = FaultState::new(faults);
         }
+        let now_ns = elapsed_ns(start);
+        outbox.release(master, now_ns)?;
+        master.set_timeout(outbox.wait(now_ns)).map_err(std::io::Error::from)?;
         let n = match master.read(&mut buf) {
             Ok(n) => n,
             Err(e) if matches!(e.kind(), std::io::ErrorKind::TimedOut | std::io::ErrorKind::WouldBlock) => {
                 // A quiet line: a packet left incomplete is dead, and what it held back is served.
-                let replies = bus.line_idle();
-                if !replies.is_empty() {
-                    let bytes: Vec<u8> = replies.iter().map(|&(_, b)| b).collect();
-                    master.write_all(&bytes)?;
-                    master.flush()?;
+                // (A shorter wait, for a release, is no sign of a quiet line.)
+                let now_ns = elapsed_ns(start);
+                if now_ns.saturating_sub(last_rx_ns) >= IDLE_READ.as_nanos() as u64 {
+                    let replies = bus.line_idle();
+                    control.observe(&bus, now_ns);
+                    outbox.send(master, &replies, now_ns)?;
                 }
                 continue;
             }
@@ -181,13 +277,11 @@ fn serve(
         if let (true, Ok(baud)) = (follow_baud, slave.baud_rate()) {
             bus.set_baud(baud);
         }
-        let now_ns = u64::try_from(start.elapsed().as_nanos()).unwrap_or(u64::MAX);
+        let now_ns = elapsed_ns(start);
+        last_rx_ns = now_ns;
         let replies = bus.receive(&buf[..n], now_ns);
-        if !replies.is_empty() {
-            let bytes: Vec<u8> = replies.iter().map(|&(_, b)| b).collect();
-            master.write_all(&bytes)?;
-            master.flush()?;
-        }
+        control.observe(&bus, now_ns);
+        outbox.send(master, &replies, now_ns)?;
     }
     Ok(())
 }
@@ -204,5 +298,7 @@ pub fn so101_bus(faults: super::Faults) -> SimConfig {
         duplicates: Vec::new(),
         // QEMU sets the pty to 921600 for its 1 Mbps divider; the servos stay at 1 Mbps.
         fixed_baud: true,
+        burst: None,
+        limits: None,
     }
 }
