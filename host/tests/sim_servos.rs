@@ -673,6 +673,36 @@ fn the_pty_servers_monitor_checks_every_goal_it_receives() {
     }
 }
 
+/// `limits_of` maps an arm as its firmware does: the goal bounds the SIL harness reads from the
+/// firmware's own controller, for the built-in SO-101 and for an OpenManipulator-X sent by the host.
+#[test]
+fn limits_of_maps_an_arm_as_the_firmware_does() {
+    use armctl::arm::servos::servos_of;
+    use armctl::arm::ArmSpec;
+    use armctl::link::arm_config::configure_messages;
+    use armctl::link::client::{LinkClient, LinkConfig};
+    use armctl::places::sil::{Sil, SilOptions};
+    for name in ["so101", "open-manipulator-x"] {
+        let arm = ArmSpec::load(name, None).unwrap();
+        let mut client = LinkClient::new(Sil::new(&SilOptions::new(name).unwrap()).unwrap(), LinkConfig::default());
+        if client.hello().unwrap().arm_name.is_empty() {
+            for m in configure_messages(&arm, &servos_of(&arm).unwrap()).unwrap() {
+                client.request(&m).unwrap();
+            }
+        }
+        let board = client.transport().board();
+        let bounds = board.bounds();
+        let period_s = f64::from(board.period_us()) * 1e-6;
+        let limits = armctl::sim::limits_of(&arm).unwrap();
+        assert_eq!(limits.len(), bounds.len(), "{name}");
+        for (l, b) in limits.iter().zip(&bounds) {
+            assert_eq!((l.id, l.goal_range), (b.id, b.goal_range), "{name}");
+            // The SIL's per-period step: the same speed limit, rounded up, plus a tick.
+            assert_eq!((l.max_ticks_per_s * period_s).ceil() as i64 + 1, b.max_step, "{name}");
+        }
+    }
+}
+
 #[test]
 fn armctl_sim_servos_serves_a_pty_and_refuses_bad_input() {
     use std::io::BufRead;
