@@ -739,6 +739,93 @@ fn armctl_sim_servos_serves_a_pty_and_refuses_bad_input() {
 }
 
 #[test]
+fn armctl_sim_servos_refuses_a_bad_burst_period_and_an_arm_it_does_not_serve() {
+    let sts = ["sim", "servos", "--protocol", "sts", "--pty", "--ids"];
+    for (args, needle) in [
+        (&["1-5", "--burst-ms", "0"][..], "--burst-ms must be more than 0 and at most 100"),
+        (&["1-5", "--burst-ms", "-16"], "--burst-ms"),
+        (&["1-5", "--burst-ms", "100.5"], "--burst-ms"),
+        (&["1-5", "--burst-ms", "NaN"], "--burst-ms"),
+        (&["1-5", "--burst-ms", "soon"], "--burst-ms"),
+        (&["1-3", "--arm", "so101"], "arm so101 has servo id(s) 4,5 that --ids does not serve"),
+        (&["1-5", "--arm", "ur5e"], "arm ur5e has no [servos] table"),
+        (&["1-5", "--arm", "no-such-arm"], "--arm no-such-arm"),
+    ] {
+        let (mut out, mut err) = (Vec::new(), Vec::new());
+        let code = armctl::cli::main(["armctl"].iter().chain(&sts).chain(args), &mut out, &mut err);
+        let err = String::from_utf8(err).unwrap();
+        assert_eq!(code, 2, "{args:?}: {err}");
+        assert!(err.starts_with("error: ") && err.lines().count() == 1, "{args:?}: {err}");
+        assert!(err.contains(needle), "{args:?}: {err}");
+        assert!(out.is_empty());
+    }
+}
+
+/// `armctl sim servos --arm so101` prints each violation of so101's limits as it happens: the
+/// first 100, then one line saying the rest are only counted.
+#[test]
+fn armctl_sim_servos_prints_the_violations_it_finds() {
+    use std::io::BufRead;
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_armctl"))
+        .args(["sim", "servos", "--protocol", "sts", "--ids", "1-5", "--pty", "--arm", "so101", "--burst-ms", "1"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    std::io::BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+    let path = line.trim().to_string();
+    let (tx, rx) = std::sync::mpsc::channel();
+    let stderr = child.stderr.take().unwrap();
+    std::thread::spawn(move || {
+        for line in std::io::BufReader::new(stderr).lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    let run = std::panic::catch_unwind(|| {
+        let arm = armctl::arm::ArmSpec::load("so101", None).unwrap();
+        let limits = armctl::sim::limits_of(&arm).unwrap();
+        let items = STS3215.items;
+        let mut master = pty_master(&path);
+        let group = ServoGroup { model: &STS3215, ids: [1u8, 2, 3, 4, 5] };
+        group.write_all(&mut master, items.torque_enable, &[1; 5]).unwrap();
+        let mut positions = [0i32; 5];
+        // Every goal a tick outside its joint's range: 5 violations a write, 150 in all (and the
+        // first steps beyond the velocity limit).
+        for k in 0..30 {
+            let goals = core::array::from_fn(|j| {
+                let (lo, hi) = limits[j].goal_range;
+                (if lo > 1 { lo - 1 - k % 2 } else { hi + 1 + k % 2 }) as i32
+            });
+            group.write_all(&mut master, items.goal_position, &goals).unwrap();
+            group.read_all(&mut master, items.present_position, &mut positions).unwrap();
+        }
+        let mut lines = Vec::new();
+        let deadline = Instant::now() + Duration::from_secs(20);
+        while let Ok(line) = rx.recv_timeout(deadline.saturating_duration_since(Instant::now())) {
+            let done = line.contains("further ones are only counted");
+            lines.push(line);
+            if done {
+                break;
+            }
+        }
+        lines
+    });
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let lines = run.expect("goals over the pty");
+    assert!(lines[0].starts_with("serving 5 STS3215 servo(s)"), "{lines:?}");
+    assert!(lines[0].contains("bursts every 1 ms") && lines[0].contains("limits of so101"), "{}", lines[0]);
+    let violations: Vec<&String> = lines.iter().filter(|l| l.starts_with("violation: servo ")).collect();
+    assert_eq!(violations.len(), 100, "{lines:?}");
+    assert!(violations.iter().any(|l| l.contains("outside")), "{violations:?}");
+    assert_eq!(lines.last().unwrap(), "more than 100 violations: further ones are only counted");
+    assert_eq!(lines.len(), 102, "{lines:?}");
+}
+
+#[test]
 fn id_lists_parse() {
     assert_eq!(armctl::args::numbers::ids("1-3,7", u8::MAX, "--ids").unwrap(), [1, 2, 3, 7]);
     assert_eq!(armctl::args::numbers::ids("1,3,5", u8::MAX, "--ids").unwrap(), [1, 3, 5]);

@@ -3,15 +3,18 @@
 
 use std::io::Write;
 use std::path::PathBuf;
+use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
 use firmware::bus::{dxl2, feetech, Protocol};
 
 use crate::args::bus::{model_for, ModelArg, ProtocolArg};
+use crate::arm::ArmSpec;
 #[cfg(feature = "board-tools")]
 use crate::places::qemu::{self, Qemu, QemuConfig};
-use crate::sim::{Faults, PtyServer, SimConfig};
+use crate::sim::monitor::MAX_VIOLATIONS;
+use crate::sim::{limits_of, Faults, PtyServer, SimConfig};
 
 /// Arguments of `armctl sim`: a subcommand, or `--qemu`.
 #[derive(Args, Debug)]
@@ -105,6 +108,38 @@ pub struct SimServosArgs {
     /// An id that gets a second servo (their replies collide).
     #[arg(long)]
     pub duplicate: Vec<u8>,
+    /// Deliver the replies in bursts, as a USB serial adapter does: held until its latency timer
+    /// next expires, every MS milliseconds from the start (FTDI: 16 by default, 1 when tuned;
+    /// more than 0, at most 100). Bytes to the servos still arrive at once.
+    #[arg(long, value_name = "MS", allow_negative_numbers = true)]
+    pub burst_ms: Option<f64>,
+    /// Check every goal the servos receive against the joint limits and speed limit of ARM (a
+    /// preset or an arm file with a `[servos]` table), mapped to ticks as its firmware maps them,
+    /// over the real time between goals; each violation is one line on stderr (the first 100).
+    /// Its servo ids must be among --ids.
+    #[arg(long, value_name = "ARM")]
+    pub arm: Option<String>,
+}
+
+/// The latency timer of `--burst-ms`.
+fn burst(ms: Option<f64>) -> Result<Option<Duration>> {
+    match ms {
+        None => Ok(None),
+        Some(ms) if ms > 0.0 && ms <= 100.0 => Ok(Some(Duration::from_nanos(((ms * 1e6).round() as u64).max(1)))),
+        Some(ms) => bail!("--burst-ms must be more than 0 and at most 100 (milliseconds), not {ms}"),
+    }
+}
+
+/// The goal limits of `--arm`, whose servos must all be served.
+fn limits(arm: Option<&str>, ids: &[u8]) -> Result<Option<Vec<crate::sim::GoalLimit>>> {
+    let Some(name) = arm else { return Ok(None) };
+    let arm = ArmSpec::load(name, None).with_context(|| format!("--arm {name}"))?;
+    let limits = limits_of(&arm)?;
+    let missing: Vec<String> = limits.iter().filter(|l| !ids.contains(&l.id)).map(|l| l.id.to_string()).collect();
+    if !missing.is_empty() {
+        bail!("arm {} has servo id(s) {} that --ids does not serve", arm.name, missing.join(","));
+    }
+    Ok(Some(limits))
 }
 
 /// Checks the arguments and builds the bus description.
@@ -125,6 +160,8 @@ pub fn config(args: &SimServosArgs) -> Result<SimConfig> {
         bail!("{} has no baud index for {} (it knows {})", model.name, args.baud, known.join(", "));
     }
     let faults = args.faults.faults()?;
+    let burst = burst(args.burst_ms)?;
+    let limits = limits(args.arm.as_deref(), &ids)?;
     Ok(SimConfig {
         protocol,
         model,
@@ -133,8 +170,8 @@ pub fn config(args: &SimServosArgs) -> Result<SimConfig> {
         faults,
         duplicates: args.duplicate.clone(),
         fixed_baud: args.fixed_baud,
-        burst: None,
-        limits: None,
+        burst,
+        limits,
     })
 }
 
@@ -220,7 +257,9 @@ fn run_servos(args: SimServosArgs, out: &mut dyn Write, err: &mut dyn Write) -> 
     let config = match config(&args) {
         Ok(c) => c,
         Err(e) => {
-            writeln!(err, "error: {e:#}")?;
+            // One line, even for an arm file whose parser's message spans several.
+            let message = format!("{e:#}");
+            writeln!(err, "error: {}", message.lines().map(str::trim).collect::<Vec<_>>().join(" "))?;
             return Ok(2);
         }
     };
@@ -228,9 +267,16 @@ fn run_servos(args: SimServosArgs, out: &mut dyn Write, err: &mut dyn Write) -> 
     writeln!(out, "{}", server.path())?;
     out.flush()?;
     let ids: Vec<String> = config.ids.iter().map(u8::to_string).collect();
+    let mut extras = String::new();
+    if let Some(b) = config.burst {
+        extras.push_str(&format!(", replies in bursts every {} ms", b.as_secs_f64() * 1e3));
+    }
+    if let Some(arm) = &args.arm {
+        extras.push_str(&format!(", goals checked against the limits of {arm}"));
+    }
     writeln!(
         err,
-        "serving {} {} servo(s) (ids {}) on {} at {} baud, {}; interrupt to stop",
+        "serving {} {} servo(s) (ids {}) on {} at {} baud{extras}, {}; interrupt to stop",
         config.ids.len(),
         config.model.name,
         ids.join(","),
@@ -239,10 +285,40 @@ fn run_servos(args: SimServosArgs, out: &mut dyn Write, err: &mut dyn Write) -> 
         server.path()
     )?;
     err.flush()?;
-    // Serve until interrupted (SIGINT's default action ends the process) or the server fails.
+    // Serve until interrupted (SIGINT's default action ends the process) or the server fails;
+    // with a monitor, print what it finds as it finds it.
+    let poll = Duration::from_millis(if config.limits.is_some() { 50 } else { 200 });
+    let mut printed = Printed::default();
     while !server.is_finished() {
-        std::thread::sleep(std::time::Duration::from_millis(200));
+        std::thread::sleep(poll);
+        printed.print(&server, err)?;
     }
+    printed.print(&server, err)?;
     server.stop().context("the simulated bus stopped")?;
     Ok(1)
+}
+
+/// The monitor's violations printed so far.
+#[derive(Default)]
+struct Printed {
+    lines: usize,
+    said_more: bool,
+}
+
+impl Printed {
+    /// Prints the violations found since the last call, one line each, the first
+    /// [`MAX_VIOLATIONS`] only; then one line saying that the rest are only counted.
+    fn print(&mut self, server: &PtyServer, err: &mut dyn Write) -> Result<()> {
+        let Some(report) = server.monitor() else { return Ok(()) };
+        for v in report.violations.iter().skip(self.lines) {
+            writeln!(err, "violation: {v}")?;
+        }
+        self.lines = report.violations.len();
+        if !self.said_more && report.violation_count > self.lines as u64 {
+            writeln!(err, "more than {MAX_VIOLATIONS} violations: further ones are only counted")?;
+            self.said_more = true;
+        }
+        err.flush()?;
+        Ok(())
+    }
 }
