@@ -211,6 +211,11 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         self.torque
     }
 
+    /// Whether a torque change a command asked for is still to be written (on the next tick).
+    pub fn torque_pending(&self) -> bool {
+        self.pending_torque.is_some()
+    }
+
     /// Whether the servos' torque state is known yet: read from the servos once every position
     /// has been seen, or set by a torque command. Until then [`Controller::torque`] says off.
     pub fn torque_known(&self) -> bool {

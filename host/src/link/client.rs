@@ -229,6 +229,11 @@ impl<T: Read + Write> LinkClient<T> {
         &mut self.io
     }
 
+    /// The transport back, once the client is done with it.
+    pub fn into_transport(self) -> T {
+        self.io
+    }
+
     /// Handshake: checks the protocol version and returns the firmware's info.
     pub fn hello(&mut self) -> Result<Info, LinkError> {
         match self.request(&HostMessage::Hello { protocol_version: PROTOCOL_VERSION })? {

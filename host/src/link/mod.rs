@@ -4,11 +4,17 @@
 //! stream.
 
 pub mod arm_config;
+pub mod channel;
 pub mod client;
 pub mod ready;
 pub mod serial;
 
 use std::io::{Read, Write};
+use std::time::Duration;
+
+/// How long a read of the link waits (real time on a port or in process, virtual time in SIL);
+/// the client's backoff counts in these.
+pub const READ_TIMEOUT: Duration = Duration::from_millis(20);
 
 /// A byte transport to a board: a serial port, or the SIL harness (`places::sil`).
 pub trait Transport: Read + Write {}

@@ -196,6 +196,25 @@ impl Write for SerialTransport {
     }
 }
 
+/// A byte stream the bus master runs on: a serial port, or the simulator's in-memory line in
+/// tests. Its errors go into `anyhow` errors, hence `Send + Sync + 'static`.
+pub trait Port: Read + Write + ReadReady<Error = <Self as Port>::Fault> {
+    /// The port's error type.
+    type Fault: embedded_io::Error + Send + Sync + 'static;
+}
+
+impl<P> Port for P
+where
+    P: Read + Write + ReadReady,
+    P::Error: Send + Sync + 'static,
+{
+    type Fault = P::Error;
+}
+
+/// The bus master on a port.
+pub type Bus<P = SerialTransport, C = StdClock> =
+    firmware::bus::master::Master<P, firmware::bus::master::NoDirectionPin, C>;
+
 /// Time since the clock was made, from [`std::time::Instant`].
 #[derive(Clone, Copy, Debug)]
 pub struct StdClock {

@@ -3,30 +3,13 @@
 
 use std::time::Duration;
 
-use embedded_io::{Read, ReadReady, Write};
 use firmware::bus::master::{Answer, BusConfig, Clock, Master, MasterError, NoDirectionPin, PingInfo, Replies};
 use firmware::bus::table::{Item, Model, ValueError, MODELS};
 use firmware::bus::{Id, Protocol};
 
 use crate::link::serial::{OpenError, SerialTransport, StdClock, TransportError};
 
-/// A byte stream the bus master runs on: a serial port here, the simulator's in-memory line in
-/// tests. Its errors go into `anyhow` errors, hence `Send + Sync + 'static`.
-pub trait Port: Read + Write + ReadReady<Error = <Self as Port>::Fault> {
-    /// The port's error type.
-    type Fault: embedded_io::Error + Send + Sync + 'static;
-}
-
-impl<P> Port for P
-where
-    P: Read + Write + ReadReady,
-    P::Error: Send + Sync + 'static,
-{
-    type Fault = P::Error;
-}
-
-/// The bus master on a port.
-pub type Bus<P = SerialTransport, C = StdClock> = Master<P, NoDirectionPin, C>;
+pub use crate::link::serial::{Bus, Port};
 
 /// A failed transaction as an error value for `anyhow`; its text is the master's one line
 /// ("servo 3: no reply to read (3 attempts, 10.150 ms each)").

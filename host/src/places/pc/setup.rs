@@ -37,7 +37,7 @@ use firmware::bus::master::{Clock, MasterError};
 use firmware::bus::table::{sts3215, xseries, Item, Model, ValueError};
 use firmware::bus::{Id, Protocol};
 
-use crate::servo::session::{Bus, Port};
+use crate::link::serial::{Bus, Port};
 
 /// One value written when connecting.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

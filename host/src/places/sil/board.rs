@@ -1,10 +1,12 @@
-//! The simulated board: the firmware application ([`firmware::app::Firmware`]) with its bus master
-//! on the simulated servo bus, behind an object-safe interface so that arms of any joint count run
-//! in one harness.
+//! The firmware application ([`firmware::app::Firmware`]) with its bus master, behind an
+//! object-safe interface so that arms of any joint count run in one harness: on the simulated
+//! servo bus and the virtual clock in SIL, on a serial port and the PC's clock in
+//! [`crate::places::pc`].
 
+use embedded_io::{Read, ReadReady, Write};
 use firmware::app::Firmware;
-use firmware::bus::master::{Master, NoDirectionPin};
-use firmware::controller::{Counters, TickReport};
+use firmware::bus::master::{Clock, Master, NoDirectionPin};
+use firmware::controller::{Counters, Mode, TickReport};
 use firmware::link::session::SessionStats;
 use kinematics::nalgebra::SVector;
 
@@ -34,19 +36,35 @@ pub trait SimFirmware {
     fn counters(&self) -> Option<Counters>;
     /// The link session's counters.
     fn session(&self) -> SessionStats;
+    /// A stop from the board itself ([`Firmware::stop`]).
+    fn stop(&mut self, now_us: u64);
+    /// Torque off from the board itself ([`Firmware::torque_off`]).
+    fn torque_off(&mut self, now_us: u64);
+    /// Whether the arm is in motion (moving, playing, tracking or braking).
+    fn moving(&self) -> bool;
+    /// Whether a command's torque change is still to be written to the servos.
+    fn torque_pending(&self) -> bool;
+    /// Whether there is an arm whose servos' torque state is known (see
+    /// [`firmware::controller::Controller::torque_known`]).
+    fn ready(&self) -> bool;
 }
 
-/// A firmware of `N` joints with its master on the simulated bus.
-pub struct SimBoard<const N: usize> {
-    pub(super) firmware: Firmware<N, QUEUE>,
-    pub(super) master: Master<SimPort, NoDirectionPin, VirtualClock>,
+/// A firmware of `N` joints with its master on port `P` and clock `C` (by default the simulated
+/// bus and the virtual clock).
+pub struct SimBoard<const N: usize, P = SimPort, C = VirtualClock> {
+    pub(crate) firmware: Firmware<N, QUEUE>,
+    pub(crate) master: Master<P, NoDirectionPin, C>,
 }
 
 fn to_vec<const N: usize>(v: &SVector<f32, N>) -> Vec<f64> {
     v.iter().map(|x| f64::from(*x)).collect()
 }
 
-impl<const N: usize> SimFirmware for SimBoard<N> {
+impl<const N: usize, P, C> SimFirmware for SimBoard<N, P, C>
+where
+    P: Read + Write + ReadReady,
+    C: Clock,
+{
     fn receive(&mut self, bytes: &[u8], now_us: u64, tx: &mut Vec<u8>) {
         // Writing to a Vec cannot fail.
         let _ = self.firmware.receive(bytes, now_us, tx);
@@ -78,6 +96,26 @@ impl<const N: usize> SimFirmware for SimBoard<N> {
 
     fn session(&self) -> SessionStats {
         self.firmware.session().stats()
+    }
+
+    fn stop(&mut self, now_us: u64) {
+        self.firmware.stop(now_us);
+    }
+
+    fn torque_off(&mut self, now_us: u64) {
+        self.firmware.torque_off(now_us);
+    }
+
+    fn moving(&self) -> bool {
+        self.firmware.controller().is_some_and(|c| !matches!(c.mode(), Mode::Idle | Mode::Holding | Mode::EStopped))
+    }
+
+    fn torque_pending(&self) -> bool {
+        self.firmware.controller().is_some_and(|c| c.torque_pending())
+    }
+
+    fn ready(&self) -> bool {
+        self.firmware.controller().is_some_and(|c| c.torque_known())
     }
 
     fn bounds(&self) -> Vec<JointBounds> {
