@@ -45,7 +45,8 @@ fn rig() -> Option<Rig> {
     let elf = qemu::build(qemu::FIRMWARE_BIN).unwrap();
     let bus = PtyServer::spawn(so101_bus(Faults::default())).unwrap();
     let board = Qemu::start(&QemuConfig { elf, bus: Some(bus.path().to_string()) }).unwrap();
-    let link = open(Target::Port { path: board.link_path().to_string(), baud: 1_000_000 }, None).unwrap();
+    let link = open(Target::Port { path: board.link_path().to_string(), baud: 1_000_000 }, None, &mut std::io::sink())
+        .unwrap();
     assert_eq!(link.info.arm_name.as_str(), "so101");
     assert_eq!(link.info.queue_capacity, 32);
     Some(Rig { link, bus, board })

@@ -1,11 +1,13 @@
 //! Benchmarks: `armctl bench ik` (the solve-rate protocol, beside the `k` crate's solver when built
 //! with the `compare-k` feature), `bus`
 //! (wire time of a control cycle), `rate` (the controller's rate against the wire-time limit) and
-//! `mcu` (instructions per operation on the Cortex-M4F under QEMU).
+//! `mcu` (instructions per operation on the Cortex-M4F under QEMU) and `pc` (the core hosted on this
+//! PC against simulated servos on a pty, in real time).
 
 pub mod bus;
 pub mod ik;
 #[cfg(feature = "compare-k")]
 pub mod k;
 pub mod mcu;
+pub mod pc;
 pub mod rate;

@@ -3,6 +3,7 @@
 //! Every failure is one line on `err` starting with `error:` and a non-zero exit code.
 
 mod ik;
+pub mod serve;
 pub mod sim;
 
 use crate::args::numbers as parse;
@@ -69,6 +70,10 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Keep one firmware core running on this PC (servos on a USB adapter with --bus, simulated with
+    /// --sim) and serve its host link on a pseudo-terminal for `armctl --port`: prints the pty's
+    /// path on the first line of stdout.
+    Serve(serve::ServeArgs),
     /// Serial bus servo set-up on a real port: scan, read, write, set-id, set-baud, torque.
     Servo(crate::servo::cli::ServoArgs),
     /// Driving an arm (after --port PORT or --sim): move, joints, play, status, stop, torque.
@@ -112,6 +117,10 @@ enum BenchCommand {
     /// Instructions per operation on the Cortex-M4F (FK, IK, player tick, bus packets), counted by
     /// the firmware's `opcount` binary under `qemu-system-arm -icount shift=0`.
     Mcu(crate::bench::mcu::McuBenchArgs),
+    /// Control rate and bus time per tick of the firmware core hosted on this PC (--bus) against
+    /// simulated servos on a pseudo-terminal in real time, with or without a USB adapter's burst
+    /// latency; and the tool error after a move.
+    Pc(crate::bench::pc::PcBenchArgs),
 }
 
 #[derive(Args, Debug)]
@@ -206,6 +215,7 @@ fn run(link: &crate::drive::args::LinkArgs, command: Command, out: &mut dyn Writ
         Command::Bench { what: BenchCommand::Rate(args) } => return crate::bench::rate::run(&args, out),
         Command::Footprint(args) => return crate::footprint::run(&args, out, err),
         Command::Bench { what: BenchCommand::Mcu(args) } => return crate::bench::mcu::run(&args, out),
+        Command::Bench { what: BenchCommand::Pc(args) } => return crate::bench::pc::run(&args, out, err),
         Command::Servo(args) => return crate::servo::cli::run(args, out, err),
         Command::Ports { json } => {
             let ports = crate::servo::ports::usb_ports(std::path::Path::new("/sys"), std::path::Path::new("/dev"));
@@ -223,6 +233,7 @@ fn run(link: &crate::drive::args::LinkArgs, command: Command, out: &mut dyn Writ
             }
         }
         Command::Sim(args) => return sim::run(args, out, err),
+        Command::Serve(args) => return serve::run(args, out, err),
         Command::Trajectory { what: TrajectoryCommand::Sample(args) } => {
             return crate::motion::sample::run(&args, out, err)
         }

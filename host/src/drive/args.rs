@@ -1,5 +1,5 @@
-//! The arguments of the arm-driving commands: the drive options (`--port`/`--sim`, `--baud`,
-//! `--arm`, `--json`, before or after the command) and the commands `move`, `joints`, `play`,
+//! The arguments of the arm-driving commands: the drive options (`--port`/`--sim`/`--bus`,
+//! `--protocol`, `--baud`, `--arm`, `--json`, before or after the command) and the commands `move`, `joints`, `play`,
 //! `status`, `stop` and `torque`.
 
 use std::path::PathBuf;
@@ -8,11 +8,21 @@ use anyhow::{bail, Result};
 use clap::{Args, Subcommand, ValueEnum};
 
 use super::connection::Target;
+use crate::args::bus::ProtocolArg;
+use crate::places::pc::PcOptions;
 
 /// The simulated arm of `--sim` when `--arm` is not given.
 pub const DEFAULT_SIM_ARM: &str = "so101";
-/// The baud rate of `--port` when `--baud` is not given.
+/// The baud rate of `--port` and `--bus` when `--baud` is not given.
 pub const DEFAULT_BAUD: u32 = 1_000_000;
+
+/// The arm of `--bus` when `--arm` is not given: the preset whose servos speak the protocol.
+pub fn default_bus_arm(protocol: ProtocolArg) -> &'static str {
+    match protocol {
+        ProtocolArg::Sts => "so101",
+        ProtocolArg::Dxl2 => "open-manipulator-x",
+    }
+}
 
 /// Which arm to drive. Accepted before the command or after it (`armctl --sim move --to ... --json`
 /// as well as `armctl move --sim --to ...`), as global options are.
@@ -22,14 +32,22 @@ pub struct LinkArgs {
     /// stop, torque).
     #[arg(long, value_name = "PORT", conflicts_with = "sim")]
     pub port: Option<String>,
-    /// Baud rate of --port [default: 1000000].
+    /// Drive the servos on this USB adapter's serial port (U2D2, Waveshare, FE-URT-1) with the
+    /// firmware core run on this PC.
+    #[arg(long, value_name = "PORT", conflicts_with_all = ["sim", "port"])]
+    pub bus: Option<String>,
+    /// With --bus: the servos' protocol, sts (Feetech) or dxl2 (Dynamixel 2.0).
+    #[arg(long, value_enum)]
+    pub protocol: Option<ProtocolArg>,
+    /// Baud rate of --port or of the --bus servos [default: 1000000].
     #[arg(long)]
     pub baud: Option<u32>,
     /// Drive the firmware core simulated on this PC with simulated servos (software in the loop).
     #[arg(long)]
     pub sim: bool,
     /// With --sim: the simulated arm, so101 (default) or open-manipulator-x. With --port: a preset
-    /// arm to configure on the board first (default: the arm the board runs).
+    /// arm to configure on the board first (default: the arm the board runs). With --bus: a preset
+    /// or an arm file with a [servos] table (default: so101 on sts, open-manipulator-x on dxl2).
     #[arg(long = "arm", value_name = "ARM")]
     pub arm: Option<String>,
     /// Print the result as one line of JSON.
@@ -49,6 +67,8 @@ impl LinkArgs {
         }
         Ok(LinkArgs {
             port: one("--port", &self.port, &after.port)?,
+            bus: one("--bus", &self.bus, &after.bus)?,
+            protocol: one("--protocol", &self.protocol, &after.protocol)?,
             baud: one("--baud", &self.baud, &after.baud)?,
             sim: self.sim || after.sim,
             arm: one("--arm", &self.arm, &after.arm)?,
@@ -60,6 +80,8 @@ impl LinkArgs {
     pub fn refuse_for_other_commands(&self) -> Result<()> {
         let given: Vec<&str> = [
             (self.port.is_some(), "--port"),
+            (self.bus.is_some(), "--bus"),
+            (self.protocol.is_some(), "--protocol"),
             (self.baud.is_some(), "--baud"),
             (self.sim, "--sim"),
             (self.arm.is_some(), "--arm"),
@@ -80,6 +102,27 @@ impl LinkArgs {
 
     /// The board or simulation to connect to, and the arm to configure on it.
     pub(super) fn target(&self) -> Result<(Target, Option<&str>)> {
+        if let Some(path) = &self.bus {
+            if self.port.is_some() || self.sim {
+                bail!("--bus, --port and --sim exclude each other: give one");
+            }
+            let Some(protocol) = self.protocol else {
+                bail!(
+                    "--bus needs --protocol: sts (Feetech, SO-100/SO-101) or dxl2 (Dynamixel, Koch, OpenManipulator-X)"
+                )
+            };
+            let arm = self.arm.as_deref().unwrap_or(default_bus_arm(protocol));
+            let options = PcOptions {
+                path: path.clone(),
+                protocol: protocol.into(),
+                baud: self.baud.unwrap_or(DEFAULT_BAUD),
+                arm: crate::arm::ArmSpec::load(arm, None)?,
+            };
+            return Ok((Target::Bus(options), Some(arm)));
+        }
+        if self.protocol.is_some() {
+            bail!("--protocol is the servo protocol of --bus, which is missing");
+        }
         match (&self.port, self.sim) {
             (Some(path), false) => {
                 Ok((Target::Port { path: path.clone(), baud: self.baud.unwrap_or(DEFAULT_BAUD) }, self.arm.as_deref()))
@@ -90,10 +133,12 @@ impl LinkArgs {
                 Ok((Target::Sim(crate::places::sil::SilOptions::new(arm)?), Some(arm)))
             }
             (Some(_), true) => bail!("--port and --sim exclude each other: give one"),
-            (None, false) if self.baud.is_some() => bail!("--baud is the baud rate of --port, which is missing"),
+            (None, false) if self.baud.is_some() => {
+                bail!("--baud is the baud rate of --port or --bus, which is missing")
+            }
             (None, false) => bail!(
-                "this command drives an arm: give --port PORT (a board running the firmware) or --sim (the simulated \
-                 arm) before it, e.g. `armctl --sim status`"
+                "this command drives an arm: give --port PORT (a board running the firmware), --bus PORT --protocol \
+                 sts|dxl2 (servos on a USB adapter) or --sim (the simulated arm) before it, e.g. `armctl --sim status`"
             ),
         }
     }

@@ -1,5 +1,6 @@
-//! Opening the link to a board (a serial port) or to the simulated board (SIL), with the handshake
-//! and, when asked, the arm configuration.
+//! Opening the link to a board (a serial port), to the simulated board (SIL) or to a firmware core
+//! run on this PC against the servos of a USB adapter (`--bus`), with the handshake and, when
+//! asked, the arm configuration.
 
 use std::time::Duration;
 
@@ -12,11 +13,13 @@ use crate::link::arm_config::configure_messages;
 use crate::link::client::{LinkClient, LinkConfig};
 use crate::link::serial::open_error;
 use crate::link::Transport;
+use crate::places::pc::{Pc, PcOptions};
 use crate::places::sil::{Sil, SilOptions};
 
-/// How long a read of the link waits (real time on a port, virtual time in SIL); the client's
-/// backoff counts in these.
-pub const READ_TIMEOUT: Duration = Duration::from_millis(20);
+/// How long the PC-hosted core may take, once it has its arm, to read every servo and its torque.
+const CORE_READY_TIMEOUT: Duration = Duration::from_secs(2);
+
+pub use crate::link::READ_TIMEOUT;
 
 /// Where the firmware runs.
 pub enum Target {
@@ -29,6 +32,8 @@ pub enum Target {
     },
     /// The firmware core simulated in this process.
     Sim(SilOptions),
+    /// The firmware core run in this process against real servos on a USB adapter.
+    Bus(PcOptions),
 }
 
 /// An open link after the handshake.
@@ -39,6 +44,8 @@ pub struct Connection {
     pub info: Info,
     /// The arm the firmware runs, for forward kinematics on the host.
     pub arm: ArmSpec,
+    /// The core run on this PC, for `--bus` (dropped after the client, which ends it).
+    pub pc: Option<Pc>,
 }
 
 /// Sends `arm` to the firmware (joint by joint) and repeats the handshake.
@@ -57,12 +64,22 @@ fn configure<T: Transport>(client: &mut LinkClient<T>, arm: &ArmSpec) -> Result<
 }
 
 /// Opens `target`, shakes hands and makes sure the firmware runs an arm: `arm` if given (sent to
-/// the board unless it already runs it), else the one it has.
-pub fn open(target: Target, arm: Option<&str>) -> Result<Connection> {
+/// the board unless it already runs it), else the one it has. What connecting to `--bus` measured
+/// and wrote is said on `err`.
+pub fn open(target: Target, arm: Option<&str>, err: &mut dyn std::io::Write) -> Result<Connection> {
+    let mut pc = None;
+    let mut bus_arm = None;
     let (transport, sim_arm): (Box<dyn Transport>, Option<&'static str>) = match target {
         Target::Port { path, baud } => {
             let port = serialport::new(&path, baud).timeout(READ_TIMEOUT).open().map_err(|e| open_error(&path, e))?;
             (Box::new(port), None)
+        }
+        Target::Bus(options) => {
+            let mut core = Pc::start(&options, true, err)?;
+            bus_arm = Some(options.arm);
+            let link = core.take_link().ok_or_else(|| anyhow!("the core's link was taken"))?;
+            pc = Some(core);
+            (Box::new(link), None)
         }
         Target::Sim(mut options) => {
             options.read_timeout_ms = READ_TIMEOUT.as_millis() as u64;
@@ -74,17 +91,36 @@ pub fn open(target: Target, arm: Option<&str>) -> Result<Connection> {
         }
     };
     let mut client = LinkClient::new(transport, LinkConfig::default());
-    let (info, spec) = handshake(&mut client, arm.or(sim_arm))?;
-    Ok(Connection { client, info, arm: spec })
+    let (info, spec) = match bus_arm {
+        // The arm --bus loaded (its servos were set up already): sent as it is.
+        Some(spec) => handshake_with(&mut client, Some(spec))?,
+        None => handshake(&mut client, arm.or(sim_arm))?,
+    };
+    if let Some(core) = &pc {
+        // Until every servo and its torque are read, the status would call a torqued arm limp.
+        let shared = core.shared();
+        let started = std::time::Instant::now();
+        while !shared.ready() {
+            if started.elapsed() > CORE_READY_TIMEOUT || core.is_finished() {
+                bail!("the firmware core did not read every servo within {} s", CORE_READY_TIMEOUT.as_secs());
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+    Ok(Connection { client, info, arm: spec, pc })
 }
 
 /// The handshake over an open link: makes sure the firmware runs `arm` if given (sending it
 /// unless it already runs it), else any arm this host knows; returns its info and description.
 pub fn handshake<T: Transport>(client: &mut LinkClient<T>, arm: Option<&str>) -> Result<(Info, ArmSpec)> {
+    handshake_with(client, arm.map(|name| ArmSpec::load(name, None)).transpose()?)
+}
+
+/// [`handshake`] with the arm already loaded.
+pub fn handshake_with<T: Transport>(client: &mut LinkClient<T>, arm: Option<ArmSpec>) -> Result<(Info, ArmSpec)> {
     let mut info = client.hello().context("handshake with the firmware")?;
     let spec = match arm {
-        Some(name) => {
-            let spec = ArmSpec::load(name, None)?;
+        Some(spec) => {
             if info.arm_name.as_str() != spec.name {
                 info = configure(client, &spec)?;
             }

@@ -1,10 +1,12 @@
-//! Ctrl-C while an arm moves: the handler only sets a flag; the waiting loops check it between
-//! requests, so a request is never cut in half and the arm is stopped through the link.
+//! Ctrl-C (or SIGTERM) while an arm moves: the handler only sets a flag and counts; the waiting
+//! loops check it between requests, so a request is never cut in half and the arm is stopped
+//! through the link.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::OnceLock;
 
 static REQUESTED: AtomicBool = AtomicBool::new(false);
+static COUNT: AtomicU32 = AtomicU32::new(0);
 static INSTALLED: OnceLock<bool> = OnceLock::new();
 
 /// The exit code after a Ctrl-C (128 + SIGINT, as shells report it).
@@ -16,7 +18,20 @@ pub const EXIT_CODE: i32 = 130;
 /// silent.
 pub fn catch() -> bool {
     REQUESTED.store(false, Ordering::SeqCst);
-    *INSTALLED.get_or_init(|| ctrlc::set_handler(|| REQUESTED.store(true, Ordering::SeqCst)).is_ok())
+    COUNT.store(0, Ordering::SeqCst);
+    *INSTALLED.get_or_init(|| {
+        ctrlc::set_handler(|| {
+            REQUESTED.store(true, Ordering::SeqCst);
+            COUNT.fetch_add(1, Ordering::SeqCst);
+        })
+        .is_ok()
+    })
+}
+
+/// Signals received since [`catch`] (`armctl serve` stops the arm on the first and switches the
+/// torque off on the second).
+pub fn count() -> u32 {
+    COUNT.load(Ordering::SeqCst)
 }
 
 /// Whether Ctrl-C was pressed since [`catch`].

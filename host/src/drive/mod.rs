@@ -29,6 +29,10 @@ pub fn run(link: &LinkArgs, command: DriveCommand, out: &mut dyn Write, err: &mu
     let link = link.merged(command.link())?;
     let request = commands::Request::parse(&command)?;
     let (target, arm) = link.target()?;
-    let mut driver = session::Driver::open(target, arm)?;
-    commands::run(&mut driver, request, link.json, out, err)
+    let mut driver = session::Driver::open(target, arm, err)?;
+    let code = commands::run(&mut driver, request, link.json, out, err)?;
+    if let Some(pc) = driver.pc() {
+        writeln!(err, "bus: {}", pc.shared().summary())?;
+    }
+    Ok(code)
 }

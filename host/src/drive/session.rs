@@ -39,11 +39,17 @@ pub struct Driver {
 }
 
 impl Driver {
-    /// Connects (handshake, arm configuration when asked).
-    pub fn open(target: Target, arm: Option<&str>) -> Result<Self> {
-        let conn = connection::open(target, arm)?;
+    /// Connects (handshake, arm configuration when asked); what connecting to `--bus` measured is
+    /// said on `err`.
+    pub fn open(target: Target, arm: Option<&str>, err: &mut dyn Write) -> Result<Self> {
+        let conn = connection::open(target, arm, err)?;
         let fk = dof::build(conn.arm.clone())?;
         Ok(Self { conn, fk })
+    }
+
+    /// The core run on this PC, for `--bus`.
+    pub fn pc(&self) -> Option<&crate::places::pc::Pc> {
+        self.conn.pc.as_ref()
     }
 
     /// The arm the firmware runs.

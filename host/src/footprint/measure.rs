@@ -42,7 +42,8 @@ pub struct MeasuredStack {
 pub fn measure(elf: &Path) -> Result<MeasuredStack> {
     let bus = PtyServer::spawn(so101_bus(Faults::default())).context("cannot start the simulated servo bus")?;
     let board = Qemu::start(&QemuConfig { elf: elf.to_path_buf(), bus: Some(bus.path().to_string()) })?;
-    let mut link = open(Target::Port { path: board.link_path().to_string(), baud: 1_000_000 }, None)?;
+    let mut link =
+        open(Target::Port { path: board.link_path().to_string(), baud: 1_000_000 }, None, &mut std::io::sink())?;
     let c = &mut link.client;
     request_when_ready(c, &HostMessage::Torque { on: true }, NOT_READY_WAITS).context("torque on")?;
     c.request(&HostMessage::MoveTo {

@@ -1,0 +1,158 @@
+//! `armctl bench pc`: the firmware core hosted on this PC (`--bus`) driving simulated servos on a
+//! pseudo-terminal in real time, optionally with a USB adapter's burst latency: the control rate
+//! it reaches, the time each tick spends on the bus, and the tool error after a move.
+//!
+//! The arm is a planar chain of N joints (as many servos as asked) with the protocol's servo model,
+//! so that the figure is about the bus, not about one arm's geometry. The motion is a joint move
+//! back and forth at the limits' pace for the time asked, then a Cartesian move to a point of the
+//! workspace; the simulator's safety monitor judges every goal.
+
+use std::io::Write;
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use firmware::link::message::{CartesianTarget, FirmwareMessage, HostMessage, Joints, RunState, Timing};
+use serde_json::json;
+
+use crate::args::bus::{model_for, ProtocolArg};
+use crate::arm::servos::ServoSetup;
+use crate::arm::ArmSpec;
+use crate::drive::connection::{self, Connection, Target};
+use crate::places::pc::PcOptions;
+use crate::sim::{Faults, PtyServer, SimConfig};
+
+/// Arguments of `armctl bench pc`.
+#[derive(Args, Debug)]
+pub struct PcBenchArgs {
+    /// Bus protocol.
+    #[arg(long, value_enum)]
+    protocol: ProtocolArg,
+    /// Number of servos (ids 1..=N), 1 to 8.
+    #[arg(long, default_value_t = 6)]
+    servos: usize,
+    /// Baud rate.
+    #[arg(long, default_value_t = 1_000_000)]
+    baud: u32,
+    /// Deliver the servos' replies in bursts every MS milliseconds (a USB adapter's latency timer:
+    /// 16 on FTDI by default); none when not given.
+    #[arg(long, value_name = "MS")]
+    burst_ms: Option<u64>,
+    /// Seconds of motion measured.
+    #[arg(long, default_value_t = 5.0)]
+    seconds: f64,
+}
+
+/// The benchmark's arm: `planar:N` driven by servos of the protocol's usual model, ids 1..=N.
+fn arm(args: &PcBenchArgs) -> Result<ArmSpec> {
+    let model = model_for(args.protocol.into(), None)?;
+    let mut spec = ArmSpec::load(&format!("planar:{}", args.servos), None)?;
+    spec.servos = Some(ServoSetup {
+        model,
+        ids: (1..=args.servos as u8).collect(),
+        zero: None,
+        reversed: None,
+        max_velocity: 2.0,
+        max_acceleration: 8.0,
+    });
+    Ok(spec)
+}
+
+fn request(conn: &mut Connection, message: &HostMessage) -> Result<()> {
+    match conn.client.request(message)? {
+        FirmwareMessage::Nak { reason } => bail!("the firmware refused {message:?}: {reason:?}"),
+        _ => Ok(()),
+    }
+}
+
+/// Polls until the arm rests (at most `limit`).
+fn until_rest(conn: &mut Connection, limit: Duration) -> Result<firmware::link::message::Status> {
+    let started = Instant::now();
+    loop {
+        let status = conn.client.status()?;
+        if status.state == RunState::Idle {
+            return Ok(status);
+        }
+        if started.elapsed() > limit {
+            bail!("the arm did not come to rest within {} s", limit.as_secs());
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// Runs the benchmark: one JSON line on `out`, what connecting said on `err`.
+pub fn run(args: &PcBenchArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+    if !(1..=8).contains(&args.servos) {
+        bail!("--servos must be 1 to 8 (the firmware's joint limit)");
+    }
+    if !(args.seconds.is_finite() && args.seconds > 0.0 && args.seconds <= 600.0) {
+        bail!("--seconds must be above 0 and at most 600");
+    }
+    if args.burst_ms.is_some_and(|ms| ms == 0 || ms > 100) {
+        bail!("--burst-ms must be 1 to 100");
+    }
+    let spec = arm(args)?;
+    let servos = spec.servos.clone().context("the benchmark arm has servos")?;
+    let server = PtyServer::spawn(SimConfig {
+        protocol: servos.model.protocol,
+        model: servos.model,
+        ids: servos.ids.clone(),
+        baud: args.baud,
+        faults: Faults::default(),
+        duplicates: Vec::new(),
+        fixed_baud: false,
+        burst: args.burst_ms.map(Duration::from_millis),
+        limits: Some(crate::sim::monitor::limits_of(&spec)?),
+    })
+    .context("cannot open a pseudo-terminal")?;
+    let options =
+        PcOptions { path: server.path().to_string(), protocol: args.protocol.into(), baud: args.baud, arm: spec };
+    let mut conn = connection::open(Target::Bus(options), None, err)?;
+    let pc = conn.pc.as_ref().context("a --bus connection has its core")?;
+    let connected = pc.connected().clone();
+    let shared = pc.shared();
+    request(&mut conn, &HostMessage::Torque { on: true })?;
+    until_rest(&mut conn, Duration::from_secs(2))?;
+    let ticks_before = shared.summary();
+    let started = Instant::now();
+    let mut sign = 1.0f32;
+    while started.elapsed().as_secs_f64() < args.seconds {
+        let q: Vec<f32> = (0..args.servos).map(|j| sign * if j % 2 == 0 { 0.6 } else { -0.6 }).collect();
+        let positions = Joints::from_slice(&q).map_err(|_| anyhow::anyhow!("joint count"))?;
+        request(&mut conn, &HostMessage::MoveJoints { positions, timing: Timing::MaxSpeed(10.0) })?;
+        until_rest(&mut conn, Duration::from_secs(10))?;
+        sign = -sign;
+    }
+    let summary = shared.summary();
+    // The tool to a point of the workspace: forward kinematics of joint values, in the plane.
+    let fk = crate::arm::dof::build(conn.arm.clone())?;
+    let goal: [f64; 3] = fk.tool_pose(&vec![0.3; args.servos])?.translation.into();
+    let target = CartesianTarget { position: goal.map(|x| x as f32), orientation: None };
+    request(&mut conn, &HostMessage::MoveTo { target, timing: Timing::MaxSpeed(0.1) })?;
+    let rest = until_rest(&mut conn, Duration::from_secs(30))?;
+    let q: Vec<f64> = rest.measured.iter().map(|&x| f64::from(x)).collect();
+    let reached: [f64; 3] = fk.tool_pose(&q)?.translation.into();
+    let error_mm = 1e3 * (0..3).map(|i| (reached[i] - goal[i]).powi(2)).sum::<f64>().sqrt();
+    drop(conn);
+    let monitor = server.monitor().context("the monitor is on")?;
+    let ticks = summary.ticks - ticks_before.ticks;
+    let v = json!({
+        "protocol": connected.choice.bus.protocol.name(),
+        "servos": args.servos,
+        "baud": args.baud,
+        "burst_ms": args.burst_ms,
+        "sync_read_median_ms": connected.measured.median_us() as f64 * 1e-3,
+        "sync_read_max_ms": connected.measured.max_us() as f64 * 1e-3,
+        "period_ms": f64::from(connected.choice.period_us) * 1e-3,
+        "ticks": ticks,
+        "rate_hz": summary.rate_hz,
+        "tick_median_ms": summary.tick_median_ms,
+        "tick_max_ms": summary.tick_max_ms,
+        "late_ticks": summary.late,
+        "tool_error_mm": error_mm,
+        "goals_checked": monitor.checked,
+        "violations": monitor.violation_count,
+    });
+    writeln!(out, "{v}")?;
+    Ok(if monitor.violation_count == 0 { 0 } else { 1 })
+}

@@ -1,0 +1,183 @@
+//! `armctl serve`: one firmware core kept running on this PC, its host link on a pseudo-terminal,
+//! so that consecutive `armctl --port PTY` commands, scripts and other programs drive one arm
+//! whose state (torque, position, queue, counters) persists between them.
+//!
+//! `--bus PORT` drives real servos on a USB adapter; `--sim` drives simulated ones (served on a pty
+//! of their own, with the simulator's safety monitor watching every goal). The first signal
+//! (Ctrl-C or SIGTERM) stops the arm within its limits and exits 0 once it holds; a second one
+//! switches the torque off and exits 130.
+
+use std::io::Write;
+use std::time::{Duration, Instant};
+
+use anyhow::{anyhow, bail, Context, Result};
+use clap::Args;
+
+use crate::args::bus::ProtocolArg;
+use crate::arm::servos::servos_of;
+use crate::arm::ArmSpec;
+use crate::drive::args::{default_bus_arm, DEFAULT_BAUD, DEFAULT_SIM_ARM};
+use crate::drive::connection::handshake_with;
+use crate::drive::interrupt;
+use crate::link::client::{LinkClient, LinkConfig};
+use crate::places::pc::{Pc, PcOptions};
+use crate::places::serve::PtyLink;
+use crate::sim::{Faults, PtyServer, SimConfig};
+
+/// How long the core may take to read its servos after the arm is configured.
+const READY_TIMEOUT: Duration = Duration::from_secs(2);
+/// How long the second signal's torque off may take.
+const TORQUE_OFF_TIMEOUT: Duration = Duration::from_secs(1);
+
+/// Arguments of `armctl serve`.
+#[derive(Args, Debug)]
+pub struct ServeArgs {
+    /// Drive the servos on this USB adapter's serial port.
+    #[arg(long, value_name = "PORT", conflicts_with = "sim", required_unless_present = "sim")]
+    pub bus: Option<String>,
+    /// Drive simulated servos instead (served on a pseudo-terminal of their own, in real time).
+    #[arg(long)]
+    pub sim: bool,
+    /// The servos' protocol, sts (Feetech) or dxl2 (Dynamixel 2.0); with --sim, the arm's.
+    #[arg(long, value_enum)]
+    pub protocol: Option<ProtocolArg>,
+    /// The servos' baud rate [default: 1000000].
+    #[arg(long)]
+    pub baud: Option<u32>,
+    /// A preset or an arm file with a [servos] table [default: so101 on sts, open-manipulator-x on
+    /// dxl2].
+    #[arg(long)]
+    pub arm: Option<String>,
+    /// With --sim: deliver the simulated servos' replies in bursts every MS milliseconds, as a USB
+    /// adapter's latency timer does (16 on FTDI by default, 1 when tuned).
+    #[arg(long, value_name = "MS", requires = "sim")]
+    pub burst_ms: Option<f64>,
+}
+
+/// Runs `armctl serve`; returns the exit code.
+pub fn run(args: ServeArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+    let arm_name = match (&args.arm, args.protocol) {
+        (Some(arm), _) => arm.clone(),
+        (None, Some(protocol)) => default_bus_arm(protocol).to_string(),
+        (None, None) if args.sim => DEFAULT_SIM_ARM.to_string(),
+        (None, None) => bail!("--bus needs --protocol: sts (Feetech) or dxl2 (Dynamixel)"),
+    };
+    let arm = ArmSpec::load(&arm_name, None)?;
+    let servos = servos_of(&arm)
+        .ok_or_else(|| anyhow!("arm {} has no servo mapping: add a [servos] table to its arm file", arm.name))?;
+    let protocol = match args.protocol {
+        Some(p) => p.into(),
+        None => servos.model.protocol,
+    };
+    let baud = args.baud.unwrap_or(DEFAULT_BAUD);
+    let burst = args.burst_ms.map(burst).transpose()?;
+    // With --sim the servos are served on a pty of their own, and the core drives them there
+    // exactly as it drives an adapter's port.
+    let simulated = match args.sim {
+        true => Some(
+            PtyServer::spawn(SimConfig {
+                protocol: servos.model.protocol,
+                model: servos.model,
+                ids: servos.ids.clone(),
+                baud,
+                faults: Faults::default(),
+                duplicates: Vec::new(),
+                fixed_baud: false,
+                burst,
+                limits: Some(crate::sim::monitor::limits_of(&arm)?),
+            })
+            .context("cannot open a pseudo-terminal for the simulated servos")?,
+        ),
+        false => None,
+    };
+    let path = match (&simulated, &args.bus) {
+        (Some(server), _) => server.path().to_string(),
+        (None, Some(path)) => path.clone(),
+        (None, None) => bail!("give --bus PORT or --sim"),
+    };
+    let options = PcOptions { path, protocol, baud, arm };
+    let mut pc = Pc::start(&options, false, err)?;
+    let shared = pc.shared();
+    // The arm is configured now, so that the first client finds it running.
+    let link = pc.take_link().ok_or_else(|| anyhow!("the core's link was taken"))?;
+    let mut client = LinkClient::new(link, LinkConfig::default());
+    handshake_with(&mut client, Some(options.arm.clone()))?;
+    let started = Instant::now();
+    while !shared.ready() {
+        if started.elapsed() > READY_TIMEOUT || pc.is_finished() {
+            bail!("the firmware core did not read every servo within {} s", READY_TIMEOUT.as_secs());
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    let pty = PtyLink::spawn(client.into_transport())?;
+    writeln!(out, "{}", pty.path())?;
+    out.flush()?;
+    writeln!(
+        err,
+        "serving arm {} on {} (e.g. `armctl --port {} status`); Ctrl-C stops the arm and exits, a second Ctrl-C \
+         switches the torque off",
+        options.arm.name,
+        pty.path(),
+        pty.path()
+    )?;
+    err.flush()?;
+    interrupt::catch();
+    let mut stopping = false;
+    loop {
+        std::thread::sleep(Duration::from_millis(10));
+        if pc.is_finished() {
+            bail!("the firmware core stopped");
+        }
+        if simulated.as_ref().is_some_and(PtyServer::is_finished) {
+            bail!("the simulated servos stopped");
+        }
+        let signals = interrupt::count();
+        if signals >= 2 {
+            shared.request_torque_off();
+            let asked = Instant::now();
+            while (shared.request_pending() || shared.torque()) && asked.elapsed() < TORQUE_OFF_TIMEOUT {
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            let limp = !shared.torque();
+            writeln!(err, "second signal: {}", if limp { "torque off" } else { "torque off was not confirmed" })?;
+            finish(&mut pc, simulated.as_ref(), err)?;
+            return Ok(interrupt::EXIT_CODE);
+        }
+        if signals == 1 && !stopping {
+            shared.request_stop();
+            stopping = true;
+            writeln!(err, "stopping: the arm decelerates within its limits, then holds (Ctrl-C again: torque off)")?;
+            err.flush()?;
+        }
+        if stopping && !shared.request_pending() && !shared.moving() {
+            writeln!(err, "holding")?;
+            finish(&mut pc, simulated.as_ref(), err)?;
+            return Ok(0);
+        }
+    }
+}
+
+/// A burst period from the command line.
+fn burst(ms: f64) -> Result<Duration> {
+    if !(ms.is_finite() && ms > 0.0 && ms <= 100.0) {
+        bail!("--burst-ms: {ms} must be above 0 and at most 100");
+    }
+    Ok(Duration::from_secs_f64(ms * 1e-3))
+}
+
+/// Ends the core and says what the loop and, for simulated servos, the safety monitor saw.
+fn finish(pc: &mut Pc, simulated: Option<&PtyServer>, err: &mut dyn Write) -> Result<()> {
+    let summary = pc.shared().summary();
+    pc.shutdown()?;
+    writeln!(err, "bus: {summary}")?;
+    if let Some(report) = simulated.and_then(PtyServer::monitor) {
+        writeln!(
+            err,
+            "safety monitor: {} goals checked, {} violations (largest step {:.0}% of the limit)",
+            report.checked,
+            report.violation_count,
+            100.0 * report.max_step_ratio
+        )?;
+    }
+    Ok(())
+}
