@@ -1,0 +1,440 @@
+//! The PC as the board (`armctl --bus`) and `armctl serve`, against simulated servos served on a
+//! pseudo-terminal ([`armctl::sim::PtyServer`]): the serial port code, the firmware core and the
+//! real clock a USB adapter gets, on both protocols. The simulator's safety monitor judges every
+//! goal the servos receive. Timing is reported, never asserted (the machine is shared); what is
+//! asserted is what the servos got and what the commands said.
+
+use std::io::{BufRead, BufReader, Read};
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use armctl::arm::servos::servos_of;
+use armctl::arm::ArmSpec;
+use armctl::drive::connection::{self, Target};
+use armctl::places::pc::PcOptions;
+use armctl::sim::{Faults, PtyServer, SimConfig};
+use firmware::bus::Protocol;
+use firmware::link::message::{FirmwareMessage, HostMessage, Joints, RunState, Status, Timing};
+use serde_json::Value;
+
+const BAUD: u32 = 1_000_000;
+
+/// The arms of the two protocols: preset, `--protocol`, a reachable joint target.
+const ARMS: [(&str, &str, &[f64]); 2] =
+    [("so101", "sts", &[0.3, -0.4, 0.5, 0.2, -0.3]), ("open-manipulator-x", "dxl2", &[0.3, -0.3, 0.4, 0.2])];
+
+/// The arm's servos served on a pty, with the safety monitor on and `burst` delivery.
+fn servos(arm: &str, faults: Faults, burst: Option<Duration>) -> PtyServer {
+    let spec = ArmSpec::load(arm, None).unwrap();
+    let servos = servos_of(&spec).unwrap();
+    PtyServer::spawn(SimConfig {
+        protocol: servos.model.protocol,
+        model: servos.model,
+        ids: servos.ids,
+        baud: BAUD,
+        faults,
+        duplicates: Vec::new(),
+        fixed_baud: false,
+        burst,
+        limits: Some(armctl::sim::monitor::limits_of(&spec).unwrap()),
+    })
+    .expect("pty server starts")
+}
+
+/// Asserts the monitor checked goals and found nothing wrong.
+fn assert_safe(server: &PtyServer, what: &str) {
+    let report = server.monitor().expect("the monitor is on");
+    assert!(report.checked > 0, "{what}: no goal was checked");
+    assert_eq!(report.violation_count, 0, "{what}: {:?}", report.violations);
+}
+
+struct Run {
+    code: i32,
+    stdout: String,
+    stderr: String,
+}
+
+impl Run {
+    fn ok(&self, what: &str) -> &Self {
+        assert_eq!(self.code, 0, "{what}: stdout {}\nstderr {}", self.stdout, self.stderr);
+        self
+    }
+
+    fn json(&self, what: &str) -> Value {
+        self.ok(what);
+        let line = self.stdout.lines().last().unwrap_or_else(|| panic!("{what}: no stdout"));
+        serde_json::from_str(line).unwrap_or_else(|e| panic!("{what}: not JSON ({e}): {line}"))
+    }
+
+    /// Asserts exit code 1 with one stderr line containing every needle.
+    fn fails(&self, needles: &[&str]) {
+        assert_eq!(self.code, 1, "stdout {}\nstderr {}", self.stdout, self.stderr);
+        let lines: Vec<&str> = self.stderr.lines().collect();
+        assert_eq!(lines.len(), 1, "expected one stderr line, got {:?}", self.stderr);
+        assert!(lines[0].starts_with("error: "), "{}", lines[0]);
+        for needle in needles {
+            assert!(lines[0].contains(needle), "{needle:?} not in {:?}", lines[0]);
+        }
+    }
+}
+
+fn armctl(args: &[&str]) -> Run {
+    let output =
+        Command::new(env!("CARGO_BIN_EXE_armctl")).args(args).stdin(Stdio::null()).output().expect("armctl runs");
+    Run {
+        code: output.status.code().expect("armctl exits normally"),
+        stdout: String::from_utf8(output.stdout).unwrap(),
+        stderr: String::from_utf8(output.stderr).unwrap(),
+    }
+}
+
+fn numbers(v: &Value) -> Vec<f64> {
+    v.as_array().unwrap_or_else(|| panic!("not an array: {v}")).iter().map(|x| x.as_f64().unwrap()).collect()
+}
+
+fn join(values: &[f64]) -> String {
+    values.iter().map(|v| format!("{v}")).collect::<Vec<_>>().join(",")
+}
+
+fn largest_difference(a: &[f64], b: &[f64]) -> f64 {
+    assert_eq!(a.len(), b.len());
+    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
+}
+
+/// A keyframe file of `q` scaled from 0 to 1 and back to half, written to a temp dir.
+fn keyframes(name: &str, q: &[f64]) -> (PathBuf, Vec<f64>) {
+    let dir = std::env::temp_dir().join(format!("armctl-pc-bus-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let header: Vec<String> = (1..=q.len()).map(|j| format!("q{j}")).collect();
+    let mut text = format!("t,{}\n", header.join(","));
+    let end: Vec<f64> = q.iter().map(|x| 0.5 * x).collect();
+    for (t, scale) in [(0.0, 1.0), (0.5, 0.75), (1.0, 0.5)] {
+        let row: Vec<f64> = q.iter().map(|x| scale * x).collect();
+        text.push_str(&format!("{t},{}\n", join(&row)));
+    }
+    let path = dir.join("keyframes.csv");
+    std::fs::write(&path, text).unwrap();
+    (path, end)
+}
+
+/// A point the arm reaches: forward kinematics of joint values on the host.
+fn tool_at(arm: &str, q: &[f64]) -> [f64; 3] {
+    let arm = armctl::arm::dof::build(ArmSpec::load(arm, None).unwrap()).unwrap();
+    arm.tool_pose(q).unwrap().translation.into()
+}
+
+/// Every drive command through `--bus`, each a process of its own with a fresh core: the arm
+/// stays where a command left it (torque on, holding), and the next command takes it from there.
+#[test]
+fn every_drive_command_drives_the_servos_through_bus_on_both_protocols() {
+    for (arm, protocol, q) in ARMS {
+        let server = servos(arm, Faults::default(), None);
+        let bus = |args: &[&str]| {
+            let mut all = vec!["--bus", server.path(), "--protocol", protocol];
+            all.extend_from_slice(args);
+            armctl(&all)
+        };
+        let status = bus(&["status", "--json"]).json("status");
+        assert_eq!(status["state"], "TorqueOff", "{arm}: the simulated servos start limp");
+        assert_eq!(status["arm"], arm);
+        let run = bus(&["torque", "on", "--json"]);
+        assert_eq!(run.json("torque on")["on"], true);
+        assert!(run.stderr.contains("control period 10 ms (100 Hz)"), "{arm}: {}", run.stderr);
+        assert!(run.stderr.contains("ticks in"), "{arm}: the loop's summary: {}", run.stderr);
+        // A new core finds the servos torqued and says so.
+        assert_eq!(bus(&["status", "--json"]).json("status")["state"], "Idle", "{arm}");
+
+        let joints = bus(&["joints", "--q", &join(q), "--json"]).json("joints");
+        assert!(largest_difference(&numbers(&joints["reached"]), q) < 0.01, "{arm}: {joints}");
+        let status = bus(&["status", "--json"]).json("status after joints");
+        assert_eq!(status["state"], "Idle", "{arm}: still holding");
+        assert!(largest_difference(&numbers(&status["measured"]), q) < 0.01, "{arm}: {status}");
+
+        let target: Vec<f64> = q.iter().map(|x| 0.8 * x).collect();
+        let point = tool_at(arm, &target);
+        let to = join(&point);
+        let moved = bus(&["move", "--to", &to, "--json"]).json("move");
+        assert!(moved["error_mm"].as_f64().unwrap() < 1.0, "{arm}: {moved}");
+
+        let (file, end) = keyframes(arm, q);
+        let played = bus(&["play", file.to_str().unwrap(), "--json"]).json("play");
+        assert_eq!(played["command"], "play", "{arm}: {played}");
+        let status = bus(&["status", "--json"]).json("status after play");
+        assert!(largest_difference(&numbers(&status["measured"]), &end) < 0.01, "{arm}: {status}");
+
+        let stopped = bus(&["stop", "--json"]).json("stop");
+        assert_eq!(stopped["state"], "Idle", "{arm}: {stopped}");
+        assert_eq!(bus(&["torque", "off", "--json"]).json("torque off")["state"], "TorqueOff");
+        assert_eq!(bus(&["status", "--json"]).json("status")["state"], "TorqueOff", "{arm}: limp as left");
+        assert_safe(&server, arm);
+    }
+}
+
+/// A missing port, a port another program holds and the wrong protocol: one line each, and the
+/// servos are left as they were.
+#[test]
+fn bad_ports_and_the_wrong_protocol_are_one_line_and_move_nothing() {
+    armctl(&["--bus", "/dev/armctl-no-such-port", "--protocol", "sts", "status"])
+        .fails(&["/dev/armctl-no-such-port: no such serial port"]);
+    let server = servos("so101", Faults::default(), None);
+    {
+        let _holder = serialport::new(server.path(), BAUD).open().expect("first open");
+        armctl(&["--bus", server.path(), "--protocol", "sts", "torque", "on"]).fails(&[server.path(), "port busy"]);
+    }
+    armctl(&["--bus", server.path(), "--protocol", "dxl2", "torque", "on"]).fails(&[
+        "no servo answered",
+        server.path(),
+        "--protocol",
+    ]);
+    armctl(&["--bus", server.path(), "--protocol", "dxl2", "--arm", "so101", "torque", "on"])
+        .fails(&["STS3215", "--protocol dxl2"]);
+    armctl(&["--bus", server.path(), "status"]).fails(&["--bus needs --protocol"]);
+    let status = armctl(&["--bus", server.path(), "--protocol", "sts", "status", "--json"]).json("status");
+    assert_eq!(status["state"], "TorqueOff", "nothing switched the torque on: {status}");
+    assert!(numbers(&status["measured"]).iter().all(|x| x.abs() < 1e-3), "nothing moved: {status}");
+}
+
+/// Runs `armctl serve` with `args`; returns the child and the pty path it printed first.
+fn serve(args: &[&str]) -> (Child, String, std::thread::JoinHandle<String>) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_armctl"))
+        .arg("serve")
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("armctl serve starts");
+    let mut stderr = child.stderr.take().unwrap();
+    let errors = std::thread::spawn(move || {
+        let mut text = String::new();
+        let _ = stderr.read_to_string(&mut text);
+        text
+    });
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap()).read_line(&mut first).unwrap();
+    assert!(first.starts_with("/dev/"), "first stdout line should be the pty path, got {first:?}");
+    (child, first.trim().to_string(), errors)
+}
+
+fn signal(child: &Child, name: &str) {
+    let ok = Command::new("kill").args([format!("-{name}"), child.id().to_string()]).status().unwrap().success();
+    assert!(ok, "kill -{name}");
+}
+
+/// Waits for `child` to exit (at most 20 s) and returns its exit code.
+fn exit_code(child: &mut Child) -> i32 {
+    let started = Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            return status.code().expect("exits normally");
+        }
+        if started.elapsed() > Duration::from_secs(20) {
+            let _ = child.kill();
+            panic!("armctl serve did not exit");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// One `serve --sim` session driven by five consecutive `--port` commands: one arm whose state
+/// (torque, position, the controller's clock and counters) carries from command to command, and
+/// whose keyframe queue plays in the served core. SIGTERM then stops it, holding, with exit 0.
+#[test]
+fn one_served_arm_keeps_its_state_across_five_commands() {
+    let (mut child, pty, errors) = serve(&["--sim", "--arm", "so101"]);
+    let port = |args: &[&str]| {
+        let mut all = vec!["--port", pty.as_str()];
+        all.extend_from_slice(args);
+        armctl(&all)
+    };
+    let q = ARMS[0].2;
+    let on = port(&["torque", "on", "--json"]).json("1 torque on");
+    assert_eq!(on["state"], "Idle");
+    let joints = port(&["joints", "--q", &join(q), "--json"]).json("2 joints");
+    assert!(largest_difference(&numbers(&joints["reached"]), q) < 0.01, "{joints}");
+    let before = port(&["status", "--json"]).json("3 status");
+    assert_eq!(before["state"], "Idle", "torque stayed on between commands: {before}");
+    assert!(largest_difference(&numbers(&before["measured"]), q) < 0.01, "the arm stayed where it was: {before}");
+    let (file, end) = keyframes("serve", q);
+    let played = port(&["play", file.to_str().unwrap(), "--json"]).json("4 play");
+    assert_eq!(played["command"], "play");
+    let after = port(&["status", "--json"]).json("5 status");
+    assert!(largest_difference(&numbers(&after["measured"]), &end) < 0.01, "{after}");
+    assert!(
+        after["time"].as_f64().unwrap() > before["time"].as_f64().unwrap() + 1.0,
+        "one controller clock ran through the session: {before} then {after}"
+    );
+    assert!(
+        after["errors"]["naks"].as_u64() >= before["errors"]["naks"].as_u64(),
+        "the counters carried over: {before} then {after}"
+    );
+    signal(&child, "TERM");
+    assert_eq!(exit_code(&mut child), 0);
+    let errors = errors.join().unwrap();
+    assert!(errors.contains("holding"), "{errors}");
+    assert!(errors.contains("safety monitor:") && errors.contains(" 0 violations"), "{errors}");
+}
+
+/// Ctrl-C while the served arm moves: it decelerates within its limits and holds, exit 0; a second
+/// signal, while it still brakes, switches the torque off.
+#[test]
+fn signals_stop_the_served_arm_then_switch_its_torque_off() {
+    for second in [false, true] {
+        let (mut child, pty, errors) = serve(&["--sim"]);
+        let port = |args: &[&str]| {
+            let mut all = vec!["--port", pty.as_str()];
+            all.extend_from_slice(args);
+            armctl(&all)
+        };
+        port(&["torque", "on"]).ok("torque on");
+        // A slow move the signal interrupts: `joints` waits for it, so run it in the background.
+        let mover = {
+            let pty = pty.clone();
+            std::thread::spawn(move || {
+                armctl(&["--port", &pty, "joints", "--q", "1.0,-1.0,1.0,1.0,-1.0", "--duration", "4"])
+            })
+        };
+        std::thread::sleep(Duration::from_millis(800));
+        signal(&child, "INT");
+        if second {
+            std::thread::sleep(Duration::from_millis(30));
+            signal(&child, "INT");
+        }
+        let code = exit_code(&mut child);
+        let _ = mover.join();
+        let errors = errors.join().unwrap();
+        if second {
+            assert_eq!(code, 130, "{errors}");
+            assert!(errors.contains("second signal: torque off"), "{errors}");
+        } else {
+            assert_eq!(code, 0, "{errors}");
+            assert!(errors.contains("stopping") && errors.contains("holding"), "{errors}");
+        }
+        assert!(errors.contains(" 0 violations"), "{errors}");
+    }
+}
+
+/// A connection to a core on this PC, through the library (to inject faults mid-run).
+fn connect(server: &PtyServer, arm: &str, protocol: Protocol) -> connection::Connection {
+    let options =
+        PcOptions { path: server.path().to_string(), protocol, baud: BAUD, arm: ArmSpec::load(arm, None).unwrap() };
+    let mut log = Vec::new();
+    let conn = connection::open(Target::Bus(options), Some(arm), &mut log)
+        .unwrap_or_else(|e| panic!("connect: {e:#}\n{}", String::from_utf8_lossy(&log)));
+    conn
+}
+
+fn status(conn: &mut connection::Connection) -> Status {
+    conn.client.status().unwrap()
+}
+
+fn move_joints(conn: &mut connection::Connection, q: &[f64], duration: Option<f32>) {
+    let positions = Joints::from_slice(&q.iter().map(|&x| x as f32).collect::<Vec<_>>()).unwrap();
+    let timing = duration.map_or(Timing::MaxSpeed(10.0), Timing::Duration);
+    let reply = conn.client.request(&HostMessage::MoveJoints { positions, timing }).unwrap();
+    assert!(matches!(reply, FirmwareMessage::Ack { .. }), "{reply:?}");
+}
+
+fn torque_on(conn: &mut connection::Connection) {
+    let reply = conn.client.request(&HostMessage::Torque { on: true }).unwrap();
+    assert!(matches!(reply, FirmwareMessage::Ack { .. }), "{reply:?}");
+}
+
+/// Polls until the arm rests (at most `limit`), returning the last status.
+fn until_rest(conn: &mut connection::Connection, limit: Duration) -> Status {
+    let started = Instant::now();
+    loop {
+        let s = status(conn);
+        if s.state == RunState::Idle || started.elapsed() > limit {
+            return s;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// A servo that stops answering mid-move is reported lost while the others keep being driven,
+/// and counts as recovered when it answers again.
+#[test]
+fn a_servo_that_stops_answering_mid_move_is_reported_and_recovers() {
+    let server = servos("so101", Faults::default(), None);
+    let mut conn = connect(&server, "so101", Protocol::Feetech);
+    torque_on(&mut conn);
+    move_joints(&mut conn, &[0.6, -0.6, 0.6, 0.6, -0.6], Some(2.0));
+    std::thread::sleep(Duration::from_millis(300));
+    server.set_faults(Faults { silent: vec![3], ..Faults::default() });
+    let started = Instant::now();
+    let lost = loop {
+        let s = status(&mut conn);
+        if s.lost_servos != 0 || started.elapsed() > Duration::from_secs(3) {
+            break s;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    };
+    assert_eq!(lost.lost_servos, 1 << 2, "servo 3 (joint 3) is reported lost: {lost:?}");
+    assert!(lost.errors.bus_timeouts > 0, "{lost:?}");
+    server.set_faults(Faults::default());
+    let started = Instant::now();
+    let back = loop {
+        let s = status(&mut conn);
+        if s.lost_servos == 0 || started.elapsed() > Duration::from_secs(3) {
+            break s;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    };
+    assert_eq!(back.lost_servos, 0, "servo 3 answers again: {back:?}");
+    let rest = until_rest(&mut conn, Duration::from_secs(10));
+    assert_eq!(rest.state, RunState::Idle, "{rest:?}");
+    assert_safe(&server, "silent servo");
+}
+
+/// Replies delivered in bursts every 1 ms and every 16 ms, as USB adapters deliver them: the
+/// connection measures the latency and chooses a period that fits it (longer for 16 ms), the
+/// loop reports the rate it reached, and the safety monitor sees no goal beyond the limits.
+#[test]
+fn burst_latency_sets_the_period_and_the_rate_is_reported_with_no_violation() {
+    for (arm, protocol, q) in [ARMS[0], ARMS[1]] {
+        let protocol = if protocol == "sts" { Protocol::Feetech } else { Protocol::Dxl2 };
+        for burst_ms in [1u64, 16] {
+            let server = servos(arm, Faults::default(), Some(Duration::from_millis(burst_ms)));
+            let mut conn = connect(&server, arm, protocol);
+            let pc = conn.pc.as_ref().unwrap();
+            let chosen = pc.connected().choice.period_us;
+            let latency = pc.connected().measured.latency_us();
+            if burst_ms == 16 {
+                assert!(chosen >= 20_000, "{arm}: a 16 ms burst needs a longer period than 10 ms, got {chosen} µs");
+                assert!(latency >= 4_000, "{arm}: the latency measured ({latency} µs) shows the bursts");
+            }
+            torque_on(&mut conn);
+            move_joints(&mut conn, q, None);
+            let rest = until_rest(&mut conn, Duration::from_secs(10));
+            assert_eq!(rest.state, RunState::Idle, "{arm} {burst_ms} ms: {rest:?}");
+            let summary = conn.pc.as_ref().unwrap().shared().summary();
+            assert!(summary.ticks > 10 && summary.rate_hz > 0.0, "{arm} {burst_ms} ms: {summary:?}");
+            eprintln!("{arm}, {burst_ms} ms bursts: period {chosen} µs; {summary}");
+            drop(conn);
+            assert_safe(&server, &format!("{arm} {burst_ms} ms bursts"));
+        }
+    }
+}
+
+/// A 50 ms stall of the PC mid-move is a late tick, counted in the status; the goals after it step
+/// no further than the limits allow over the time that passed.
+#[test]
+fn a_stalled_pc_is_a_late_tick_not_a_jump() {
+    let server = servos("so101", Faults::default(), None);
+    let mut conn = connect(&server, "so101", Protocol::Feetech);
+    torque_on(&mut conn);
+    move_joints(&mut conn, &[1.0, -1.0, 1.0, 1.0, -1.0], None);
+    std::thread::sleep(Duration::from_millis(200));
+    let before = status(&mut conn).timing.overruns;
+    conn.pc.as_ref().unwrap().shared().stall(Duration::from_millis(50));
+    std::thread::sleep(Duration::from_millis(150));
+    let after = status(&mut conn).timing.overruns;
+    assert!(after > before, "the stall is counted late: {before} then {after}");
+    let rest = until_rest(&mut conn, Duration::from_secs(10));
+    assert_eq!(rest.state, RunState::Idle, "{rest:?}");
+    let report = server.monitor().unwrap();
+    assert_eq!(report.violation_count, 0, "{:?}", report.violations);
+    assert!(report.max_step_ratio <= 1.0, "{report:?}");
+}
