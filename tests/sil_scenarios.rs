@@ -159,6 +159,11 @@ fn streaming_over_a_lossy_link_and_bus_loses_and_doubles_no_keyframe() {
     for (j, (m, k)) in s.measured.iter().zip(last).enumerate() {
         assert!((m - k).abs() < 0.01, "joint {j}: ended at {m}, last keyframe {k}");
     }
+    // A goal the line corrupted past Feetech's 8-bit checksum is not the firmware's and is not
+    // judged. Such goals stay rare (5 of about 5300 here: one sync write in the run), so the monitor
+    // still judges nearly all of them.
+    let m = c.transport().monitor();
+    assert!(m.corrupted * 200 < m.checked, "{} of {} goals excused as corrupted on the line", m.corrupted, m.checked);
     assert_safe(&mut c);
 }
 

@@ -61,6 +61,17 @@ pub struct SimBus {
     last_rx_ns: u64,
     /// The gap after which a partial packet is dropped ([`INTER_BYTE_TIMEOUT_NS`] unless changed).
     inter_byte_timeout_ns: u64,
+    /// Bytes handed to the decoder so far.
+    fed: u64,
+    /// The index (in `fed`) of the last byte flipped on the line.
+    last_flip_at: Option<u64>,
+    /// The index of the last byte fed right after a lost one: a frame was corrupted by the loss
+    /// if that byte and the one before it are both inside it.
+    last_gap_at: Option<u64>,
+    /// A byte was lost just before the next one fed.
+    lost_before: bool,
+    /// Whether the frame being carried out was corrupted.
+    corrupted: bool,
     stats: BusStats,
     /// When the group reads of the last [`SimBus::receive`] or [`SimBus::line_idle`] arrived.
     group_reads_ns: Vec<u64>,
@@ -83,6 +94,11 @@ impl SimBus {
             now_ns: 0,
             last_rx_ns: 0,
             inter_byte_timeout_ns: INTER_BYTE_TIMEOUT_NS,
+            fed: 0,
+            last_flip_at: None,
+            last_gap_at: None,
+            lost_before: false,
+            corrupted: false,
             stats: BusStats::default(),
             group_reads_ns: Vec::new(),
         }
@@ -191,12 +207,26 @@ impl SimBus {
             self.expire_partial(&mut pending);
         }
         self.last_rx_ns = at_ns;
-        for (k, &b) in bytes.iter().enumerate() {
-            let Some(b) = self.faults.on_byte(b) else { continue };
+        for (k, &sent) in bytes.iter().enumerate() {
+            let Some(b) = self.faults.on_byte(sent) else {
+                self.lost_before = true;
+                continue;
+            };
+            if b != sent {
+                self.last_flip_at = Some(self.fed);
+            }
+            if std::mem::take(&mut self.lost_before) {
+                self.last_gap_at = Some(self.fed);
+            }
+            self.fed += 1;
             self.decoder.extend(&[b]);
             let t = first_ns + wire_time_ns(k + 1, self.baud);
             while let Some(frame) = self.decoder.next_frame() {
                 let mut frame = frame.to_vec();
+                // The frame ends at the byte just fed and began `wire_len` bytes before.
+                let start = self.fed.saturating_sub(self.wire_len(&frame));
+                self.corrupted =
+                    self.last_flip_at.is_some_and(|at| at >= start) || self.last_gap_at.is_some_and(|at| at > start);
                 self.advance_to(t);
                 self.stats.instructions += 1;
                 self.handle(&mut frame, t, &mut pending);
@@ -229,13 +259,32 @@ impl SimBus {
             let mut frame = frame.to_vec();
             self.advance_to(t);
             self.stats.instructions += 1;
+            self.corrupted = false;
             self.handle(&mut frame, t, pending);
         }
         // Nothing held now is waiting for more bytes: the next burst starts afresh.
         self.last_rx_ns = t;
     }
 
+    /// Bytes `frame` took on the wire: Dynamixel stuffs a 0xFD after every `FF FF FD` past the
+    /// header, which the decoder has taken out again.
+    fn wire_len(&self, frame: &[u8]) -> u64 {
+        let stuffed = match self.protocol {
+            Protocol::Dxl2 => {
+                frame.get(4..).map_or(0, |body| body.windows(3).filter(|w| w == &[0xFF, 0xFF, 0xFD]).count())
+            }
+            Protocol::Feetech => 0,
+        };
+        (frame.len() + stuffed) as u64
+    }
+
+    /// Carries out one instruction frame, telling the servos whether the line corrupted it (for
+    /// the safety monitor; frames released by [`SimBus::line_idle`] count as clean).
     fn handle(&mut self, frame: &mut [u8], t: u64, out: &mut Vec<Pending>) {
+        let corrupted = std::mem::take(&mut self.corrupted);
+        for s in &mut self.servos {
+            s.set_in_corrupted_packet(corrupted);
+        }
         let protocol = self.protocol;
         let id_at = if protocol == Protocol::Dxl2 { 4 } else { 2 };
         let target = frame.get(id_at).copied().unwrap_or(BROADCAST);

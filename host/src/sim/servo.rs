@@ -60,6 +60,11 @@ pub struct SimServo {
     goal_writes: u64,
     /// When the last of them arrived, virtual ns.
     goal_written_ns: u64,
+    /// Whether the packet being carried out was corrupted on the line (the bus's fault injection
+    /// says so; a real servo cannot tell).
+    in_corrupted_packet: bool,
+    /// Whether the last goal write came in such a packet.
+    last_goal_corrupted: bool,
 }
 
 impl SimServo {
@@ -75,6 +80,8 @@ impl SimServo {
             fault_bits: 0,
             goal_writes: 0,
             goal_written_ns: 0,
+            in_corrupted_packet: false,
+            last_goal_corrupted: false,
         };
         servo.set(model.items.id, i64::from(id));
         if let Some(index) = model.baud_index(baud) {
@@ -141,6 +148,17 @@ impl SimServo {
     /// When the last write reached the goal position item, in virtual nanoseconds (0 before any).
     pub fn goal_written_ns(&self) -> u64 {
         self.goal_written_ns
+    }
+
+    /// Whether the last goal write came in a packet the simulated line had corrupted (a lost or
+    /// flipped byte since the packet before) and the checksum let through.
+    pub fn last_goal_corrupted(&self) -> bool {
+        self.last_goal_corrupted
+    }
+
+    /// Marks the packet about to be carried out as corrupted on the line, or not.
+    pub fn set_in_corrupted_packet(&mut self, corrupted: bool) {
+        self.in_corrupted_packet = corrupted;
     }
 
     /// Whether torque is on.
@@ -312,6 +330,7 @@ impl SimServo {
         if overlaps(items.goal_position, at, data.len()) {
             self.goal_writes += 1;
             self.goal_written_ns = t_ns;
+            self.last_goal_corrupted = self.in_corrupted_packet;
             if self.torque() {
                 self.start_move(t_ns);
             }

@@ -317,7 +317,11 @@ impl Sil {
             .bounds()
             .iter()
             .map(|b| {
-                bus.servo(b.id).filter(|s| s.torque()).map(|s| GoalState { goal: s.get(item), writes: s.goal_writes() })
+                bus.servo(b.id).filter(|s| s.torque()).map(|s| GoalState {
+                    goal: s.get(item),
+                    writes: s.goal_writes(),
+                    corrupted: s.last_goal_corrupted(),
+                })
             })
             .collect()
     }
