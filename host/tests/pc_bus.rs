@@ -288,18 +288,18 @@ fn signals_stop_the_served_arm_then_switch_its_torque_off() {
             armctl(&all)
         };
         port(&["torque", "on"]).ok("torque on");
-        // A slow move the signal interrupts: `joints` waits for it, so run it in the background.
+        // A move at full speed (2 rad/s; braking from it takes 0.25 s at 8 rad/s²) that the signal
+        // interrupts: `joints` waits for it, so it runs in the background.
         let mover = {
             let pty = pty.clone();
-            std::thread::spawn(move || {
-                armctl(&["--port", &pty, "joints", "--q", "1.0,-1.0,1.0,1.0,-1.0", "--duration", "4"])
-            })
+            std::thread::spawn(move || armctl(&["--port", &pty, "joints", "--q", "1.4,-1.4,1.4,1.4,-1.4"]))
         };
-        std::thread::sleep(Duration::from_millis(800));
+        std::thread::sleep(Duration::from_millis(400));
         signal(&child, "INT");
         if second {
-            std::thread::sleep(Duration::from_millis(30));
-            signal(&child, "INT");
+            // Another signal (two of one kind may merge while the first is pending), well within
+            // the brake.
+            signal(&child, "TERM");
         }
         let code = exit_code(&mut child);
         let _ = mover.join();

@@ -76,7 +76,8 @@ enum Command {
     Serve(serve::ServeArgs),
     /// Serial bus servo set-up on a real port: scan, read, write, set-id, set-baud, torque.
     Servo(crate::servo::cli::ServoArgs),
-    /// Driving an arm (after --port PORT or --sim): move, joints, play, status, stop, torque.
+    /// Driving an arm (after --port PORT, --bus PORT --protocol P or --sim): move, joints, play,
+    /// status, stop, torque.
     #[command(flatten)]
     Drive(crate::drive::args::DriveCommand),
 }

@@ -48,6 +48,21 @@ pub struct Connection {
     pub pc: Option<Pc>,
 }
 
+impl Connection {
+    /// Ends the link (for `--bus`, after the core has written what the last request asked for)
+    /// and says on `err` what the core's control loop did.
+    pub fn close(self, err: &mut dyn std::io::Write) -> Result<()> {
+        let Connection { client, pc, .. } = self;
+        drop(client);
+        if let Some(pc) = pc {
+            let shared = pc.shared();
+            drop(pc);
+            writeln!(err, "bus: {}", shared.summary())?;
+        }
+        Ok(())
+    }
+}
+
 /// Sends `arm` to the firmware (joint by joint) and repeats the handshake.
 fn configure<T: Transport>(client: &mut LinkClient<T>, arm: &ArmSpec) -> Result<Info> {
     let servos = servos_of(arm).ok_or_else(|| {

@@ -31,8 +31,6 @@ pub fn run(link: &LinkArgs, command: DriveCommand, out: &mut dyn Write, err: &mu
     let (target, arm) = link.target()?;
     let mut driver = session::Driver::open(target, arm, err)?;
     let code = commands::run(&mut driver, request, link.json, out, err)?;
-    if let Some(pc) = driver.pc() {
-        writeln!(err, "bus: {}", pc.shared().summary())?;
-    }
+    driver.close(err)?;
     Ok(code)
 }

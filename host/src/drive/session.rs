@@ -47,9 +47,10 @@ impl Driver {
         Ok(Self { conn, fk })
     }
 
-    /// The core run on this PC, for `--bus`.
-    pub fn pc(&self) -> Option<&crate::places::pc::Pc> {
-        self.conn.pc.as_ref()
+    /// Ends the connection, saying on `err` what the place that ran the core did (for `--bus`, the
+    /// control loop's counts).
+    pub fn close(self, err: &mut dyn Write) -> Result<()> {
+        self.conn.close(err)
     }
 
     /// The arm the firmware runs.
