@@ -1,18 +1,18 @@
 //! `armctl bench pc`: the firmware core hosted on this PC (`--bus`) driving simulated servos on a
 //! pseudo-terminal in real time, optionally with a USB adapter's burst latency: the control rate
-//! it reaches, the time each tick spends on the bus, and the tool error after a move.
+//! it reaches and the time each tick spends on the bus.
 //!
 //! The arm is a planar chain of N joints (as many servos as asked) with the protocol's servo model,
 //! so that the figure is about the bus, not about one arm's geometry. The motion is a joint move
-//! back and forth at the limits' pace for the time asked, then a Cartesian move to a point of the
-//! workspace; the simulator's safety monitor judges every goal.
+//! back and forth at the limits' pace for the time asked; the simulator's safety monitor judges
+//! every goal.
 
 use std::io::Write;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use firmware::link::message::{CartesianTarget, FirmwareMessage, HostMessage, Joints, RunState, Timing};
+use firmware::link::message::{FirmwareMessage, HostMessage, Joints, RunState, Timing};
 use serde_json::json;
 
 use crate::args::bus::{model_for, ProtocolArg};
@@ -80,7 +80,8 @@ fn until_rest(conn: &mut Connection, limit: Duration) -> Result<firmware::link::
     }
 }
 
-/// Runs the benchmark: one JSON line on `out`, what connecting said on `err`.
+/// Runs the benchmark: one JSON line on `out`, what connecting said on `err`. The rate and tick
+/// times cover the whole run, torque on included.
 pub fn run(args: &PcBenchArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
     if !(1..=8).contains(&args.servos) {
         bail!("--servos must be 1 to 8 (the firmware's joint limit)");
@@ -124,15 +125,6 @@ pub fn run(args: &PcBenchArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resu
         sign = -sign;
     }
     let summary = shared.summary();
-    // The tool to a point of the workspace: forward kinematics of joint values, in the plane.
-    let fk = crate::arm::dof::build(conn.arm.clone())?;
-    let goal: [f64; 3] = fk.tool_pose(&vec![0.3; args.servos])?.translation.into();
-    let target = CartesianTarget { position: goal.map(|x| x as f32), orientation: None };
-    request(&mut conn, &HostMessage::MoveTo { target, timing: Timing::MaxSpeed(0.1) })?;
-    let rest = until_rest(&mut conn, Duration::from_secs(30))?;
-    let q: Vec<f64> = rest.measured.iter().map(|&x| f64::from(x)).collect();
-    let reached: [f64; 3] = fk.tool_pose(&q)?.translation.into();
-    let error_mm = 1e3 * (0..3).map(|i| (reached[i] - goal[i]).powi(2)).sum::<f64>().sqrt();
     drop(conn);
     let monitor = server.monitor().context("the monitor is on")?;
     let ticks = summary.ticks - ticks_before.ticks;
@@ -149,7 +141,6 @@ pub fn run(args: &PcBenchArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resu
         "tick_median_ms": summary.tick_median_ms,
         "tick_max_ms": summary.tick_max_ms,
         "late_ticks": summary.late,
-        "tool_error_mm": error_mm,
         "goals_checked": monitor.checked,
         "violations": monitor.violation_count,
     });

@@ -120,7 +120,7 @@ enum BenchCommand {
     Mcu(crate::bench::mcu::McuBenchArgs),
     /// Control rate and bus time per tick of the firmware core hosted on this PC (--bus) against
     /// simulated servos on a pseudo-terminal in real time, with or without a USB adapter's burst
-    /// latency; and the tool error after a move.
+    /// latency.
     Pc(crate::bench::pc::PcBenchArgs),
 }
 
