@@ -4,6 +4,7 @@
 
 #![warn(missing_docs)]
 
+pub mod calibration;
 pub mod dof;
 pub mod presets;
 pub mod servos;
