@@ -424,3 +424,77 @@ fn an_alert_shows_the_data_then_one_error_line_per_servo() {
         assert_eq!(err.lines().collect::<Vec<_>>(), [text]);
     }
 }
+
+/// A LeRobot calibration file for servos 1 and 2, in a temp dir (`drive_mode` 1 on the second).
+fn calibration_file(name: &str, homing: [i32; 2]) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("armctl-servo-cli-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let text = format!(
+        "{{\n    \"shoulder_pan\": {{\n        \"id\": 1,\n        \"drive_mode\": 0,\n        \"homing_offset\": {},\n        \
+         \"range_min\": 758,\n        \"range_max\": 3292\n    }},\n    \"gripper\": {{\n        \"id\": 2,\n        \
+         \"drive_mode\": 1,\n        \"homing_offset\": {},\n        \"range_min\": 2019,\n        \"range_max\": 3367\n    }}\n}}",
+        homing[0], homing[1]
+    );
+    let path = dir.join("calibration.json");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// LeRobot's calibration against factory-fresh servos: `check` names the first servo that differs
+/// and the fix; `write` writes the registers (EEPROM, unlocked on Feetech) and `check` then agrees;
+/// a second `write` writes nothing. On both protocols, with Dynamixel's drive mode bit.
+#[test]
+fn a_lerobot_calibration_is_checked_against_the_servos_and_written_to_them() {
+    for model in [&STS3215, &XL430_W250] {
+        let server = sim(model, &[1, 2], Faults::default(), &[]);
+        let file = calibration_file(proto(model), [-1470, 1160]);
+        let path = file.to_str().unwrap();
+        servo(&server, model, &["calibration", "check"], &["--file", path]).fails(
+            1,
+            &["servo 1 (shoulder_pan): homing offset is 0 on the servo but -1470", "armctl servo calibration write"],
+        );
+        let written = servo(&server, model, &["calibration", "write"], &["--file", path]).ok();
+        let lines = written.lines();
+        assert!(lines.contains(&"servo 1 (shoulder_pan): homing offset 0 -> -1470"), "{lines:?}");
+        assert!(lines.contains(&"servo 2 (gripper): range_max 4095 -> 3367"), "{lines:?}");
+        assert_eq!(
+            lines.iter().any(|l| l.contains("drive_mode 0 -> 1")),
+            model.protocol == Protocol::Dxl2,
+            "{lines:?}"
+        );
+        assert_eq!(
+            servo(&server, model, &["calibration", "check"], &["--file", path]).ok().lines(),
+            ["calibration matches the servos (2 motors)"]
+        );
+        assert_eq!(
+            servo(&server, model, &["calibration", "write"], &["--file", path]).ok().lines(),
+            ["the servos hold the file's calibration already; nothing written"]
+        );
+        let read = servo(&server, model, &["read"], &["--id", "1", "--item", "min_position_limit,max_position_limit"]);
+        // The bytes in hex first, then the values.
+        assert_eq!(read.ok().lines()[1..], ["min_position_limit = 758", "max_position_limit = 3292"]);
+    }
+}
+
+/// A servo with torque on is refused before anything is written; a bad file touches no servo.
+#[test]
+fn calibration_writes_need_torque_off_and_a_good_file() {
+    let server = sim(&STS3215, &[1, 2], Faults::default(), &[]);
+    let good = calibration_file("torque", [-1470, 1160]);
+    servo(&server, &STS3215, &["torque", "on"], &["--id", "2"]).ok();
+    servo(&server, &STS3215, &["calibration", "write"], &["--file", good.to_str().unwrap()])
+        .fails(1, &["servo 2: torque is on", "nothing was written"]);
+    let read = servo(&server, &STS3215, &["read"], &["--id", "1", "--item", "homing_offset"]);
+    assert_eq!(read.ok().lines()[1..], ["homing_offset = 0"], "servo 1 was not written either");
+    // Feetech's homing offset is sign-magnitude with 11 bits: LeRobot's "Magnitude 2114 exceeds 2047".
+    servo(&server, &STS3215, &["torque", "off"], &["--id", "2"]).ok();
+    let too_far = calibration_file("too-far", [-1470, 2114]);
+    servo(&server, &STS3215, &["calibration", "write"], &["--file", too_far.to_str().unwrap()])
+        .fails(1, &["servo 2 (gripper): homing offset 2114 does not fit", "nothing was written"]);
+    let read = servo(&server, &STS3215, &["read"], &["--id", "1", "--item", "homing_offset"]);
+    assert_eq!(read.ok().lines()[1..], ["homing_offset = 0"], "servo 1 was not written before servo 2 failed");
+    let broken = good.with_file_name("broken.json");
+    std::fs::write(&broken, "{\"shoulder_pan\": {\"id\": 1}}").unwrap();
+    servo(&server, &STS3215, &["calibration", "check"], &["--file", broken.to_str().unwrap()])
+        .fails(1, &["broken.json", "motor \"shoulder_pan\": no \"drive_mode\""]);
+}

@@ -98,6 +98,19 @@ enum ServoCommand {
         #[arg(long)]
         new_baud: u32,
     },
+    /// A LeRobot calibration file (JSON) against the servos' registers (homing offset, position
+    /// limits; drive mode on Dynamixel), or written to them.
+    Calibration {
+        /// check (compare, as LeRobot does when it connects) or write (the file's values, to
+        /// servos whose torque is off).
+        #[arg(value_enum)]
+        action: CalibrationAction,
+        #[command(flatten)]
+        bus: BusArgs,
+        /// The calibration file, e.g. ~/.cache/huggingface/lerobot/calibration/robots/so_follower/my_arm.json.
+        #[arg(long)]
+        file: std::path::PathBuf,
+    },
     /// Switch torque on or off.
     Torque {
         /// on or off.
@@ -109,6 +122,13 @@ enum ServoCommand {
         #[arg(long, value_parser = parse_target)]
         id: Target,
     },
+}
+
+/// What `calibration` does.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum CalibrationAction {
+    Check,
+    Write,
 }
 
 /// Torque state.
@@ -228,6 +248,7 @@ pub fn run(args: ServoArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
         | ServoCommand::SetBaud { bus, id, .. } => (bus, vec![*id]),
         ServoCommand::SetId { bus, id, new_id } => (bus, vec![*id, *new_id]),
         ServoCommand::Torque { bus, id, .. } => (bus, if let Target::One(id) = id { vec![*id] } else { vec![] }),
+        ServoCommand::Calibration { bus, .. } => (bus, vec![]),
     };
     if let Some(problem) = check_ids(bus.protocol.into(), &ids) {
         return usage(err, &problem);
@@ -259,6 +280,27 @@ pub fn run(args: ServoArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
             commands::set_id(&mut bus.open()?, id, new_id, out, err)
         }
         ServoCommand::SetBaud { bus, id, new_baud } => commands::set_baud(bus.open()?, id, new_baud, out, err),
+        ServoCommand::Calibration { action, bus, file } => {
+            // The file is checked before the port is opened: a bad file touches no servo.
+            super::calibration::read_file(&file)?;
+            let mut session = bus.open()?;
+            match action {
+                CalibrationAction::Check => {
+                    let protocol = match bus.protocol {
+                        ProtocolArg::Sts => "sts",
+                        ProtocolArg::Dxl2 => "dxl2",
+                    };
+                    let baud = bus.baud.map(|b| format!(" --baud {b}")).unwrap_or_default();
+                    let fix = format!(
+                        "armctl servo calibration write --port {} --protocol {protocol}{baud} --file {}",
+                        bus.port,
+                        file.display()
+                    );
+                    super::calibration::check(&mut session, &file, &fix, out, err)
+                }
+                CalibrationAction::Write => super::calibration::write(&mut session, &file, out, err),
+            }
+        }
         ServoCommand::Torque { state, bus, id } => {
             commands::torque(&mut bus.open()?, id, matches!(state, OnOff::On), out, err)
         }

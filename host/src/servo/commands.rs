@@ -277,7 +277,7 @@ fn explain<E: std::fmt::Debug + Send + Sync + 'static>(
 /// (`lock` = 0, write, `lock` = 1), as LeRobot's set-up does, so the value survives a power cycle.
 /// With `relock` false the caller locks again, where the servo answers after the write (new id,
 /// new baud).
-fn eeprom_write<P: Port, C: Clock>(
+pub(super) fn eeprom_write<P: Port, C: Clock>(
     session: &mut Session<P, C>,
     servo: &Servo,
     model: &Model,

@@ -8,11 +8,13 @@
 //! - [`items`]: every named control-table item of a model, to decode what a read returns;
 //! - [`session`]: an open bus, with servo identification and one-line error texts;
 //! - [`commands`]: the commands themselves;
+//! - [`calibration`]: a LeRobot calibration file checked against the servos, and written to them;
 //! - [`ports`]: `armctl ports`, the USB serial ports and the device behind each;
 //! - [`cli`]: their command-line arguments.
 //!
 //! [`Master`]: firmware::bus::master::Master
 
+pub mod calibration;
 pub mod cli;
 pub mod commands;
 pub mod items;

@@ -1,0 +1,180 @@
+//! `armctl servo calibration check|write`: a LeRobot calibration file against the servos'
+//! registers, as LeRobot's `is_calibrated` compares them when it connects, and the file's values
+//! written to the servos, as its `write_calibration` does.
+//!
+//! The registers are the homing offset and the minimum and maximum position limits (and on
+//! Dynamixel the drive mode's direction bit, which LeRobot's `drive_mode` stands for there). All
+//! are EEPROM: they are written only with the servo's torque off (LeRobot writes them inside
+//! `torque_disabled()`), on Feetech with the EEPROM unlocked around the writes, and a value the
+//! servo already holds is not written again.
+
+use std::io::Write;
+use std::path::Path;
+
+use anyhow::{bail, Context, Result};
+use firmware::bus::master::Clock;
+use firmware::bus::table::{xseries, Item, Model};
+use firmware::bus::Protocol;
+
+use super::commands::{eeprom_write, finish};
+use super::session::{Port, Session};
+use crate::arm::calibration::{lerobot, Calibration, MotorCalibration};
+
+/// One register of a servo's calibration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Register {
+    item: Item,
+    /// The calibration field it holds.
+    field: &'static str,
+}
+
+/// The registers that hold a calibration on `model`'s servos.
+fn registers(model: &Model) -> Vec<Register> {
+    let items = model.items;
+    let homing = match model.protocol {
+        Protocol::Dxl2 => xseries::HOMING_OFFSET,
+        Protocol::Feetech => firmware::bus::table::sts3215::HOMING_OFFSET,
+    };
+    let mut r = vec![
+        Register { item: homing, field: "homing offset" },
+        Register { item: items.min_position, field: "range_min" },
+        Register { item: items.max_position, field: "range_max" },
+    ];
+    if model.protocol == Protocol::Dxl2 {
+        r.push(Register { item: xseries::DRIVE_MODE, field: "drive_mode" });
+    }
+    r
+}
+
+/// The file's value of a register (on Dynamixel, `drive_mode` is bit 0 of the Drive_Mode register,
+/// the direction; its other bits are left as they are).
+fn wanted(m: &MotorCalibration, field: &str, held: i64) -> i64 {
+    match field {
+        "homing offset" => i64::from(m.homing_offset),
+        "range_min" => i64::from(m.range_min),
+        "range_max" => i64::from(m.range_max),
+        _ => (held & !1) | i64::from(m.drive_mode),
+    }
+}
+
+/// A register whose value differs from the file's.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Difference {
+    /// The motor's name in the file.
+    pub motor: String,
+    /// Its servo id.
+    pub id: u8,
+    /// Which field.
+    pub field: &'static str,
+    /// The servo's value.
+    pub servo: i64,
+    /// The file's value.
+    pub file: i64,
+}
+
+/// Reads every motor's registers and lists those that differ from `calibration`.
+fn differences<P: Port, C: Clock>(
+    session: &mut Session<P, C>,
+    calibration: &Calibration,
+) -> Result<Vec<(Difference, Register, &'static Model)>> {
+    let mut found = Vec::new();
+    for (name, m) in &calibration.motors {
+        let servo = session.identify(m.id).with_context(|| format!("motor {name:?}"))?;
+        let model = servo.known_model()?;
+        for register in registers(model) {
+            let held = session.read_item(m.id, model, register.item)?;
+            let file = wanted(m, register.field, held);
+            if held != file {
+                let d = Difference { motor: name.clone(), id: m.id, field: register.field, servo: held, file };
+                found.push((d, register, model));
+            }
+        }
+    }
+    Ok(found)
+}
+
+/// The file, read and checked.
+pub fn read_file(path: &Path) -> Result<Calibration> {
+    lerobot::read(path)
+}
+
+/// `check`: `calibration matches the servos (6 motors)`, or one error line naming the first
+/// servo that differs and the fix.
+pub fn check<P: Port, C: Clock>(
+    session: &mut Session<P, C>,
+    file: &Path,
+    fix: &str,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> Result<i32> {
+    let calibration = read_file(file)?;
+    let found = differences(session, &calibration)?;
+    if let Some((first, _, _)) = found.first() {
+        let more = match found.len() {
+            1 => String::new(),
+            n => format!(" (and {} more differences)", n - 1),
+        };
+        bail!(
+            "servo {} ({}): {} is {} on the servo but {} in {}{more}: write the file's values ({fix}) or calibrate again",
+            first.id,
+            first.motor,
+            first.field,
+            first.servo,
+            first.file,
+            file.display()
+        );
+    }
+    writeln!(out, "calibration matches the servos ({} motors)", calibration.motors.len())?;
+    finish(session, err)
+}
+
+/// `write`: every register that differs gets the file's value, one line each; refused for a
+/// servo whose torque is on (the joint would have to go limp).
+pub fn write<P: Port, C: Clock>(
+    session: &mut Session<P, C>,
+    file: &Path,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> Result<i32> {
+    let calibration = read_file(file)?;
+    let found = differences(session, &calibration)?;
+    // Every value and every torque is checked before anything is written, so a refusal changes
+    // nothing.
+    for (d, register, model) in &found {
+        let mut bytes = [0u8; 4];
+        if let Err(e) = register.item.encode(d.file, model.endian, &mut bytes) {
+            bail!(
+                "servo {} ({}): {} {} does not fit the servo's register: {e}; nothing was written",
+                d.id,
+                d.motor,
+                d.field,
+                d.file
+            );
+        }
+    }
+    let mut checked = Vec::new();
+    for (d, _, model) in &found {
+        if checked.contains(&d.id) {
+            continue;
+        }
+        checked.push(d.id);
+        if session.read_item(d.id, model, model.items.torque_enable)? != 0 {
+            bail!(
+                "servo {}: torque is on; its calibration registers are EEPROM, written only with torque off \
+                 (armctl servo torque off --id {}; the joint goes limp); nothing was written",
+                d.id,
+                d.id
+            );
+        }
+    }
+    for (d, register, model) in &found {
+        let servo = session.identify(d.id)?;
+        eeprom_write(session, &servo, model, true, |s| s.write_item(d.id, model, register.item, d.file))
+            .with_context(|| format!("servo {} ({}): {}", d.id, d.motor, d.field))?;
+        writeln!(out, "servo {} ({}): {} {} -> {}", d.id, d.motor, d.field, d.servo, d.file)?;
+    }
+    if found.is_empty() {
+        writeln!(out, "the servos hold the file's calibration already; nothing written")?;
+    }
+    finish(session, err)
+}
