@@ -2,9 +2,10 @@
 //! registers, as LeRobot's `is_calibrated` compares them when it connects, and the file's values
 //! written to the servos, as its `write_calibration` does.
 //!
-//! The registers are the homing offset and the minimum and maximum position limits (and on
-//! Dynamixel the drive mode's direction bit, which LeRobot's `drive_mode` stands for there). All
-//! are EEPROM: they are written only with the servo's torque off (LeRobot writes them inside
+//! The registers are the homing offset and the minimum and maximum position limits, and on
+//! Dynamixel the Drive_Mode register, which LeRobot reads into `drive_mode` and compares whole
+//! (its `write_calibration` leaves Drive_Mode to the calibration procedure; `write` here sets it
+//! too, so that `check` agrees afterwards). All are EEPROM: they are written only with the servo's torque off (LeRobot writes them inside
 //! `torque_disabled()`), on Feetech with the EEPROM unlocked around the writes, and a value the
 //! servo already holds is not written again.
 
@@ -46,14 +47,13 @@ fn registers(model: &Model) -> Vec<Register> {
     r
 }
 
-/// The file's value of a register (on Dynamixel, `drive_mode` is bit 0 of the Drive_Mode register,
-/// the direction; its other bits are left as they are).
-fn wanted(m: &MotorCalibration, field: &str, held: i64) -> i64 {
+/// The file's value of a register.
+fn wanted(m: &MotorCalibration, field: &str) -> i64 {
     match field {
         "homing offset" => i64::from(m.homing_offset),
         "range_min" => i64::from(m.range_min),
         "range_max" => i64::from(m.range_max),
-        _ => (held & !1) | i64::from(m.drive_mode),
+        _ => i64::from(m.drive_mode),
     }
 }
 
@@ -83,7 +83,7 @@ fn differences<P: Port, C: Clock>(
         let model = servo.known_model()?;
         for register in registers(model) {
             let held = session.read_item(m.id, model, register.item)?;
-            let file = wanted(m, register.field, held);
+            let file = wanted(m, register.field);
             if held != file {
                 let d = Difference { motor: name.clone(), id: m.id, field: register.field, servo: held, file };
                 found.push((d, register, model));
