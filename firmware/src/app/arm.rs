@@ -81,7 +81,16 @@ const EMPTY: JointConfig = JointConfig {
     upper: 0.0,
     max_velocity: 0.0,
     max_acceleration: 0.0,
-    servo: crate::link::message::ServoConfig { id: 0, ticks_per_revolution: 0, zero: 0, reversed: false },
+    servo: crate::link::message::ServoConfig {
+        id: 0,
+        ticks_per_revolution: 0,
+        zero: 0,
+        reversed: false,
+        min_ticks: 0,
+        max_ticks: 0,
+        zero_half: false,
+        truncate: false,
+    },
 };
 
 impl<const N: usize> Default for Staging<N> {
@@ -149,16 +158,15 @@ impl<const N: usize> Staging<N> {
             limits: Limits::new(c.lower, c.upper),
         });
         let chain = Chain::new(joints, begun.tool).map_err(|_| bad(Field::Axis, Problem::OutOfRange))?;
-        let mappings = configs.map(|c| {
-            let tpr = i32::try_from(c.servo.ticks_per_revolution).unwrap_or(i32::MAX);
-            JointMapping {
-                id: c.servo.id,
-                ticks_per_revolution: c.servo.ticks_per_revolution,
-                zero: c.servo.zero,
-                direction: if c.servo.reversed { Direction::Reverse } else { Direction::Forward },
-                min_ticks: 0,
-                max_ticks: tpr - 1,
-            }
+        let mappings = configs.map(|c| JointMapping {
+            id: c.servo.id,
+            ticks_per_revolution: c.servo.ticks_per_revolution,
+            zero: c.servo.zero,
+            direction: if c.servo.reversed { Direction::Reverse } else { Direction::Forward },
+            min_ticks: c.servo.min_ticks,
+            max_ticks: c.servo.max_ticks,
+            zero_half: c.servo.zero_half,
+            truncate: c.servo.truncate,
         });
         let velocity = SVector::from(configs.map(|c| c.max_velocity));
         let acceleration = SVector::from(configs.map(|c| c.max_acceleration));

@@ -3,6 +3,11 @@
 //!
 //! `ticks = zero + direction * angle * ticks_per_revolution / 2π`, rounded to the nearest tick,
 //! and a goal outside the servo's tick limits is refused, never wrapped or silently clamped.
+//!
+//! A LeRobot calibration maps differently, and the mapping can follow it exactly
+//! ([`JointMapping::lerobot`]): LeRobot's degree mode commands `int(deg * max_res / 360 + mid)`,
+//! with `max_res` one less than the ticks per turn (4095), `mid` the middle of the calibrated range
+//! (a half tick when its ends' sum is odd), and Python's `int()`, which truncates toward zero.
 
 use super::Id;
 use kinematics::Real;
@@ -31,6 +36,10 @@ pub struct JointMapping {
     pub min_ticks: i32,
     /// Highest tick the servo may be sent.
     pub max_ticks: i32,
+    /// The angle zero lies half a tick above `zero`.
+    pub zero_half: bool,
+    /// Whole ticks by truncation toward zero (LeRobot's `int()`), not to the nearest.
+    pub truncate: bool,
 }
 
 /// Why a joint value has no tick value.
@@ -71,7 +80,32 @@ impl JointMapping {
             direction: Direction::Forward,
             min_ticks: 0,
             max_ticks: tpr - 1,
+            zero_half: false,
+            truncate: false,
         }
+    }
+
+    /// LeRobot's degree mode for a servo of `resolution` ticks a turn calibrated to
+    /// `range_min..=range_max` (raw, offset-corrected ticks): the angle zero at the range's middle,
+    /// `resolution - 1` ticks a turn, truncation, and the calibrated range as the tick limits.
+    /// LeRobot ignores `drive_mode` in degree mode, so the direction is forward.
+    pub fn lerobot(id: Id, resolution: u32, range_min: i32, range_max: i32) -> Self {
+        let sum = i64::from(range_min) + i64::from(range_max);
+        Self {
+            id,
+            ticks_per_revolution: resolution.saturating_sub(1),
+            zero: i32::try_from(sum.div_euclid(2)).unwrap_or(i32::MAX),
+            direction: Direction::Forward,
+            min_ticks: range_min,
+            max_ticks: range_max,
+            zero_half: sum.rem_euclid(2) == 1,
+            truncate: true,
+        }
+    }
+
+    /// The angle zero in ticks (`zero`, plus the half tick).
+    fn zero_ticks(&self) -> f64 {
+        f64::from(self.zero) + if self.zero_half { 0.5 } else { 0.0 }
     }
 
     fn sign(&self) -> f64 {
@@ -86,15 +120,15 @@ impl JointMapping {
         f64::from(self.ticks_per_revolution) / core::f64::consts::TAU
     }
 
-    /// The tick goal for a joint angle, rounded to the nearest tick; refused when not finite or
+    /// The tick goal for a joint angle, rounded to the nearest tick (or truncated); refused when not finite or
     /// outside `min_ticks..=max_ticks`.
     pub fn to_ticks<T: Real>(&self, radians: T) -> Result<i32, MappingError> {
         if !radians.finite() {
             return Err(MappingError::NotFinite { id: self.id });
         }
         // f64 keeps a tick exact for any angle a servo can reach, in both scalar types.
-        let exact = f64::from(self.zero) + self.sign() * radians.to_f64() * self.ticks_per_radian();
-        let ticks = round(exact);
+        let exact = self.zero_ticks() + self.sign() * radians.to_f64() * self.ticks_per_radian();
+        let ticks = if self.truncate { libm::trunc(exact) } else { round(exact) };
         if ticks < f64::from(self.min_ticks) || ticks > f64::from(self.max_ticks) {
             // `as` saturates: the value is only reported.
             return Err(MappingError::OutOfLimits { id: self.id, ticks: ticks as i64 });
@@ -104,7 +138,7 @@ impl JointMapping {
 
     /// The joint angle of a tick value (exact up to the scalar's rounding).
     pub fn to_radians<T: Real>(&self, ticks: i32) -> T {
-        T::of(self.sign() * (f64::from(ticks) - f64::from(self.zero)) / self.ticks_per_radian())
+        T::of(self.sign() * (f64::from(ticks) - self.zero_ticks()) / self.ticks_per_radian())
     }
 
     /// The joint range the tick limits allow, `(lowest, highest)` in radians.

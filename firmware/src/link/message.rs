@@ -17,7 +17,7 @@ use heapless::{String, Vec};
 use serde::{Deserialize, Serialize};
 
 /// The protocol version carried by the handshake; bumped on any change to the wire format.
-pub const PROTOCOL_VERSION: u16 = 1;
+pub const PROTOCOL_VERSION: u16 = 2;
 /// The most joints a message carries.
 pub const MAX_JOINTS: usize = 8;
 /// The longest arm name, in bytes of UTF-8.
@@ -125,6 +125,14 @@ pub struct ServoConfig {
     pub zero: i32,
     /// The servo turns against the joint axis.
     pub reversed: bool,
+    /// Lowest tick the servo may be sent (0 for a servo's whole single-turn range).
+    pub min_ticks: i32,
+    /// Highest tick (`ticks_per_revolution - 1` for the whole range; a calibration's `range_max`).
+    pub max_ticks: i32,
+    /// Zero lies half a tick above `zero` (a LeRobot calibration's middle).
+    pub zero_half: bool,
+    /// Ticks by truncation toward zero (LeRobot's degree mode), not to the nearest.
+    pub truncate: bool,
 }
 
 /// Emergency stop behaviour.
@@ -535,7 +543,8 @@ impl JointConfig {
         check(Field::Limits, self.max_velocity > 0.0 && self.max_acceleration > 0.0, Problem::OutOfRange)?;
         // Dynamixel Protocol 2.0 reserves ids above 252 (0xFE is broadcast on both buses).
         check(Field::Servo, self.servo.id <= 252, Problem::OutOfRange)?;
-        check(Field::Servo, self.servo.ticks_per_revolution > 0, Problem::OutOfRange)
+        check(Field::Servo, self.servo.ticks_per_revolution > 0, Problem::OutOfRange)?;
+        check(Field::Servo, self.servo.min_ticks < self.servo.max_ticks, Problem::OutOfRange)
     }
 }
 

@@ -116,7 +116,16 @@ fn joint_config() -> JointConfig {
         upper: 2.0,
         max_velocity: 3.0,
         max_acceleration: 10.0,
-        servo: ServoConfig { id: 3, ticks_per_revolution: 4096, zero: 2048, reversed: true },
+        servo: ServoConfig {
+            id: 3,
+            ticks_per_revolution: i32::MAX as u32,
+            zero: i32::MIN,
+            reversed: true,
+            min_ticks: i32::MIN,
+            max_ticks: i32::MAX,
+            zero_half: true,
+            truncate: true,
+        },
     }
 }
 

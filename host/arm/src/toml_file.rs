@@ -267,6 +267,7 @@ fn servos(at: &str, entry: &ServosEntry, joints: usize) -> Result<super::servos:
         reversed: entry.reversed.clone(),
         max_velocity: entry.max_velocity,
         max_acceleration: entry.max_acceleration,
+        calibration: None,
     })
 }
 

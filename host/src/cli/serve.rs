@@ -16,7 +16,7 @@ use clap::Args;
 use crate::args::bus::ProtocolArg;
 use crate::arm::servos::servos_of;
 use crate::arm::ArmSpec;
-use crate::drive::args::{default_bus_arm, DEFAULT_BAUD, DEFAULT_SIM_ARM};
+use crate::drive::args::{calibrated, default_bus_arm, DEFAULT_BAUD, DEFAULT_SIM_ARM};
 use crate::drive::connection::handshake_with;
 use crate::drive::interrupt;
 use crate::link::client::{LinkClient, LinkConfig};
@@ -52,6 +52,9 @@ pub struct ServeArgs {
     /// adapter's latency timer does (16 on FTDI by default, 1 when tuned).
     #[arg(long, value_name = "MS", requires = "sim")]
     pub burst_ms: Option<f64>,
+    /// A LeRobot calibration file (JSON) of the arm's servos (see `armctl --help`'s --calibration).
+    #[arg(long, value_name = "FILE")]
+    pub calibration: Option<std::path::PathBuf>,
 }
 
 /// Runs `armctl serve`; returns the exit code.
@@ -62,7 +65,7 @@ pub fn run(args: ServeArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
         (None, None) if args.sim => DEFAULT_SIM_ARM.to_string(),
         (None, None) => bail!("--bus needs --protocol: sts (Feetech) or dxl2 (Dynamixel)"),
     };
-    let arm = ArmSpec::load(&arm_name, None)?;
+    let arm = calibrated(ArmSpec::load(&arm_name, None)?, args.calibration.as_deref())?;
     let servos = servos_of(&arm)
         .ok_or_else(|| anyhow!("arm {} has no servo mapping: add a [servos] table to its arm file", arm.name))?;
     let protocol = match args.protocol {

@@ -50,6 +50,10 @@ pub struct LinkArgs {
     /// or an arm file with a [servos] table (default: so101 on sts, open-manipulator-x on dxl2).
     #[arg(long = "arm", value_name = "ARM")]
     pub arm: Option<String>,
+    /// With --bus: a LeRobot calibration file (JSON) of the arm's servos: the joints then map to
+    /// ticks exactly as LeRobot's degree mode maps them, within the calibrated ranges.
+    #[arg(long, value_name = "FILE")]
+    pub calibration: Option<PathBuf>,
     /// Print the result as one line of JSON.
     #[arg(long)]
     pub json: bool,
@@ -72,6 +76,7 @@ impl LinkArgs {
             baud: one("--baud", &self.baud, &after.baud)?,
             sim: self.sim || after.sim,
             arm: one("--arm", &self.arm, &after.arm)?,
+            calibration: one("--calibration", &self.calibration, &after.calibration)?,
             json: self.json || after.json,
         })
     }
@@ -85,6 +90,7 @@ impl LinkArgs {
             (self.baud.is_some(), "--baud"),
             (self.sim, "--sim"),
             (self.arm.is_some(), "--arm"),
+            (self.calibration.is_some(), "--calibration"),
             (self.json, "--json"),
         ]
         .into_iter()
@@ -112,16 +118,20 @@ impl LinkArgs {
                 )
             };
             let arm = self.arm.as_deref().unwrap_or(default_bus_arm(protocol));
+            let spec = calibrated(crate::arm::ArmSpec::load(arm, None)?, self.calibration.as_deref())?;
             let options = PcOptions {
                 path: path.clone(),
                 protocol: protocol.into(),
                 baud: self.baud.unwrap_or(DEFAULT_BAUD),
-                arm: crate::arm::ArmSpec::load(arm, None)?,
+                arm: spec,
             };
             return Ok((Target::Bus(options), Some(arm)));
         }
         if self.protocol.is_some() {
             bail!("--protocol is the servo protocol of --bus, which is missing");
+        }
+        if self.calibration.is_some() {
+            bail!("--calibration applies to --bus (the core on this PC) only for now");
         }
         match (&self.port, self.sim) {
             (Some(path), false) => {
@@ -142,6 +152,18 @@ impl LinkArgs {
             ),
         }
     }
+}
+
+/// `arm` with the LeRobot calibration in `file`, if one is given: each servo's entry found by its
+/// id. Errors name the file.
+pub fn calibrated(mut arm: crate::arm::ArmSpec, file: Option<&std::path::Path>) -> Result<crate::arm::ArmSpec> {
+    let Some(file) = file else { return Ok(arm) };
+    let calibration = crate::arm::calibration::lerobot::read(file)?;
+    let mut servos = crate::arm::servos::servos_of(&arm)
+        .ok_or_else(|| anyhow::anyhow!("arm {} has no servo mapping to calibrate", arm.name))?;
+    servos.calibrate(&calibration).map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))?;
+    arm.servos = Some(servos);
+    Ok(arm)
 }
 
 /// The arm-driving commands.

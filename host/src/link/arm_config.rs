@@ -4,6 +4,7 @@
 //! [`ServoSetup`].
 
 use anyhow::{bail, Result};
+use firmware::bus::mapping::{Direction, JointMapping};
 use firmware::link::message::{HostMessage, JointConfig, JointType, ServoConfig, MAX_JOINTS, MAX_NAME};
 use kinematics::nalgebra::Matrix3;
 use kinematics::JointKind;
@@ -27,6 +28,20 @@ fn f32s(v: [f64; 3]) -> [f32; 3] {
     v.map(|x| x as f32)
 }
 
+/// The link's form of a joint's servo mapping.
+pub fn servo_config(m: &JointMapping) -> ServoConfig {
+    ServoConfig {
+        id: m.id,
+        ticks_per_revolution: m.ticks_per_revolution,
+        zero: m.zero,
+        reversed: m.direction == Direction::Reverse,
+        min_ticks: m.min_ticks,
+        max_ticks: m.max_ticks,
+        zero_half: m.zero_half,
+        truncate: m.truncate,
+    }
+}
+
 /// The messages that configure `arm` with `servos` on the firmware.
 pub fn configure_messages(arm: &ArmSpec, servos: &ServoSetup) -> Result<Vec<HostMessage>> {
     let n = arm.joints.len();
@@ -43,7 +58,6 @@ pub fn configure_messages(arm: &ArmSpec, servos: &ServoSetup) -> Result<Vec<Host
     if name.push_str(&arm.name).is_err() {
         bail!("arm name {:?} is longer than {MAX_NAME} bytes", arm.name);
     }
-    let tpr = servos.model.ticks_per_revolution;
     let mut messages = vec![HostMessage::ConfigureBegin {
         name,
         joints: n as u8,
@@ -68,12 +82,7 @@ pub fn configure_messages(arm: &ArmSpec, servos: &ServoSetup) -> Result<Vec<Host
                 upper: joint.upper as f32,
                 max_velocity: servos.max_velocity as f32,
                 max_acceleration: servos.max_acceleration as f32,
-                servo: ServoConfig {
-                    id,
-                    ticks_per_revolution: tpr,
-                    zero: servos.zero.as_ref().map_or((tpr / 2) as i32, |z| z[j]),
-                    reversed: servos.reversed.as_ref().is_some_and(|r| r[j]),
-                },
+                servo: servo_config(&servos.mapping(j).ok_or_else(|| anyhow::anyhow!("servo {id}: no mapping"))?),
             },
         });
     }

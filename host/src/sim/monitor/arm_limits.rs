@@ -6,7 +6,6 @@
 //! keeps every goal inside those limits, mapped to ticks.
 
 use anyhow::{anyhow, bail, Result};
-use firmware::bus::mapping::{Direction, JointMapping};
 
 use super::GoalLimit;
 use crate::arm::servos::servos_of;
@@ -22,24 +21,12 @@ pub fn limits_of(arm: &ArmSpec) -> Result<Vec<GoalLimit>> {
     if servos.zero.as_ref().is_some_and(|z| z.len() != n) || servos.reversed.as_ref().is_some_and(|r| r.len() != n) {
         bail!("arm {}: the servo zero and reversed lists need one entry per joint ({n})", arm.name);
     }
-    let tpr = servos.model.ticks_per_revolution;
-    let tpr_ticks = i32::try_from(tpr).unwrap_or(i32::MAX);
-    // The speed limit as the firmware holds it (f32), in ticks.
-    let max_ticks_per_s = f64::from(servos.max_velocity as f32) * f64::from(tpr) / std::f64::consts::TAU;
     let mut limits = Vec::with_capacity(n);
     for (j, (joint, &id)) in arm.joints.iter().zip(&servos.ids).enumerate() {
-        let mapping = JointMapping {
-            id,
-            ticks_per_revolution: tpr,
-            zero: servos.zero.as_ref().map_or((tpr / 2) as i32, |z| z[j]),
-            direction: if servos.reversed.as_ref().is_some_and(|r| r[j]) {
-                Direction::Reverse
-            } else {
-                Direction::Forward
-            },
-            min_ticks: 0,
-            max_ticks: tpr_ticks - 1,
-        };
+        let mapping = servos.mapping(j).ok_or_else(|| anyhow::anyhow!("servo {id}: no mapping"))?;
+        let tpr = mapping.ticks_per_revolution;
+        // The speed limit as the firmware holds it (f32), in ticks.
+        let max_ticks_per_s = f64::from(servos.max_velocity as f32) * f64::from(tpr) / std::f64::consts::TAU;
         let (lo, hi) = mapping.joint_range::<f32>();
         let half_tick = std::f32::consts::PI / tpr.max(1) as f32;
         let lower = (joint.lower as f32).max(lo + half_tick);
