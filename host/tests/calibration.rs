@@ -78,9 +78,10 @@ const SO101: &str = r#"{
     "gripper": {"id": 6, "drive_mode": 0, "homing_offset": 1160, "range_min": 2019, "range_max": 3367}
 }"#;
 
-/// `armctl --bus --calibration`: the goals the servos hold after `joints` are LeRobot's ticks for
-/// those angles; a target beyond a calibrated range is refused and moves nothing; a calibration
-/// that lacks a servo of the arm is one line.
+/// `armctl --bus --calibration`: servos that do not hold the calibration are refused when
+/// connecting; once they do, the goals they hold after `joints` are LeRobot's ticks for those
+/// angles; a target beyond a calibrated range is refused and moves nothing; a calibration that
+/// lacks a servo of the arm is one line.
 #[test]
 fn bus_with_a_lerobot_calibration_drives_the_servos_to_lerobots_ticks() {
     let dir = std::env::temp_dir().join(format!("armctl-calibration-{}", std::process::id()));
@@ -95,7 +96,8 @@ fn bus_with_a_lerobot_calibration_drives_the_servos_to_lerobots_ticks() {
     let server = PtyServer::spawn(SimConfig {
         protocol: servos.model.protocol,
         model: servos.model,
-        ids: servos.ids.clone(),
+        // The gripper (6) is on the bus too, as on a real SO-101: the arm does not drive it yet.
+        ids: (1..=6).collect(),
         baud: 1_000_000,
         faults: Faults::default(),
         duplicates: Vec::new(),
@@ -111,6 +113,15 @@ fn bus_with_a_lerobot_calibration_drives_the_servos_to_lerobots_ticks() {
         all.extend_from_slice(args);
         armctl(&all)
     };
+    // Factory-fresh servos do not hold the calibration: refused when connecting, as LeRobot's
+    // is_calibrated would, with the fix; once written, accepted.
+    let (code, _, err) = bus(&["status"]);
+    assert_eq!(code, 1, "{err}");
+    let last = err.lines().last().unwrap();
+    assert!(last.contains("servo 1 (joint 1) does not hold the calibration: its homing offset is 0"), "{err}");
+    assert!(last.contains("armctl servo calibration write"), "{err}");
+    let (code, _, err) = armctl(&["servo", "calibration", "write", "--port", port, "--protocol", "sts", "--file", file]);
+    assert_eq!(code, 0, "{err}");
     let q = [0.3f64, -0.4, 0.5, 0.2, -0.3];
     let joined = q.iter().map(|x| x.to_string()).collect::<Vec<_>>().join(",");
     let (code, out, err) = bus(&["joints", "--q", &joined, "--json"]);

@@ -317,8 +317,13 @@ fn signals_stop_the_served_arm_then_switch_its_torque_off() {
 
 /// A connection to a core on this PC, through the library (to inject faults mid-run).
 fn connect(server: &PtyServer, arm: &str, protocol: Protocol) -> connection::Connection {
-    let options =
-        PcOptions { path: server.path().to_string(), protocol, baud: BAUD, arm: ArmSpec::load(arm, None).unwrap() };
+    let options = PcOptions {
+        path: server.path().to_string(),
+        protocol,
+        baud: BAUD,
+        arm: ArmSpec::load(arm, None).unwrap(),
+        calibration_file: None,
+    };
     let mut log = Vec::new();
     let conn = connection::open(Target::Bus(options), Some(arm), &mut log)
         .unwrap_or_else(|e| panic!("connect: {e:#}\n{}", String::from_utf8_lossy(&log)));

@@ -107,8 +107,13 @@ pub fn run(args: &PcBenchArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resu
         limits: Some(crate::sim::monitor::limits_of(&spec)?),
     })
     .context("cannot open a pseudo-terminal")?;
-    let options =
-        PcOptions { path: server.path().to_string(), protocol: args.protocol.into(), baud: args.baud, arm: spec };
+    let options = PcOptions {
+        path: server.path().to_string(),
+        protocol: args.protocol.into(),
+        baud: args.baud,
+        arm: spec,
+        calibration_file: None,
+    };
     let mut conn = connection::open(Target::Bus(options), None, err)?;
     let pc = conn.pc.as_ref().context("a --bus connection has its core")?;
     let connected = pc.connected().clone();

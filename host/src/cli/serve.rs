@@ -98,7 +98,8 @@ pub fn run(args: ServeArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
         (None, Some(path)) => path.clone(),
         (None, None) => bail!("give --bus PORT or --sim"),
     };
-    let options = PcOptions { path, protocol, baud, arm };
+    let calibration_file = args.calibration.as_ref().map(|f| f.display().to_string());
+    let options = PcOptions { path, protocol, baud, arm, calibration_file };
     let mut pc = Pc::start(&options, false, err)?;
     let shared = pc.shared();
     // The arm is configured now, so that the first client finds it running.

@@ -124,6 +124,7 @@ impl LinkArgs {
                 protocol: protocol.into(),
                 baud: self.baud.unwrap_or(DEFAULT_BAUD),
                 arm: spec,
+                calibration_file: self.calibration.as_ref().map(|f| f.display().to_string()),
             };
             return Ok((Target::Bus(options), Some(arm)));
         }

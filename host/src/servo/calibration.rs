@@ -14,48 +14,11 @@ use std::path::Path;
 
 use anyhow::{bail, Context, Result};
 use firmware::bus::master::Clock;
-use firmware::bus::table::{xseries, Item, Model};
-use firmware::bus::Protocol;
+use firmware::bus::table::Model;
 
 use super::commands::{eeprom_write, finish};
 use super::session::{Port, Session};
-use crate::arm::calibration::{lerobot, Calibration, MotorCalibration};
-
-/// One register of a servo's calibration.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-struct Register {
-    item: Item,
-    /// The calibration field it holds.
-    field: &'static str,
-}
-
-/// The registers that hold a calibration on `model`'s servos.
-fn registers(model: &Model) -> Vec<Register> {
-    let items = model.items;
-    let homing = match model.protocol {
-        Protocol::Dxl2 => xseries::HOMING_OFFSET,
-        Protocol::Feetech => firmware::bus::table::sts3215::HOMING_OFFSET,
-    };
-    let mut r = vec![
-        Register { item: homing, field: "homing offset" },
-        Register { item: items.min_position, field: "range_min" },
-        Register { item: items.max_position, field: "range_max" },
-    ];
-    if model.protocol == Protocol::Dxl2 {
-        r.push(Register { item: xseries::DRIVE_MODE, field: "drive_mode" });
-    }
-    r
-}
-
-/// The file's value of a register.
-fn wanted(m: &MotorCalibration, field: &str) -> i64 {
-    match field {
-        "homing offset" => i64::from(m.homing_offset),
-        "range_min" => i64::from(m.range_min),
-        "range_max" => i64::from(m.range_max),
-        _ => i64::from(m.drive_mode),
-    }
-}
+use crate::arm::calibration::{lerobot, registers, Calibration, Register};
 
 /// A register whose value differs from the file's.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -83,7 +46,7 @@ fn differences<P: Port, C: Clock>(
         let model = servo.known_model()?;
         for register in registers(model) {
             let held = session.read_item(m.id, model, register.item)?;
-            let file = wanted(m, register.field);
+            let file = m.value(&register);
             if held != file {
                 let d = Difference { motor: name.clone(), id: m.id, field: register.field, servo: held, file };
                 found.push((d, register, model));

@@ -12,6 +12,49 @@ pub mod lerobot;
 pub mod normalise;
 
 use anyhow::{bail, Result};
+use firmware::bus::table::{sts3215, xseries, Item, Model};
+use firmware::bus::Protocol;
+
+/// One register of a servo that holds part of its calibration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Register {
+    /// The control-table item.
+    pub item: Item,
+    /// The calibration field it holds, as messages name it.
+    pub field: &'static str,
+}
+
+/// The registers LeRobot reads back as a servo's calibration (`read_calibration`): the homing
+/// offset and the position limits, and on Dynamixel the Drive_Mode register, which it reads into
+/// `drive_mode` (its Feetech bus reports `drive_mode` 0 whatever the servo).
+pub fn registers(model: &Model) -> Vec<Register> {
+    let items = model.items;
+    let homing = match model.protocol {
+        Protocol::Dxl2 => xseries::HOMING_OFFSET,
+        Protocol::Feetech => sts3215::HOMING_OFFSET,
+    };
+    let mut r = vec![
+        Register { item: homing, field: "homing offset" },
+        Register { item: items.min_position, field: "range_min" },
+        Register { item: items.max_position, field: "range_max" },
+    ];
+    if model.protocol == Protocol::Dxl2 {
+        r.push(Register { item: xseries::DRIVE_MODE, field: "drive_mode" });
+    }
+    r
+}
+
+impl MotorCalibration {
+    /// The value the calibration gives `register`.
+    pub fn value(&self, register: &Register) -> i64 {
+        match register.field {
+            "homing offset" => i64::from(self.homing_offset),
+            "range_min" => i64::from(self.range_min),
+            "range_max" => i64::from(self.range_max),
+            _ => i64::from(self.drive_mode),
+        }
+    }
+}
 
 /// One servo's calibration (LeRobot's `MotorCalibration`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]

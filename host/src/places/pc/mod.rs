@@ -8,7 +8,8 @@
 //! Connecting, in order:
 //! 1. open the port (one clear line when it is missing or held by another program);
 //! 2. warn when the adapter's latency timer is above 1 ms ([`latency`]);
-//! 3. find every servo of the arm (none answering means the wrong protocol or baud rate);
+//! 3. find every servo of the arm (none answering means the wrong protocol or baud rate), and with
+//!    a LeRobot calibration, check that the servos hold it;
 //! 4. set the servos up ([`setup`]);
 //! 5. time the bus and choose the control period and reply timeouts ([`timing`]);
 //! 6. start the control loop on its own thread ([`runner`]).
@@ -29,10 +30,11 @@ use std::thread::JoinHandle;
 use anyhow::{anyhow, bail, Context, Result};
 use firmware::app::{Board, Firmware};
 use firmware::bus::master::{BusConfig, Clock, Master, NoDirectionPin};
-use firmware::bus::table::Model;
+use firmware::bus::table::{Item, Model};
 use firmware::bus::Protocol;
 use firmware::controller::Config;
 
+use crate::arm::calibration::registers;
 use crate::arm::servos::{servos_of, ServoSetup};
 use crate::arm::ArmSpec;
 use crate::link::channel::{self, ChannelLink, CoreEnd};
@@ -56,6 +58,8 @@ pub struct PcOptions {
     pub baud: u32,
     /// The arm, with its servos.
     pub arm: ArmSpec,
+    /// The LeRobot calibration file the servos' calibration came from, for messages.
+    pub calibration_file: Option<String>,
 }
 
 /// What connecting found and chose.
@@ -129,6 +133,7 @@ impl Pc {
         let searching = BusConfig { margin_us: SEARCH_MARGIN_US, idle_gap_us: SEARCH_MARGIN_US, ..factory };
         let mut master = Master::new(port, NoDirectionPin, clock, searching);
         find_servos(&mut master, &options.path, &servos)?;
+        check_calibration(&mut master, options, &servos)?;
         let report = setup::set_up(&mut master, servos.model, &servos.ids)?;
         for line in &report.lines {
             writeln!(err, "set-up: {line}")?;
@@ -258,12 +263,55 @@ fn find_servos(
     Ok(())
 }
 
+/// One item of a servo's table.
+fn read_item<C: Clock>(
+    master: &mut Master<SerialTransport, NoDirectionPin, C>,
+    model: &Model,
+    id: u8,
+    item: Item,
+) -> Result<i64> {
+    let mut raw = vec![0u8; item.len()];
+    master.read(id, item.address, &mut raw).map_err(|e| anyhow!("{e}"))?;
+    item.decode(&raw, model.endian).map_err(|e| anyhow!("servo {id}: {}: {e:?}", item.name))
+}
+
 /// The model number from the servo's table (Feetech pings do not carry it).
 fn read_model<C: Clock>(master: &mut Master<SerialTransport, NoDirectionPin, C>, model: &Model, id: u8) -> Option<u16> {
-    let item = model.items.model_number;
-    let mut raw = vec![0u8; item.len()];
-    master.read(id, item.address, &mut raw).ok()?;
-    item.decode(&raw, model.endian).ok().and_then(|n| u16::try_from(n).ok())
+    read_item(master, model, id, model.items.model_number).ok().and_then(|n| u16::try_from(n).ok())
+}
+
+/// Compares the calibration in use with the servos' registers, as LeRobot's `is_calibrated`
+/// does when it connects; nothing is written. A difference is one line naming the servo, with
+/// the fix.
+fn check_calibration(
+    master: &mut Master<SerialTransport, NoDirectionPin, StdClock>,
+    options: &PcOptions,
+    servos: &ServoSetup,
+) -> Result<()> {
+    let Some(calibration) = &servos.calibration else { return Ok(()) };
+    let model = servos.model;
+    let file = options.calibration_file.as_deref().unwrap_or("FILE");
+    let protocol = match model.protocol {
+        Protocol::Feetech => "sts",
+        Protocol::Dxl2 => "dxl2",
+    };
+    for (j, (&id, m)) in servos.ids.iter().zip(calibration).enumerate() {
+        for register in registers(model) {
+            let held = read_item(master, model, id, register.item)?;
+            let want = m.value(&register);
+            if held != want {
+                bail!(
+                    "servo {id} (joint {}) does not hold the calibration: its {} is {held}, {file} says {want}; write \
+                     the file's values (armctl servo calibration write --port {} --protocol {protocol} --file {file}, \
+                     with the servos' torque off) or calibrate again",
+                    j + 1,
+                    register.field,
+                    options.path
+                );
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The firmware for an arm of `joints` joints (configured by the host over the link) with
