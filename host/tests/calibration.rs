@@ -120,7 +120,8 @@ fn bus_with_a_lerobot_calibration_drives_the_servos_to_lerobots_ticks() {
     let last = err.lines().last().unwrap();
     assert!(last.contains("servo 1 (joint 1) does not hold the calibration: its homing offset is 0"), "{err}");
     assert!(last.contains("armctl servo calibration write"), "{err}");
-    let (code, _, err) = armctl(&["servo", "calibration", "write", "--port", port, "--protocol", "sts", "--file", file]);
+    let (code, _, err) =
+        armctl(&["servo", "calibration", "write", "--port", port, "--protocol", "sts", "--file", file]);
     assert_eq!(code, 0, "{err}");
     let q = [0.3f64, -0.4, 0.5, 0.2, -0.3];
     let joined = q.iter().map(|x| x.to_string()).collect::<Vec<_>>().join(",");
