@@ -25,16 +25,70 @@ pub struct ServoSetup {
     /// A LeRobot calibration of each joint's servo, in joint order (`None`: the nominal mapping of
     /// `zero` and `reversed`, which fits factory-fresh servos).
     pub calibration: Option<Vec<MotorCalibration>>,
+    /// The gripper, an actuator outside the kinematic chain on the same bus (`None`: no gripper).
+    pub gripper: Option<GripperSpec>,
+}
+
+/// A gripper: one servo of the arm's model, driven between two tick positions.
+///
+/// Opening is given in percent, 0 closed to 100 open, as LeRobot's `RANGE_0_100` gripper
+/// normalisation: `ticks = closed + pct / 100 * (open - closed)`. A LeRobot calibration gives
+/// `closed = range_min`, `open = range_max` (swapped with `drive_mode` 1).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GripperSpec {
+    /// Bus id.
+    pub id: u8,
+    /// Ticks with the jaws closed (0 %).
+    pub closed: i32,
+    /// Ticks with the jaws open (100 %).
+    pub open: i32,
+    /// The effort used unless a command names another, percent of the servo's maximum torque
+    /// (STS3215 `Torque_Limit`) or current (Dynamixel `Current_Limit`), 1..=100.
+    pub effort: f64,
+    /// The distance between the jaws when open, mm (the simulator's jaws, the demo's table): the
+    /// opening is taken as linear in ticks, 0 mm closed.
+    pub opening_mm: f64,
+}
+
+impl GripperSpec {
+    /// The SO-101's gripper: servo 6 (STS3215). The nominal ticks are the URDF's gripper joint
+    /// limits (`so101_new_calib.urdf`: -10° closed, 100° open) on a factory-fresh servo whose
+    /// middle (2048) is the joint's zero; effort 50 %, LeRobot's Max_Torque_Limit 500 of 1000.
+    /// The opening is the simulator's round figure, not a measurement of the printed jaws.
+    pub const SO101: Self = Self { id: 6, closed: 1934, open: 3186, effort: 50.0, opening_mm: 90.0 };
+    /// The OpenManipulator-X's gripper: servo 15 (XM430-W350) in current-based position mode. The
+    /// nominal ticks are a guess to be calibrated: the servo's middle closed, a quarter turn open.
+    /// The opening is ROBOTIS's published stroke (20 to 75 mm), taken as 0 to 75 mm.
+    pub const OPEN_MANIPULATOR_X: Self = Self { id: 15, closed: 2048, open: 3072, effort: 50.0, opening_mm: 75.0 };
+
+    /// The ticks of an opening of `pct` percent (0 closed, 100 open), truncated toward zero as
+    /// LeRobot's `_unnormalize` does; `pct` is clamped to 0..=100.
+    pub fn ticks(&self, pct: f64) -> i32 {
+        let pct = if pct.is_nan() { 0.0 } else { pct.clamp(0.0, 100.0) };
+        (f64::from(self.closed) + pct / 100.0 * f64::from(self.open - self.closed)) as i32
+    }
+
+    /// The opening of `ticks`, percent (not clamped: a jaw pushed past its range reads beyond).
+    pub fn percent(&self, ticks: i32) -> f64 {
+        f64::from(ticks - self.closed) / f64::from(self.open - self.closed) * 100.0
+    }
+
+    /// Takes a LeRobot calibration of the gripper servo: its range, closed at `range_min` unless
+    /// `drive_mode` is 1.
+    pub fn calibrated(&self, c: &MotorCalibration) -> Self {
+        let (closed, open) = if c.drive_mode == 1 { (c.range_max, c.range_min) } else { (c.range_min, c.range_max) };
+        Self { closed, open, ..*self }
+    }
 }
 
 impl ServoSetup {
     /// The servos of a preset arm as shipped: SO-101 with STS3215 ids 1 to 5, OpenManipulator-X
-    /// with XM430-W350 ids 11 to 14 (ROBOTIS's numbering). Both at 2 rad/s and 8 rad/s², well
+    /// with XM430-W350 ids 11 to 14 (ROBOTIS's numbering), each with its gripper ([`GripperSpec`]). Both at 2 rad/s and 8 rad/s², well
     /// inside what the servos do under load.
     pub fn for_arm(name: &str) -> Option<Self> {
-        let (model, ids): (&'static Model, Vec<u8>) = match name {
-            "so101" => (&STS3215, (1..=5).collect()),
-            "open-manipulator-x" => (&XM430_W350, (11..=14).collect()),
+        let (model, ids, gripper): (&'static Model, Vec<u8>, _) = match name {
+            "so101" => (&STS3215, (1..=5).collect(), GripperSpec::SO101),
+            "open-manipulator-x" => (&XM430_W350, (11..=14).collect(), GripperSpec::OPEN_MANIPULATOR_X),
             _ => return None,
         };
         Some(Self {
@@ -45,6 +99,7 @@ impl ServoSetup {
             max_velocity: 2.0,
             max_acceleration: 8.0,
             calibration: None,
+            gripper: Some(gripper),
         })
     }
 
@@ -82,6 +137,13 @@ impl ServoSetup {
                 })
                 .collect::<anyhow::Result<Vec<_>>>()?;
         self.calibration = Some(entries);
+        // The gripper's entry is optional: LeRobot's files have one, a calibration of the chain
+        // alone (or an older file) leaves the gripper's nominal range.
+        if let Some(g) = self.gripper.as_mut() {
+            if let Some((_, m)) = calibration.by_id(g.id) {
+                *g = g.calibrated(m);
+            }
+        }
         Ok(())
     }
 }

@@ -24,6 +24,13 @@
 //! reversed = [false, true, false] # optional: servos turning against the joint axis
 //! max_velocity = 2.0       # rad/s, every joint
 //! max_acceleration = 8.0   # rad/s², every joint
+//!
+//! [gripper]                # optional, needs [servos]: a gripper servo of the same model
+//! id = 6                   # bus id, not one of the joints'
+//! closed = 1934            # ticks with the jaws closed (0 %)
+//! open = 3186              # ticks with the jaws open (100 %)
+//! effort = 50              # optional: percent of the servo's maximum torque or current (default 50)
+//! opening_mm = 90          # distance between the jaws when open
 //! ```
 //!
 //! With `convention = "dh"` or `"modified-dh"` each `[[joint]]` holds a DH row instead of
@@ -51,6 +58,17 @@ struct ArmFile {
     joints: Vec<Spanned<JointEntry>>,
     tool: Option<Spanned<ToolEntry>>,
     servos: Option<Spanned<ServosEntry>>,
+    gripper: Option<Spanned<GripperEntry>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GripperEntry {
+    id: u8,
+    closed: i32,
+    open: i32,
+    effort: Option<f64>,
+    opening_mm: f64,
 }
 
 #[derive(Deserialize)]
@@ -229,7 +247,46 @@ pub fn parse(text: &str) -> Result<ArmSpec> {
             Some(servos(&format!("{}: [servos]", position(text, entry.span().start)), entry.get_ref(), joints.len())?)
         }
     };
+    let servos = match (&file.gripper, servos) {
+        (None, servos) => servos,
+        (Some(entry), None) => bail!("{}: [gripper] needs a [servos] table", position(text, entry.span().start)),
+        (Some(entry), Some(mut servos)) => {
+            let at = format!("{}: [gripper]", position(text, entry.span().start));
+            servos.gripper = Some(gripper(&at, entry.get_ref(), &servos)?);
+            Some(servos)
+        }
+    };
     Ok(ArmSpec { name: file.name, joints, tool, servos })
+}
+
+/// The `[gripper]` table, checked against the servos.
+fn gripper(at: &str, entry: &GripperEntry, servos: &super::servos::ServoSetup) -> Result<super::servos::GripperSpec> {
+    if entry.id > 252 || servos.ids.contains(&entry.id) {
+        bail!("{at}: gripper id {} is above 252 or a joint's servo", entry.id);
+    }
+    let top = i64::from(servos.model.ticks_per_revolution) - 1;
+    for (key, v) in [("closed", entry.closed), ("open", entry.open)] {
+        if !(0..=top).contains(&i64::from(v)) {
+            bail!("{at}: {key} = {v} is outside the servo's 0..={top} ticks");
+        }
+    }
+    if entry.closed == entry.open {
+        bail!("{at}: closed and open are both {} ticks: the range has zero width", entry.open);
+    }
+    let effort = entry.effort.unwrap_or(50.0);
+    if !(effort.is_finite() && effort > 0.0 && effort <= 100.0) {
+        bail!("{at}: effort must be a percent in (0, 100], not {effort}");
+    }
+    if !(entry.opening_mm.is_finite() && entry.opening_mm > 0.0) {
+        bail!("{at}: opening_mm must be a positive number, not {}", entry.opening_mm);
+    }
+    Ok(super::servos::GripperSpec {
+        id: entry.id,
+        closed: entry.closed,
+        open: entry.open,
+        effort,
+        opening_mm: entry.opening_mm,
+    })
 }
 
 /// The `[servos]` table, checked against the joint count.
@@ -268,6 +325,7 @@ fn servos(at: &str, entry: &ServosEntry, joints: usize) -> Result<super::servos:
         max_velocity: entry.max_velocity,
         max_acceleration: entry.max_acceleration,
         calibration: None,
+        gripper: None,
     })
 }
 
@@ -504,6 +562,25 @@ mod tests {
         let spec = parse(text).unwrap();
         let e = spec.chain::<f64, 1>().unwrap_err().to_string();
         assert!(e.contains("zero") && e.contains("wrist"), "{e}");
+    }
+
+    #[test]
+    fn a_gripper_is_read_and_checked() {
+        let arm = "name = \"g\"\n[[joint]]\ntype = \"revolute\"\naxis = [0, 0, 1]\nlimits = [-1, 1]\n";
+        let servos = "[servos]\nmodel = \"sts3215\"\nids = [1]\nmax_velocity = 2\nmax_acceleration = 8\n";
+        let ok = format!("{arm}{servos}[gripper]\nid = 6\nclosed = 2000\nopen = 3000\nopening_mm = 80\n");
+        let g = parse(&ok).unwrap().servos.unwrap().gripper.unwrap();
+        assert_eq!((g.id, g.closed, g.open, g.effort, g.opening_mm), (6, 2000, 3000, 50.0, 80.0));
+        assert_eq!(g.ticks(50.0), 2500);
+        let bad = |gripper: &str| error(&format!("{arm}{servos}[gripper]\n{gripper}"));
+        assert!(bad("id = 1\nclosed = 2000\nopen = 3000\nopening_mm = 80").contains("a joint's servo"));
+        assert!(bad("id = 6\nclosed = 2000\nopen = 2000\nopening_mm = 80").contains("zero width"));
+        assert!(bad("id = 6\nclosed = 2000\nopen = 5000\nopening_mm = 80").contains("outside the servo"));
+        assert!(bad("id = 6\nclosed = 2000\nopen = 3000\neffort = 150\nopening_mm = 80").contains("effort"));
+        assert!(bad("id = 6\nclosed = 2000\nopen = 3000\nopening_mm = nan").contains("opening_mm"));
+        assert!(error(&format!("{arm}[gripper]\nid = 6\nclosed = 1\nopen = 2\nopening_mm = 1"))
+            .contains("needs a [servos]"));
+        assert!(bad("id = 6\nclosed = 2000\nopen = 3000\nopening_mm = 80\nspeed = 1").contains("speed"));
     }
 
     #[test]

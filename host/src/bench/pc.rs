@@ -55,6 +55,7 @@ fn arm(args: &PcBenchArgs) -> Result<ArmSpec> {
         max_velocity: 2.0,
         max_acceleration: 8.0,
         calibration: None,
+        gripper: None,
     });
     Ok(spec)
 }
