@@ -108,7 +108,7 @@ fn the_real_firmware_reaches_targets_and_follows_a_streamed_trajectory() {
             let t = k as f32 * 0.1;
             let positions = (0..5)
                 .map(|j| 0.3 * (std::f32::consts::TAU * t / 3.0 + j as f32 * 0.5).sin() - 0.3 * (j as f32 * 0.5).sin());
-            JointKeyframe { time: t, positions: positions.collect(), velocities: None }
+            JointKeyframe { time: t, positions: positions.collect(), velocities: None, gripper: None }
         })
         .collect();
     let before = c.status().unwrap();

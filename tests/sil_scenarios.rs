@@ -117,7 +117,7 @@ fn wave(n: usize, joints: usize) -> Vec<JointKeyframe> {
             let positions = (0..joints)
                 .map(|j| 0.4 * (std::f32::consts::TAU * t / 4.0 + j as f32 * 0.5).sin() - 0.4 * (j as f32 * 0.5).sin())
                 .collect();
-            JointKeyframe { time: t, positions, velocities: None }
+            JointKeyframe { time: t, positions, velocities: None, gripper: None }
         })
         .collect()
 }
@@ -324,7 +324,11 @@ fn open_manipulator_x_on_dynamixel_reaches_cartesian_targets_and_keyframes() {
     // Cartesian keyframes: IK on the firmware, then played like joint keyframes.
     let points = [[0.2f32, 0.05, 0.1], [0.2, 0.05, 0.05], [0.2, -0.05, 0.05], [0.2, -0.05, 0.1]];
     for (i, p) in points.iter().enumerate() {
-        let k = CartesianKeyframe { time: 1.0 + i as f32, target: CartesianTarget { position: *p, orientation: None } };
+        let k = CartesianKeyframe {
+            time: 1.0 + i as f32,
+            target: CartesianTarget { position: *p, orientation: None },
+            gripper: None,
+        };
         c.push(&HostMessage::PushCartesianKeyframe(k)).unwrap();
     }
     c.request(&HostMessage::Start).unwrap();
@@ -361,7 +365,12 @@ fn keyframes_faster_than_the_limits_are_followed_with_lag_and_idle_means_at_rest
     let mut c = client(&options);
     torque_on(&mut c);
     // 1 rad in 0.2 s asks for 5 rad/s or more; the limit is 2 rad/s.
-    let k = JointKeyframe { time: 0.2, positions: [1.0, 0.0, 0.0, 0.0, 0.0].into_iter().collect(), velocities: None };
+    let k = JointKeyframe {
+        time: 0.2,
+        positions: [1.0, 0.0, 0.0, 0.0, 0.0].into_iter().collect(),
+        velocities: None,
+        gripper: None,
+    };
     c.push(&HostMessage::PushKeyframe(k)).unwrap();
     c.request(&HostMessage::Start).unwrap();
     let s = wait_idle(&mut c, 5.0);

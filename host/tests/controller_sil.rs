@@ -196,7 +196,7 @@ fn a_keyframe_trajectory_is_followed_closely_and_pause_resumes() {
     let at = |t: f32| SVector::<f32, J>::from_fn(|j, _| 0.4 * (1.3 * t + j as f32).sin() - 0.4 * (j as f32).sin());
     for k in 1..=12 {
         let t = k as f32 * 0.25;
-        r.command(Command::PushKeyframe(PlayerKeyframe::new(t, at(t)))).unwrap();
+        r.command(Command::PushKeyframe { keyframe: PlayerKeyframe::new(t, at(t)), gripper: None }).unwrap();
     }
     assert_eq!(r.ctl.queued(), 12);
     r.command(Command::Start).unwrap();
@@ -224,7 +224,7 @@ fn a_keyframe_trajectory_is_followed_closely_and_pause_resumes() {
     // Pause mid-trajectory: the playback slows to a stop on the path, then resumes to the end.
     for k in 1..=8 {
         let t = k as f32 * 0.25;
-        r.command(Command::PushKeyframe(PlayerKeyframe::new(t, at(3.0 - t)))).unwrap();
+        r.command(Command::PushKeyframe { keyframe: PlayerKeyframe::new(t, at(3.0 - t)), gripper: None }).unwrap();
     }
     r.command(Command::Start).unwrap();
     r.run(50);
@@ -337,7 +337,7 @@ fn nan_out_of_range_and_unreachable_commands_are_refused_and_change_nothing() {
         Command::MoveTool { position: [0.2, 0.0, 0.1], orientation: Some([0.0; 4]), pace: Pace::Speed(0.1) };
     assert_eq!(r.command(zero_quaternion), Err(Refusal::BadParameter));
     let bad_key = PlayerKeyframe::new(1.0, SVector::from(nan));
-    assert_eq!(r.command(Command::PushKeyframe(bad_key)), Err(Refusal::NotFinite));
+    assert_eq!(r.command(Command::PushKeyframe { keyframe: bad_key, gripper: None }), Err(Refusal::NotFinite));
     assert_eq!(r.command(Command::Pause), Err(Refusal::WrongMode));
     assert_eq!(r.command(Command::Start), Err(Refusal::WrongMode));
     assert_eq!(r.ctl.counters().refusals, 10);

@@ -98,6 +98,7 @@ impl Toy {
             timing: LoopTiming { mean_us: 0, max_us: 0, overruns: 0 },
             errors: ErrorCounters::default(),
             lost_servos: 0,
+            gripper: None,
         }
     }
 
@@ -238,7 +239,7 @@ fn keyframes_cross_a_lossy_line_exactly_once_in_order() {
     let times: Vec<f32> = (0..KEYFRAMES).map(|i| i as f32 * 0.01).collect();
     for (i, &time) in times.iter().enumerate() {
         let positions = (0..6).map(|j| (i * 6 + j) as f32 * 1e-3).collect();
-        let push = HostMessage::PushKeyframe(JointKeyframe { time, positions, velocities: None });
+        let push = HostMessage::PushKeyframe(JointKeyframe { time, positions, velocities: None, gripper: None });
         client.push(&push).unwrap_or_else(|e| panic!("keyframe {i}: {e}"));
     }
     // Play out what is queued.

@@ -10,7 +10,7 @@ use kinematics::{Chain, Joint, JointKind, Limits, Pose};
 use super::Board;
 use crate::bus::mapping::{Direction, JointMapping};
 use crate::bus::table::Model;
-use crate::controller::{joint_limits, ConfigError, Controller};
+use crate::controller::{joint_limits, ConfigError, Controller, GripperConfig};
 use crate::link::message::{Field, JointConfig, JointType, NakReason, Problem, ValueError, MAX_NAME};
 
 /// Everything the controller needs about an arm.
@@ -26,6 +26,8 @@ pub struct ArmSetup<const N: usize> {
     pub model: &'static Model,
     /// Position (already within each servo's range), velocity and acceleration limits.
     pub limits: JointLimits<f32, N>,
+    /// The gripper, if the arm has one.
+    pub gripper: Option<GripperConfig>,
 }
 
 impl<const N: usize> ArmSetup<N> {
@@ -45,12 +47,16 @@ impl<const N: usize> ArmSetup<N> {
                 break;
             }
         }
-        Ok(Self { name: owned, chain, mappings, model, limits })
+        Ok(Self { name: owned, chain, mappings, model, limits, gripper: None })
     }
 
     /// A controller for this arm on `board`.
     pub(super) fn controller<const Q: usize>(&self, board: &Board) -> Result<Controller<N, Q>, ConfigError> {
-        Controller::new(self.chain, self.mappings, self.model, self.limits, board.control)
+        let controller = Controller::new(self.chain, self.mappings, self.model, self.limits, board.control)?;
+        match self.gripper {
+            Some(g) => controller.with_gripper(g),
+            None => Ok(controller),
+        }
     }
 }
 
@@ -61,6 +67,7 @@ pub struct Staging<const N: usize> {
     joints: [JointConfig; N],
     /// Joints received (bit per joint); the others hold [`EMPTY`].
     received: u32,
+    gripper: Option<GripperConfig>,
 }
 
 /// The arm-wide part of an arm being received.
@@ -106,7 +113,7 @@ fn bad(field: Field, problem: Problem) -> NakReason {
 impl<const N: usize> Staging<N> {
     /// Nothing received.
     pub const fn new() -> Self {
-        Self { begun: None, joints: [EMPTY; N], received: 0 }
+        Self { begun: None, joints: [EMPTY; N], received: 0, gripper: None }
     }
 
     /// Starts an arm of `joints` joints (which must be this firmware's `N`), dropping any arm
@@ -128,6 +135,21 @@ impl<const N: usize> Staging<N> {
         let slot = self.joints.get_mut(usize::from(index)).ok_or(bad(Field::JointIndex, Problem::OutOfRange))?;
         *slot = *joint;
         self.received |= 1 << index;
+        Ok(())
+    }
+
+    /// Stores the gripper.
+    pub fn gripper(&mut self, gripper: &crate::link::message::GripperConfig) -> Result<(), NakReason> {
+        if self.begun.is_none() {
+            return Err(NakReason::NotReady);
+        }
+        self.gripper = Some(GripperConfig {
+            id: gripper.id,
+            closed: gripper.closed,
+            open: gripper.open,
+            effort: gripper.effort,
+            speed: gripper.speed,
+        });
         Ok(())
     }
 
@@ -170,8 +192,17 @@ impl<const N: usize> Staging<N> {
         });
         let velocity = SVector::from(configs.map(|c| c.max_velocity));
         let acceleration = SVector::from(configs.map(|c| c.max_acceleration));
-        let setup = ArmSetup::new(&begun.name, chain, mappings, model, velocity, acceleration)
+        let mut setup = ArmSetup::new(&begun.name, chain, mappings, model, velocity, acceleration)
             .map_err(|_| bad(Field::Limits, Problem::OutOfRange))?;
+        if let Some(g) = self.gripper {
+            // Within the servo's range, and not one of the joints' servos.
+            let top = i64::from(model.ticks_per_revolution) - 1;
+            let inside = |t: i32| (0..=top).contains(&i64::from(t));
+            if !g.valid() || !inside(g.closed) || !inside(g.open) || configs.iter().any(|c| c.servo.id == g.id) {
+                return Err(bad(Field::Gripper, Problem::OutOfRange));
+            }
+            setup.gripper = Some(g);
+        }
         *self = Self::new();
         Ok(setup)
     }

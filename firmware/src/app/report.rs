@@ -5,7 +5,7 @@ use heapless::Vec;
 use super::Core;
 use crate::controller::Mode;
 use crate::link::frame::FrameStats;
-use crate::link::message::{ErrorCounters, IkStatus, Joints, LoopTiming, RunState, Status};
+use crate::link::message::{ErrorCounters, GripperStatus, IkStatus, Joints, LoopTiming, RunState, Status};
 use crate::link::session::SessionStats;
 
 /// Loop time statistics between status reports.
@@ -83,6 +83,7 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
                 timing: LoopTiming { mean_us, max_us, overruns: 0 },
                 errors,
                 lost_servos: 0,
+                gripper: None,
             };
         };
         let c = &running.controller;
@@ -124,6 +125,12 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
             timing: LoopTiming { mean_us, max_us, overruns: counters.deadline_misses },
             errors,
             lost_servos,
+            gripper: c.gripper().map(|g| GripperStatus {
+                opening: g.opening,
+                goal: g.goal,
+                load: g.load,
+                holding: g.holding,
+            }),
         }
     }
 }

@@ -50,6 +50,7 @@ fn nak(refusal: Refusal) -> NakReason {
         Refusal::NoPosition | Refusal::WrongMode => NakReason::NotReady,
         Refusal::QueueFull => NakReason::QueueFull,
         Refusal::TimeNotIncreasing => NakReason::KeyframeTime,
+        Refusal::NoGripper => NakReason::NoGripper,
     }
 }
 
@@ -166,6 +167,10 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
                 self.staging.joint(*index, joint)?;
                 return Ok(self.ack());
             }
+            HostMessage::ConfigureGripper(g) => {
+                self.staging.gripper(g)?;
+                return Ok(self.ack());
+            }
             HostMessage::ConfigureCommit => return self.commit_arm(),
             HostMessage::UseBuiltinArm => return self.use_builtin_arm(),
             _ => {}
@@ -199,13 +204,18 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
                     Some(v) => Some(vector(v, Field::Velocities)?),
                     None => None,
                 };
-                Command::PushKeyframe(PlayerKeyframe { time: k.time, position, velocity })
+                Command::PushKeyframe {
+                    keyframe: PlayerKeyframe { time: k.time, position, velocity },
+                    gripper: k.gripper,
+                }
             }
             HostMessage::PushCartesianKeyframe(k) => Command::PushToolKeyframe {
                 time: k.time,
                 position: k.target.position,
                 orientation: k.target.orientation,
+                gripper: k.gripper,
             },
+            HostMessage::Gripper { opening, effort } => Command::Gripper { opening: *opening, effort: *effort },
             HostMessage::Start => Command::Start,
             HostMessage::Pause => Command::Pause,
             HostMessage::Stop => Command::Stop,
@@ -217,6 +227,7 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
             | HostMessage::SetTelemetry { .. }
             | HostMessage::ConfigureBegin { .. }
             | HostMessage::ConfigureJoint { .. }
+            | HostMessage::ConfigureGripper(_)
             | HostMessage::ConfigureCommit
             | HostMessage::UseBuiltinArm => return Err(NakReason::UnknownMessage),
         };

@@ -45,7 +45,13 @@ pub enum Command<const N: usize> {
     },
     /// Queue a keyframe. Its time is seconds on the playback clock, which starts at 0 when a
     /// trajectory starts from rest ([`Command::Start`]); while playing, keyframes append.
-    PushKeyframe(PlayerKeyframe<f32, N>),
+    PushKeyframe {
+        /// The joints' keyframe.
+        keyframe: PlayerKeyframe<f32, N>,
+        /// The gripper's opening at the keyframe, percent (0 closed to 100 open); `None` leaves
+        /// the gripper as the keyframes before put it.
+        gripper: Option<f32>,
+    },
     /// Queue a keyframe given as a tool pose: IK (with restarts, seeded by the previous keyframe
     /// so the arm keeps its posture) turns it into a joint keyframe with player-chosen velocity.
     PushToolKeyframe {
@@ -55,6 +61,16 @@ pub enum Command<const N: usize> {
         position: [f32; 3],
         /// Tool orientation, w first; `None` leaves it free.
         orientation: Option<[f32; 4]>,
+        /// The gripper's opening, as for [`Command::PushKeyframe`].
+        gripper: Option<f32>,
+    },
+    /// Drive the gripper to an opening (percent, 0 closed to 100 open) at its speed, and set its
+    /// effort limit (percent of the servo's full torque or current, (0, 100]) if given.
+    Gripper {
+        /// Opening, percent.
+        opening: f32,
+        /// Effort limit, percent.
+        effort: Option<f32>,
     },
     /// Start the queued trajectory, or resume a paused one.
     Start,
@@ -100,6 +116,8 @@ pub enum Refusal {
     TimeNotIncreasing,
     /// Nothing to start, or nothing playing to pause.
     WrongMode,
+    /// The arm has no gripper.
+    NoGripper,
 }
 
 impl core::fmt::Display for Refusal {
@@ -115,6 +133,7 @@ impl core::fmt::Display for Refusal {
             Self::QueueFull => write!(f, "keyframe queue full"),
             Self::TimeNotIncreasing => write!(f, "keyframe time not later than the previous one"),
             Self::WrongMode => write!(f, "not possible in this mode"),
+            Self::NoGripper => write!(f, "the arm has no gripper"),
         }
     }
 }
@@ -157,10 +176,15 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
                 self.setpoint.velocity = SVector::zeros();
                 self.pending_torque = Some(true);
                 self.enter_hold();
+                if let Some(g) = self.gripper.as_mut() {
+                    g.adopt();
+                    g.rewrite_effort();
+                }
                 Ok(())
             }
             Command::TorqueOff => {
                 self.pending_torque = Some(false);
+                self.stop_gripper();
                 if self.mode != Mode::EStopped {
                     self.mode = Mode::Idle;
                 }
@@ -177,6 +201,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
                 self.setpoint.velocity = SVector::zeros();
                 self.hold = self.setpoint.position;
                 self.reset_player();
+                self.stop_gripper();
                 if torque_off {
                     self.pending_torque = Some(false);
                 }
@@ -184,9 +209,18 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             }
             Command::MoveJoints { q, duration } => self.move_joints(SVector::from(q), duration),
             Command::MoveTool { position, orientation, pace } => self.move_tool(position, orientation, pace),
-            Command::PushKeyframe(keyframe) => self.push_keyframe(keyframe),
-            Command::PushToolKeyframe { time, position, orientation } => {
-                self.push_tool_keyframe(time, position, orientation)
+            Command::PushKeyframe { keyframe, gripper } => self.push_keyframe(keyframe, gripper),
+            Command::PushToolKeyframe { time, position, orientation, gripper } => {
+                self.push_tool_keyframe(time, position, orientation, gripper)
+            }
+            Command::Gripper { opening, effort } => {
+                let gripper = self.gripper.as_ref().ok_or(Refusal::NoGripper)?;
+                // Values first, so a bad one is reported as such whatever the state.
+                let mut checked = gripper.clone();
+                checked.command(opening, effort)?;
+                self.ready()?;
+                self.gripper = Some(checked);
+                Ok(())
             }
             Command::Start => {
                 self.ready()?;
@@ -282,8 +316,14 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         Ok(())
     }
 
-    fn push_keyframe(&mut self, keyframe: PlayerKeyframe<f32, N>) -> Result<(), Refusal> {
+    fn push_keyframe(&mut self, keyframe: PlayerKeyframe<f32, N>, gripper: Option<f32>) -> Result<(), Refusal> {
         self.check_joints(&keyframe.position)?;
+        if let Some(pct) = gripper {
+            super::gripper::check_percent(pct)?;
+            if !self.gripper.as_ref().ok_or(Refusal::NoGripper)?.has_room() {
+                return Err(Refusal::QueueFull);
+            }
+        }
         let velocity_ok = keyframe.velocity.as_ref().is_none_or(|v| v.iter().all(|x| x.is_finite()));
         if !keyframe.time.is_finite() || !velocity_ok {
             return Err(Refusal::NotFinite);
@@ -296,7 +336,8 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         if self.mode == Mode::EStopped {
             return Err(Refusal::EStopped);
         }
-        if self.mode != Mode::Playing && !self.play.queued_fresh {
+        let fresh = self.mode != Mode::Playing && !self.play.queued_fresh;
+        if fresh {
             // The first keyframe of a new trajectory: it starts from the setpoint, at rest. The
             // keyframe was checked above, so a fresh player accepts it.
             self.reset_player();
@@ -304,6 +345,12 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         }
         self.player.push(keyframe).map_err(refusal)?;
         self.queue_tail = keyframe.position;
+        if let (Some(pct), Some(g)) = (gripper, self.gripper.as_mut()) {
+            // The gripper's track starts where the gripper is: at time 0 for a new trajectory,
+            // at the playback time when keyframes append to a playing one.
+            let anchor = if fresh || g.track_empty() { Some(if fresh { 0.0 } else { self.play.time }) } else { None };
+            g.push(keyframe.time, pct, anchor);
+        }
         self.counters.keyframes = self.counters.keyframes.wrapping_add(1);
         Ok(())
     }
@@ -366,8 +413,13 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         time: f32,
         position: [f32; 3],
         orientation: Option<[f32; 4]>,
+        gripper: Option<f32>,
     ) -> Result<(), Refusal> {
         let target = Self::tool_target(position, orientation)?;
+        if let Some(pct) = gripper {
+            super::gripper::check_percent(pct)?;
+            self.gripper.as_ref().ok_or(Refusal::NoGripper)?;
+        }
         if !time.is_finite() {
             return Err(Refusal::NotFinite);
         }
@@ -377,7 +429,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         let fresh = self.mode != Mode::Playing && !self.play.queued_fresh;
         let seed = if fresh { self.setpoint.position } else { self.queue_tail };
         let q = self.solve_reachable(target, seed)?;
-        self.push_keyframe(PlayerKeyframe { time, position: q, velocity: None })
+        self.push_keyframe(PlayerKeyframe { time, position: q, velocity: None }, gripper)
     }
 }
 

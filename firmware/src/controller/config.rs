@@ -50,6 +50,9 @@ pub enum ConfigError {
     },
     /// More joints than a bus group can address.
     TooManyJoints,
+    /// The gripper's positions coincide, its effort or speed is out of range, or its id is a
+    /// joint's.
+    BadGripper,
 }
 
 impl core::fmt::Display for ConfigError {
@@ -58,6 +61,7 @@ impl core::fmt::Display for ConfigError {
             Self::PeriodTooShort { minimum_us } => write!(f, "tick period below the bus cycle of {minimum_us} µs"),
             Self::BadLimits { joint } => write!(f, "joint {joint}: unusable limits"),
             Self::TooManyJoints => write!(f, "more joints than one sync read can address"),
+            Self::BadGripper => write!(f, "unusable gripper (positions, effort, speed or id)"),
         }
     }
 }

@@ -21,12 +21,14 @@
 
 mod command;
 mod config;
+pub mod gripper;
 mod health;
 pub mod limiter;
 mod tick;
 
 pub use command::{Command, Pace, Refusal};
 pub use config::{joint_limits, minimum_period_us, Config, ConfigError};
+pub use gripper::{GripperConfig, GripperState};
 pub use health::{Counters, Fault, ServoHealth, TickReport};
 
 use kinematics::ik::Target;
@@ -139,6 +141,8 @@ pub struct Controller<const N: usize, const Q: usize> {
     /// Joint values of the last keyframe queued (the setpoint when none is): the seed of the next
     /// Cartesian keyframe's IK.
     queue_tail: SVector<f32, N>,
+    /// The gripper, if the arm has one.
+    gripper: Option<gripper::Gripper<Q>>,
 }
 
 impl<const N: usize, const Q: usize> Controller<N, Q> {
@@ -193,7 +197,22 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             health: [ServoHealth::default(); N],
             last_ik: None,
             queue_tail: start,
+            gripper: None,
         })
+    }
+
+    /// The same controller with a gripper (a servo of the joints' model, not one of theirs).
+    pub fn with_gripper(mut self, config: GripperConfig) -> Result<Self, ConfigError> {
+        if !config.valid() || self.mappings.iter().any(|m| m.id == config.id) || N + 1 > MAX_GROUP {
+            return Err(ConfigError::BadGripper);
+        }
+        self.gripper = Some(gripper::Gripper::new(config));
+        Ok(self)
+    }
+
+    /// The gripper's state, if the arm has one.
+    pub fn gripper(&self) -> Option<GripperState> {
+        self.gripper.as_ref().map(|g| g.state())
     }
 
     /// The mode.
@@ -287,9 +306,10 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         &self.mappings
     }
 
+    /// Every servo's position read at least once, the gripper's too.
     fn all_seen(&self) -> bool {
         let all = if N >= 32 { u32::MAX } else { (1u32 << N) - 1 };
-        self.seen & all == all
+        self.seen & all == all && self.gripper.as_ref().is_none_or(|g| g.seen())
     }
 
     /// A fresh player at rest at the setpoint, with an empty queue.
@@ -299,6 +319,16 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         }
         self.play = PlayClock { time: 0.0, rate: 0.0, paused: false, queued_fresh: false };
         self.queue_tail = self.setpoint.position;
+        if let Some(g) = self.gripper.as_mut() {
+            g.clear_track();
+        }
+    }
+
+    /// Freezes the gripper where it is (a stop of any kind).
+    fn stop_gripper(&mut self) {
+        if let Some(g) = self.gripper.as_mut() {
+            g.stop();
+        }
     }
 
     /// Holds the current setpoint from now on.
@@ -316,5 +346,6 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         self.brake = if t > 0.0 && t.is_finite() { self.setpoint.velocity / t } else { SVector::zeros() };
         self.mode = Mode::Stopping;
         self.tool = None;
+        self.stop_gripper();
     }
 }

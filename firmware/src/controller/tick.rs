@@ -12,6 +12,9 @@ use super::limiter::{limit_step, Setpoint};
 use super::{Controller, Mode};
 use crate::bus::master::{Clock, Master};
 
+/// Ticks between two reads of the gripper's load.
+pub const LOAD_EVERY: u32 = 4;
+
 impl<const N: usize, const Q: usize> Controller<N, Q> {
     /// Runs one control tick at `now_us` (the caller's clock, the same as the master's): sync read
     /// of present positions, setpoint of the mode, limits, sync write of goals.
@@ -33,6 +36,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         let mut report = TickReport::new(self.mode);
 
         self.read_positions(master, &mut report);
+        self.read_gripper_load(master);
         if !self.torque_known && self.pending_torque.is_none() && self.all_seen() {
             self.adopt_torque(master);
         }
@@ -46,6 +50,11 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             let (desired, velocity) = self.desired(dt, &mut report);
             self.setpoint = limit_step(&self.setpoint, &desired, &velocity, &self.limits, dt);
             self.after_step();
+            let playing = (self.mode == Mode::Playing).then_some(self.play.time);
+            if let Some(g) = self.gripper.as_mut() {
+                g.step(dt, playing);
+            }
+            self.write_gripper_effort(master);
             report.wrote_goals = self.write_goals(master);
         } else {
             // Limp: the setpoint follows the arm, so torque on holds it where it is.
@@ -73,9 +82,18 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         C: Clock,
     {
         let item = self.group.model.items.present_position;
-        let result = self.group.read_all(master, item, &mut self.present_ticks);
+        let mut gripper_ticks = 0;
+        let extra = self.gripper.as_ref().map(|g| (g.config().id, &mut gripper_ticks));
+        let result = self.group.read_with(master, item, &mut self.present_ticks, extra);
         if result.is_err() {
             self.counters.bus_errors = self.counters.bus_errors.saturating_add(1);
+        }
+        if let Some(g) = self.gripper.as_mut() {
+            if result.as_ref().is_ok_and(|r| r.answered & (1 << N) != 0) {
+                g.observe(gripper_ticks);
+            } else {
+                self.counters.missing_replies = self.counters.missing_replies.saturating_add(1);
+            }
         }
         for j in 0..N {
             let bit = 1u32 << j;
@@ -115,6 +133,51 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         }
     }
 
+    /// Reads the gripper's load every [`LOAD_EVERY`] ticks, in a read of its own: the joints' sync
+    /// read stays as short as it was, and a grasp builds up over many ticks anyway.
+    fn read_gripper_load<P, D, C, const BUF: usize>(&mut self, master: &mut Master<P, D, C, BUF>)
+    where
+        P: Read + Write + ReadReady,
+        D: OutputPin,
+        C: Clock,
+    {
+        let (Some(g), Some(force)) = (self.gripper.as_mut(), self.group.model.force) else { return };
+        if self.counters.ticks % LOAD_EVERY != 0 {
+            return;
+        }
+        let mut raw = [0u8; 4];
+        let raw = raw.get_mut(..force.present.len()).unwrap_or_default();
+        match master.read(g.config().id, force.present.address, raw) {
+            Ok(_) => {
+                if let Ok(v) = force.present.decode(raw, self.group.model.endian) {
+                    g.observe_load(v as f32 / f32::from(force.present_full.max(1)) * 100.0);
+                }
+            }
+            Err(_) => self.counters.missing_replies = self.counters.missing_replies.saturating_add(1),
+        }
+    }
+
+    /// Writes the gripper's effort limit when it changed (or torque came on).
+    fn write_gripper_effort<P, D, C, const BUF: usize>(&mut self, master: &mut Master<P, D, C, BUF>)
+    where
+        P: Read + Write + ReadReady,
+        D: OutputPin,
+        C: Clock,
+    {
+        let (Some(g), Some(force)) = (self.gripper.as_mut(), self.group.model.force) else { return };
+        let Some(effort) = g.take_effort() else { return };
+        let value = i64::from((effort / 100.0 * f32::from(force.limit_full)) as u16);
+        let mut raw = [0u8; 4];
+        let len = force.limit.len();
+        if force.limit.encode(value, self.group.model.endian, &mut raw).is_ok()
+            && master.write(g.config().id, force.limit.address, raw.get(..len).unwrap_or_default()).is_ok()
+        {
+            g.effort_written();
+        } else {
+            self.counters.bus_errors = self.counters.bus_errors.saturating_add(1);
+        }
+    }
+
     /// Reads every servo's torque item once, at start: servos left torqued (by a run before a
     /// reset, or by the previous command of a PC-hosted core) are held where they are, so the
     /// controller neither reports a torqued arm as limp nor makes it jump. If only some are
@@ -134,7 +197,11 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
                 }
                 self.setpoint = Setpoint { position: self.clamped(&self.measured), velocity: SVector::zeros() };
                 self.enter_hold();
-                if on.iter().all(|&v| v != 0) {
+                if let Some(g) = self.gripper.as_mut() {
+                    g.adopt();
+                }
+                // The gripper's torque was not read: written with the joints' to be sure.
+                if on.iter().all(|&v| v != 0) && self.gripper.is_none() {
                     self.torque = true;
                 } else {
                     self.pending_torque = Some(true);
@@ -158,7 +225,8 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             return false;
         }
         let item = self.group.model.items.torque_enable;
-        let ok = self.group.write_all(master, item, &[i32::from(on); N]).is_ok();
+        let gripper = self.gripper.as_ref().map(|g| (g.config().id, i32::from(on)));
+        let ok = self.group.write_with(master, item, &[i32::from(on); N], gripper).is_ok();
         if ok {
             self.torque = on;
             self.torque_known = true;
@@ -184,7 +252,9 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             }
         }
         let item = self.group.model.items.goal_position;
-        let ok = self.group.write_all(master, item, &self.goal_ticks).is_ok();
+        // The gripper's goal goes in the same sync write, once its position is known.
+        let gripper = self.gripper.as_ref().filter(|g| g.seen()).map(|g| (g.config().id, g.goal_ticks()));
+        let ok = self.group.write_with(master, item, &self.goal_ticks, gripper).is_ok();
         if !ok {
             self.counters.bus_errors = self.counters.bus_errors.saturating_add(1);
         }

@@ -17,7 +17,7 @@ use heapless::{String, Vec};
 use serde::{Deserialize, Serialize};
 
 /// The protocol version carried by the handshake; bumped on any change to the wire format.
-pub const PROTOCOL_VERSION: u16 = 2;
+pub const PROTOCOL_VERSION: u16 = 3;
 /// The most joints a message carries.
 pub const MAX_JOINTS: usize = 8;
 /// The longest arm name, in bytes of UTF-8.
@@ -69,6 +69,8 @@ pub struct JointKeyframe {
     pub positions: Joints,
     /// Joint velocities at the keyframe; `None` lets the player choose them.
     pub velocities: Option<Joints>,
+    /// The gripper's opening at the keyframe, percent (0 closed to 100 open); `None` leaves it.
+    pub gripper: Option<f32>,
 }
 
 /// A Cartesian keyframe: the firmware solves IK for it and queues the joint keyframe.
@@ -78,6 +80,8 @@ pub struct CartesianKeyframe {
     pub time: f32,
     /// The tool's pose.
     pub target: CartesianTarget,
+    /// The gripper's opening at the keyframe, percent (0 closed to 100 open); `None` leaves it.
+    pub gripper: Option<f32>,
 }
 
 /// How a joint moves (as in URDF).
@@ -133,6 +137,34 @@ pub struct ServoConfig {
     pub zero_half: bool,
     /// Ticks by truncation toward zero (LeRobot's degree mode), not to the nearest.
     pub truncate: bool,
+}
+
+/// The arm's gripper: a servo of the joints' model outside the chain.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GripperConfig {
+    /// Servo id on the bus (0..=252, not a joint's).
+    pub id: u8,
+    /// Ticks with the jaws closed (0 %).
+    pub closed: i32,
+    /// Ticks with the jaws open (100 %), not `closed`.
+    pub open: i32,
+    /// Effort limit, percent of the servo's full torque or current, (0, 100].
+    pub effort: f32,
+    /// Speed, percent of the stroke per second (> 0).
+    pub speed: f32,
+}
+
+/// The gripper as the firmware sees it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GripperStatus {
+    /// Measured opening, percent (beyond 0..100 when pushed past the range).
+    pub opening: f32,
+    /// The goal, percent.
+    pub goal: f32,
+    /// Load, percent of the servo's full effort.
+    pub load: f32,
+    /// It holds something: stopped short of its goal with the load above the threshold.
+    pub holding: bool,
 }
 
 /// Emergency stop behaviour.
@@ -223,6 +255,17 @@ pub enum HostMessage {
     SetTelemetry {
         /// Rate (Hz, 0..=MAX_TELEMETRY_HZ).
         rate_hz: u16,
+    },
+    // Added in protocol version 3, after the others so that their encodings stay as they were.
+    /// The gripper of the arm being sent (optional, after ConfigureBegin and before ConfigureCommit).
+    ConfigureGripper(GripperConfig),
+    /// Drives the gripper to an opening at its speed.
+    Gripper {
+        /// Opening, percent (0 closed to 100 open).
+        opening: f32,
+        /// Effort limit from now on, percent of the servo's full torque or current; `None`
+        /// keeps it.
+        effort: Option<f32>,
     },
 }
 
@@ -328,6 +371,8 @@ pub struct Status {
     pub errors: ErrorCounters,
     /// Servos (bit `j` for joint `j`) that have stopped answering; cleared when one answers again.
     pub lost_servos: u32,
+    /// The gripper, if the arm has one.
+    pub gripper: Option<GripperStatus>,
 }
 
 /// Which field of a message a [`ValueError`] is about.
@@ -363,6 +408,8 @@ pub enum Field {
     Rate,
     /// An arm name.
     Name,
+    /// A gripper's configuration, opening or effort.
+    Gripper,
 }
 
 /// What is wrong with a field.
@@ -416,6 +463,8 @@ pub enum NakReason {
     TorqueOff,
     /// Emergency-stopped: only torque on (or off) is accepted.
     EStopped,
+    /// A gripper command or value for an arm without a gripper.
+    NoGripper,
 }
 
 impl core::fmt::Display for NakReason {
@@ -432,6 +481,7 @@ impl core::fmt::Display for NakReason {
             Self::KeyframeTime => write!(f, "keyframe time not later than the previous keyframe"),
             Self::TorqueOff => write!(f, "torque is off (turn it on first)"),
             Self::EStopped => write!(f, "emergency-stopped (torque on to leave it)"),
+            Self::NoGripper => write!(f, "the arm has no gripper"),
         }
     }
 }
@@ -518,9 +568,25 @@ impl CartesianTarget {
     }
 }
 
+/// An opening or effort: a finite percentage (an effort above 0).
+fn percent(x: f32, above_zero: bool) -> Result<(), ValueError> {
+    range(Field::Gripper, x, 0.0, 100.0)?;
+    check(Field::Gripper, !above_zero || x > 0.0, Problem::OutOfRange)
+}
+
+impl GripperConfig {
+    fn validate(&self) -> Result<(), ValueError> {
+        check(Field::Gripper, self.id <= 252 && self.closed != self.open, Problem::OutOfRange)?;
+        percent(self.effort, true)?;
+        range(Field::Gripper, self.speed, 0.0, 1e4)?;
+        check(Field::Gripper, self.speed > 0.0, Problem::OutOfRange)
+    }
+}
+
 impl JointKeyframe {
     fn validate(&self) -> Result<(), ValueError> {
         range(Field::Time, self.time, 0.0, MAX_TIME)?;
+        self.gripper.map_or(Ok(()), |g| percent(g, false))?;
         joints(Field::Joints, &self.positions, MAX_JOINT_VALUE)?;
         if let Some(v) = &self.velocities {
             check(Field::Velocities, v.len() == self.positions.len(), Problem::Count)?;
@@ -584,7 +650,13 @@ impl HostMessage {
             Self::PushKeyframe(k) => k.validate(),
             Self::PushCartesianKeyframe(k) => {
                 range(Field::Time, k.time, 0.0, MAX_TIME)?;
+                k.gripper.map_or(Ok(()), |g| percent(g, false))?;
                 k.target.validate()
+            }
+            Self::ConfigureGripper(g) => g.validate(),
+            Self::Gripper { opening, effort } => {
+                percent(*opening, false)?;
+                effort.map_or(Ok(()), |e| percent(e, true))
             }
             Self::SetTelemetry { rate_hz } => check(Field::Rate, *rate_hz <= MAX_TELEMETRY_HZ, Problem::OutOfRange),
         }

@@ -103,6 +103,7 @@ fn status(n: usize) -> Status {
             ik_failures: u32::MAX,
         },
         lost_servos: u32::MAX,
+        gripper: Some(GripperStatus { opening: 41.5, goal: 0.0, load: -35.2, holding: true }),
     }
 }
 
@@ -152,9 +153,18 @@ fn host_messages() -> std::vec::Vec<HostMessage> {
             time: 1.25,
             positions: joints(MAX_JOINTS, 0.0),
             velocities: Some(joints(MAX_JOINTS, -0.3)),
+            gripper: Some(55.5),
         }),
-        HostMessage::PushKeyframe(JointKeyframe { time: 0.0, positions: joints(1, 0.0), velocities: None }),
-        HostMessage::PushCartesianKeyframe(CartesianKeyframe { time: 3.0, target }),
+        HostMessage::ConfigureGripper(GripperConfig { id: 6, closed: 1934, open: 3186, effort: 50.0, speed: 100.0 }),
+        HostMessage::Gripper { opening: 100.0, effort: Some(30.0) },
+        HostMessage::Gripper { opening: 0.0, effort: None },
+        HostMessage::PushKeyframe(JointKeyframe {
+            time: 0.0,
+            positions: joints(1, 0.0),
+            velocities: None,
+            gripper: None,
+        }),
+        HostMessage::PushCartesianKeyframe(CartesianKeyframe { time: 3.0, target, gripper: None }),
         HostMessage::Start,
         HostMessage::Pause,
         HostMessage::Stop,
@@ -234,6 +244,7 @@ fn six_joint_keyframe_overhead() {
         time: 1.0,
         positions: joints(6, 0.2),
         velocities: Some(joints(6, 0.0)),
+        gripper: None,
     });
     let mut buf = [0u8; MAX_PAYLOAD];
     let payload = postcard::to_slice(&push, &mut buf).unwrap();
@@ -334,7 +345,9 @@ fn validate_refuses_bad_values_with_the_field() {
     assert_eq!(timed(Timing::Duration(0.0)).validate(), err(Field::Duration, Problem::OutOfRange));
     assert_eq!(timed(Timing::Duration(-1.0)).validate(), err(Field::Duration, Problem::OutOfRange));
     assert_eq!(timed(Timing::MaxSpeed(f32::NAN)).validate(), err(Field::Speed, Problem::NotFinite));
-    let push = |positions, velocities| HostMessage::PushKeyframe(JointKeyframe { time: 1.0, positions, velocities });
+    let push = |positions, velocities| {
+        HostMessage::PushKeyframe(JointKeyframe { time: 1.0, positions, velocities, gripper: None })
+    };
     assert_eq!(push(Vec::new(), None).validate(), err(Field::Joints, Problem::Count));
     assert_eq!(push(joints(6, 0.0), Some(joints(5, 0.0))).validate(), err(Field::Velocities, Problem::Count));
     assert_eq!(
@@ -364,7 +377,7 @@ proptest! {
     #[test]
     fn keyframes_round_trip(seq: u8, time in 0.0f32..100.0, p in joint_vec(), with_v: bool) {
         let velocities = with_v.then(|| p.iter().map(|x| -x).collect());
-        let m = HostMessage::PushKeyframe(JointKeyframe { time, positions: p, velocities });
+        let m = HostMessage::PushKeyframe(JointKeyframe { time, positions: p, velocities, gripper: None });
         prop_assert_eq!(m.validate(), Ok(()));
         round_trip(seq, FrameKind::Request, &m);
     }
@@ -374,7 +387,7 @@ proptest! {
                                       angle in -3.0f32..3.0, with_q: bool) {
         let q = [libm::cosf(angle / 2.0), 0.0, libm::sinf(angle / 2.0), 0.0];
         let target = CartesianTarget { position: [x, y, z], orientation: with_q.then_some(q) };
-        let m = HostMessage::PushCartesianKeyframe(CartesianKeyframe { time, target });
+        let m = HostMessage::PushCartesianKeyframe(CartesianKeyframe { time, target, gripper: None });
         prop_assert_eq!(m.validate(), Ok(()));
         round_trip(seq, FrameKind::Request, &m);
     }
@@ -459,13 +472,23 @@ fn request(seq: u8, m: &HostMessage) -> std::vec::Vec<u8> {
 fn session_applies_a_repeat_once_and_acks_it_again() {
     let mut session = firmware::link::session::Session::new();
     let mut applied = vec![];
-    let push = HostMessage::PushKeyframe(JointKeyframe { time: 1.0, positions: joints(6, 0.0), velocities: None });
+    let push = HostMessage::PushKeyframe(JointKeyframe {
+        time: 1.0,
+        positions: joints(6, 0.0),
+        velocities: None,
+        gripper: None,
+    });
     let ack = |free| (4, FrameKind::Reply, FirmwareMessage::Ack { free_slots: free });
     assert_eq!(exchange(&mut session, &mut applied, &request(4, &push)), ack(15));
     assert_eq!(exchange(&mut session, &mut applied, &request(4, &push)), ack(15));
     assert_eq!(applied.len(), 1);
     // Same seq, different message (a restarted host): applied.
-    let other = HostMessage::PushKeyframe(JointKeyframe { time: 2.0, positions: joints(6, 0.0), velocities: None });
+    let other = HostMessage::PushKeyframe(JointKeyframe {
+        time: 2.0,
+        positions: joints(6, 0.0),
+        velocities: None,
+        gripper: None,
+    });
     assert_eq!(exchange(&mut session, &mut applied, &request(4, &other)), ack(14));
     assert_eq!(applied.len(), 2);
     assert_eq!(session.stats().repeats, 1);

@@ -163,7 +163,7 @@ fn pick_and_place(
     let mut acked = 0;
     let mut started = false;
     for &(time, position) in &keyframes {
-        let k = CartesianKeyframe { time, target: CartesianTarget { position, orientation: None } };
+        let k = CartesianKeyframe { time, target: CartesianTarget { position, orientation: None }, gripper: None };
         c.push(&HostMessage::PushCartesianKeyframe(k)).with_context(|| format!("keyframe at {time} s"))?;
         acked += 1;
         if !started && time >= 1.0 {

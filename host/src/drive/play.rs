@@ -104,6 +104,18 @@ impl Plan {
 
     /// The push messages with their file lines, checked against the connected arm.
     fn messages(&self, driver: &Driver) -> Result<Vec<(usize, HostMessage)>> {
+        let column = match &self.frames {
+            Frames::Joint(k) => k.gripper.as_ref(),
+            Frames::Cartesian(k) => k.gripper.as_ref(),
+        };
+        if column.is_some() && driver.gripper().is_none() {
+            bail!(
+                "{}: the file has a gripper column, but the arm {} has no gripper",
+                self.path.display(),
+                driver.arm().name
+            );
+        }
+        let gripper = |i: usize| column.map(|g| g[i] as f32);
         match &self.frames {
             Frames::Joint(k) => (0..k.times.len())
                 .map(|i| {
@@ -119,7 +131,7 @@ impl Plan {
                             Some(Joints::from_slice(&v).map_err(|_| anyhow!("{at}: too many velocities"))?)
                         }
                     };
-                    let keyframe = JointKeyframe { time: k.times[i] as f32, positions, velocities };
+                    let keyframe = JointKeyframe { time: k.times[i] as f32, positions, velocities, gripper: gripper(i) };
                     Ok((k.lines[i], HostMessage::PushKeyframe(keyframe)))
                 })
                 .collect(),
@@ -129,7 +141,8 @@ impl Plan {
                         position: k.positions[i].map(|x| x as f32),
                         orientation: k.orientations.as_ref().map(|o| o[i].map(|x| x as f32)),
                     };
-                    (k.lines[i], HostMessage::PushCartesianKeyframe(CartesianKeyframe { time: k.times[i] as f32, target }))
+                    let keyframe = CartesianKeyframe { time: k.times[i] as f32, target, gripper: gripper(i) };
+                    (k.lines[i], HostMessage::PushCartesianKeyframe(keyframe))
                 })
                 .collect()),
         }

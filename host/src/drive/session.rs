@@ -58,6 +58,11 @@ impl Driver {
         &self.conn.arm
     }
 
+    /// The arm's gripper, if it has one.
+    pub fn gripper(&self) -> Option<crate::arm::servos::GripperSpec> {
+        crate::arm::servos::servos_of(&self.conn.arm).and_then(|s| s.gripper)
+    }
+
     /// Joints of the firmware's arm.
     pub fn joints(&self) -> usize {
         usize::from(self.conn.info.joints)

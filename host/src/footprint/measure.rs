@@ -56,8 +56,13 @@ pub fn measure(elf: &Path) -> Result<MeasuredStack> {
         let t = k as f32 * 0.1;
         let positions = (0..5)
             .map(|j| 0.3 * (std::f32::consts::TAU * t / 3.0 + j as f32 * 0.5).sin() - 0.3 * (j as f32 * 0.5).sin());
-        c.push(&HostMessage::PushKeyframe(JointKeyframe { time: t, positions: positions.collect(), velocities: None }))
-            .with_context(|| format!("keyframe {k}"))?;
+        c.push(&HostMessage::PushKeyframe(JointKeyframe {
+            time: t,
+            positions: positions.collect(),
+            velocities: None,
+            gripper: None,
+        }))
+        .with_context(|| format!("keyframe {k}"))?;
         if k == 15 {
             c.request(&HostMessage::Start)?;
         }

@@ -1,11 +1,12 @@
 //! The messages that send an arm to the firmware: [`HostMessage::ConfigureBegin`], one
-//! [`HostMessage::ConfigureJoint`] per joint, [`HostMessage::ConfigureCommit`]. The geometry comes
+//! [`HostMessage::ConfigureJoint`] per joint, [`HostMessage::ConfigureGripper`] if the arm has a
+//! gripper, [`HostMessage::ConfigureCommit`]. The geometry comes
 //! from the host's arm description ([`ArmSpec`]); the servos (model, ids, speed limits) from a
 //! [`ServoSetup`].
 
 use anyhow::{bail, Result};
 use firmware::bus::mapping::{Direction, JointMapping};
-use firmware::link::message::{HostMessage, JointConfig, JointType, ServoConfig, MAX_JOINTS, MAX_NAME};
+use firmware::link::message::{GripperConfig, HostMessage, JointConfig, JointType, ServoConfig, MAX_JOINTS, MAX_NAME};
 use kinematics::nalgebra::Matrix3;
 use kinematics::JointKind;
 
@@ -23,6 +24,11 @@ pub fn rpy(r: &Matrix3<f64>) -> [f64; 3] {
         [(-r[(1, 2)]).atan2(r[(1, 1)]), pitch, 0.0]
     }
 }
+
+/// How fast the gripper's setpoint moves, percent of its stroke per second: a full close or open
+/// in a second, about what LeRobot's teleoperated grippers do and well inside what the servos do
+/// (the SO-101's 110° stroke at the STS3215's 270°/s takes 0.4 s).
+pub const GRIPPER_SPEED: f32 = 100.0;
 
 fn f32s(v: [f64; 3]) -> [f32; 3] {
     v.map(|x| x as f32)
@@ -85,6 +91,15 @@ pub fn configure_messages(arm: &ArmSpec, servos: &ServoSetup) -> Result<Vec<Host
                 servo: servo_config(&servos.mapping(j).ok_or_else(|| anyhow::anyhow!("servo {id}: no mapping"))?),
             },
         });
+    }
+    if let Some(g) = &servos.gripper {
+        messages.push(HostMessage::ConfigureGripper(GripperConfig {
+            id: g.id,
+            closed: g.closed,
+            open: g.open,
+            effort: g.effort as f32,
+            speed: GRIPPER_SPEED,
+        }));
     }
     messages.push(HostMessage::ConfigureCommit);
     for m in &messages {

@@ -138,6 +138,7 @@ impl std::fmt::Display for Reason<'_> {
             NakReason::KeyframeTime => write!(f, "the keyframe's time is not later than the previous keyframe's"),
             NakReason::TorqueOff => write!(f, "the torque is off (`torque on` first)"),
             NakReason::EStopped => write!(f, "the arm is emergency-stopped (`torque on` leaves the emergency stop)"),
+            NakReason::NoGripper => write!(f, "the arm has no gripper (name one in the arm file's [gripper] table)"),
         }
     }
 }
@@ -164,6 +165,7 @@ impl std::fmt::Display for Value<'_> {
             Field::Servo => "servo mapping",
             Field::Rate => "telemetry rate",
             Field::Name => "arm name",
+            Field::Gripper => "gripper opening, effort or configuration",
         };
         let problem = match self.0.problem {
             Problem::NotFinite => "not a finite number",

@@ -1,5 +1,6 @@
 //! Cartesian keyframe files for `armctl play`: CSV with the header `t,x,y,z` (position only, the
-//! orientation left to IK) or `t,x,y,z,qw,qx,qy,qz` (a full pose, unit quaternion w first).
+//! orientation left to IK) or `t,x,y,z,qw,qx,qy,qz` (a full pose, unit quaternion w first), either
+//! optionally followed by `gripper` (the gripper's opening, percent: 0 closed to 100 open).
 //!
 //! Times are seconds on the playback clock (>= 0, strictly increasing), positions metres in the
 //! arm's base frame. As in the joint keyframe files of `armctl trajectory`, blank lines and lines
@@ -17,6 +18,8 @@ pub struct CartesianKeyframes {
     pub positions: Vec<[f64; 3]>,
     /// Tool orientations (unit quaternions, w first), if the file has the `qw..qz` columns.
     pub orientations: Option<Vec<[f64; 4]>>,
+    /// The gripper's opening per keyframe (percent), if the file has the `gripper` column.
+    pub gripper: Option<Vec<f64>>,
     /// The file line of each keyframe (1-based, the header is line 1).
     pub lines: Vec<usize>,
 }
@@ -49,14 +52,19 @@ pub fn parse_cartesian_keyframes(text: &str) -> Result<CartesianKeyframes> {
         bail!("empty file: expected the header t,x,y,z or t,x,y,z,qw,qx,qy,qz");
     };
     let names: Vec<&str> = header.split(',').map(str::trim).collect();
-    let with_orientation = names == POSE_HEADER;
-    if !(with_orientation || names == POSITION_HEADER) {
-        bail!("line {header_line}: the header must be t,x,y,z or t,x,y,z,qw,qx,qy,qz; found {:?}", header.trim());
+    let (columns, with_gripper) = super::trajectory::split_gripper(&names);
+    let with_orientation = columns == POSE_HEADER;
+    if !(with_orientation || columns == POSITION_HEADER) {
+        bail!(
+            "line {header_line}: the header must be t,x,y,z or t,x,y,z,qw,qx,qy,qz, optionally then gripper; found {:?}",
+            header.trim()
+        );
     }
     let mut k = CartesianKeyframes {
         times: Vec::new(),
         positions: Vec::new(),
         orientations: with_orientation.then(Vec::new),
+        gripper: with_gripper.then(Vec::new),
         lines: Vec::new(),
     };
     for (line, row) in rows {
@@ -87,6 +95,9 @@ pub fn parse_cartesian_keyframes(text: &str) -> Result<CartesianKeyframes> {
             }
             orientations.push(q);
         }
+        if let Some(g) = &mut k.gripper {
+            g.push(super::trajectory::gripper_value(line, values[names.len() - 1])?);
+        }
         k.times.push(t);
         k.positions.push([values[1], values[2], values[3]]);
         k.lines.push(line);
@@ -110,6 +121,13 @@ mod tests {
         assert!(k.orientations.is_none());
         let k = parse_cartesian_keyframes("t,x,y,z,qw,qx,qy,qz\n0.5,0.1,0,0.2,1,0,0,0\n").unwrap();
         assert_eq!(k.orientations.unwrap(), vec![[1.0, 0.0, 0.0, 0.0]]);
+        assert!(k.gripper.is_none());
+        let k = parse_cartesian_keyframes("t,x,y,z,gripper\n0,0.2,0,0.1,100\n1,0.2,0,0.1,12.5\n").unwrap();
+        assert_eq!(k.gripper.unwrap(), vec![100.0, 12.5]);
+        let e = parse_cartesian_keyframes("t,x,y,z,gripper\n0,0.2,0,0.1,100\n1,0.2,0,0.1,101\n").unwrap_err();
+        assert!(format!("{e:#}").contains("line 3, column gripper: 101 is not an opening"), "{e:#}");
+        let e = parse_cartesian_keyframes("t,x,y,z,gripper\n0,0.2,0,0.1,nan\n").unwrap_err();
+        assert!(format!("{e:#}").starts_with("line 2"), "{e:#}");
     }
 
     #[test]

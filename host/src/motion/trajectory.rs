@@ -2,8 +2,10 @@
 //! crate's methods, sampled at a fixed rate and written as CSV or JSON (optionally plotted).
 //!
 //! The keyframe file is CSV with the header `t,q1,...,qN` and optionally `v1,...,vN` (velocities
-//! at the keyframes, used by `--method hermite`). Blank lines and lines starting with `#` are
-//! skipped. Every error names the file line it is about (the header is line 1).
+//! at the keyframes, used by `--method hermite`), then optionally `gripper` (the gripper's opening
+//! at the keyframe, percent: 0 closed to 100 open, as LeRobot's `RANGE_0_100`; `armctl play`
+//! sends it, interpolated by the firmware between keyframes). Blank lines and lines starting with
+//! `#` are skipped. Every error names the file line it is about (the header is line 1).
 
 use anyhow::{anyhow, bail, Context, Result};
 use clap::ValueEnum;
@@ -72,8 +74,29 @@ pub struct Keyframes {
     pub positions: Vec<Vec<f64>>,
     /// One row of N velocities per keyframe, if the file has `v` columns.
     pub velocities: Option<Vec<Vec<f64>>>,
+    /// The gripper's opening per keyframe (percent), if the file has the `gripper` column.
+    pub gripper: Option<Vec<f64>>,
     /// The file line of each keyframe (1-based, the header is line 1).
     pub lines: Vec<usize>,
+}
+
+/// The optional last column of keyframe files: the gripper's opening, percent.
+pub const GRIPPER_COLUMN: &str = "gripper";
+
+/// Splits a trailing `gripper` column off a header's names.
+pub(crate) fn split_gripper<'a>(names: &[&'a str]) -> (Vec<&'a str>, bool) {
+    match names.split_last() {
+        Some((&GRIPPER_COLUMN, rest)) => (rest.to_vec(), true),
+        _ => (names.to_vec(), false),
+    }
+}
+
+/// A gripper opening read from a file: a percentage, or a line error.
+pub(crate) fn gripper_value(line: usize, value: f64) -> Result<f64> {
+    if !(0.0..=100.0).contains(&value) {
+        bail!("line {line}, column {GRIPPER_COLUMN}: {value} is not an opening in percent (0 closed to 100 open)");
+    }
+    Ok(value)
 }
 
 fn expected_header(joints: usize, velocities: bool) -> Vec<String> {
@@ -94,13 +117,17 @@ pub fn parse_keyframes(text: &str) -> Result<Keyframes> {
         .map(|(i, line)| (i + 1, line.trim_end_matches('\r')))
         .filter(|(_, line)| !line.trim().is_empty() && !line.trim_start().starts_with('#'));
     let Some((header_line, header)) = rows.next() else {
-        bail!("empty file: expected the header t,q1,...,qN[,v1,...,vN]");
+        bail!("empty file: expected the header t,q1,...,qN[,v1,...,vN][,gripper]");
     };
     let names: Vec<&str> = header.split(',').map(str::trim).collect();
-    let joints = names.iter().skip(1).filter(|n| n.starts_with('q')).count();
-    let with_velocities = names.len() == 1 + 2 * joints;
-    if joints == 0 || names != expected_header(joints, with_velocities) {
-        bail!("line {header_line}: the header must be t,q1,...,qN or t,q1,...,qN,v1,...,vN; found {:?}", header.trim());
+    let (columns, with_gripper) = split_gripper(&names);
+    let joints = columns.iter().skip(1).filter(|n| n.starts_with('q')).count();
+    let with_velocities = columns.len() == 1 + 2 * joints;
+    if joints == 0 || columns != expected_header(joints, with_velocities) {
+        bail!(
+            "line {header_line}: the header must be t,q1,...,qN or t,q1,...,qN,v1,...,vN, optionally then gripper; found {:?}",
+            header.trim()
+        );
     }
     if joints > MAX_JOINTS {
         bail!("line {header_line}: {joints} joints: armctl trajectory handles at most {MAX_JOINTS}");
@@ -110,6 +137,7 @@ pub fn parse_keyframes(text: &str) -> Result<Keyframes> {
         times: Vec::new(),
         positions: Vec::new(),
         velocities: with_velocities.then(Vec::new),
+        gripper: with_gripper.then(Vec::new),
         lines: Vec::new(),
     };
     for (line, row) in rows {
@@ -130,7 +158,10 @@ pub fn parse_keyframes(text: &str) -> Result<Keyframes> {
         k.times.push(t);
         k.positions.push(values[1..=joints].to_vec());
         if let Some(v) = &mut k.velocities {
-            v.push(values[1 + joints..].to_vec());
+            v.push(values[1 + joints..1 + 2 * joints].to_vec());
+        }
+        if let Some(g) = &mut k.gripper {
+            g.push(gripper_value(line, values[names.len() - 1])?);
         }
         k.lines.push(line);
     }

@@ -196,6 +196,24 @@ pub struct Model {
     pub items: Items,
     /// Factory values written into a fresh control table: (item, value).
     pub defaults: &'static [(Item, i64)],
+    /// How the model caps and reports its effort (`None`: it cannot, as the XL430-W250, which
+    /// has no current sensing).
+    pub force: Option<Force>,
+}
+
+/// The items through which a model's effort (torque or current) is capped and read, and their
+/// values at 100 %: what a gripper needs to grip without burning its servo.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Force {
+    /// The RAM item that caps the effort: STS3215 `Torque_Limit`, X-series `Goal_Current` (in
+    /// current-based position mode).
+    pub limit: Item,
+    /// Its value at full effort.
+    pub limit_full: u16,
+    /// The item that reports the effort: STS3215 `Present_Load`, X-series `Present_Current`.
+    pub present: Item,
+    /// Its magnitude at full effort.
+    pub present_full: u16,
 }
 
 /// The items of a model by role, so that code works across models.

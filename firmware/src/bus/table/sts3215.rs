@@ -2,7 +2,7 @@
 //! `tables.py` transcribes it. Multi-byte items are little-endian; positions and velocities carry
 //! their sign in bit 15.
 
-use super::{Access::*, Encoding::*, Item, Items, Model};
+use super::{Access::*, Encoding::*, Force, Item, Items, Model};
 use crate::bus::feetech::value::Endian;
 use crate::bus::Protocol;
 
@@ -26,6 +26,16 @@ pub const MIN_POSITION_LIMIT: Item = Item::new("min_position_limit", 9, 2, ReadW
 pub const MAX_POSITION_LIMIT: Item = Item::new("max_position_limit", 11, 2, ReadWrite, Unsigned);
 /// Homing offset in steps, sign in bit 11.
 pub const HOMING_OFFSET: Item = Item::new("homing_offset", 31, 2, ReadWrite, SignMagnitude(11));
+/// The ceiling of the torque limit, 0.1 % of the stall torque (factory 1000); LeRobot sets 500 on
+/// the SO follower's gripper.
+pub const MAX_TORQUE_LIMIT: Item = Item::new("max_torque_limit", 16, 2, ReadWrite, Unsigned);
+/// Protection current in 6.5 mA (LeRobot sets 250 on the gripper).
+pub const PROTECTION_CURRENT: Item = Item::new("protection_current", 28, 2, ReadWrite, Unsigned);
+/// Overload torque, percent: the output the servo falls back to when overload protection trips
+/// (LeRobot sets 25 on the gripper).
+pub const OVERLOAD_TORQUE: Item = Item::new("overload_torque", 36, 1, ReadWrite, Unsigned);
+/// Torque limit (RAM), 0.1 % of the stall torque; at power-on it takes the max torque limit.
+pub const TORQUE_LIMIT: Item = Item::new("torque_limit", 48, 2, ReadWrite, Unsigned);
 /// Position loop P gain (factory 32: LeRobot `so_follower.py` `configure`, "Default is 32").
 pub const P_COEFFICIENT: Item = Item::new("p_coefficient", 21, 1, ReadWrite, Unsigned);
 /// Position loop D gain (factory 32, as LeRobot's `configure` says).
@@ -67,7 +77,9 @@ pub const MAXIMUM_ACCELERATION: Item = Item::new("maximum_acceleration", 85, 1, 
 const BAUDS: [(u8, u32); 8] =
     [(0, 1_000_000), (1, 500_000), (2, 250_000), (3, 128_000), (4, 115_200), (5, 76_800), (6, 57_600), (7, 38_400)];
 
-const DEFAULTS: [(Item, i64); 15] = [
+const DEFAULTS: [(Item, i64); 17] = [
+    (MAX_TORQUE_LIMIT, 1000),
+    (TORQUE_LIMIT, 1000),
     (FIRMWARE_MAJOR_VERSION, 3),
     (FIRMWARE_MINOR_VERSION, 10),
     (MODEL_NUMBER, 777),
@@ -122,4 +134,6 @@ pub const STS3215: Model = Model {
         lock: Some(LOCK),
     },
     defaults: &DEFAULTS,
+    // The torque limit caps the output, the present load reports it, both in 0.1 %.
+    force: Some(Force { limit: TORQUE_LIMIT, limit_full: 1000, present: PRESENT_LOAD, present_full: 1000 }),
 };

@@ -2,7 +2,7 @@
 //! tables). The three share the addresses used here; they differ in model number, factory baud
 //! rate and speed.
 
-use super::{Access::*, Encoding::*, Item, Items, Model};
+use super::{Access::*, Encoding::*, Force, Item, Items, Model};
 use crate::bus::feetech::value::Endian;
 use crate::bus::Protocol;
 
@@ -22,6 +22,9 @@ pub const DRIVE_MODE: Item = Item::new("drive_mode", 10, 1, ReadWrite, Unsigned)
 pub const OPERATING_MODE: Item = Item::new("operating_mode", 11, 1, ReadWrite, Unsigned);
 /// Homing offset in ticks.
 pub const HOMING_OFFSET: Item = Item::new("homing_offset", 20, 4, ReadWrite, Signed);
+/// Current limit in the model's current unit (XM430-W350 2.69 mA, factory 1193; XL330-M288 1 mA,
+/// factory 1750); the XL430-W250 has no current sensing and no such item.
+pub const CURRENT_LIMIT: Item = Item::new("current_limit", 38, 2, ReadWrite, Unsigned);
 /// Velocity limit in 0.229 rev/min.
 pub const VELOCITY_LIMIT: Item = Item::new("velocity_limit", 44, 4, ReadWrite, Unsigned);
 /// Upper position limit in ticks.
@@ -39,6 +42,9 @@ pub const REGISTERED_INSTRUCTION: Item = Item::new("registered_instruction", 69,
 /// Hardware error status: bit 0 input voltage, 2 overheating, 3 motor encoder, 4 electrical
 /// shock, 5 overload. Any bit sets the alert bit of every status packet.
 pub const HARDWARE_ERROR_STATUS: Item = Item::new("hardware_error_status", 70, 1, Read, Unsigned);
+/// Goal current (current-based position mode 5 caps the motor current at it), in the current
+/// unit, up to the current limit.
+pub const GOAL_CURRENT: Item = Item::new("goal_current", 102, 2, ReadWrite, Signed);
 /// Profile acceleration in 214.577 rev/min² (0 unlimited).
 pub const PROFILE_ACCELERATION: Item = Item::new("profile_acceleration", 108, 4, ReadWrite, Unsigned);
 /// Profile velocity in 0.229 rev/min (0 unlimited).
@@ -47,6 +53,8 @@ pub const PROFILE_VELOCITY: Item = Item::new("profile_velocity", 112, 4, ReadWri
 pub const GOAL_POSITION: Item = Item::new("goal_position", 116, 4, ReadWrite, Signed);
 /// Moving (1 while the profile runs).
 pub const MOVING: Item = Item::new("moving", 122, 1, Read, Unsigned);
+/// Present current in the current unit (signed: the direction of the torque).
+pub const PRESENT_CURRENT: Item = Item::new("present_current", 126, 2, Read, Signed);
 /// Present velocity in 0.229 rev/min.
 pub const PRESENT_VELOCITY: Item = Item::new("present_velocity", 128, 4, Read, Signed);
 /// Present position in ticks.
@@ -92,8 +100,10 @@ const VELOCITY_UNIT: f32 = 0.229 * 4096.0 / 60.0;
 const ACCELERATION_UNIT: f32 = 214.577 * 4096.0 / 3600.0;
 
 /// Factory values shared by the three models (e-manual "Default Value" column); the id is 1.
-const fn defaults(baud_index: i64, velocity_limit: i64) -> [(Item, i64); 10] {
+const fn defaults(baud_index: i64, velocity_limit: i64, current_limit: i64) -> [(Item, i64); 12] {
     [
+        (CURRENT_LIMIT, current_limit),
+        (GOAL_CURRENT, current_limit),
         (ID, 1),
         (BAUD_RATE, baud_index),
         (RETURN_DELAY_TIME, 250),
@@ -107,11 +117,23 @@ const fn defaults(baud_index: i64, velocity_limit: i64) -> [(Item, i64); 10] {
     ]
 }
 
-const XL430_DEFAULTS: [(Item, i64); 10] = defaults(1, 265);
-const XM430_DEFAULTS: [(Item, i64); 10] = defaults(1, 200);
-const XL330_DEFAULTS: [(Item, i64); 10] = defaults(1, 445);
+const XL430_DEFAULTS: [(Item, i64); 12] = defaults(1, 265, 0);
+const XM430_DEFAULTS: [(Item, i64); 12] = defaults(1, 200, 1193);
+const XL330_DEFAULTS: [(Item, i64); 12] = defaults(1, 445, 1750);
 
-const fn x_series(name: &'static str, number: u16, max_rpm: f32, defaults: &'static [(Item, i64)]) -> Model {
+/// The effort of a model with current sensing: the goal current caps it (in current-based
+/// position mode), the present current reports it; full is the factory current limit.
+const fn current(full: u16) -> Option<Force> {
+    Some(Force { limit: GOAL_CURRENT, limit_full: full, present: PRESENT_CURRENT, present_full: full })
+}
+
+const fn x_series(
+    name: &'static str,
+    number: u16,
+    max_rpm: f32,
+    defaults: &'static [(Item, i64)],
+    force: Option<Force>,
+) -> Model {
     Model {
         name,
         number,
@@ -128,12 +150,13 @@ const fn x_series(name: &'static str, number: u16, max_rpm: f32, defaults: &'sta
         max_velocity: max_rpm * 4096.0 / 60.0,
         items: ITEMS,
         defaults,
+        force,
     }
 }
 
 /// XL430-W250 (model 1060): 57 rev/min without load at 12 V.
-pub const XL430_W250: Model = x_series("XL430-W250", 1060, 57.0, &XL430_DEFAULTS);
+pub const XL430_W250: Model = x_series("XL430-W250", 1060, 57.0, &XL430_DEFAULTS, None);
 /// XM430-W350 (model 1020): 46 rev/min without load at 12 V.
-pub const XM430_W350: Model = x_series("XM430-W350", 1020, 46.0, &XM430_DEFAULTS);
+pub const XM430_W350: Model = x_series("XM430-W350", 1020, 46.0, &XM430_DEFAULTS, current(1193));
 /// XL330-M288 (model 1200): 103 rev/min without load at 5 V.
-pub const XL330_M288: Model = x_series("XL330-M288", 1200, 103.0, &XL330_DEFAULTS);
+pub const XL330_M288: Model = x_series("XL330-M288", 1200, 103.0, &XL330_DEFAULTS, current(1750));
