@@ -6,7 +6,7 @@ use kinematics::{presets, Chain, ChainError};
 use crate::app::ArmSetup;
 use crate::bus::mapping::JointMapping;
 use crate::bus::table::STS3215;
-use crate::controller::ConfigError;
+use crate::controller::{ConfigError, GripperConfig};
 
 /// Joint count of the built-in arm.
 pub const JOINTS: usize = 5;
@@ -23,12 +23,21 @@ pub fn arm() -> Result<Chain<f32, JOINTS>, ChainError> {
     presets::so101()
 }
 
+/// The SO-101's gripper: servo 6 (STS3215), between the URDF's gripper joint limits
+/// (`so101_new_calib.urdf`: -10° closed, 100° open) on a factory-fresh servo whose middle (2048)
+/// is the joint's zero: 2048 - 10/360 * 4096 = 1934 and 2048 + 100/360 * 4096 = 3186 ticks
+/// (rounded). Effort 50 %, LeRobot's Max_Torque_Limit 500 of 1000; 100 % of the stroke a second.
+pub const GRIPPER: GripperConfig = GripperConfig { id: 6, closed: 1934, open: 3186, effort: 50.0, speed: 100.0 };
+
 /// The built-in arm with its servos: ids 1 to 5 from the base (as the SO-101 assembly guide sets
-/// them), 4096 ticks per turn, centred at zero, turning with the joint axes.
+/// them), 4096 ticks per turn, centred at zero, turning with the joint axes; and
+/// its gripper, servo 6 ([`GRIPPER`]).
 pub fn setup() -> Result<ArmSetup<JOINTS>, ConfigError> {
     let chain = arm().map_err(|_| ConfigError::BadLimits { joint: 0 })?;
     let mappings = core::array::from_fn(|j| JointMapping::centred(j as u8 + 1, STS3215.ticks_per_revolution));
     let velocity = SVector::repeat(MAX_VELOCITY);
     let acceleration = SVector::repeat(MAX_ACCELERATION);
-    ArmSetup::new("so101", chain, mappings, &STS3215, velocity, acceleration)
+    let mut setup = ArmSetup::new("so101", chain, mappings, &STS3215, velocity, acceleration)?;
+    setup.gripper = Some(GRIPPER);
+    Ok(setup)
 }

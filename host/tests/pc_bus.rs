@@ -31,7 +31,7 @@ fn servos(arm: &str, faults: Faults, burst: Option<Duration>) -> PtyServer {
     PtyServer::spawn(SimConfig {
         protocol: servos.model.protocol,
         model: servos.model,
-        ids: servos.ids,
+        ids: servos.bus_ids(),
         baud: BAUD,
         faults,
         duplicates: Vec::new(),
@@ -325,7 +325,7 @@ fn connect(server: &PtyServer, arm: &str, protocol: Protocol) -> connection::Con
         calibration_file: None,
     };
     let mut log = Vec::new();
-    let conn = connection::open(Target::Bus(options), Some(arm), &mut log)
+    let conn = connection::open(Target::Bus(Box::new(options)), Some(arm), &mut log)
         .unwrap_or_else(|e| panic!("connect: {e:#}\n{}", String::from_utf8_lossy(&log)));
     conn
 }

@@ -747,7 +747,7 @@ fn armctl_sim_servos_refuses_a_bad_burst_period_and_an_arm_it_does_not_serve() {
         (&["1-5", "--burst-ms", "100.5"], "--burst-ms"),
         (&["1-5", "--burst-ms", "NaN"], "--burst-ms"),
         (&["1-5", "--burst-ms", "soon"], "--burst-ms"),
-        (&["1-3", "--arm", "so101"], "arm so101 has servo id(s) 4,5 that --ids does not serve"),
+        (&["1-3", "--arm", "so101"], "arm so101 has servo id(s) 4,5,6 that --ids does not serve"),
         (&["1-5", "--arm", "ur5e"], "arm ur5e has no [servos] table"),
         (&["1-5", "--arm", "no-such-arm"], "--arm no-such-arm"),
     ] {
@@ -767,7 +767,7 @@ fn armctl_sim_servos_refuses_a_bad_burst_period_and_an_arm_it_does_not_serve() {
 fn armctl_sim_servos_prints_the_violations_it_finds() {
     use std::io::BufRead;
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_armctl"))
-        .args(["sim", "servos", "--protocol", "sts", "--ids", "1-5", "--pty", "--arm", "so101", "--burst-ms", "1"])
+        .args(["sim", "servos", "--protocol", "sts", "--ids", "1-6", "--pty", "--arm", "so101", "--burst-ms", "1"])
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()
@@ -816,7 +816,7 @@ fn armctl_sim_servos_prints_the_violations_it_finds() {
     child.kill().unwrap();
     child.wait().unwrap();
     let lines = run.expect("goals over the pty");
-    assert!(lines[0].starts_with("serving 5 STS3215 servo(s)"), "{lines:?}");
+    assert!(lines[0].starts_with("serving 6 STS3215 servo(s)"), "{lines:?}");
     assert!(lines[0].contains("bursts every 1 ms") && lines[0].contains("limits of so101"), "{}", lines[0]);
     let violations: Vec<&String> = lines.iter().filter(|l| l.starts_with("violation: servo ")).collect();
     assert_eq!(violations.len(), 100, "{lines:?}");

@@ -151,17 +151,10 @@ impl<const Q: usize> Gripper<Q> {
         (ticks - self.config.closed) as f32 / self.stroke() * 100.0
     }
 
-    /// The goal to send now, ticks: the setpoint's, or the squeeze past the contact point while
-    /// holding; always between the closed and the open position.
+    /// The goal to send now, ticks: the setpoint's, always between the closed and the open
+    /// position.
     pub fn goal_ticks(&self) -> i32 {
-        match self.holding {
-            Some(at) => {
-                let squeeze = -(SQUEEZE * self.stroke()) as i32;
-                let (lo, hi) = (self.config.closed.min(self.config.open), self.config.closed.max(self.config.open));
-                (at + squeeze).clamp(lo, hi)
-            }
-            None => self.ticks_of(self.setpoint),
-        }
+        self.ticks_of(self.setpoint)
     }
 
     /// The effort limit to write, percent, once.
@@ -261,17 +254,21 @@ impl<const Q: usize> Gripper<Q> {
         if let Some(goal) = play_time.and_then(|t| self.sample(t)) {
             self.goal = goal;
         }
+        let mut target = self.goal;
         if let Some(at) = self.holding {
-            // Told to open past the contact point: let go.
+            let squeezed = (self.percent_of(at) - SQUEEZE * 100.0).clamp(0.0, 100.0);
             if self.goal > self.percent_of(at) + SQUEEZE * 100.0 {
+                // Told to open past the contact point: let go.
                 self.holding = None;
             } else {
-                return;
+                // Back from wherever closing had taken the setpoint to just past the contact,
+                // at the same speed: no jump in the goal.
+                target = squeezed;
             }
         }
         let step = self.config.speed * dt;
-        let to_go = self.goal - self.setpoint;
-        self.setpoint = if libm::fabsf(to_go) <= step { self.goal } else { self.setpoint + step * to_go.signum() };
+        let to_go = target - self.setpoint;
+        self.setpoint = if libm::fabsf(to_go) <= step { target } else { self.setpoint + step * to_go.signum() };
     }
 
     /// Takes a present position read (ticks): grasp and release detection.
@@ -293,7 +290,6 @@ impl<const Q: usize> Gripper<Q> {
                     if moved < STILL && short && closing { self.still_reads.saturating_add(1) } else { 0 };
                 if self.still_reads >= GRASP_READS && libm::fabsf(self.load) >= HOLD_LOAD {
                     self.holding = Some(present);
-                    self.setpoint = self.percent_of(present);
                     self.still_reads = 0;
                     self.slack_reads = 0;
                 }
@@ -393,15 +389,22 @@ mod tests {
         }
         assert!(g.state().holding, "no grasp: {:?}", g.state());
         assert_eq!(jaw, contact);
-        let squeeze = (SQUEEZE * 1252.0) as i32;
-        assert_eq!(g.goal_ticks(), contact - squeeze);
-        // Held: the goal stays while the setpoint would have gone on closing.
-        g.step(0.5, None);
-        assert_eq!(g.goal_ticks(), contact - squeeze);
+        // Held: the goal comes back to just past the contact and stays there.
+        let squeezed = g.ticks_of(g.percent_of(contact) - SQUEEZE * 100.0);
+        assert!((contact - squeezed - (SQUEEZE * 1252.0) as i32).abs() <= 1);
+        for _ in 0..25 {
+            g.step(0.02, None);
+            g.observe(contact);
+        }
+        assert_eq!(g.goal_ticks(), squeezed);
+        assert!(g.state().holding);
         g.command(100.0, None).unwrap();
         g.step(0.02, None);
         assert!(!g.state().holding);
-        assert!(g.goal_ticks() > contact);
+        // Opening from the squeeze, at the speed.
+        assert_eq!(g.goal_ticks(), g.ticks_of(g.percent_of(squeezed) + 2.0));
+        g.step(1.0, None);
+        assert_eq!(g.goal_ticks(), SO101.open);
     }
 
     /// A jaw that just closes on nothing never holds.

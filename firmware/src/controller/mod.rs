@@ -210,6 +210,11 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         Ok(self)
     }
 
+    /// The gripper's configuration, if the arm has one.
+    pub fn gripper_config(&self) -> Option<&GripperConfig> {
+        self.gripper.as_ref().map(|g| g.config())
+    }
+
     /// The gripper's state, if the arm has one.
     pub fn gripper(&self) -> Option<GripperState> {
         self.gripper.as_ref().map(|g| g.state())

@@ -142,7 +142,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         C: Clock,
     {
         let (Some(g), Some(force)) = (self.gripper.as_mut(), self.group.model.force) else { return };
-        if self.counters.ticks % LOAD_EVERY != 0 {
+        if !self.counters.ticks.is_multiple_of(LOAD_EVERY) {
             return;
         }
         let mut raw = [0u8; 4];

@@ -48,18 +48,33 @@ pub struct GripperSpec {
     /// The distance between the jaws when open, mm (the simulator's jaws, the demo's table): the
     /// opening is taken as linear in ticks, 0 mm closed.
     pub opening_mm: f64,
+    /// How fast the firmware moves the gripper's goal, percent of the stroke per second.
+    pub speed: f64,
 }
 
+/// The grippers' default speed, percent of the stroke per second: a full close or open in a
+/// second, well inside what the servos do (the SO-101's 110° stroke at the STS3215's 270°/s
+/// no-load speed takes 0.4 s).
+pub const GRIPPER_SPEED: f64 = 100.0;
+
 impl GripperSpec {
-    /// The SO-101's gripper: servo 6 (STS3215). The nominal ticks are the URDF's gripper joint
-    /// limits (`so101_new_calib.urdf`: -10° closed, 100° open) on a factory-fresh servo whose
-    /// middle (2048) is the joint's zero; effort 50 %, LeRobot's Max_Torque_Limit 500 of 1000.
-    /// The opening is the simulator's round figure, not a measurement of the printed jaws.
-    pub const SO101: Self = Self { id: 6, closed: 1934, open: 3186, effort: 50.0, opening_mm: 90.0 };
+    /// The SO-101's gripper: servo 6 (STS3215), as the firmware's built-in arm has it
+    /// ([`firmware::builtin::GRIPPER`]: the URDF's gripper joint limits on a factory-fresh servo,
+    /// effort 50 %). The opening is the simulator's round figure, not a measurement of the printed
+    /// jaws.
+    pub const SO101: Self = Self {
+        id: firmware::builtin::GRIPPER.id,
+        closed: firmware::builtin::GRIPPER.closed,
+        open: firmware::builtin::GRIPPER.open,
+        effort: firmware::builtin::GRIPPER.effort as f64,
+        opening_mm: 90.0,
+        speed: firmware::builtin::GRIPPER.speed as f64,
+    };
     /// The OpenManipulator-X's gripper: servo 15 (XM430-W350) in current-based position mode. The
     /// nominal ticks are a guess to be calibrated: the servo's middle closed, a quarter turn open.
     /// The opening is ROBOTIS's published stroke (20 to 75 mm), taken as 0 to 75 mm.
-    pub const OPEN_MANIPULATOR_X: Self = Self { id: 15, closed: 2048, open: 3072, effort: 50.0, opening_mm: 75.0 };
+    pub const OPEN_MANIPULATOR_X: Self =
+        Self { id: 15, closed: 2048, open: 3072, effort: 50.0, opening_mm: 75.0, speed: GRIPPER_SPEED };
 
     /// The ticks of an opening of `pct` percent (0 closed, 100 open), truncated toward zero as
     /// LeRobot's `_unnormalize` does; `pct` is clamped to 0..=100.
@@ -101,6 +116,11 @@ impl ServoSetup {
             calibration: None,
             gripper: Some(gripper),
         })
+    }
+
+    /// Every servo on the bus, the joints' (base first) then the gripper's.
+    pub fn bus_ids(&self) -> Vec<u8> {
+        self.ids.iter().copied().chain(self.gripper.map(|g| g.id)).collect()
     }
 
     /// How joint `j`'s angle maps to its servo's ticks: LeRobot's degree mode over the calibrated

@@ -31,6 +31,7 @@
 //! open = 3186              # ticks with the jaws open (100 %)
 //! effort = 50              # optional: percent of the servo's maximum torque or current (default 50)
 //! opening_mm = 90          # distance between the jaws when open
+//! speed = 100              # optional: percent of the stroke per second (default 100)
 //! ```
 //!
 //! With `convention = "dh"` or `"modified-dh"` each `[[joint]]` holds a DH row instead of
@@ -69,6 +70,7 @@ struct GripperEntry {
     open: i32,
     effort: Option<f64>,
     opening_mm: f64,
+    speed: Option<f64>,
 }
 
 #[derive(Deserialize)]
@@ -280,12 +282,17 @@ fn gripper(at: &str, entry: &GripperEntry, servos: &super::servos::ServoSetup) -
     if !(entry.opening_mm.is_finite() && entry.opening_mm > 0.0) {
         bail!("{at}: opening_mm must be a positive number, not {}", entry.opening_mm);
     }
+    let speed = entry.speed.unwrap_or(super::servos::GRIPPER_SPEED);
+    if !(speed.is_finite() && speed > 0.0 && speed <= 1000.0) {
+        bail!("{at}: speed must be a percent of the stroke per second in (0, 1000], not {speed}");
+    }
     Ok(super::servos::GripperSpec {
         id: entry.id,
         closed: entry.closed,
         open: entry.open,
         effort,
         opening_mm: entry.opening_mm,
+        speed,
     })
 }
 
@@ -580,7 +587,7 @@ mod tests {
         assert!(bad("id = 6\nclosed = 2000\nopen = 3000\nopening_mm = nan").contains("opening_mm"));
         assert!(error(&format!("{arm}[gripper]\nid = 6\nclosed = 1\nopen = 2\nopening_mm = 1"))
             .contains("needs a [servos]"));
-        assert!(bad("id = 6\nclosed = 2000\nopen = 3000\nopening_mm = 80\nspeed = 1").contains("speed"));
+        assert!(bad("id = 6\nclosed = 2000\nopen = 3000\nopening_mm = 80\nforce = 1").contains("force"));
     }
 
     #[test]

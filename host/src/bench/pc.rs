@@ -115,7 +115,7 @@ pub fn run(args: &PcBenchArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resu
         arm: spec,
         calibration_file: None,
     };
-    let mut conn = connection::open(Target::Bus(options), None, err)?;
+    let mut conn = connection::open(Target::Bus(Box::new(options)), None, err)?;
     let pc = conn.pc.as_ref().context("a --bus connection has its core")?;
     let connected = pc.connected().clone();
     let shared = pc.shared();

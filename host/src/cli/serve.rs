@@ -81,7 +81,7 @@ pub fn run(args: ServeArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
             PtyServer::spawn(SimConfig {
                 protocol: servos.model.protocol,
                 model: servos.model,
-                ids: servos.ids.clone(),
+                ids: servos.bus_ids(),
                 baud,
                 faults: Faults::default(),
                 duplicates: Vec::new(),

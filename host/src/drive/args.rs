@@ -126,7 +126,7 @@ impl LinkArgs {
                 arm: spec,
                 calibration_file: self.calibration.as_ref().map(|f| f.display().to_string()),
             };
-            return Ok((Target::Bus(options), Some(arm)));
+            return Ok((Target::Bus(Box::new(options)), Some(arm)));
         }
         if self.protocol.is_some() {
             bail!("--protocol is the servo protocol of --bus, which is missing");

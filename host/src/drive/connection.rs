@@ -33,7 +33,7 @@ pub enum Target {
     /// The firmware core simulated in this process.
     Sim(SilOptions),
     /// The firmware core run in this process against real servos on a USB adapter.
-    Bus(PcOptions),
+    Bus(Box<PcOptions>),
 }
 
 /// An open link after the handshake.

@@ -25,11 +25,6 @@ pub fn rpy(r: &Matrix3<f64>) -> [f64; 3] {
     }
 }
 
-/// How fast the gripper's setpoint moves, percent of its stroke per second: a full close or open
-/// in a second, about what LeRobot's teleoperated grippers do and well inside what the servos do
-/// (the SO-101's 110° stroke at the STS3215's 270°/s takes 0.4 s).
-pub const GRIPPER_SPEED: f32 = 100.0;
-
 fn f32s(v: [f64; 3]) -> [f32; 3] {
     v.map(|x| x as f32)
 }
@@ -98,7 +93,7 @@ pub fn configure_messages(arm: &ArmSpec, servos: &ServoSetup) -> Result<Vec<Host
             closed: g.closed,
             open: g.open,
             effort: g.effort as f32,
-            speed: GRIPPER_SPEED,
+            speed: g.speed as f32,
         }));
     }
     messages.push(HostMessage::ConfigureCommit);

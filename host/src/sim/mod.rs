@@ -30,7 +30,7 @@ pub use faults::{FaultStats, Faults};
 pub use monitor::{limits_of, GoalLimit, MonitorReport, RealTimeMonitor};
 pub use port::{PortStats, SharedBus, SimPort};
 pub use pty::{so101_bus, PtyServer, SimConfig};
-pub use servo::SimServo;
+pub use servo::{Jaw, SimServo};
 
 /// A bus shared with a port on a fresh virtual clock: what a SIL test connects a master to.
 pub fn connect(bus: SimBus) -> (SharedBus, SimPort, VirtualClock) {

@@ -286,13 +286,13 @@ fn serve(
     Ok(())
 }
 
-/// The SO-101's bus as the built-in firmware expects it.
+/// The SO-101's bus as the built-in firmware expects it: the five joints' servos and the gripper's.
 pub fn so101_bus(faults: super::Faults) -> SimConfig {
     use firmware::bus::table::STS3215;
     SimConfig {
         protocol: STS3215.protocol,
         model: &STS3215,
-        ids: (1..=firmware::builtin::JOINTS as u8).collect(),
+        ids: (1..=firmware::builtin::JOINTS as u8).chain([firmware::builtin::GRIPPER.id]).collect(),
         baud: 1_000_000,
         faults,
         duplicates: Vec::new(),

@@ -65,6 +65,32 @@ pub struct SimServo {
     in_corrupted_packet: bool,
     /// Whether the last goal write came in such a packet.
     last_goal_corrupted: bool,
+    /// An object between the jaws, when this servo is a gripper's.
+    jaw: Option<Jaw>,
+}
+
+/// An object between a gripper's jaws: the horn cannot pass `contact` going toward `closed`, and
+/// pushing against it loads the servo in proportion to how far its goal lies past the contact
+/// (a stiff object and the servo's proportional position loop), up to its effort limit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Jaw {
+    /// Where the jaws meet the object, ticks.
+    pub contact: i64,
+    /// The jaws' closed position, ticks (which side of `contact` is blocked).
+    pub closed: i64,
+}
+
+/// Load per tick of goal past the contact, in thousandths of the servo's full effort: 25 ticks
+/// (about 2° of the horn) push at half effort. A round figure for a stiff object, not a
+/// measurement of a servo.
+pub const JAW_STIFFNESS: i64 = 20;
+
+impl Jaw {
+    /// Whether `position` lies past the contact on the closed side.
+    fn blocks(&self, position: f64) -> bool {
+        let closing = (self.closed - self.contact).signum() as f64;
+        (position - self.contact as f64) * closing > 0.0
+    }
 }
 
 impl SimServo {
@@ -82,6 +108,7 @@ impl SimServo {
             goal_written_ns: 0,
             in_corrupted_packet: false,
             last_goal_corrupted: false,
+            jaw: None,
         };
         servo.set(model.items.id, i64::from(id));
         if let Some(index) = model.baud_index(baud) {
@@ -197,13 +224,47 @@ impl SimServo {
         }
     }
 
-    /// Brings present position, velocity-driven motion and the moving flag up to `t_ns`.
+    /// Puts an object between the jaws (`None` takes it away) at `t_ns`.
+    pub fn set_jaw(&mut self, jaw: Option<Jaw>, t_ns: u64) {
+        self.update(t_ns);
+        self.jaw = jaw;
+        self.update(t_ns);
+    }
+
+    /// The object between the jaws, if any.
+    pub fn jaw(&self) -> Option<Jaw> {
+        self.jaw
+    }
+
+    /// Brings present position, velocity-driven motion, the moving flag and (for a gripper's
+    /// servo) the load up to `t_ns`.
     pub fn update(&mut self, t_ns: u64) {
         if !self.torque() {
             return;
         }
-        let (p, _) = self.profile.at(t_ns);
-        let moving = self.profile.moving(t_ns);
+        let (mut p, _) = self.profile.at(t_ns);
+        let mut moving = self.profile.moving(t_ns);
+        if let Some(jaw) = self.jaw {
+            let mut load = 0;
+            if jaw.blocks(p) {
+                // Stopped on the object: the horn stands at the contact; the load follows the
+                // goal's distance past it, capped by the effort limit.
+                p = jaw.contact as f64;
+                self.profile = Profile::hold(p, t_ns);
+                moving = false;
+                let goal = self.get(self.model.items.goal_position);
+                if jaw.blocks(goal as f64) {
+                    load = (goal - jaw.contact).abs() * JAW_STIFFNESS;
+                }
+            }
+            if let Some(force) = self.model.force {
+                // In thousandths of full effort, then in the present item's unit.
+                let cap = self.get(force.limit).abs() * 1000 / i64::from(force.limit_full.max(1));
+                let closing = (jaw.closed - jaw.contact).signum();
+                let value = load.min(cap).min(1000) * i64::from(force.present_full) / 1000;
+                self.set(force.present, closing * value);
+            }
+        }
         self.set(self.model.items.present_position, p.round() as i64);
         self.set(self.model.items.moving, i64::from(moving));
     }

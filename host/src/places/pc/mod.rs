@@ -80,7 +80,7 @@ impl Connected {
         format!(
             "bus: {} servos on {path} ({} at {} baud): sync read median {:.2} ms, max {:.2} ms ({} reads); \
              control period {} ms ({} Hz), reply margin {:.1} ms",
-            self.servos.ids.len(),
+            self.servos.bus_ids().len(),
             c.bus.protocol.name(),
             c.bus.baud,
             self.measured.median_us() as f64 * 1e-3,
@@ -134,7 +134,7 @@ impl Pc {
         let mut master = Master::new(port, NoDirectionPin, clock, searching);
         find_servos(&mut master, &options.path, &servos)?;
         check_calibration(&mut master, options, &servos)?;
-        let report = setup::set_up(&mut master, servos.model, &servos.ids)?;
+        let report = setup::set_up(&mut master, servos.model, &servos.ids, servos.gripper.map(|g| g.id))?;
         for line in &report.lines {
             writeln!(err, "set-up: {line}")?;
         }
@@ -143,9 +143,10 @@ impl Pc {
         }
         let return_delay_us = report.return_delay_us();
         master.set_config(BusConfig { return_delay_us, ..searching });
-        let measured = timing::measure(&mut master, servos.model, &servos.ids)?;
+        // The gripper rides in the joints' sync read and write: the cycle is measured with it.
+        let measured = timing::measure(&mut master, servos.model, &servos.bus_ids())?;
         let bus = BusConfig { return_delay_us, ..factory };
-        let choice = timing::choose(&measured, bus, servos.model, servos.ids.len())?;
+        let choice = timing::choose(&measured, bus, servos.model, servos.bus_ids().len())?;
         master.set_config(choice.bus);
         let connected = Connected { servos, measured, choice };
         writeln!(err, "{}", connected.describe(&options.path))?;
@@ -228,7 +229,8 @@ fn find_servos(
 ) -> Result<()> {
     let model = servos.model;
     let mut missing = Vec::new();
-    for &id in &servos.ids {
+    let all = servos.bus_ids();
+    for &id in &all {
         match master.ping(id) {
             Ok(info) => {
                 let number = match info.model {
@@ -245,19 +247,22 @@ fn find_servos(
     }
     let ids = |v: &[u8]| v.iter().map(u8::to_string).collect::<Vec<_>>().join(", ");
     let baud = master.config().baud;
-    if missing.len() == servos.ids.len() {
+    if missing.len() == all.len() {
         bail!(
             "no servo answered on {path} ({} at {baud} baud, ids {}): check the servos' power, --protocol and --baud \
              (`armctl servo scan --port {path} --protocol ...` lists what is there)",
             model.protocol.name(),
-            ids(&servos.ids)
+            ids(&all)
         );
     }
     if !missing.is_empty() {
+        let gripper = servos.gripper.filter(|g| missing.contains(&g.id)).map_or(String::new(), |g| {
+            format!(" (servo {} is the gripper: an arm file without a [gripper] table drives the arm without it)", g.id)
+        });
         bail!(
-            "servo {} of arm ids {} did not answer on {path}: check its cable and id (`armctl servo scan`)",
+            "servo {} of arm ids {} did not answer on {path}: check its cable and id (`armctl servo scan`){gripper}",
             ids(&missing),
-            ids(&servos.ids)
+            ids(&all)
         );
     }
     Ok(())

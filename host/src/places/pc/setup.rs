@@ -30,8 +30,11 @@
 //! torque on later holds the arm where it is instead of driving it to a stale goal (LeRobot PR
 //! #3913). A servo whose torque is on holds its goal, which is left alone.
 //!
-//! Left out of LeRobot's SO `configure`: the gripper's torque and current limits (Max_Torque_Limit
-//! 500, Protection_Current 250, Overload_Torque 25), which need to know which servo is the gripper.
+//! The gripper's servo gets more ([`gripper_settings`]), so that a stalled grip does not burn it:
+//! - Feetech STS3215, LeRobot's SO `configure` for its gripper: Max_Torque_Limit 500,
+//!   Protection_Current 250, Overload_Torque 25 (all EEPROM).
+//! - Dynamixel X, LeRobot's Koch and OMX `configure` for their grippers: operating mode 5,
+//!   current-based position, whose goal current the firmware sets from the gripper's effort.
 
 use firmware::bus::master::{Clock, MasterError};
 use firmware::bus::table::{sts3215, xseries, Item, Model, ValueError};
@@ -68,6 +71,24 @@ const FEETECH: [Setting; 7] = [
 
 /// LeRobot's Dynamixel value: `configure_motors(return_delay_time=0)`.
 const DYNAMIXEL: [Setting; 1] = [setting(xseries::RETURN_DELAY_TIME, 0)];
+
+/// LeRobot's SO follower gripper protection (`so_follower.py` `configure`).
+const FEETECH_GRIPPER: [Setting; 3] = [
+    setting(sts3215::MAX_TORQUE_LIMIT, 500),
+    setting(sts3215::PROTECTION_CURRENT, 250),
+    setting(sts3215::OVERLOAD_TORQUE, 25),
+];
+
+/// LeRobot's Koch/OMX gripper mode (`OperatingMode.CURRENT_POSITION`).
+const DYNAMIXEL_GRIPPER: [Setting; 1] = [setting(xseries::OPERATING_MODE, 5)];
+
+/// The values written to a gripper's servo of `model` besides [`settings`].
+pub fn gripper_settings(model: &Model) -> &'static [Setting] {
+    match model.protocol {
+        Protocol::Feetech => &FEETECH_GRIPPER,
+        Protocol::Dxl2 => &DYNAMIXEL_GRIPPER,
+    }
+}
 
 /// The values written to a servo of `model` when connecting.
 pub fn settings(model: &Model) -> &'static [Setting] {
@@ -187,16 +208,22 @@ impl<E: std::fmt::Debug> std::error::Error for SetupError<E> {}
 /// The result of a set-up on port `P`.
 pub type SetupResult<T, P> = Result<T, SetupError<<P as Port>::Fault>>;
 
-/// Sets up the servos `ids` of `model` on `bus` (see the module doc for what is written, and when).
-/// The bus configuration is not changed: give the master [`SetupReport::return_delay_us`] after.
+/// Sets up the servos `ids` of `model` on `bus`, and the gripper's servo `gripper` with its own
+/// settings too (see the module doc for what is written, and when). The bus configuration is not
+/// changed: give the master [`SetupReport::return_delay_us`] after.
 pub fn set_up<P: Port, C: Clock>(
     bus: &mut Bus<P, C>,
     model: &'static Model,
     ids: &[Id],
+    gripper: Option<Id>,
 ) -> SetupResult<SetupReport, P> {
     let mut report = SetupReport::default();
     for &id in ids {
-        set_up_one(bus, model, id, &mut report)?;
+        set_up_one(bus, model, id, settings(model).iter().collect(), &mut report)?;
+    }
+    if let Some(id) = gripper {
+        let all = settings(model).iter().chain(gripper_settings(model)).collect();
+        set_up_one(bus, model, id, all, &mut report)?;
     }
     Ok(report)
 }
@@ -205,6 +232,7 @@ fn set_up_one<P: Port, C: Clock>(
     bus: &mut Bus<P, C>,
     model: &'static Model,
     id: Id,
+    settings: Vec<&Setting>,
     report: &mut SetupReport,
 ) -> SetupResult<(), P> {
     let items = model.items;
@@ -212,7 +240,7 @@ fn set_up_one<P: Port, C: Clock>(
     let mut return_delay = read(bus, model, id, items.return_delay)?;
     let mut todo = Vec::new();
     let mut left = Vec::new();
-    for s in settings(model) {
+    for s in settings {
         let from = read(bus, model, id, s.item)?;
         let change = Change { id, item: s.item, from, to: s.value, eeprom: s.item.address < model.eeprom_end };
         if from == s.value {
@@ -484,7 +512,7 @@ mod tests {
         let mut r = rig(&STS3215, Faults::default());
         // One servo left in wheel mode (a position servo from the factory otherwise).
         r.set(3, sts3215::OPERATING_MODE, 1);
-        let report = set_up(&mut r.bus, &STS3215, &IDS).unwrap();
+        let report = set_up(&mut r.bus, &STS3215, &IDS, None).unwrap();
         for id in IDS {
             assert_eq!(r.table(id, sts3215::RETURN_DELAY_TIME), 0);
             assert_eq!(r.table(id, sts3215::OPERATING_MODE), 0);
@@ -532,7 +560,7 @@ mod tests {
             ]
         );
 
-        let again = set_up(&mut r.bus, &STS3215, &IDS).unwrap();
+        let again = set_up(&mut r.bus, &STS3215, &IDS, None).unwrap();
         assert!(again.written.is_empty() && again.lines.is_empty(), "{:?}", again.lines);
         assert_eq!(again.skipped, 24);
         assert!(r.writes_sent().is_empty(), "nothing to write, not even the lock");
@@ -541,7 +569,7 @@ mod tests {
     #[test]
     fn factory_dynamixels_get_return_delay_0_once() {
         let mut r = rig(&XL430_W250, Faults::default());
-        let report = set_up(&mut r.bus, &XL430_W250, &IDS).unwrap();
+        let report = set_up(&mut r.bus, &XL430_W250, &IDS, None).unwrap();
         assert_eq!(
             names(&report.written),
             [(1, "return_delay_time"), (2, "return_delay_time"), (3, "return_delay_time")]
@@ -556,7 +584,7 @@ mod tests {
         assert_eq!(report.return_delay_us(), 0);
         r.writes_sent();
 
-        let again = set_up(&mut r.bus, &XL430_W250, &IDS).unwrap();
+        let again = set_up(&mut r.bus, &XL430_W250, &IDS, None).unwrap();
         assert!(again.written.is_empty() && again.notes.is_empty());
         assert_eq!(again.skipped, 6);
         assert!(r.writes_sent().is_empty());
@@ -571,7 +599,7 @@ mod tests {
         r.clock.advance_ns(20_000_000);
         assert_ne!(r.table(2, items.present_position), 2600, "still moving: goal and present differ");
         let goal_writes = r.goal_writes(2);
-        let report = set_up(&mut r.bus, model, &IDS).unwrap();
+        let report = set_up(&mut r.bus, model, &IDS, None).unwrap();
         assert_eq!(r.table(2, items.return_delay), 250, "EEPROM kept");
         assert_eq!(r.table(2, items.torque_enable), 1, "torque not switched off");
         assert_eq!((r.table(2, items.goal_position), r.goal_writes(2)), (2600, goal_writes), "goal not written");
@@ -609,7 +637,7 @@ mod tests {
         let mut r = rig(model, Faults::default());
         let items = model.items;
         r.set(3, items.goal_position, 1000);
-        let report = set_up(&mut r.bus, model, &IDS).unwrap();
+        let report = set_up(&mut r.bus, model, &IDS, None).unwrap();
         assert_eq!(r.table(3, items.goal_position), 2048);
         assert_eq!(r.table(3, items.present_position), 2048, "torque off: nothing moved");
         assert_eq!(
@@ -635,7 +663,7 @@ mod tests {
         // Turned by hand past a limit set after: the present position is no valid goal.
         r.set(1, xseries::MAX_POSITION_LIMIT, 1500);
         r.set(1, xseries::GOAL_POSITION, 1000);
-        let report = set_up(&mut r.bus, &XL430_W250, &IDS).unwrap();
+        let report = set_up(&mut r.bus, &XL430_W250, &IDS, None).unwrap();
         assert_eq!(r.table(1, xseries::GOAL_POSITION), 1000);
         assert_eq!(report.notes.len(), 1);
         assert!(
@@ -648,7 +676,7 @@ mod tests {
 
     fn a_silent_servo_is_named(model: &'static Model) {
         let mut r = rig(model, Faults { silent: vec![2], ..Faults::default() });
-        let e = set_up(&mut r.bus, model, &IDS).unwrap_err();
+        let e = set_up(&mut r.bus, model, &IDS, None).unwrap_err();
         assert!(matches!(e, SetupError::Silent { id: 2, .. }), "{e:?}");
         let text = e.to_string();
         assert!(

@@ -132,6 +132,16 @@ where
                 let max_step = (f64::from(limits.max_velocity[j]) * period_s * per_radian).ceil() as i64 + 1;
                 JointBounds { id: m.id, goal_range: (a.min(b), a.max(b)), max_step }
             })
+            // The gripper: between its closed and open ticks, its goal ramped at its speed.
+            .chain(c.gripper_config().map(|g| {
+                let stroke = f64::from((g.open - g.closed).abs());
+                let max_step = (f64::from(g.speed) / 100.0 * stroke * period_s).ceil() as i64 + 1;
+                JointBounds {
+                    id: g.id,
+                    goal_range: (g.closed.min(g.open).into(), g.closed.max(g.open).into()),
+                    max_step,
+                }
+            }))
             .collect()
     }
 }

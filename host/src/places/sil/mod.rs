@@ -68,12 +68,9 @@ impl SimArm {
         }
     }
 
-    /// The servo ids, base first.
+    /// The servo ids, base first, then the gripper's: the preset's.
     pub fn ids(self) -> Vec<u8> {
-        match self {
-            Self::So101 => (1..=5).collect(),
-            Self::OpenManipulatorX => (11..=14).collect(),
-        }
+        crate::arm::servos::ServoSetup::for_arm(self.name()).map(|s| s.bus_ids()).unwrap_or_default()
     }
 }
 

@@ -38,6 +38,17 @@ pub fn limits_of(arm: &ArmSpec) -> Result<Vec<GoalLimit>> {
         let b = i64::from(mapping.to_ticks(upper).unwrap_or(mapping.max_ticks));
         limits.push(GoalLimit { id, goal_range: (a.min(b), a.max(b)), max_ticks_per_s });
     }
+    // The gripper: between its closed and open ticks, its goal moving at its speed (as f32 on the
+    // firmware) across the stroke.
+    if let Some(g) = servos.gripper {
+        let stroke = f64::from((g.open - g.closed).abs());
+        let max_ticks_per_s = f64::from(g.speed as f32) / 100.0 * stroke;
+        limits.push(GoalLimit {
+            id: g.id,
+            goal_range: (g.closed.min(g.open).into(), g.closed.max(g.open).into()),
+            max_ticks_per_s,
+        });
+    }
     Ok(limits)
 }
 
@@ -49,10 +60,12 @@ mod tests {
     fn so101_maps_to_its_servos_ticks() {
         let arm = ArmSpec::load("so101", None).unwrap();
         let limits = limits_of(&arm).unwrap();
-        assert_eq!(limits.iter().map(|l| l.id).collect::<Vec<_>>(), [1, 2, 3, 4, 5]);
+        assert_eq!(limits.iter().map(|l| l.id).collect::<Vec<_>>(), [1, 2, 3, 4, 5, 6]);
+        assert_eq!(limits[5].goal_range, (1934, 3186));
+        assert!((limits[5].max_ticks_per_s - 1252.0).abs() < 1e-3);
         // 2 rad/s on 4096 ticks a turn.
         assert!((limits[0].max_ticks_per_s - 2.0 * 4096.0 / std::f64::consts::TAU).abs() < 1e-3);
-        for (l, joint) in limits.iter().zip(&arm.joints) {
+        for (l, joint) in limits.iter().take(5).zip(&arm.joints) {
             let ticks = |rad: f64| 2048.0 + rad * 4096.0 / std::f64::consts::TAU;
             let (lo, hi) = (ticks(joint.lower).max(0.0), ticks(joint.upper).min(4095.0));
             assert!((l.goal_range.0 as f64 - lo).abs() <= 1.0, "{}: {:?} vs {lo}", joint.name, l.goal_range);
