@@ -1,6 +1,6 @@
 //! The arguments of the arm-driving commands: the drive options (`--port`/`--sim`/`--bus`,
 //! `--protocol`, `--baud`, `--arm`, `--json`, before or after the command) and the commands `move`, `joints`, `play`,
-//! `status`, `stop` and `torque`.
+//! `status`, `stop`, `torque` and `gripper`.
 
 use std::path::PathBuf;
 
@@ -54,6 +54,9 @@ pub struct LinkArgs {
     /// ticks exactly as LeRobot's degree mode maps them, within the calibrated ranges.
     #[arg(long, value_name = "FILE")]
     pub calibration: Option<PathBuf>,
+    /// With --sim: an object this wide (mm) between the gripper's jaws, which stop on it.
+    #[arg(long, value_name = "MM", allow_negative_numbers = true)]
+    pub object_mm: Option<f64>,
     /// Print the result as one line of JSON.
     #[arg(long)]
     pub json: bool,
@@ -77,6 +80,7 @@ impl LinkArgs {
             sim: self.sim || after.sim,
             arm: one("--arm", &self.arm, &after.arm)?,
             calibration: one("--calibration", &self.calibration, &after.calibration)?,
+            object_mm: one("--object-mm", &self.object_mm, &after.object_mm)?,
             json: self.json || after.json,
         })
     }
@@ -91,6 +95,7 @@ impl LinkArgs {
             (self.sim, "--sim"),
             (self.arm.is_some(), "--arm"),
             (self.calibration.is_some(), "--calibration"),
+            (self.object_mm.is_some(), "--object-mm"),
             (self.json, "--json"),
         ]
         .into_iter()
@@ -98,7 +103,7 @@ impl LinkArgs {
         .collect();
         if !given.is_empty() {
             bail!(
-                "{} before the command: only for move, joints, play, status, stop and torque (other commands take \
+                "{} before the command: only for move, joints, play, status, stop, torque and gripper (other commands take \
                  their options after the command name)",
                 given.join(", ")
             );
@@ -108,6 +113,9 @@ impl LinkArgs {
 
     /// The board or simulation to connect to, and the arm to configure on it.
     pub(super) fn target(&self) -> Result<(Target, Option<&str>)> {
+        if self.object_mm.is_some() && !self.sim {
+            bail!("--object-mm puts an object between the simulated gripper's jaws: it needs --sim");
+        }
         if let Some(path) = &self.bus {
             if self.port.is_some() || self.sim {
                 bail!("--bus, --port and --sim exclude each other: give one");
@@ -141,7 +149,11 @@ impl LinkArgs {
             (None, true) if self.baud.is_some() => bail!("--baud is the baud rate of --port; --sim has none"),
             (None, true) => {
                 let arm = self.arm.as_deref().unwrap_or(DEFAULT_SIM_ARM);
-                Ok((Target::Sim(crate::places::sil::SilOptions::new(arm)?), Some(arm)))
+                let options = crate::places::sil::SilOptions {
+                    object_mm: self.object_mm,
+                    ..crate::places::sil::SilOptions::new(arm)?
+                };
+                Ok((Target::Sim(options), Some(arm)))
             }
             (Some(_), true) => bail!("--port and --sim exclude each other: give one"),
             (None, false) if self.baud.is_some() => {
@@ -193,6 +205,12 @@ pub enum DriveCommand {
     Stop(OnlyLinkArgs),
     /// Torque on (hold the present position; also leaves an emergency stop) or off (limp).
     Torque(TorqueArgs),
+    /// Open, close or set the gripper (percent, 0 closed to 100 open), optionally with an effort
+    /// limit (percent of the servo's full torque or current).
+    ///
+    /// Switches torque on if it is off. Waits until the gripper is at its goal or holds something
+    /// (stopped short of its goal under load) and prints where it stopped and the load.
+    Gripper(GripperArgs),
 }
 
 impl DriveCommand {
@@ -204,6 +222,7 @@ impl DriveCommand {
             DriveCommand::Play(a) => &a.link,
             DriveCommand::Status(a) | DriveCommand::Stop(a) => &a.link,
             DriveCommand::Torque(a) => &a.link,
+            DriveCommand::Gripper(a) => &a.link,
         }
     }
 }
@@ -278,6 +297,49 @@ pub struct JointsArgs {
     /// Give up waiting (and stop the arm) after this many seconds of controller time.
     #[arg(long, default_value_t = 60.0)]
     pub timeout: f64,
+}
+
+/// `armctl gripper`.
+#[derive(Args, Debug)]
+pub struct GripperArgs {
+    /// open (100 %), close (0 %) or set PERCENT.
+    #[arg(value_enum)]
+    pub action: GripperAction,
+    /// With set: the opening, percent (0 closed to 100 open).
+    #[arg(allow_negative_numbers = true)]
+    pub percent: Option<f64>,
+    /// Effort limit from now on, percent of the servo's full torque (STS3215) or current
+    /// (Dynamixel); the arm's default until changed.
+    #[arg(long, value_name = "PERCENT", allow_negative_numbers = true)]
+    pub effort: Option<f64>,
+    /// Give up waiting after this many seconds of controller time.
+    #[arg(long, default_value_t = 10.0)]
+    pub timeout: f64,
+    #[command(flatten)]
+    #[allow(missing_docs)]
+    pub link: LinkArgs,
+}
+
+/// What `gripper` does.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum GripperAction {
+    /// Fully open (100 %).
+    Open,
+    /// Close (0 %), stopping on whatever is between the jaws.
+    Close,
+    /// To an opening in percent.
+    Set,
+}
+
+impl GripperAction {
+    /// As typed.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Open => "open",
+            Self::Close => "close",
+            Self::Set => "set",
+        }
+    }
 }
 
 /// `armctl play`.

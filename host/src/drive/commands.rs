@@ -10,6 +10,7 @@ use firmware::link::message::{
 use serde_json::json;
 
 use super::args::{DriveCommand, JointsArgs, MoveArgs, OnOff};
+use super::gripper::GripperRequest;
 use super::interrupt;
 use super::play::{self, Plan};
 use super::session::{check_joints, fmt3, fmt_list, Driver, Waited};
@@ -46,6 +47,8 @@ pub enum Request {
     Stop,
     /// `torque on|off`.
     Torque(bool),
+    /// `gripper`.
+    Gripper(GripperRequest),
 }
 
 impl Request {
@@ -58,6 +61,7 @@ impl Request {
             DriveCommand::Status(_) => Request::Status,
             DriveCommand::Stop(_) => Request::Stop,
             DriveCommand::Torque(args) => Request::Torque(args.state == OnOff::On),
+            DriveCommand::Gripper(args) => Request::Gripper(GripperRequest::parse(args)?),
         })
     }
 }
@@ -239,6 +243,7 @@ pub fn run(driver: &mut Driver, request: Request, json: bool, out: &mut dyn Writ
             Ok(0)
         }
         Request::Play(plan) => play::run(driver, plan, json, out, err),
+        Request::Gripper(request) => super::gripper::run(driver, request, json, out, err),
     }
 }
 
@@ -270,6 +275,10 @@ fn print_status(driver: &Driver, s: &Status, json: bool, out: &mut dyn Write) ->
     writeln!(out, "setpoints  {}", fmt_list(&s.setpoints))?;
     writeln!(out, "tool       {} m (measured)", fmt3(&tool))?;
     writeln!(out, "queue      {} queued, {} free", s.queued, s.free_slots)?;
+    if let Some(g) = &s.gripper {
+        let mm = driver.gripper().map(|spec| f64::from(g.opening).clamp(0.0, 100.0) / 100.0 * spec.opening_mm);
+        writeln!(out, "gripper    {}", super::gripper::describe(g, mm))?;
+    }
     writeln!(
         out,
         "ik         {}, {} iterations, position error {:.3e} m, orientation error {:.3e} rad",

@@ -3,8 +3,8 @@
 //! loop).
 //!
 //! The commands: `move` (tool to a point or pose, IK on the firmware), `joints` (to joint values),
-//! `play` (a keyframe file, joint or Cartesian, streamed with flow control), `status`, `stop` and
-//! `torque on|off`. Every command checks what the user typed before anything is sent, so bad input
+//! `play` (a keyframe file, joint or Cartesian, streamed with flow control), `status`, `stop`,
+//! `torque on|off` and `gripper open|close|set PERCENT`. Every command checks what the user typed before anything is sent, so bad input
 //! changes nothing; a request the firmware refuses changes nothing either (the link's contract).
 //! `move`, `joints` and `play` wait until the arm is at rest again; Ctrl-C while they wait stops
 //! the arm (decelerating within its limits) and exits with code 130.
@@ -12,6 +12,7 @@
 pub mod args;
 mod commands;
 pub mod connection;
+mod gripper;
 pub(crate) mod interrupt;
 mod play;
 mod progress;

@@ -86,10 +86,30 @@ pub struct Jaw {
 pub const JAW_STIFFNESS: i64 = 20;
 
 impl Jaw {
+    /// The jaws of `gripper` closing on an object `width_mm` wide (the opening taken as linear in
+    /// ticks); refused unless the object fits between the open jaws.
+    pub fn for_object(gripper: &crate::arm::servos::GripperSpec, width_mm: f64) -> anyhow::Result<Self> {
+        if !(width_mm.is_finite() && width_mm > 0.0 && width_mm < gripper.opening_mm) {
+            anyhow::bail!(
+                "--object-mm: {width_mm} mm does not fit the gripper, whose jaws open {} mm: give a width above 0 and below it",
+                gripper.opening_mm
+            );
+        }
+        let stroke = f64::from(gripper.open - gripper.closed);
+        let contact = (f64::from(gripper.closed) + width_mm / gripper.opening_mm * stroke).round() as i64;
+        Ok(Self { contact, closed: i64::from(gripper.closed) })
+    }
+
     /// Whether `position` lies past the contact on the closed side.
     fn blocks(&self, position: f64) -> bool {
         let closing = (self.closed - self.contact).signum() as f64;
         (position - self.contact as f64) * closing > 0.0
+    }
+
+    /// Whether `position` is at the contact or past it.
+    fn reached(&self, position: f64) -> bool {
+        let closing = (self.closed - self.contact).signum() as f64;
+        (position - self.contact as f64) * closing >= 0.0
     }
 }
 
@@ -224,9 +244,16 @@ impl SimServo {
         }
     }
 
-    /// Puts an object between the jaws (`None` takes it away) at `t_ns`.
+    /// Puts an object between the jaws (`None` takes it away) at `t_ns`. Jaws closed tighter than
+    /// the object are opened to it first, as a hand putting it there would (goal included, so a
+    /// torqued servo does not fight it).
     pub fn set_jaw(&mut self, jaw: Option<Jaw>, t_ns: u64) {
         self.update(t_ns);
+        if let Some(j) = jaw {
+            if j.blocks(self.get(self.model.items.present_position) as f64) {
+                self.set_position(j.contact, t_ns);
+            }
+        }
         self.jaw = jaw;
         self.update(t_ns);
     }
@@ -246,12 +273,14 @@ impl SimServo {
         let mut moving = self.profile.moving(t_ns);
         if let Some(jaw) = self.jaw {
             let mut load = 0;
-            if jaw.blocks(p) {
-                // Stopped on the object: the horn stands at the contact; the load follows the
-                // goal's distance past it, capped by the effort limit.
-                p = jaw.contact as f64;
-                self.profile = Profile::hold(p, t_ns);
-                moving = false;
+            if jaw.reached(p) {
+                // On the object: the horn stands at the contact; the load follows the goal's
+                // distance past it, capped by the effort limit.
+                if jaw.blocks(p) {
+                    p = jaw.contact as f64;
+                    self.profile = Profile::hold(p, t_ns);
+                    moving = false;
+                }
                 let goal = self.get(self.model.items.goal_position);
                 if jaw.blocks(goal as f64) {
                     load = (goal - jaw.contact).abs() * JAW_STIFFNESS;

@@ -74,6 +74,20 @@ impl SimArm {
     }
 }
 
+/// Puts an object `mm` wide between the jaws of `arm`'s gripper on `bus` (`None` takes it away).
+fn put_object(bus: &SharedBus, arm: SimArm, mm: Option<f64>) -> Result<()> {
+    let gripper = crate::arm::servos::ServoSetup::for_arm(arm.name())
+        .and_then(|s| s.gripper)
+        .ok_or_else(|| anyhow::anyhow!("--object-mm: the simulated {} has no gripper", arm.name()))?;
+    let jaw = mm.map(|mm| crate::sim::Jaw::for_object(&gripper, mm)).transpose()?;
+    let mut bus = bus.borrow_mut();
+    let now = bus.now_ns();
+    if let Some(servo) = bus.servo_mut(gripper.id) {
+        servo.set_jaw(jaw, now);
+    }
+    Ok(())
+}
+
 /// How the harness is set up.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SilOptions {
@@ -91,6 +105,8 @@ pub struct SilOptions {
     pub control: Config,
     /// Virtual time a host read waits before it times out, ms.
     pub read_timeout_ms: u64,
+    /// The width of an object between the gripper's jaws, mm (`None`: nothing to grasp).
+    pub object_mm: Option<f64>,
 }
 
 impl SilOptions {
@@ -104,6 +120,7 @@ impl SilOptions {
             bus_faults: Faults::default(),
             control: Config::default(),
             read_timeout_ms: 20,
+            object_mm: None,
         })
     }
 }
@@ -134,6 +151,7 @@ pub struct SilStats {
 
 /// The SIL harness; the host's end of the link.
 pub struct Sil {
+    arm: SimArm,
     clock: VirtualClock,
     bus: SharedBus,
     model: &'static Model,
@@ -158,6 +176,9 @@ impl Sil {
         let bus =
             SimBus::new(model.protocol, model, &arm.ids(), options.bus_baud).with_faults(options.bus_faults.clone());
         let (bus, port, clock) = connect(bus);
+        if options.object_mm.is_some() {
+            put_object(&bus, arm, options.object_mm)?;
+        }
         let bus_config = BusConfig::new(model.protocol, options.bus_baud);
         let board = Board { bus: bus_config, model, control: options.control };
         let master = Master::new(port, NoDirectionPin, clock.clone(), bus_config);
@@ -179,6 +200,7 @@ impl Sil {
         let mut upstream = options.link_faults.clone();
         upstream.seed = upstream.seed.wrapping_add(0x5EED);
         Ok(Self {
+            arm,
             clock,
             bus,
             model,
@@ -199,6 +221,11 @@ impl Sil {
     /// Virtual time, s.
     pub fn now_s(&self) -> f64 {
         self.clock.now_ns() as f64 * 1e-9
+    }
+
+    /// Puts an object `mm` wide between the gripper's jaws (`None` takes it away), now.
+    pub fn set_object(&mut self, mm: Option<f64>) -> Result<()> {
+        put_object(&self.bus, self.arm, mm)
     }
 
     /// The simulated servo bus (to change faults or inspect servos mid-run).

@@ -1,0 +1,133 @@
+//! `armctl gripper open|close|set PERCENT [--effort PERCENT]`: drives the arm's gripper and waits
+//! until it has arrived or closed on something.
+//!
+//! Openings are percentages, 0 closed to 100 open (LeRobot's `RANGE_0_100`); the firmware ramps the
+//! gripper there at its speed. The effort is the servo's torque limit (STS3215) or goal current
+//! (Dynamixel, in current-based position mode), in percent of its full value; it stays until the
+//! next `--effort`.
+
+use std::io::Write;
+
+use anyhow::{bail, Result};
+use firmware::link::message::{GripperStatus, HostMessage, Status};
+use serde_json::json;
+
+use super::args::{GripperAction, GripperArgs};
+use super::interrupt;
+use super::session::Driver;
+
+/// How close to its goal (percent) the gripper counts as arrived.
+const ARRIVED: f32 = 1.5;
+/// How little it may move between two polls (percent) to count as standing still.
+const STILL: f32 = 0.2;
+/// Polls standing still short of the goal after which the wait ends.
+const STILL_POLLS: u32 = 15;
+
+/// A checked gripper request.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GripperRequest {
+    /// The opening, percent.
+    pub opening: f32,
+    /// The effort limit, percent (`None` keeps it).
+    pub effort: Option<f32>,
+    /// Seconds of controller time to wait.
+    pub timeout: f64,
+}
+
+/// A percentage from the command line: finite, within `0..=100` (above 0 for an effort).
+fn percent(value: f64, what: &str, above_zero: bool) -> Result<f32> {
+    if !value.is_finite() || !(0.0..=100.0).contains(&value) || (above_zero && value == 0.0) {
+        let range = if above_zero { "above 0 and at most 100" } else { "from 0 (closed) to 100 (open)" };
+        bail!("{what}: {value} is not a percent {range}");
+    }
+    Ok(value as f32)
+}
+
+impl GripperRequest {
+    /// Checks the arguments (nothing is connected yet).
+    pub fn parse(args: &GripperArgs) -> Result<Self> {
+        let opening = match (args.action, args.percent) {
+            (GripperAction::Open, None) => 100.0,
+            (GripperAction::Close, None) => 0.0,
+            (GripperAction::Set, Some(p)) => percent(p, "gripper set", false)?,
+            (GripperAction::Set, None) => bail!("gripper set: give the opening in percent, 0 closed to 100 open"),
+            (action, Some(_)) => bail!("gripper {}: takes no percent (use `gripper set PERCENT`)", action.name()),
+        };
+        let effort = args.effort.map(|e| percent(e, "--effort", true)).transpose()?;
+        if !(args.timeout.is_finite() && args.timeout > 0.0) {
+            bail!("--timeout: {} s must be a positive number", args.timeout);
+        }
+        Ok(Self { opening, effort, timeout: args.timeout })
+    }
+}
+
+/// The gripper of a status, or the error that the arm has none.
+fn of(driver: &Driver, status: &Status) -> Result<GripperStatus> {
+    status.gripper.ok_or_else(|| {
+        anyhow::anyhow!("the arm {} has no gripper (name one in its arm file's [gripper] table)", driver.arm().name)
+    })
+}
+
+/// Sends the request and waits until the gripper is at its goal, holds something or stands
+/// still; prints where it stopped. Returns the exit code.
+pub fn run(
+    driver: &mut Driver,
+    request: GripperRequest,
+    json: bool,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> Result<i32> {
+    let status = driver.status()?;
+    of(driver, &status)?;
+    let (start, switched) = driver.ready_to_move()?;
+    interrupt::catch();
+    let message = HostMessage::Gripper { opening: request.opening, effort: request.effort };
+    if let Err(e) = driver.request(&message) {
+        bail!("gripper to {} %: {e}; nothing moved{}", request.opening, driver.undo_torque(switched));
+    }
+    Driver::note_torque(switched, err)?;
+    let mut last = of(driver, &start)?;
+    let mut still = 0;
+    let first = start.time;
+    let status = loop {
+        if interrupt::requested() {
+            return driver.stop_after_interrupt(err);
+        }
+        driver.pause()?;
+        let status = driver.status()?;
+        let g = of(driver, &status)?;
+        let arrived = (g.opening - g.goal).abs() <= ARRIVED;
+        still = if (g.opening - last.opening).abs() <= STILL { still + 1 } else { 0 };
+        last = g;
+        if arrived || g.holding || still >= STILL_POLLS {
+            break status;
+        }
+        if f64::from(status.time - first) > request.timeout {
+            bail!("gripper: timed out after {} s at {:.1} % (goal {:.1} %)", request.timeout, g.opening, g.goal);
+        }
+    };
+    let g = of(driver, &status)?;
+    let mm = driver.gripper().map(|spec| f64::from(g.opening).clamp(0.0, 100.0) / 100.0 * spec.opening_mm);
+    if json {
+        let v = json!({
+            "command": "gripper",
+            "goal": g.goal,
+            "opening": g.opening,
+            "opening_mm": mm,
+            "load": g.load,
+            "holding": g.holding,
+            "effort": request.effort,
+        });
+        writeln!(out, "{v}")?;
+    } else {
+        writeln!(out, "gripper: {}", describe(&g, mm))?;
+    }
+    Ok(0)
+}
+
+/// One line about the gripper: `at 41.2 % (37.1 mm), goal 0.0 %, load 48 %, holding something`.
+pub fn describe(g: &GripperStatus, mm: Option<f64>) -> String {
+    let mm = mm.map(|mm| format!(" ({mm:.1} mm)")).unwrap_or_default();
+    let holding = if g.holding { ", holding something" } else { "" };
+    format!("at {:.1} %{mm}, goal {:.1} %, load {:.0} %{holding}", g.opening, g.goal, g.load.abs())
+}
