@@ -67,19 +67,19 @@ impl<const N: usize> ServoGroup<N> {
         D: OutputPin,
         C: Clock,
     {
-        if N + usize::from(extra.is_some()) > MAX_GROUP {
+        let mut ids = [0 as Id; MAX_GROUP];
+        let mut all = [0i32; MAX_GROUP];
+        let pairs = self.ids.iter().copied().zip(values.iter().copied()).chain(extra);
+        let mut count = 0;
+        for ((slot, value), (id, v)) in ids.iter_mut().zip(all.iter_mut()).zip(pairs) {
+            (*slot, *value) = (id, v);
+            count += 1;
+        }
+        if count < N + usize::from(extra.is_some()) {
             return Err(MasterError::BadRequest { reason: "more servos than MAX_GROUP (32)" });
         }
-        let mut records = [0u8; MAX_GROUP * 5];
-        let mut writer = RecordWriter::new(&mut records);
-        let mut value = [0u8; 4];
-        for (id, v) in self.ids.iter().copied().zip(values.iter().copied()).chain(extra) {
-            item.encode(i64::from(v), self.model.endian, &mut value)
-                .map_err(|_| MasterError::BadRequest { reason: "value does not fit the item" })?;
-            writer.sync_write(id, &value[..item.len()]).map_err(MasterError::Encode)?;
-        }
-        let len = writer.records().len();
-        master.sync_write(item.address, u16::from(item.size), &records[..len])
+        let (ids, all) = (ids.get(..count).unwrap_or_default(), all.get(..count).unwrap_or_default());
+        write_values(master, self.model, item, ids, all)
     }
 
     /// Reads one item of every servo in one sync read into `values` (joint by joint).
@@ -104,7 +104,7 @@ impl<const N: usize> ServoGroup<N> {
         master: &mut Master<P, D, C, BUF>,
         item: Item,
         values: &mut [i32; N],
-        mut extra: Option<(Id, &mut i32)>,
+        extra: Option<(Id, &mut i32)>,
     ) -> Result<GroupReport, PortError<P>>
     where
         P: Read + Write + ReadReady,
@@ -119,19 +119,71 @@ impl<const N: usize> ServoGroup<N> {
         for (slot, id) in ids.iter_mut().zip(self.ids.iter().copied().chain(extra.as_ref().map(|(id, _)| *id))) {
             *slot = id;
         }
-        let mut raw = [0u8; MAX_GROUP * 4];
-        let len = item.len();
-        let raw = raw.get_mut(..count * len).unwrap_or_default();
-        let report = master.sync_read(item.address, u16::from(item.size), ids.get(..count).unwrap_or_default(), raw)?;
-        let slots = values.iter_mut().chain(extra.as_mut().map(|(_, v)| &mut **v));
-        for (i, (v, bytes)) in slots.zip(raw.chunks_exact(len.max(1))).enumerate() {
-            if report.answered & (1 << i) != 0 {
-                if let Ok(x) = item.decode(bytes, self.model.endian) {
-                    // Only an unsigned 4-byte item can exceed i32; no position item is one.
-                    *v = x.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
-                }
-            }
+        let mut all = [0i32; MAX_GROUP];
+        for (slot, v) in all.iter_mut().zip(values.iter().copied().chain(extra.as_ref().map(|(_, v)| **v))) {
+            *slot = v;
+        }
+        let ids = ids.get(..count).unwrap_or_default();
+        let report = read_values(master, self.model, item, ids, all.get_mut(..count).unwrap_or_default())?;
+        let slots = values.iter_mut().chain(extra.map(|(_, v)| v));
+        for (v, x) in slots.zip(all) {
+            *v = x;
         }
         Ok(report)
     }
+}
+
+/// One sync write of `item`, `values[i]` to servo `ids[i]`. Not generic over the group's size, so
+/// that every group (the joints, a gripper alone) shares this one body in the firmware's flash.
+fn write_values<P, D, C, const BUF: usize>(
+    master: &mut Master<P, D, C, BUF>,
+    model: &Model,
+    item: Item,
+    ids: &[Id],
+    values: &[i32],
+) -> Result<(), PortError<P>>
+where
+    P: Read + Write + ReadReady,
+    D: OutputPin,
+    C: Clock,
+{
+    let mut records = [0u8; MAX_GROUP * 5];
+    let mut writer = RecordWriter::new(&mut records);
+    let mut value = [0u8; 4];
+    for (&id, &v) in ids.iter().zip(values) {
+        item.encode(i64::from(v), model.endian, &mut value)
+            .map_err(|_| MasterError::BadRequest { reason: "value does not fit the item" })?;
+        let bytes = value.get(..item.len()).ok_or(MasterError::BadRequest { reason: "item wider than 4 bytes" })?;
+        writer.sync_write(id, bytes).map_err(MasterError::Encode)?;
+    }
+    master.sync_write(item.address, u16::from(item.size), writer.records())
+}
+
+/// One sync read of `item` from servos `ids` into `values` (as many); a servo that did not
+/// answer keeps its value. Not generic over the group's size, as [`write_values`].
+fn read_values<P, D, C, const BUF: usize>(
+    master: &mut Master<P, D, C, BUF>,
+    model: &Model,
+    item: Item,
+    ids: &[Id],
+    values: &mut [i32],
+) -> Result<GroupReport, PortError<P>>
+where
+    P: Read + Write + ReadReady,
+    D: OutputPin,
+    C: Clock,
+{
+    let mut raw = [0u8; MAX_GROUP * 4];
+    let len = item.len();
+    let raw = raw.get_mut(..ids.len() * len).unwrap_or_default();
+    let report = master.sync_read(item.address, u16::from(item.size), ids, raw)?;
+    for (i, (v, bytes)) in values.iter_mut().zip(raw.chunks_exact(len.max(1))).enumerate() {
+        if report.answered & 1u32.checked_shl(i as u32).unwrap_or(0) != 0 {
+            if let Ok(x) = item.decode(bytes, model.endian) {
+                // Only an unsigned 4-byte item can exceed i32; no position item is one.
+                *v = x.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
+            }
+        }
+    }
+    Ok(report)
 }

@@ -10,6 +10,7 @@ use kinematics::Pose;
 use super::health::{Fault, TickReport};
 use super::limiter::{limit_step, Setpoint};
 use super::{Controller, Mode};
+use crate::bus::cycle::ServoGroup;
 use crate::bus::master::{Clock, Master};
 
 /// Ticks between two reads of the gripper's load.
@@ -145,15 +146,15 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         if !self.counters.ticks.is_multiple_of(LOAD_EVERY) {
             return;
         }
-        let mut raw = [0u8; 4];
-        let raw = raw.get_mut(..force.present.len()).unwrap_or_default();
-        match master.read(g.config().id, force.present.address, raw) {
-            Ok(_) => {
-                if let Ok(v) = force.present.decode(raw, self.group.model.endian) {
-                    g.observe_load(v as f32 / f32::from(force.present_full.max(1)) * 100.0);
-                }
+        // A sync read of the one servo, not a plain read: the same code as the joints' cycle, so
+        // the firmware carries no second read path.
+        let one = ServoGroup { model: self.group.model, ids: [g.config().id] };
+        let mut load = [0i32; 1];
+        match one.read_all(master, force.present, &mut load) {
+            Ok(report) if report.complete() => {
+                g.observe_load(load[0] as f32 / f32::from(force.present_full.max(1)) * 100.0)
             }
-            Err(_) => self.counters.missing_replies = self.counters.missing_replies.saturating_add(1),
+            _ => self.counters.missing_replies = self.counters.missing_replies.saturating_add(1),
         }
     }
 
@@ -166,12 +167,10 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
     {
         let (Some(g), Some(force)) = (self.gripper.as_mut(), self.group.model.force) else { return };
         let Some(effort) = g.take_effort() else { return };
-        let value = i64::from((effort / 100.0 * f32::from(force.limit_full)) as u16);
-        let mut raw = [0u8; 4];
-        let len = force.limit.len();
-        if force.limit.encode(value, self.group.model.endian, &mut raw).is_ok()
-            && master.write(g.config().id, force.limit.address, raw.get(..len).unwrap_or_default()).is_ok()
-        {
+        let value = (effort / 100.0 * f32::from(force.limit_full)) as i32;
+        // A sync write of one record, as the goals go: no reply to wait for, no second write path.
+        let one = ServoGroup { model: self.group.model, ids: [g.config().id] };
+        if one.write_all(master, force.limit, &[value]).is_ok() {
             g.effort_written();
         } else {
             self.counters.bus_errors = self.counters.bus_errors.saturating_add(1);
