@@ -7,9 +7,12 @@
 //!   LeRobot keeps it.
 //! - [`normalise`]: LeRobot's conversions between raw ticks and its normalised values (degrees for
 //!   the body joints, 0 to 100 for the gripper), as `motors_bus.py` computes them.
+//! - [`record`]: what LeRobot's calibration procedure measures and makes of an arm (homing
+//!   offsets, recorded ranges, the joint limits they leave).
 
 pub mod lerobot;
 pub mod normalise;
+pub mod record;
 
 use anyhow::{bail, Result};
 use firmware::bus::table::{sts3215, xseries, Item, Model};
