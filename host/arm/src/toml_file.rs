@@ -98,9 +98,7 @@ struct ServosEntry {
     range_max: Option<Spanned<Vec<i64>>>,
 }
 
-/// The largest homing offset a half-turn homing gives (`offset = present - 2047` or `2047 -
-/// present` on a 4096-tick servo), and the most the STS3215's 11-bit magnitude holds.
-pub const MAX_HOMING_OFFSET: i64 = 2047;
+use super::calibration::record::MAX_HOMING_OFFSET;
 
 #[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
 #[serde(rename_all = "kebab-case")]

@@ -38,6 +38,7 @@ use firmware::bus::table::{sts3215, xseries, Access, Item, Model};
 use firmware::bus::{Instruction, Protocol};
 
 use super::motion::Profile;
+use crate::arm::calibration::record::DXL_POSITION_MODE_MAX_OFFSET;
 
 /// Dynamixel error numbers (e-manual, Protocol 2.0, "Status Packet").
 pub mod error {
@@ -60,10 +61,6 @@ pub const ALERT: u8 = 0x80;
 
 /// Dynamixel X's operating mode 3, position control (single turn).
 const DXL_POSITION_MODE: i64 = 3;
-
-/// The largest homing offset a Dynamixel X applies in position control mode (e-manual, Homing
-/// Offset(20): "any invalid Homing Offset values will be ignored (valid range: -1,024 ~ 1,024)").
-pub const DXL_POSITION_MODE_MAX_OFFSET: i64 = 1024;
 
 /// The key of Dynamixel's CLEAR of the multi-turn position (`0x01 'D' 'X' 'L' '"'`).
 const CLEAR_KEY: [u8; 4] = [0x44, 0x58, 0x4C, 0x22];
@@ -215,7 +212,8 @@ impl SimServo {
     }
 
     /// The homing offset in effect: the register's, except a Dynamixel's beyond
-    /// [`DXL_POSITION_MODE_MAX_OFFSET`] in position control mode, which is ignored.
+    /// [`DXL_POSITION_MODE_MAX_OFFSET`] (1024) in position control mode, which is ignored (e-manual,
+    /// Homing Offset(20)).
     pub fn homing_offset(&self) -> i64 {
         let offset = self.get(self.homing_item());
         let ignored = self.model.protocol == Protocol::Dxl2

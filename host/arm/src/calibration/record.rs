@@ -27,6 +27,16 @@ pub const STOP_MARGIN_DEG: f64 = 2.0;
 /// noise spans a few ticks), which would leave it a useless range.
 pub const MIN_SWEEP_TICKS: i32 = 100;
 
+/// The largest homing offset a half-turn homing gives on a 4096-tick servo (`present - 2047` or
+/// `2047 - present`, the present position read with no offset), and the most the STS3215's
+/// Homing_Offset holds (11 bits of magnitude; LeRobot's "Magnitude 2114 exceeds 2047").
+pub const MAX_HOMING_OFFSET: i64 = 2047;
+
+/// The largest homing offset a Dynamixel X applies in position control mode (operating mode 3):
+/// the e-manual's Homing Offset(20) says "any invalid Homing Offset values will be ignored (valid
+/// range: -1,024 ~ 1,024)".
+pub const DXL_POSITION_MODE_MAX_OFFSET: i64 = 1024;
+
 /// Whether LeRobot takes `joint` as full-turn: its SO arms' `wrist_roll` (recorded as `0..=4095`,
 /// not swept), and any continuous joint.
 pub fn full_turn(joint: &JointSpec) -> bool {
@@ -52,7 +62,7 @@ pub fn check_sweep(what: &str, min: i64, max: i64, resolution: u32) -> Result<(i
     if max - min < i64::from(MIN_SWEEP_TICKS) {
         bail!(
             "{what} moved only {} ticks ({min}..{max}): it was not moved through its range (at least \
-             {MIN_SWEEP_TICKS} ticks); nothing more was written: run the calibration again and move it from stop to stop",
+             {MIN_SWEEP_TICKS} ticks)",
             max - min
         );
     }
