@@ -40,6 +40,9 @@ use crate::arm::calibration::{lerobot, record, MotorCalibration};
 use crate::arm::servos::{servos_of, ServoSetup};
 use crate::arm::ArmSpec;
 
+/// The baud rate when `--baud` is not given: `--bus`'s, the STS3215's factory rate.
+const DEFAULT_BAUD: u32 = 1_000_000;
+
 /// How often the positions are read while the joints are moved (LeRobot's `time.sleep(0.02)`).
 pub const SAMPLE_PERIOD: Duration = Duration::from_millis(20);
 
@@ -216,7 +219,7 @@ pub fn run(args: CalibrateArgs, out: &mut dyn Write, err: &mut dyn Write) -> Res
         )?;
     }
     let protocol = Protocol::from(args.protocol);
-    let base = BusConfig::new(protocol, args.baud.unwrap_or(crate::drive::args::DEFAULT_BAUD));
+    let base = BusConfig::new(protocol, args.baud.unwrap_or(DEFAULT_BAUD));
     let config = BusConfig {
         margin_us: args.timeout_ms * 1000,
         idle_gap_us: (args.timeout_ms * 1000).max(base.idle_gap_us),
