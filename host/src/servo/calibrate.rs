@@ -36,7 +36,7 @@ use firmware::bus::{Id, Protocol};
 use super::commands::eeprom_write;
 use super::session::{Port, Session};
 use crate::args::bus::ProtocolArg;
-use crate::arm::calibration::{lerobot, record, MotorCalibration};
+use crate::arm::calibration::{homing_offset_item, lerobot, record, MotorCalibration};
 use crate::arm::servos::{servos_of, ServoSetup};
 use crate::arm::ArmSpec;
 
@@ -260,14 +260,6 @@ fn write_eeprom<P: Port, C: Clock>(
     .with_context(|| format!("servo {id}: writing its calibration registers"))
 }
 
-/// The homing offset item of the model's family.
-fn homing_item(model: &Model) -> Item {
-    match model.protocol {
-        Protocol::Feetech => sts3215::HOMING_OFFSET,
-        Protocol::Dxl2 => xseries::HOMING_OFFSET,
-    }
-}
-
 /// The procedure (see the module doc) on an open bus.
 fn calibrate<P: Port, C: Clock>(
     session: &mut Session<P, C>,
@@ -307,7 +299,7 @@ fn calibrate<P: Port, C: Clock>(
     )?;
     out.flush()?;
     steps.wait("before step 1", &format!("nothing was calibrated; torque is off on servos {}", list(&ids)))?;
-    let homing = homing_item(model);
+    let homing = homing_offset_item(model);
     let mut previous = Vec::with_capacity(ids.len());
     for &id in &ids {
         let held = [homing, items.min_position, items.max_position].map(|item| read(session, model, id, item));

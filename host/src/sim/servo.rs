@@ -34,10 +34,11 @@
 //! - A servo whose baud item does not match the bus's baud rate hears nothing (after changing it,
 //!   or after a factory reset that restores it).
 
-use firmware::bus::table::{sts3215, xseries, Access, Item, Model};
+use firmware::bus::table::{xseries, Access, Item, Model};
 use firmware::bus::{Instruction, Protocol};
 
 use super::motion::Profile;
+use crate::arm::calibration::homing_offset_item;
 use crate::arm::calibration::record::DXL_POSITION_MODE_MAX_OFFSET;
 
 /// Dynamixel error numbers (e-manual, Protocol 2.0, "Status Packet").
@@ -203,19 +204,11 @@ impl SimServo {
         self.set(self.model.items.moving, 0);
     }
 
-    /// The homing offset item of the model's family.
-    fn homing_item(&self) -> Item {
-        match self.model.protocol {
-            Protocol::Feetech => sts3215::HOMING_OFFSET,
-            Protocol::Dxl2 => xseries::HOMING_OFFSET,
-        }
-    }
-
     /// The homing offset in effect: the register's, except a Dynamixel's beyond
     /// [`DXL_POSITION_MODE_MAX_OFFSET`] (1024) in position control mode, which is ignored (e-manual,
     /// Homing Offset(20)).
     pub fn homing_offset(&self) -> i64 {
-        let offset = self.get(self.homing_item());
+        let offset = self.get(homing_offset_item(self.model));
         let ignored = self.model.protocol == Protocol::Dxl2
             && self.get(xseries::OPERATING_MODE) == DXL_POSITION_MODE
             && offset.abs() > DXL_POSITION_MODE_MAX_OFFSET;
@@ -674,7 +667,7 @@ fn overlaps(item: Item, at: usize, len: usize) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use firmware::bus::table::{STS3215, XL430_W250};
+    use firmware::bus::table::{sts3215, STS3215, XL430_W250};
 
     const T0: u64 = 0;
 
