@@ -106,6 +106,11 @@ fn bus_with_a_lerobot_calibration_drives_the_servos_to_lerobots_ticks() {
         limits: Some(armctl::sim::monitor::limits_of(&spec).unwrap()),
     })
     .unwrap();
+    // The arm stands in the middle of its calibrated ranges: each horn where the servo, once it
+    // holds its homing offset, reports the range's middle (STS3215: present = actual - offset).
+    for (_, m) in &calibration.motors {
+        server.place(m.id, (i64::from(m.range_min + m.range_max) / 2 + i64::from(m.homing_offset)).rem_euclid(4096));
+    }
     let port = server.path();
     let file = file.to_str().unwrap();
     let bus = |args: &[&str]| {

@@ -738,6 +738,92 @@ fn armctl_sim_servos_serves_a_pty_and_refuses_bad_input() {
     }
 }
 
+/// `armctl sim servos --arm so101 --start ...`: the arm's servos and its gripper, horns where
+/// `--start` put them; a hand's command on stdin is answered once the bus has read where the horn
+/// got to, a limp horn only; bad commands are one `error:` line each.
+#[test]
+fn armctl_sim_servos_turns_horns_by_hand_on_request() {
+    use std::io::{BufRead, Write};
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_armctl"))
+        .args(["sim", "servos", "--pty", "--arm", "so101", "--start", "2=3000,6=1000"])
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    let mut lines = std::io::BufReader::new(child.stdout.take().unwrap()).lines();
+    let path = lines.next().unwrap().unwrap();
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        let read = |id: &str| {
+            let out = std::process::Command::new(env!("CARGO_BIN_EXE_armctl"))
+                .args(["servo", "read", "--port", &path, "--protocol", "sts", "--id", id, "--item", "present_position"])
+                .output()
+                .unwrap();
+            assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+            String::from_utf8(out.stdout).unwrap().lines().last().unwrap().to_string()
+        };
+        assert_eq!(read("2"), "present_position = 3000");
+        assert_eq!(read("6"), "present_position = 1000", "the gripper is served too");
+        assert_eq!(read("1"), "present_position = 2048");
+        writeln!(stdin, "sweep 2 3000 1200 0.2\nmove 9 5\nswerve 2 1\n").unwrap();
+        stdin.flush().unwrap();
+        let mut next = || lines.next().unwrap().unwrap();
+        // A line that does not parse is answered at once, a move by the serving thread.
+        let mut errors = [next(), next()];
+        errors.sort();
+        assert_eq!(
+            errors,
+            [
+                "error: \"swerve 2 1\" is not `move ID TICKS` or `sweep ID FROM TO SECONDS`",
+                "error: move 9 5: no servo 9 on this bus",
+            ]
+        );
+        // The sweep ends only once its end has been read: keep reading until it says so.
+        let reader = {
+            let path = path.clone();
+            std::thread::spawn(move || {
+                for _ in 0..100 {
+                    let out = std::process::Command::new(env!("CARGO_BIN_EXE_armctl"))
+                        .args([
+                            "servo",
+                            "read",
+                            "--port",
+                            &path,
+                            "--protocol",
+                            "sts",
+                            "--id",
+                            "2",
+                            "--item",
+                            "present_position",
+                        ])
+                        .output()
+                        .unwrap();
+                    if String::from_utf8_lossy(&out.stdout).contains("= 1200") {
+                        break;
+                    }
+                }
+            })
+        };
+        assert_eq!(next(), "done sweep 2 3000 1200 0.2");
+        reader.join().unwrap();
+        assert_eq!(read("2"), "present_position = 1200");
+        let torque = std::process::Command::new(env!("CARGO_BIN_EXE_armctl"))
+            .args(["servo", "torque", "on", "--port", &path, "--protocol", "sts", "--id", "3"])
+            .output()
+            .unwrap();
+        assert!(torque.status.success());
+        writeln!(stdin, "move 3 100").unwrap();
+        stdin.flush().unwrap();
+        assert_eq!(next(), "error: move 3 100: servo 3 has torque on: a hand cannot turn it");
+    }));
+    child.kill().unwrap();
+    child.wait().unwrap();
+    if let Err(e) = result {
+        std::panic::resume_unwind(e);
+    }
+}
+
 #[test]
 fn armctl_sim_servos_refuses_a_bad_burst_period_and_an_arm_it_does_not_serve() {
     let sts = ["sim", "servos", "--protocol", "sts", "--pty", "--ids"];
@@ -750,6 +836,9 @@ fn armctl_sim_servos_refuses_a_bad_burst_period_and_an_arm_it_does_not_serve() {
         (&["1-3", "--arm", "so101"], "arm so101 has servo id(s) 4,5,6 that --ids does not serve"),
         (&["1-5", "--arm", "ur5e"], "arm ur5e has no [servos] table"),
         (&["1-5", "--arm", "no-such-arm"], "--arm no-such-arm"),
+        (&["1-5", "--start", "6=100"], "--start names servo 6, which is not served"),
+        (&["1-5", "--start", "1=4096"], "--start 1=4096: a horn stands at 0..=4095 ticks"),
+        (&["1-5", "--start", "1:100"], "--start \"1:100\" is not ID=TICKS"),
     ] {
         let (mut out, mut err) = (Vec::new(), Vec::new());
         let code = armctl::cli::main(["armctl"].iter().chain(&sts).chain(args), &mut out, &mut err);

@@ -24,6 +24,11 @@
 //! reversed = [false, true, false] # optional: servos turning against the joint axis
 //! max_velocity = 2.0       # rad/s, every joint
 //! max_acceleration = 8.0   # rad/s², every joint
+//! # optional, all three or none: a LeRobot calibration of each joint's servo (`armctl calibrate`
+//! # writes them), raw ticks; `reversed` is then LeRobot's drive_mode 1, and `zero` does not apply
+//! homing_offset = [953, -1200, 0]  # written to the servo's Homing_Offset, |offset| <= 2047
+//! range_min = [1000, 812, 900]     # the range it was seen to move through (offset-corrected)
+//! range_max = [3100, 3313, 3200]
 //!
 //! [gripper]                # optional, needs [servos]: a gripper servo of the same model
 //! id = 6                   # bus id, not one of the joints'
@@ -40,7 +45,13 @@
 //! the last joint frame (as in [`kinematics::Chain::from_dh_standard`] and
 //! [`kinematics::Chain::from_dh_modified`], which do the conversion). Unknown keys are errors, and
 //! every error is one line that names the line of the file and the joint or key at fault.
+//!
+//! With the calibration arrays, [`ServoSetup::calibration`](super::servos::ServoSetup) holds a
+//! [`MotorCalibration`] per joint, so the joints map to ticks as LeRobot's degree mode maps them and
+//! connecting checks that the servos hold the offsets and limits. [`super::toml_writer`] writes
+//! such a file.
 
+use super::calibration::MotorCalibration;
 use super::{ArmSpec, JointSpec};
 use anyhow::{anyhow, bail, Result};
 use kinematics::{Chain, DhRow, JointKind, Limits, Pose};
@@ -78,11 +89,16 @@ struct GripperEntry {
 struct ServosEntry {
     model: String,
     ids: Vec<u8>,
-    zero: Option<Vec<i32>>,
+    zero: Option<Spanned<Vec<i32>>>,
     reversed: Option<Vec<bool>>,
     max_velocity: f64,
     max_acceleration: f64,
+    homing_offset: Option<Spanned<Vec<i64>>>,
+    range_min: Option<Spanned<Vec<i64>>>,
+    range_max: Option<Spanned<Vec<i64>>>,
 }
+
+use super::calibration::record::MAX_HOMING_OFFSET;
 
 #[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
 #[serde(rename_all = "kebab-case")]
@@ -246,7 +262,8 @@ pub fn parse(text: &str) -> Result<ArmSpec> {
     let servos = match &file.servos {
         None => None,
         Some(entry) => {
-            Some(servos(&format!("{}: [servos]", position(text, entry.span().start)), entry.get_ref(), joints.len())?)
+            let at = format!("{}: [servos]", position(text, entry.span().start));
+            Some(servos(&at, text, entry.get_ref(), &joints)?)
         }
     };
     let servos = match (&file.gripper, servos) {
@@ -296,21 +313,22 @@ fn gripper(at: &str, entry: &GripperEntry, servos: &super::servos::ServoSetup) -
     })
 }
 
-/// The `[servos]` table, checked against the joint count.
-fn servos(at: &str, entry: &ServosEntry, joints: usize) -> Result<super::servos::ServoSetup> {
+/// The `[servos]` table, checked against the joints.
+fn servos(at: &str, text: &str, entry: &ServosEntry, joints: &[JointSpec]) -> Result<super::servos::ServoSetup> {
     let model =
         firmware::bus::table::MODELS.into_iter().find(|m| m.name.eq_ignore_ascii_case(&entry.model)).ok_or_else(
             || anyhow!("{at}: unknown servo model {:?} (STS3215, XL430-W250, XM430-W350, XL330-M288)", entry.model),
         )?;
-    let count = |key: &str, n: usize| -> Result<()> {
-        if n != joints {
-            bail!("{at}: {key} has {n} entries for {joints} joints");
+    let n = joints.len();
+    let count = |key: &str, len: usize| -> Result<()> {
+        if len != n {
+            bail!("{at}: {key} has {len} entries for {n} joints");
         }
         Ok(())
     };
     count("ids", entry.ids.len())?;
     if let Some(z) = &entry.zero {
-        count("zero", z.len())?;
+        count("zero", z.get_ref().len())?;
     }
     if let Some(r) = &entry.reversed {
         count("reversed", r.len())?;
@@ -324,16 +342,84 @@ fn servos(at: &str, entry: &ServosEntry, joints: usize) -> Result<super::servos:
             bail!("{at}: {key} must be a positive number, not {v}");
         }
     }
+    let calibration = calibration(text, entry, joints, model.ticks_per_revolution)?;
     Ok(super::servos::ServoSetup {
         model,
         ids: entry.ids.clone(),
-        zero: entry.zero.clone(),
+        zero: entry.zero.as_ref().map(|z| z.get_ref().clone()),
         reversed: entry.reversed.clone(),
         max_velocity: entry.max_velocity,
         max_acceleration: entry.max_acceleration,
-        calibration: None,
+        calibration,
         gripper: None,
     })
+}
+
+/// The `[servos]` calibration arrays (all three, or none), one [`MotorCalibration`] per joint.
+/// Errors name the line of the key at fault and the joint.
+fn calibration(
+    text: &str,
+    entry: &ServosEntry,
+    joints: &[JointSpec],
+    ticks_per_revolution: u32,
+) -> Result<Option<Vec<MotorCalibration>>> {
+    let keys =
+        [("homing_offset", &entry.homing_offset), ("range_min", &entry.range_min), ("range_max", &entry.range_max)];
+    let given: Vec<&str> = keys.iter().filter(|(_, v)| v.is_some()).map(|(k, _)| *k).collect();
+    let (Some(offsets), Some(mins), Some(maxes)) = (&entry.homing_offset, &entry.range_min, &entry.range_max) else {
+        if let Some((key, Some(value))) = keys.iter().find(|(_, v)| v.is_some()) {
+            bail!(
+                "{}: [servos] {key}: a calibration needs homing_offset, range_min and range_max together (given: {})",
+                position(text, value.span().start),
+                given.join(", ")
+            );
+        }
+        return Ok(None);
+    };
+    let at = |value: &Spanned<Vec<i64>>, key: &str| format!("{}: [servos] {key}", position(text, value.span().start));
+    let n = joints.len();
+    for (key, value) in [("homing_offset", offsets), ("range_min", mins), ("range_max", maxes)] {
+        if value.get_ref().len() != n {
+            bail!("{} has {} entries for {n} joints", at(value, key), value.get_ref().len());
+        }
+    }
+    if let Some(zero) = &entry.zero {
+        bail!(
+            "{}: [servos] zero does not apply with a calibration (the zero is the calibrated range's middle): remove it",
+            position(text, zero.span().start)
+        );
+    }
+    let top = i64::from(ticks_per_revolution) - 1;
+    let ids = &entry.ids;
+    let mut calibration = Vec::with_capacity(n);
+    for (j, joint) in joints.iter().enumerate() {
+        let name = format!("joint {} ({})", j + 1, joint.name);
+        let (offset, lo, hi) = (offsets.get_ref()[j], mins.get_ref()[j], maxes.get_ref()[j]);
+        if offset.abs() > MAX_HOMING_OFFSET {
+            bail!("{}: {name}: {offset} is beyond +-{MAX_HOMING_OFFSET}", at(offsets, "homing_offset"));
+        }
+        for (key, value, v) in [("range_min", mins, lo), ("range_max", maxes, hi)] {
+            if !(0..=top).contains(&v) {
+                bail!("{}: {name}: {v} is outside the servo's 0..={top} ticks", at(value, key));
+            }
+        }
+        if lo == hi {
+            bail!("{}: {name}: range_min and range_max are both {lo}: a range of zero width", at(maxes, "range_max"));
+        }
+        if lo > hi {
+            bail!("{}: {name}: range_min {lo} is above range_max {hi}", at(mins, "range_min"));
+        }
+        let reversed = entry.reversed.as_ref().is_some_and(|r| r[j]);
+        // The values are checked to fit above.
+        calibration.push(MotorCalibration {
+            id: ids[j],
+            drive_mode: u8::from(reversed),
+            homing_offset: offset as i32,
+            range_min: lo as i32,
+            range_max: hi as i32,
+        });
+    }
+    Ok(Some(calibration))
 }
 
 /// Standard DH `Rz(theta) Tz(d) Tx(a) Rx(alpha)`, computed by the kinematics crate: a one-row
@@ -588,6 +674,39 @@ mod tests {
         assert!(error(&format!("{arm}[gripper]\nid = 6\nclosed = 1\nopen = 2\nopening_mm = 1"))
             .contains("needs a [servos]"));
         assert!(bad("id = 6\nclosed = 2000\nopen = 3000\nopening_mm = 80\nforce = 1").contains("force"));
+    }
+
+    #[test]
+    fn a_calibration_in_the_servos_table_maps_as_lerobot_does() {
+        let arm = "name = \"a\"\n[[joint]]\nname = \"pan\"\ntype = \"revolute\"\naxis = [0, 0, 1]\nlimits = [-1, 1]\n[[joint]]\nname = \"lift\"\ntype = \"revolute\"\naxis = [0, 1, 0]\nlimits = [-1, 1]\n";
+        let servos = "[servos]\nmodel = \"sts3215\"\nids = [3, 4]\nmax_velocity = 2\nmax_acceleration = 8\n";
+        let ok = format!("{arm}{servos}reversed = [false, true]\nhoming_offset = [953, -1200]\nrange_min = [758, 812]\nrange_max = [3292, 3313]\n");
+        let setup = parse(&ok).unwrap().servos.unwrap();
+        assert_eq!(
+            setup.calibration,
+            Some(vec![
+                MotorCalibration { id: 3, drive_mode: 0, homing_offset: 953, range_min: 758, range_max: 3292 },
+                MotorCalibration { id: 4, drive_mode: 1, homing_offset: -1200, range_min: 812, range_max: 3313 },
+            ])
+        );
+        assert_eq!(setup.mapping(1), Some(firmware::bus::mapping::JointMapping::lerobot(4, 4096, 812, 3313)));
+        let bad = |calibration: &str| error(&format!("{arm}{servos}{calibration}"));
+        let three = |o: &str, lo: &str, hi: &str| format!("homing_offset = {o}\nrange_min = {lo}\nrange_max = {hi}\n");
+        for (text, needle) in [
+            (three("[0, 0]", "[100, 2000]", "[3000, 2000]"), "line 19, column 13: [servos] range_max: joint 2 (lift): range_min and range_max are both 2000: a range of zero width"),
+            (three("[0, 0]", "[100, 2100]", "[3000, 2000]"), "line 18, column 13: [servos] range_min: joint 2 (lift): range_min 2100 is above range_max 2000"),
+            (three("[2048, 0]", "[100, 100]", "[3000, 3000]"), "line 17, column 17: [servos] homing_offset: joint 1 (pan): 2048 is beyond +-2047"),
+            (three("[0, -2100]", "[100, 100]", "[3000, 3000]"), "joint 2 (lift): -2100 is beyond +-2047"),
+            (three("[0]", "[100, 100]", "[3000, 3000]"), "line 17, column 17: [servos] homing_offset has 1 entries for 2 joints"),
+            (three("[0, 0]", "[100, 100]", "[3000, 3000, 1]"), "[servos] range_max has 3 entries for 2 joints"),
+            (three("[0, 0]", "[100, -1]", "[3000, 3000]"), "joint 2 (lift): -1 is outside the servo's 0..=4095 ticks"),
+            (three("[0, 0]", "[100, 100]", "[3000, 4096]"), "joint 2 (lift): 4096 is outside"),
+            ("range_min = [1, 2]\n".into(), "line 17, column 13: [servos] range_min: a calibration needs homing_offset, range_min and range_max together (given: range_min)"),
+            (format!("zero = [2048, 2048]\n{}", three("[0, 0]", "[100, 100]", "[3000, 3000]")), "line 17, column 8: [servos] zero does not apply with a calibration"),
+        ] {
+            let e = bad(&text);
+            assert!(e.contains(needle), "expected {needle:?} in {e:?}");
+        }
     }
 
     #[test]

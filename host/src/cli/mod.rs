@@ -76,6 +76,10 @@ enum Command {
     Serve(serve::ServeArgs),
     /// Serial bus servo set-up on a real port: scan, read, write, set-id, set-baud, torque.
     Servo(crate::servo::cli::ServoArgs),
+    /// Calibrate an arm's servos as LeRobot does (homing offsets at the middle of each joint's
+    /// range, the ranges moved through by hand as position limits), answering each step with a
+    /// line on stdin; writes the servos, an arm file (--out) and LeRobot's file (--lerobot-json).
+    Calibrate(crate::servo::calibrate::CalibrateArgs),
     /// Driving an arm (after --port PORT, --bus PORT --protocol P or --sim): move, joints, play,
     /// status, stop, torque.
     #[command(flatten)]
@@ -218,6 +222,7 @@ fn run(link: &crate::drive::args::LinkArgs, command: Command, out: &mut dyn Writ
         Command::Bench { what: BenchCommand::Mcu(args) } => return crate::bench::mcu::run(&args, out),
         Command::Bench { what: BenchCommand::Pc(args) } => return crate::bench::pc::run(&args, out, err),
         Command::Servo(args) => return crate::servo::cli::run(args, out, err),
+        Command::Calibrate(args) => return crate::servo::calibrate::run(args, out, err),
         Command::Ports { json } => {
             let ports = crate::servo::ports::usb_ports(std::path::Path::new("/sys"), std::path::Path::new("/dev"));
             if json {

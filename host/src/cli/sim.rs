@@ -7,6 +7,7 @@ use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
+use firmware::bus::table::Model;
 use firmware::bus::{dxl2, feetech, Protocol};
 
 use crate::args::bus::{model_for, ModelArg, ProtocolArg};
@@ -81,17 +82,30 @@ pub enum SimCommand {
 }
 
 /// Arguments of `armctl sim servos`.
+///
+/// While it serves, each line on its standard input moves a horn as a hand would (the servo's
+/// torque must be off), in the horn's own ticks, before the homing offset:
+/// `move ID TICKS` puts it there at once; `sweep ID FROM TO SECONDS` puts it at FROM, then turns
+/// it steadily to TO in SECONDS. Each command gets one line on stdout: `done move ID TICKS` or
+/// `done sweep ID FROM TO SECONDS` once the horn is there and its position has been read since
+/// (so that a program recording the bus has seen where the hand stopped: with nobody reading, it
+/// does not come), or `error: ...`.
 #[derive(Args, Debug)]
 pub struct SimServosArgs {
-    /// Bus protocol.
+    /// Bus protocol (default: that of --arm's servos).
     #[arg(long, value_enum)]
-    pub protocol: ProtocolArg,
-    /// Servo ids: ranges and lists, e.g. `1-6`, `1,3,5`, `1-3,7`.
+    pub protocol: Option<ProtocolArg>,
+    /// Servo ids: ranges and lists, e.g. `1-6`, `1,3,5`, `1-3,7` (default: --arm's servos and its
+    /// gripper's).
     #[arg(long)]
-    pub ids: String,
-    /// Servo model (default xl430-w250 on dxl2, sts3215 on sts).
+    pub ids: Option<String>,
+    /// Servo model (default: --arm's, else xl430-w250 on dxl2, sts3215 on sts).
     #[arg(long, value_enum)]
     pub model: Option<ModelArg>,
+    /// Where the horns stand at the start, in their own ticks (before any homing offset): e.g.
+    /// `1=3100,2=900` (default: every horn at half a turn, 2048).
+    #[arg(long, value_name = "ID=TICKS,...")]
+    pub start: Option<String>,
     /// Baud rate (one the model has a baud index for).
     #[arg(long, default_value_t = 1_000_000)]
     pub baud: u32,
@@ -121,6 +135,32 @@ pub struct SimServosArgs {
     pub arm: Option<String>,
 }
 
+/// `--start`: (id, ticks) pairs, each id served, each position on the encoder's turn.
+fn start_positions(text: Option<&str>, ids: &[u8], model: &Model) -> Result<Vec<(u8, i64)>> {
+    let Some(text) = text else { return Ok(Vec::new()) };
+    let top = i64::from(model.ticks_per_revolution) - 1;
+    let mut start = Vec::new();
+    for part in text.split(',').map(str::trim) {
+        let parsed = part
+            .split_once('=')
+            .and_then(|(id, ticks)| Some((id.trim().parse::<u8>().ok()?, ticks.trim().parse::<i64>().ok()?)));
+        let Some((id, ticks)) = parsed else {
+            bail!("--start {part:?} is not ID=TICKS (e.g. 1=3100)");
+        };
+        if !ids.contains(&id) {
+            bail!("--start names servo {id}, which is not served (--ids)");
+        }
+        if !(0..=top).contains(&ticks) {
+            bail!("--start {id}={ticks}: a horn stands at 0..={top} ticks on {}", model.name);
+        }
+        if start.iter().any(|(other, _)| *other == id) {
+            bail!("--start names servo {id} twice");
+        }
+        start.push((id, ticks));
+    }
+    Ok(start)
+}
+
 /// The latency timer of `--burst-ms`.
 fn burst(ms: Option<f64>) -> Result<Option<Duration>> {
     match ms {
@@ -142,15 +182,34 @@ fn limits(arm: Option<&str>, ids: &[u8]) -> Result<Option<Vec<crate::sim::GoalLi
     Ok(Some(limits))
 }
 
+/// The servos of `--arm`, when it names an arm that has some.
+fn arm_servos(arm: Option<&str>) -> Result<Option<crate::arm::servos::ServoSetup>> {
+    let Some(name) = arm else { return Ok(None) };
+    let spec = ArmSpec::load(name, None).with_context(|| format!("--arm {name}"))?;
+    Ok(crate::arm::servos::servos_of(&spec))
+}
+
 /// Checks the arguments and builds the bus description.
 pub fn config(args: &SimServosArgs) -> Result<SimConfig> {
-    let protocol = Protocol::from(args.protocol);
+    let arm = arm_servos(args.arm.as_deref())?;
+    let protocol = match (args.protocol, &arm) {
+        (Some(p), _) => Protocol::from(p),
+        (None, Some(servos)) => servos.model.protocol,
+        (None, None) => bail!("--protocol is required (sts or dxl2), unless --arm names an arm with servos"),
+    };
     let max_id = match protocol {
         Protocol::Dxl2 => dxl2::MAX_ID,
         Protocol::Feetech => feetech::MAX_ID,
     };
-    let model = model_for(protocol, args.model)?;
-    let ids = crate::args::numbers::ids(&args.ids, u8::MAX, "--ids")?;
+    let model = match (args.model, &arm) {
+        (None, Some(servos)) if servos.model.protocol == protocol => servos.model,
+        (model, _) => model_for(protocol, model)?,
+    };
+    let ids = match (&args.ids, &arm) {
+        (Some(ids), _) => crate::args::numbers::ids(ids, u8::MAX, "--ids")?,
+        (None, Some(servos)) => servos.ids.iter().copied().chain(servos.gripper.map(|g| g.id)).collect(),
+        (None, None) => bail!("--ids is required (e.g. 1-6), unless --arm names an arm with servos"),
+    };
     let all = ids.iter().chain(&args.faults.silent).chain(&args.duplicate);
     if let Some(id) = all.into_iter().find(|&&id| id > max_id) {
         bail!("id {id} is outside {}'s range 0-{max_id}", protocol.name());
@@ -162,6 +221,8 @@ pub fn config(args: &SimServosArgs) -> Result<SimConfig> {
     let faults = args.faults.faults()?;
     let burst = burst(args.burst_ms)?;
     let limits = limits(args.arm.as_deref(), &ids)?;
+    // Checked here, applied once the server runs.
+    start_positions(args.start.as_deref(), &ids, model)?;
     Ok(SimConfig {
         protocol,
         model,
@@ -264,6 +325,10 @@ fn run_servos(args: SimServosArgs, out: &mut dyn Write, err: &mut dyn Write) -> 
         }
     };
     let server = PtyServer::spawn(config.clone()).context("cannot open a pseudo-terminal")?;
+    // Before the path is printed, so before any program can open it.
+    for (id, ticks) in start_positions(args.start.as_deref(), &config.ids, config.model)? {
+        server.place(id, ticks);
+    }
     writeln!(out, "{}", server.path())?;
     out.flush()?;
     let ids: Vec<String> = config.ids.iter().map(u8::to_string).collect();
@@ -286,16 +351,101 @@ fn run_servos(args: SimServosArgs, out: &mut dyn Write, err: &mut dyn Write) -> 
     )?;
     err.flush()?;
     // Serve until interrupted (SIGINT's default action ends the process) or the server fails;
-    // with a monitor, print what it finds as it finds it.
+    // with a monitor, print what it finds as it finds it; take the hand's commands from stdin.
     let poll = Duration::from_millis(if config.limits.is_some() { 50 } else { 200 });
     let mut printed = Printed::default();
+    let mut hand = HandLines::from_stdin();
     while !server.is_finished() {
-        std::thread::sleep(poll);
+        hand.serve(&server, poll, out)?;
         printed.print(&server, err)?;
     }
     printed.print(&server, err)?;
     server.stop().context("the simulated bus stopped")?;
     Ok(1)
+}
+
+/// How often the hand's moves under way are looked at: the wait before a `done` line.
+const HAND_POLL: Duration = Duration::from_millis(10);
+
+/// The hand's commands from stdin, and the moves under way (ticket, the command as echoed).
+struct HandLines {
+    lines: Option<std::sync::mpsc::Receiver<String>>,
+    pending: Vec<(u64, String)>,
+}
+
+impl HandLines {
+    /// Reads stdin on a thread of its own (detached: it ends with the process or at end of input).
+    fn from_stdin() -> Self {
+        let (tx, rx) = std::sync::mpsc::channel();
+        let spawned = std::thread::Builder::new().name("sim-hand".into()).spawn(move || {
+            for line in std::io::stdin().lines() {
+                let Ok(line) = line else { break };
+                if tx.send(line).is_err() {
+                    break;
+                }
+            }
+        });
+        Self { lines: spawned.ok().map(|_| rx), pending: Vec::new() }
+    }
+
+    /// Waits up to `poll` for a command (less while moves are under way), carries it out, and
+    /// prints the lines of the moves that ended.
+    fn serve(&mut self, server: &PtyServer, poll: Duration, out: &mut dyn Write) -> Result<()> {
+        let wait = if self.pending.is_empty() { poll } else { HAND_POLL };
+        match self.lines.as_ref().map(|rx| rx.recv_timeout(wait)) {
+            Some(Ok(line)) => match hand_command(&line) {
+                Ok(None) => {}
+                Ok(Some((id, from, to, seconds, echo))) => {
+                    let ticket = server.hand(id, from, to, seconds);
+                    self.pending.push((ticket, echo));
+                }
+                Err(e) => writeln!(out, "error: {e}")?,
+            },
+            Some(Err(std::sync::mpsc::RecvTimeoutError::Timeout)) => {}
+            // End of input: no more commands; the moves under way are still reported.
+            Some(Err(std::sync::mpsc::RecvTimeoutError::Disconnected)) | None => {
+                self.lines = None;
+                std::thread::sleep(wait);
+            }
+        }
+        for event in server.hand_events() {
+            let Some(i) = self.pending.iter().position(|(t, _)| *t == event.ticket) else { continue };
+            let (_, echo) = self.pending.remove(i);
+            match event.result {
+                Ok(()) => writeln!(out, "done {echo}")?,
+                Err(reason) => writeln!(out, "error: {echo}: {reason}")?,
+            }
+        }
+        out.flush()?;
+        Ok(())
+    }
+}
+
+/// A hand's command: (id, from, to, seconds, the command as echoed in its reply line).
+type HandCommand = (u8, i64, i64, f64, String);
+
+/// Parses `move ID TICKS` or `sweep ID FROM TO SECONDS`; `None` for a blank line.
+fn hand_command(line: &str) -> Result<Option<HandCommand>> {
+    let words: Vec<&str> = line.split_whitespace().collect();
+    let id = |w: &str| w.parse::<u8>().map_err(|_| anyhow::anyhow!("{w:?} is not a servo id"));
+    let ticks = |w: &str| w.parse::<i64>().map_err(|_| anyhow::anyhow!("{w:?} is not a whole number of ticks"));
+    match words.as_slice() {
+        [] => Ok(None),
+        ["move", i, t] => {
+            let (i, t) = (id(i)?, ticks(t)?);
+            Ok(Some((i, t, t, 0.0, format!("move {i} {t}"))))
+        }
+        ["sweep", i, from, to, seconds] => {
+            let (i, from, to) = (id(i)?, ticks(from)?, ticks(to)?);
+            let s: f64 = seconds
+                .parse()
+                .ok()
+                .filter(|s: &f64| s.is_finite() && *s >= 0.0)
+                .ok_or_else(|| anyhow::anyhow!("{seconds:?} is not a duration in seconds"))?;
+            Ok(Some((i, from, to, s, format!("sweep {i} {from} {to} {seconds}"))))
+        }
+        _ => bail!("{:?} is not `move ID TICKS` or `sweep ID FROM TO SECONDS`", line.trim()),
+    }
 }
 
 /// The monitor's violations printed so far.

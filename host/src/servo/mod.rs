@@ -9,11 +9,13 @@
 //! - [`session`]: an open bus, with servo identification and one-line error texts;
 //! - [`commands`]: the commands themselves;
 //! - [`calibration`]: a LeRobot calibration file checked against the servos, and written to them;
+//! - [`calibrate`]: `armctl calibrate`, LeRobot's calibration procedure on an arm's servos;
 //! - [`ports`]: `armctl ports`, the USB serial ports and the device behind each;
 //! - [`cli`]: their command-line arguments.
 //!
 //! [`Master`]: firmware::bus::master::Master
 
+pub mod calibrate;
 pub mod calibration;
 pub mod cli;
 pub mod commands;

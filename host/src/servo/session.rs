@@ -169,6 +169,25 @@ impl<P: Port, C: Clock> Session<P, C> {
         Ok(())
     }
 
+    /// Reads one item of every servo in `ids` with one sync read (the master retries the servos
+    /// that did not answer); fails naming the servos that never did. A group reply's fault bits
+    /// are not booked as alerts (the report does not carry the error byte).
+    pub fn sync_read_item(&mut self, ids: &[Id], model: &Model, item: Item) -> anyhow::Result<Vec<i64>> {
+        let len = item.len();
+        let mut bytes = vec![0u8; ids.len() * len];
+        let report = self.master.sync_read(item.address, len as u16, ids, &mut bytes).map_err(BusFailure)?;
+        let missing: Vec<String> = report.missing(ids).map(|id| id.to_string()).collect();
+        if !missing.is_empty() {
+            anyhow::bail!(
+                "servo {} did not answer a sync read of {} ({} attempts)",
+                missing.join(", "),
+                item.name,
+                report.attempts
+            );
+        }
+        bytes.chunks(len).map(|b| item.decode(b, model.endian).map_err(value_error)).collect()
+    }
+
     /// Pings `id` and finds its model and firmware version.
     pub fn identify(&mut self, id: Id) -> Result<Servo, BusFailure<P::Fault>> {
         let info = self.ping(id)?;

@@ -394,6 +394,7 @@ impl SimBus {
                     continue;
                 }
                 let result = s.read(address, length);
+                self.servos[i].note_read(address, length, cursor);
                 // Two servos with one id both take the turn: their replies overlap.
                 end = end.max(self.send(i, id, cursor, result, out));
             }
@@ -416,6 +417,7 @@ impl SimBus {
                 Some(i) if present == data.len() && self.servos[i].answers(&read) && !self.faults.is_silent(id) => {
                     present += 1;
                     first.get_or_insert(i);
+                    self.servos[i].note_read(address, length, t);
                     let s = &self.servos[i];
                     match s.read(address, length) {
                         Ok(d) => (s.status_error(0), id, d),

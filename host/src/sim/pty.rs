@@ -12,7 +12,14 @@
 //! latency timer expires ([`super::latency`]; bytes from the PC still reach the servos at once),
 //! and [`SimConfig::limits`] checks every goal the servos receive as it arrives
 //! ([`super::monitor::realtime`]), for [`PtyServer::monitor`].
+//!
+//! A hand can turn the servos' horns while they are served ([`PtyServer::place`],
+//! [`PtyServer::hand`]), as a person moves a limp arm during a calibration: the serving thread
+//! takes each request before it carries out the next bytes from the pty, and reports a hand's move
+//! done ([`PtyServer::hand_events`]) once the horn is there and its position has been read since,
+//! so that whoever reads the bus has seen where the hand stopped.
 
+use std::collections::VecDeque;
 use std::io::{Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -92,6 +99,33 @@ pub const EMULATED_LINE_GAP_NS: u64 = 50_000_000;
 /// notices a stop request quickly; a line this long quiet also ends a partial packet.
 const IDLE_READ: Duration = Duration::from_millis(20);
 
+/// What a hand does to a servo's horn, in the horn's own ticks (before its homing offset).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Hand {
+    /// At `ticks` at once, unreported.
+    Place { id: u8, ticks: i64 },
+    /// To `from` at once, then steadily to `to` in `seconds`; reported under `ticket`.
+    Move { ticket: u64, id: u8, from: i64, to: i64, seconds: f64 },
+}
+
+/// How a hand's move ended ([`PtyServer::hand`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct HandEvent {
+    /// The ticket [`PtyServer::hand`] returned.
+    pub ticket: u64,
+    /// `Ok` once the horn is where the hand took it and its position has been read since; the
+    /// reason otherwise (an unknown servo, torque on, a later move of the same servo).
+    pub result: Result<(), String>,
+}
+
+/// The hand's requests and reports, shared with the serving thread.
+#[derive(Debug, Default)]
+struct HandQueue {
+    requests: VecDeque<Hand>,
+    events: Vec<HandEvent>,
+    next_ticket: u64,
+}
+
 /// A simulated bus on a pseudo-terminal; dropping it stops the serving thread.
 #[derive(Debug)]
 pub struct PtyServer {
@@ -99,6 +133,8 @@ pub struct PtyServer {
     stop: Arc<AtomicBool>,
     /// New faults for the serving thread to take up (hardware-in-the-loop tests change them mid-run).
     new_faults: Arc<Mutex<Option<Faults>>>,
+    /// A hand's requests for the serving thread, and what became of them.
+    hand: Arc<Mutex<HandQueue>>,
     /// The safety monitor, when there are limits; the serving thread feeds it.
     monitor: Option<Arc<Mutex<RealTimeMonitor>>>,
     thread: Option<JoinHandle<std::io::Result<()>>>,
@@ -115,13 +151,49 @@ impl PtyServer {
         master.set_timeout(IDLE_READ).map_err(std::io::Error::from)?;
         let stop = Arc::new(AtomicBool::new(false));
         let new_faults = Arc::new(Mutex::new(None));
+        let hand = Arc::new(Mutex::new(HandQueue::default()));
         let monitor = config.limits.clone().map(|limits| Arc::new(Mutex::new(RealTimeMonitor::new(limits))));
-        let control = Control { stop: stop.clone(), new_faults: new_faults.clone(), monitor: monitor.clone() };
+        let control = Control {
+            stop: stop.clone(),
+            new_faults: new_faults.clone(),
+            monitor: monitor.clone(),
+            hand: hand.clone(),
+            pending: Vec::new(),
+        };
         let thread = std::thread::Builder::new().name("sim-servos".into()).spawn(move || {
             let outbox = Outbox { timer: config.burst.map(LatencyTimer::new) };
-            serve(&mut master, &slave, config.build_for_pty(), !config.fixed_baud, &control, outbox)
+            serve(&mut master, &slave, config.build_for_pty(), !config.fixed_baud, control, outbox)
         })?;
-        Ok(PtyServer { path, stop, new_faults, monitor, thread: Some(thread) })
+        Ok(PtyServer { path, stop, new_faults, hand, monitor, thread: Some(thread) })
+    }
+
+    fn hand_queue(&self) -> std::sync::MutexGuard<'_, HandQueue> {
+        // A poisoned lock only means the serving thread panicked; the queue is still whole.
+        self.hand.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Puts servo `id`'s horn at `ticks` (its own position, before the homing offset), as if
+    /// turned there by hand before anyone looks: applied before the next bytes from the pty are
+    /// carried out, never reported. A servo that is not on the bus is left out.
+    pub fn place(&self, id: u8, ticks: i64) {
+        self.hand_queue().requests.push_back(Hand::Place { id, ticks });
+    }
+
+    /// A hand turns servo `id`'s horn (torque off) to `from` at once, then steadily to `to` in
+    /// `seconds`, in the horn's own ticks. Returns the ticket that [`PtyServer::hand_events`]
+    /// reports it under: done once the horn is at `to` and its position has been read since, or
+    /// refused (torque on, no such servo), or cut short by a later move of the same servo.
+    pub fn hand(&self, id: u8, from: i64, to: i64, seconds: f64) -> u64 {
+        let mut queue = self.hand_queue();
+        queue.next_ticket += 1;
+        let ticket = queue.next_ticket;
+        queue.requests.push_back(Hand::Move { ticket, id, from, to, seconds });
+        ticket
+    }
+
+    /// The hand's moves that ended since the last call, in the order they ended.
+    pub fn hand_events(&self) -> Vec<HandEvent> {
+        std::mem::take(&mut self.hand_queue().events)
     }
 
     /// What the safety monitor has found so far (`None` without limits).
@@ -170,14 +242,54 @@ impl Drop for PtyServer {
     }
 }
 
-/// What the owner and the serving thread share.
+/// What the owner and the serving thread share, and the hand's moves under way.
 struct Control {
     stop: Arc<AtomicBool>,
     new_faults: Arc<Mutex<Option<Faults>>>,
     monitor: Option<Arc<Mutex<RealTimeMonitor>>>,
+    hand: Arc<Mutex<HandQueue>>,
+    /// (ticket, servo, when the horn gets there): moves waiting for a read of the position.
+    pending: Vec<(u64, u8, u64)>,
 }
 
 impl Control {
+    /// Carries out the hand's requests at `now_ns`, and reports the moves whose horn has arrived
+    /// and been read since.
+    fn hand(&mut self, bus: &mut SimBus, now_ns: u64) {
+        let mut queue = self.hand.lock().unwrap_or_else(|e| e.into_inner());
+        let requests: Vec<Hand> = queue.requests.drain(..).collect();
+        for request in requests {
+            match request {
+                Hand::Place { id, ticks } => {
+                    if let Some(servo) = bus.servo_mut(id) {
+                        servo.set_position(ticks, now_ns);
+                    }
+                }
+                Hand::Move { ticket, id, from, to, seconds } => {
+                    if let Some(i) = self.pending.iter().position(|(_, other, _)| *other == id) {
+                        let (old, ..) = self.pending.remove(i);
+                        let reason = format!("servo {id}: cut short by the next move of its horn");
+                        queue.events.push(HandEvent { ticket: old, result: Err(reason) });
+                    }
+                    let moved = match bus.servo_mut(id) {
+                        Some(servo) => servo.hand_move(from, to, seconds, now_ns),
+                        None => Err(format!("no servo {id} on this bus")),
+                    };
+                    match moved {
+                        Ok(end_ns) => self.pending.push((ticket, id, end_ns)),
+                        Err(reason) => queue.events.push(HandEvent { ticket, result: Err(reason) }),
+                    }
+                }
+            }
+        }
+        let read_since =
+            |id: u8, end_ns: u64| bus.servo(id).and_then(|s| s.position_read_ns()).is_some_and(|read| read >= end_ns);
+        let (done, waiting): (Vec<_>, Vec<_>) =
+            self.pending.drain(..).partition(|&(_, id, end_ns)| read_since(id, end_ns));
+        self.pending = waiting;
+        queue.events.extend(done.into_iter().map(|(ticket, ..)| HandEvent { ticket, result: Ok(()) }));
+    }
+
     /// Lets the monitor look at the bus after a burst that arrived at `at_ns`.
     fn observe(&self, bus: &SimBus, at_ns: u64) {
         if let Some(monitor) = &self.monitor {
@@ -242,7 +354,7 @@ fn serve(
     slave: &TTYPort,
     mut bus: SimBus,
     follow_baud: bool,
-    control: &Control,
+    mut control: Control,
     mut outbox: Outbox,
 ) -> std::io::Result<()> {
     let start = Instant::now();
@@ -253,6 +365,7 @@ fn serve(
             *bus.faults() = FaultState::new(faults);
         }
         let now_ns = elapsed_ns(start);
+        control.hand(&mut bus, now_ns);
         outbox.release(master, now_ns)?;
         master.set_timeout(outbox.wait(now_ns)).map_err(std::io::Error::from)?;
         let n = match master.read(&mut buf) {
@@ -278,6 +391,8 @@ fn serve(
             bus.set_baud(baud);
         }
         let now_ns = elapsed_ns(start);
+        // The hand's requests made before these bytes were sent come first.
+        control.hand(&mut bus, now_ns);
         last_rx_ns = now_ns;
         let replies = bus.receive(&buf[..n], now_ns);
         control.observe(&bus, now_ns);

@@ -12,17 +12,34 @@
 //!   EEPROM writes take effect whatever the `lock` item says; `lock` only decides whether they
 //!   survive a power cycle, which the simulator does not model.
 //! - Turning torque on sets the goal to the present position, so the horn does not jump; with
-//!   torque off nothing moves. A hardware error turns torque off and keeps it off until a reboot
+//!   torque off the servo moves nothing (a hand may). A hardware error turns torque off and keeps it off until a reboot
 //!   (Dynamixel) or [`SimServo::clear_hardware_error`].
 //! - Goals are clamped to the position limits; the horn then follows the servo's own trapezoidal
 //!   profile ([`super::motion`]) and the present position is quantised to whole ticks.
+//! - The homing offset shifts what the servo reports, not where the horn is. The horn's own
+//!   position (the encoder's, "actual") is what the profile moves; the present position, the goal
+//!   and the position limits are in the offset-corrected frame:
+//!   - Feetech STS3215 (`Homing_Offset`, address 31, sign-magnitude with the sign in bit 11):
+//!     `present = actual - offset`, taken modulo one turn (LeRobot's `_get_half_turn_homings`
+//!     "Present_Position = Actual_Position - Homing_Offset"; the encoder is single-turn, so the
+//!     corrected value wraps at 0/4095 as the raw one does);
+//!   - Dynamixel X (`Homing_Offset`, address 20, 4 bytes two's complement): `present = actual +
+//!     offset` (e-manual, Homing Offset(20)), not wrapped. In position control mode (operating
+//!     mode 3) the e-manual says offsets outside -1024..=1024 are ignored: such an offset is held
+//!     in the register but not applied.
+//! - A goal is reached by turning the horn by the goal's distance from the present position in the
+//!   offset-corrected frame, so a move never takes the other way round the turn.
+//! - A hand can turn a horn whose torque is off ([`SimServo::hand_move`]): at once, or at a
+//!   steady speed; the present position follows it.
 //! - A servo whose baud item does not match the bus's baud rate hears nothing (after changing it,
 //!   or after a factory reset that restores it).
 
-use firmware::bus::table::{Access, Item, Model};
+use firmware::bus::table::{xseries, Access, Item, Model};
 use firmware::bus::{Instruction, Protocol};
 
 use super::motion::Profile;
+use crate::arm::calibration::homing_offset_item;
+use crate::arm::calibration::record::DXL_POSITION_MODE_MAX_OFFSET;
 
 /// Dynamixel error numbers (e-manual, Protocol 2.0, "Status Packet").
 pub mod error {
@@ -42,6 +59,9 @@ pub mod error {
 
 /// The Dynamixel alert bit of the status error byte.
 pub const ALERT: u8 = 0x80;
+
+/// Dynamixel X's operating mode 3, position control (single turn).
+const DXL_POSITION_MODE: i64 = 3;
 
 /// The key of Dynamixel's CLEAR of the multi-turn position (`0x01 'D' 'X' 'L' '"'`).
 const CLEAR_KEY: [u8; 4] = [0x44, 0x58, 0x4C, 0x22];
@@ -67,6 +87,9 @@ pub struct SimServo {
     last_goal_corrupted: bool,
     /// An object between the jaws, when this servo is a gripper's.
     jaw: Option<Jaw>,
+    /// When the present position was last read (a read, sync read, bulk read or fast sync read
+    /// covering it), virtual ns.
+    position_read_ns: Option<u64>,
 }
 
 /// An object between a gripper's jaws: the horn cannot pass `contact` going toward `closed`, and
@@ -129,6 +152,7 @@ impl SimServo {
             in_corrupted_packet: false,
             last_goal_corrupted: false,
             jaw: None,
+            position_read_ns: None,
         };
         servo.set(model.items.id, i64::from(id));
         if let Some(index) = model.baud_index(baud) {
@@ -169,12 +193,87 @@ impl SimServo {
         }
     }
 
-    /// Puts the horn at `ticks` at time `t_ns` (as if turned by hand), goal included; no motion.
+    /// Puts the horn at `ticks` (its own, actual position, before the homing offset) at time
+    /// `t_ns` (as if turned by hand), goal included; no motion. With no offset, the present
+    /// position reads `ticks`.
     pub fn set_position(&mut self, ticks: i64, t_ns: u64) {
         self.profile = Profile::hold(ticks as f64, t_ns);
-        self.set(self.model.items.present_position, ticks);
-        self.set(self.model.items.goal_position, ticks);
+        let present = self.present_of(ticks as f64);
+        self.set(self.model.items.present_position, present);
+        self.set(self.model.items.goal_position, present);
         self.set(self.model.items.moving, 0);
+    }
+
+    /// The homing offset in effect: the register's, except a Dynamixel's beyond
+    /// [`DXL_POSITION_MODE_MAX_OFFSET`] (1024) in position control mode, which is ignored (e-manual,
+    /// Homing Offset(20)).
+    pub fn homing_offset(&self) -> i64 {
+        let offset = self.get(homing_offset_item(self.model));
+        let ignored = self.model.protocol == Protocol::Dxl2
+            && self.get(xseries::OPERATING_MODE) == DXL_POSITION_MODE
+            && offset.abs() > DXL_POSITION_MODE_MAX_OFFSET;
+        if ignored {
+            0
+        } else {
+            offset
+        }
+    }
+
+    /// The present position (offset-corrected, fractional) of the horn at `actual` ticks.
+    fn corrected(&self, actual: f64) -> f64 {
+        let offset = self.homing_offset() as f64;
+        match self.model.protocol {
+            Protocol::Feetech => (actual - offset).rem_euclid(f64::from(self.model.ticks_per_revolution)),
+            Protocol::Dxl2 => actual + offset,
+        }
+    }
+
+    /// The present position the servo reports with its horn at `actual` ticks.
+    fn present_of(&self, actual: f64) -> i64 {
+        let tpr = i64::from(self.model.ticks_per_revolution);
+        let offset = self.homing_offset();
+        match self.model.protocol {
+            Protocol::Feetech => (actual.round() as i64 - offset).rem_euclid(tpr),
+            Protocol::Dxl2 => actual.round() as i64 + offset,
+        }
+    }
+
+    /// Where the horn is at `t_ns`: its own position, before the homing offset, in ticks.
+    pub fn actual_position(&self, t_ns: u64) -> f64 {
+        self.profile.at(t_ns).0
+    }
+
+    /// A hand turns the horn (torque off): to `from` at once, then at a steady speed to `to` in
+    /// `seconds` (at once when `seconds` is 0), in the horn's own ticks. Refused, with the reason,
+    /// while torque is on (the servo would hold against the hand). Returns when the horn gets there.
+    pub fn hand_move(&mut self, from: i64, to: i64, seconds: f64, t_ns: u64) -> Result<u64, String> {
+        self.update(t_ns);
+        if self.torque() {
+            return Err(format!("servo {} has torque on: a hand cannot turn it", self.id()));
+        }
+        if !(seconds.is_finite() && seconds >= 0.0) {
+            return Err(format!("{seconds} is not a duration in seconds"));
+        }
+        let speed = (to - from).unsigned_abs() as f64 / seconds;
+        self.profile = if seconds == 0.0 || from == to {
+            Profile::hold(to as f64, t_ns)
+        } else {
+            Profile::plan(t_ns, from as f64, 0.0, to as f64, speed, f64::INFINITY)
+        };
+        self.update(t_ns);
+        Ok(self.profile.end_ns().unwrap_or(t_ns))
+    }
+
+    /// When the present position was last read, in virtual ns (`None` before any read).
+    pub fn position_read_ns(&self) -> Option<u64> {
+        self.position_read_ns
+    }
+
+    /// Books a read of `length` bytes at `address` at `t_ns` (the bus calls it for group reads).
+    pub fn note_read(&mut self, address: u16, length: u16, t_ns: u64) {
+        if overlaps(self.model.items.present_position, usize::from(address), usize::from(length)) {
+            self.position_read_ns = Some(self.position_read_ns.map_or(t_ns, |t| t.max(t_ns)));
+        }
     }
 
     /// The baud rate the servo listens at (`None` when the baud item has no rate).
@@ -246,12 +345,15 @@ impl SimServo {
 
     /// Puts an object between the jaws (`None` takes it away) at `t_ns`. Jaws closed tighter than
     /// the object are opened to it first, as a hand putting it there would (goal included, so a
-    /// torqued servo does not fight it).
+    /// torqued servo does not fight it). The contact is in the servo's reported (offset-corrected)
+    /// ticks, as the gripper's are.
     pub fn set_jaw(&mut self, jaw: Option<Jaw>, t_ns: u64) {
         self.update(t_ns);
         if let Some(j) = jaw {
-            if j.blocks(self.get(self.model.items.present_position) as f64) {
-                self.set_position(j.contact, t_ns);
+            let actual = self.actual_position(t_ns);
+            let present = self.corrected(actual);
+            if j.blocks(present) {
+                self.set_position((actual + (j.contact as f64 - present)).round() as i64, t_ns);
             }
         }
         self.jaw = jaw;
@@ -263,21 +365,20 @@ impl SimServo {
         self.jaw
     }
 
-    /// Brings present position, velocity-driven motion, the moving flag and (for a gripper's
-    /// servo) the load up to `t_ns`.
+    /// Brings present position, motion (the servo's own, or a hand's with torque off), the moving
+    /// flag and (for a gripper's servo with torque on) the load up to `t_ns`.
     pub fn update(&mut self, t_ns: u64) {
-        if !self.torque() {
-            return;
-        }
         let (mut p, _) = self.profile.at(t_ns);
-        let mut moving = self.profile.moving(t_ns);
-        if let Some(jaw) = self.jaw {
+        let mut moving = self.torque() && self.profile.moving(t_ns);
+        if let Some(jaw) = self.jaw.filter(|_| self.torque()) {
+            // The jaw's ticks are the reported ones; the profile moves the horn's own.
+            let present = self.corrected(p);
             let mut load = 0;
-            if jaw.reached(p) {
+            if jaw.reached(present) {
                 // On the object: the horn stands at the contact; the load follows the goal's
                 // distance past it, capped by the effort limit.
-                if jaw.blocks(p) {
-                    p = jaw.contact as f64;
+                if jaw.blocks(present) {
+                    p += jaw.contact as f64 - present;
                     self.profile = Profile::hold(p, t_ns);
                     moving = false;
                 }
@@ -294,7 +395,7 @@ impl SimServo {
                 self.set(force.present, closing * value);
             }
         }
-        self.set(self.model.items.present_position, p.round() as i64);
+        self.set(self.model.items.present_position, self.present_of(p));
         self.set(self.model.items.moving, i64::from(moving));
     }
 
@@ -303,7 +404,7 @@ impl SimServo {
         self.set(self.model.items.torque_enable, 0);
         // Torque off: the horn stops where it is (no coasting modelled).
         self.profile = Profile::hold(p.round(), t_ns);
-        self.set(self.model.items.present_position, p.round() as i64);
+        self.set(self.model.items.present_position, self.present_of(p));
         self.set(self.model.items.moving, 0);
     }
 
@@ -410,13 +511,15 @@ impl SimServo {
                 // Protection holds torque off until the fault is cleared.
                 self.set(items.torque_enable, 0);
             } else if on && !was_on {
-                let present = self.get(items.present_position);
-                self.set_position(present, t_ns);
+                let actual = self.actual_position(t_ns).round() as i64;
+                self.set_position(actual, t_ns);
             } else if !on && was_on {
                 self.set(items.torque_enable, 1);
                 self.torque_off(t_ns);
             }
         }
+        // A new offset (or operating mode, on Dynamixel) changes what the servo reports at once.
+        self.update(t_ns);
         if overlaps(items.goal_position, at, data.len()) {
             self.goal_writes += 1;
             self.goal_written_ns = t_ns;
@@ -438,7 +541,9 @@ impl SimServo {
         let a = self.get(items.acceleration).unsigned_abs() as f64 * f64::from(self.model.acceleration_unit);
         let a = if a == 0.0 { f64::INFINITY } else { a };
         let (p, vel) = self.profile.at(t_ns);
-        self.profile = Profile::plan(t_ns, p, vel, goal as f64, v, a);
+        // The goal is in the offset-corrected frame: the horn turns by its distance from there.
+        let target = p + (goal as f64 - self.corrected(p));
+        self.profile = Profile::plan(t_ns, p, vel, target, v, a);
         self.update(t_ns);
     }
 
@@ -453,7 +558,10 @@ impl SimServo {
         self.update(t_ns);
         match *instruction {
             Instruction::Ping => Ok(self.ping_params()),
-            Instruction::Read { address, length } => self.read(address, length),
+            Instruction::Read { address, length } => {
+                self.note_read(address, length, t_ns);
+                self.read(address, length)
+            }
             Instruction::Write { address, data } => self.write(address, data, t_ns).map(|()| Vec::new()),
             Instruction::RegWrite { address, data } => {
                 self.check_write(address, data)?;
@@ -492,14 +600,14 @@ impl SimServo {
     /// Restart: RAM back to factory values, EEPROM kept, the horn where it is, faults cleared.
     pub fn reboot(&mut self, t_ns: u64) {
         self.update(t_ns);
-        let present = self.get(self.model.items.present_position);
+        let actual = self.actual_position(t_ns).round() as i64;
         let eeprom = usize::from(self.model.eeprom_end).min(self.table.len());
         let mut table = factory_table(self.model);
         table[..eeprom].copy_from_slice(&self.table[..eeprom]);
         self.table = table;
         self.registered = None;
         self.clear_hardware_error();
-        self.set_position(present, t_ns);
+        self.set_position(actual, t_ns);
     }
 
     /// Factory settings: everything back to factory values, except the id (`mode` 0x01) or the id
@@ -508,7 +616,7 @@ impl SimServo {
         self.update(t_ns);
         let items = self.model.items;
         let (id, baud) = (self.get(items.id), self.get(items.baud));
-        let present = self.get(items.present_position);
+        let actual = self.actual_position(t_ns).round() as i64;
         self.table = factory_table(self.model);
         if mode == 0x01 || mode == 0x02 {
             self.set(items.id, id);
@@ -518,7 +626,7 @@ impl SimServo {
         }
         self.registered = None;
         self.clear_hardware_error();
-        self.set_position(present, t_ns);
+        self.set_position(actual, t_ns);
     }
 }
 
@@ -554,4 +662,111 @@ fn read_only_items(model: &'static Model) -> impl Iterator<Item = Item> {
 fn overlaps(item: Item, at: usize, len: usize) -> bool {
     let a = usize::from(item.address);
     a < at + len && at < a + item.len()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use firmware::bus::table::{sts3215, STS3215, XL430_W250};
+
+    const T0: u64 = 0;
+
+    /// Writes `value` to `item` through the servo's own write, as the bus would.
+    fn write(servo: &mut SimServo, item: Item, value: i64, t_ns: u64) {
+        let mut bytes = [0u8; 4];
+        item.encode(value, servo.model().endian, &mut bytes).unwrap();
+        servo.write(item.address, &bytes[..item.len()], t_ns).unwrap();
+    }
+
+    fn present(servo: &mut SimServo, t_ns: u64) -> i64 {
+        servo.update(t_ns);
+        servo.get(servo.model().items.present_position)
+    }
+
+    #[test]
+    fn feetech_reports_actual_less_offset_and_wraps_at_the_turn() {
+        let mut s = SimServo::new(&STS3215, 1, 1_000_000);
+        s.set_position(3000, T0);
+        assert_eq!(present(&mut s, T0), 3000);
+        // LeRobot's half-turn homing: offset = present - 2047 with the offset at 0.
+        write(&mut s, sts3215::HOMING_OFFSET, 953, T0);
+        assert_eq!(present(&mut s, T0), 2047, "the horn did not move; what it reports did");
+        assert_eq!(s.actual_position(T0), 3000.0);
+        // A negative offset, sign-magnitude in the register.
+        s.set_position(200, T0);
+        write(&mut s, sts3215::HOMING_OFFSET, 200 - 2047, T0);
+        assert_eq!(s.table()[31..33], [0x37, 0x0F], "1847 with bit 11 set, little-endian");
+        assert_eq!(present(&mut s, T0), 2047);
+        // Turned back past the encoder's 0: the corrected position goes on smoothly.
+        s.hand_move(200, -96, 0.0, T0).unwrap();
+        assert_eq!(present(&mut s, T0), 1751);
+        s.hand_move(4000, 4000, 0.0, T0).unwrap();
+        assert_eq!(present(&mut s, T0), 1751, "4000 is -96 on a single-turn encoder");
+    }
+
+    #[test]
+    fn feetech_goals_and_limits_are_in_the_corrected_frame() {
+        let mut s = SimServo::new(&STS3215, 1, 1_000_000);
+        s.set_position(3000, T0);
+        write(&mut s, sts3215::HOMING_OFFSET, 953, T0);
+        write(&mut s, sts3215::MAX_POSITION_LIMIT, 2500, T0);
+        write(&mut s, sts3215::TORQUE_ENABLE, 1, T0);
+        assert_eq!(s.get(sts3215::GOAL_POSITION), 2047, "torque on holds the present position");
+        write(&mut s, sts3215::GOAL_POSITION, 3000, T0);
+        let end = s.move_end_ns().expect("moving");
+        assert_eq!(present(&mut s, end), 2500, "clamped to the limit, which is corrected");
+        assert_eq!(s.actual_position(end), 3453.0);
+    }
+
+    #[test]
+    fn dynamixel_reports_actual_plus_offset_and_ignores_big_ones_in_position_mode() {
+        let mut s = SimServo::new(&XL430_W250, 1, 57_600);
+        s.set_position(2500, T0);
+        write(&mut s, xseries::HOMING_OFFSET, 2047 - 2500, T0);
+        assert_eq!(present(&mut s, T0), 2047);
+        // Beyond +-1024 in position control mode (3, the factory's): held, not applied.
+        write(&mut s, xseries::HOMING_OFFSET, -1500, T0);
+        assert_eq!(s.get(xseries::HOMING_OFFSET), -1500);
+        assert_eq!((s.homing_offset(), present(&mut s, T0)), (0, 2500));
+        // Extended position mode (4) applies it, and does not wrap.
+        write(&mut s, xseries::OPERATING_MODE, 4, T0);
+        assert_eq!(present(&mut s, T0), 1000);
+        write(&mut s, xseries::HOMING_OFFSET, 1800, T0);
+        assert_eq!(present(&mut s, T0), 4300);
+    }
+
+    #[test]
+    fn dynamixel_goals_beyond_the_corrected_limits_are_refused_and_others_reached() {
+        let mut s = SimServo::new(&XL430_W250, 1, 57_600);
+        s.set_position(2500, T0);
+        write(&mut s, xseries::HOMING_OFFSET, -453, T0);
+        write(&mut s, xseries::MAX_POSITION_LIMIT, 3000, T0);
+        write(&mut s, xseries::TORQUE_ENABLE, 1, T0);
+        let mut bytes = [0u8; 4];
+        xseries::GOAL_POSITION.encode(3001, s.model().endian, &mut bytes).unwrap();
+        assert_eq!(s.write(xseries::GOAL_POSITION.address, &bytes, T0), Err(error::DATA_LIMIT));
+        write(&mut s, xseries::GOAL_POSITION, 3000, T0);
+        let end = s.move_end_ns().expect("moving");
+        assert_eq!(present(&mut s, end), 3000);
+        assert_eq!(s.actual_position(end), 3453.0);
+    }
+
+    #[test]
+    fn a_hand_turns_a_limp_horn_steadily_and_not_a_held_one() {
+        let mut s = SimServo::new(&STS3215, 2, 1_000_000);
+        write(&mut s, sts3215::HOMING_OFFSET, -47, T0);
+        let end = s.hand_move(1000, 3000, 2.0, T0).unwrap();
+        assert_eq!(end, 2_000_000_000);
+        assert_eq!(present(&mut s, T0), 1047);
+        assert_eq!(present(&mut s, 500_000_000), 1547);
+        assert_eq!(present(&mut s, end), 3047);
+        assert_eq!(present(&mut s, end + 1_000_000_000), 3047, "it stays where the hand left it");
+        assert_eq!(s.get(sts3215::MOVING), 0, "the servo itself is not moving");
+        write(&mut s, sts3215::TORQUE_ENABLE, 1, end);
+        assert!(s.hand_move(3000, 1000, 1.0, end).unwrap_err().contains("torque on"));
+        assert_eq!(s.position_read_ns(), None);
+        s.execute(&Instruction::Read { address: 56, length: 2 }, end).unwrap();
+        s.note_read(40, 1, end + 5);
+        assert_eq!(s.position_read_ns(), Some(end), "a read of another item does not count");
+    }
 }

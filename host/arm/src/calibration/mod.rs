@@ -7,9 +7,12 @@
 //!   LeRobot keeps it.
 //! - [`normalise`]: LeRobot's conversions between raw ticks and its normalised values (degrees for
 //!   the body joints, 0 to 100 for the gripper), as `motors_bus.py` computes them.
+//! - [`record`]: what LeRobot's calibration procedure measures and makes of an arm (homing
+//!   offsets, recorded ranges, the joint limits they leave).
 
 pub mod lerobot;
 pub mod normalise;
+pub mod record;
 
 use anyhow::{bail, Result};
 use firmware::bus::table::{sts3215, xseries, Item, Model};
@@ -24,17 +27,22 @@ pub struct Register {
     pub field: &'static str,
 }
 
+/// The Homing_Offset item of `model`'s family: the STS3215's at 31 (2 bytes, sign-magnitude with
+/// the sign in bit 11), the X-series' at 20 (4 bytes, two's complement).
+pub fn homing_offset_item(model: &Model) -> Item {
+    match model.protocol {
+        Protocol::Dxl2 => xseries::HOMING_OFFSET,
+        Protocol::Feetech => sts3215::HOMING_OFFSET,
+    }
+}
+
 /// The registers LeRobot reads back as a servo's calibration (`read_calibration`): the homing
 /// offset and the position limits, and on Dynamixel the Drive_Mode register, which it reads into
 /// `drive_mode` (its Feetech bus reports `drive_mode` 0 whatever the servo).
 pub fn registers(model: &Model) -> Vec<Register> {
     let items = model.items;
-    let homing = match model.protocol {
-        Protocol::Dxl2 => xseries::HOMING_OFFSET,
-        Protocol::Feetech => sts3215::HOMING_OFFSET,
-    };
     let mut r = vec![
-        Register { item: homing, field: "homing offset" },
+        Register { item: homing_offset_item(model), field: "homing offset" },
         Register { item: items.min_position, field: "range_min" },
         Register { item: items.max_position, field: "range_max" },
     ];

@@ -295,10 +295,28 @@ fn check_calibration(
 ) -> Result<()> {
     let Some(calibration) = &servos.calibration else { return Ok(()) };
     let model = servos.model;
-    let file = options.calibration_file.as_deref().unwrap_or("FILE");
     let protocol = match model.protocol {
         Protocol::Feetech => "sts",
         Protocol::Dxl2 => "dxl2",
+    };
+    // A LeRobot file given with --calibration, or the arm file's [servos] calibration.
+    let (source, fix) = match options.calibration_file.as_deref() {
+        Some(file) => (
+            file.to_string(),
+            format!(
+                "write the file's values (armctl servo calibration write --port {} --protocol {protocol} --file \
+                 {file}, with the servos' torque off) or calibrate again",
+                options.path
+            ),
+        ),
+        None => (
+            format!("arm {}'s file", options.arm.name),
+            format!(
+                "calibrate again (armctl calibrate --bus {} --protocol {protocol} --arm ... --out ...), or write the \
+                 LeRobot file it wrote with armctl servo calibration write",
+                options.path
+            ),
+        ),
     };
     for (j, (&id, m)) in servos.ids.iter().zip(calibration).enumerate() {
         for register in registers(model) {
@@ -306,12 +324,9 @@ fn check_calibration(
             let want = m.value(&register);
             if held != want {
                 bail!(
-                    "servo {id} (joint {}) does not hold the calibration: its {} is {held}, {file} says {want}; write \
-                     the file's values (armctl servo calibration write --port {} --protocol {protocol} --file {file}, \
-                     with the servos' torque off) or calibrate again",
+                    "servo {id} (joint {}) does not hold the calibration: its {} is {held}, {source} says {want}; {fix}",
                     j + 1,
                     register.field,
-                    options.path
                 );
             }
         }
