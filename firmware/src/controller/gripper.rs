@@ -195,8 +195,14 @@ impl<const Q: usize> Gripper<Q> {
 
     /// Whether a gripper keyframe can be queued (checked before the joint keyframe is).
     pub fn has_room(&self) -> bool {
-        // One slot for the anchor at the start of a fresh trajectory.
-        self.track.len() + 2 <= Q
+        self.free_slots() > 0
+    }
+
+    /// How many more gripper keyframes can be queued. The track keeps the keyframe last passed
+    /// (the start of the segment being played) and one slot for the anchor of a fresh trajectory,
+    /// so it fills before the joints' queue does when every keyframe carries the gripper.
+    pub fn free_slots(&self) -> usize {
+        Q.saturating_sub(self.track.len() + 1)
     }
 
     /// Queues a gripper keyframe at `time`; `anchor` (a playback time) starts the track afresh
@@ -439,5 +445,25 @@ mod tests {
         assert!((goal_at(&mut g, 1.5) - 50.0).abs() < 1e-4);
         assert!((goal_at(&mut g, 2.5) - 25.0).abs() < 1e-4);
         assert!((goal_at(&mut g, 9.0) - 50.0).abs() < 1e-4);
+    }
+
+    #[test]
+    fn free_slots_count_the_pushes_that_fit() {
+        let mut g = Gripper::<8>::new(SO101);
+        g.observe(g.ticks_of(100.0));
+        // Fresh: the anchor and the first keyframe take two slots, each later one a slot.
+        assert_eq!(g.free_slots(), 7);
+        g.push(1.0, 100.0, Some(0.0));
+        let mut pushed = 1;
+        while g.has_room() {
+            let before = g.free_slots();
+            g.push(1.0 + pushed as f32, 0.0, None);
+            pushed += 1;
+            assert_eq!(g.free_slots(), before - 1);
+        }
+        assert_eq!((pushed, g.free_slots()), (6, 0));
+        // Passing keyframes frees their slots, all but the one the segment starts from.
+        g.step(0.0, Some(3.5));
+        assert_eq!(g.free_slots(), 3);
     }
 }

@@ -291,9 +291,10 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         self.play.time
     }
 
-    /// Room left in the keyframe queue.
+    /// Room left in the keyframe queue: the joints' and, with a gripper, its track's, whichever
+    /// is fuller (acks report it, so a host that keeps to it never has a gripper keyframe refused).
     pub fn free_slots(&self) -> usize {
-        self.player.free_slots()
+        self.player.free_slots().min(self.gripper.as_ref().map_or(usize::MAX, |g| g.free_slots()))
     }
 
     /// Times the player ran out of keyframes while playing.
