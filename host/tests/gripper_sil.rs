@@ -156,3 +156,80 @@ fn an_arm_without_a_gripper_says_so() {
     assert!(matches!(reply, Err(LinkError::Nak(NakReason::NoGripper))), "{reply:?}");
     assert!(c.status().unwrap().gripper.is_none());
 }
+
+/// The tool point of the simulated arm for the measured joints (m).
+fn tool(arm: &dyn armctl::arm::dof::DynArm, c: &mut LinkClient<Sil>) -> [f64; 3] {
+    let q: Vec<f64> = c.status().unwrap().measured.iter().map(|x| f64::from(*x)).collect();
+    let p = arm.tool_pose(&q).unwrap().translation;
+    [p.x, p.y, p.z]
+}
+
+fn so101() -> Box<dyn armctl::arm::dof::DynArm> {
+    armctl::arm::dof::build(armctl::arm::ArmSpec::load("so101", None).unwrap()).unwrap()
+}
+
+/// An object on the table is picked up only where it lies and only by jaws that come to it open
+/// wider than it: jaws closing 5 cm away hold nothing; jaws closed narrower than it do not take
+/// it in; open ones do, and closing then holds it. It rides with the tool and stays where the
+/// jaws let go of it.
+#[test]
+fn an_object_on_the_table_is_picked_only_where_it_lies() {
+    let arm = so101();
+    let mut c = client("so101", None);
+    let here = tool(arm.as_ref(), &mut c);
+    let away = [here[0] + 0.05, here[1], here[2]];
+    c.transport().put_object(so101(), 30.0, away).unwrap();
+    ack(&mut c, &HostMessage::Gripper { opening: 0.0, effort: None });
+    let closed = until(&mut c, 3.0, |g| g.opening < 0.5);
+    assert!(!closed.holding && closed.opening < 0.5, "closed away from the object: {closed:?}");
+    assert_eq!(c.transport().object().unwrap().position(), away);
+    assert!(!c.transport().object().unwrap().between_jaws());
+
+    // At the tool now, but the jaws are closed: it cannot be between them.
+    c.transport().put_object(so101(), 30.0, here).unwrap();
+    until(&mut c, 0.5, |_| false);
+    assert!(!c.transport().object().unwrap().between_jaws());
+    // Opened past it, the jaws take it in; closing holds it.
+    ack(&mut c, &HostMessage::Gripper { opening: 100.0, effort: None });
+    until(&mut c, 3.0, |g| g.opening > 99.0);
+    assert!(c.transport().object().unwrap().between_jaws());
+    ack(&mut c, &HostMessage::Gripper { opening: 0.0, effort: None });
+    let held = until(&mut c, 3.0, |g| g.holding);
+    assert!(held.holding && c.transport().object().unwrap().held(), "{held:?}");
+
+    // Carried: the base turns 0.3 rad, and the object goes along with the tool.
+    let mut q = c.status().unwrap().measured;
+    q[0] += 0.3;
+    ack(&mut c, &HostMessage::MoveJoints { positions: q, timing: firmware::link::message::Timing::Duration(1.0) });
+    until(&mut c, 2.0, |_| false);
+    let there = tool(arm.as_ref(), &mut c);
+    let object = c.transport().object().unwrap().position();
+    let moved = (0..3).map(|i| (there[i] - here[i]).powi(2)).sum::<f64>().sqrt();
+    let off = (0..3).map(|i| (object[i] - there[i]).powi(2)).sum::<f64>().sqrt();
+    assert!(moved > 0.03 && off < 1e-3, "tool moved {moved} m, object {off} m from it");
+    assert!(gripper(&mut c).holding);
+
+    // Let go: it stays there while the jaws open.
+    ack(&mut c, &HostMessage::Gripper { opening: 100.0, effort: None });
+    let open = until(&mut c, 3.0, |g| g.opening > 99.0);
+    assert!(!open.holding && !c.transport().object().unwrap().held(), "{open:?}");
+    assert_eq!(c.transport().object().unwrap().position(), object);
+    assert_safe(&mut c, "object on the table");
+}
+
+/// Keyframes that all carry the gripper, more than the queue holds, streamed as fast as the acks
+/// allow: the acks count the gripper's track too, so none is refused as a full queue.
+#[test]
+fn acks_leave_room_for_gripper_keyframes() {
+    let mut c = client("so101", None);
+    let q: Joints = c.status().unwrap().measured;
+    for i in 0..100u16 {
+        let time = 0.5 + 0.1 * f32::from(i);
+        let k = JointKeyframe { time, positions: q.clone(), velocities: None, gripper: Some(f32::from(i % 2) * 50.0) };
+        c.push(&HostMessage::PushKeyframe(k)).unwrap_or_else(|e| panic!("keyframe {i}: {e}"));
+        if i == 10 {
+            ack(&mut c, &HostMessage::Start);
+        }
+    }
+    assert_safe(&mut c, "gripper keyframes");
+}

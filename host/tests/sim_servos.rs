@@ -920,3 +920,48 @@ fn id_lists_parse() {
     assert_eq!(armctl::args::numbers::ids("1,3,5", u8::MAX, "--ids").unwrap(), [1, 3, 5]);
     assert!(armctl::args::numbers::ids("", u8::MAX, "--ids").is_err());
 }
+
+/// `armctl sim servos --arm so101 --object-mm 30`: the PC-hosted core (`--bus`) closes the
+/// gripper on the simulated object; the jaws stop at 30 mm with the load up and the firmware says
+/// it holds something. A width that does not fit, or no arm to name the gripper, is one line.
+#[test]
+fn armctl_sim_servos_puts_an_object_between_the_jaws() {
+    use std::io::BufRead;
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_armctl"))
+        .args(["sim", "servos", "--pty", "--arm", "so101", "--object-mm", "30"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    std::io::BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+    let path = line.trim().to_string();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_armctl"))
+        .args(["--bus", &path, "--protocol", "sts", "--arm", "so101", "--json", "gripper", "close"])
+        .output()
+        .unwrap();
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    let g: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
+    assert_eq!(g["holding"], true, "{g}");
+    assert!((g["opening_mm"].as_f64().unwrap() - 30.0).abs() < 0.2, "{g}");
+    assert!(g["load"].as_f64().unwrap().abs() >= 10.0, "{g}");
+
+    for (args, expected) in [
+        (&["--arm", "so101", "--object-mm", "95"][..], "does not fit the gripper"),
+        (&["--arm", "so101", "--object-mm", "NaN"], "does not fit the gripper"),
+        (&["--arm", "so101", "--object-mm", "-3"], "does not fit the gripper"),
+        (&["--arm", "so101", "--ids", "1-5", "--object-mm", "30"], "6 that --ids does not serve"),
+        (&["--protocol", "sts", "--ids", "1", "--object-mm", "30"], "--arm"),
+    ] {
+        let (mut out, mut err) = (Vec::new(), Vec::new());
+        let argv = ["armctl", "sim", "servos", "--pty"].iter().chain(args);
+        let code = armctl::cli::main(argv, &mut out, &mut err);
+        let err = String::from_utf8(err).unwrap();
+        assert_eq!(code, 2, "{args:?}: {err}");
+        assert!(err.starts_with("error: ") && err.lines().count() == 1 && err.contains(expected), "{args:?}: {err}");
+        assert!(out.is_empty());
+    }
+}

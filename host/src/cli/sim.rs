@@ -133,6 +133,10 @@ pub struct SimServosArgs {
     /// Its servo ids must be among --ids.
     #[arg(long, value_name = "ARM")]
     pub arm: Option<String>,
+    /// An object W mm wide between the jaws of --arm's gripper: closing on it, the jaws stop there
+    /// and the servo's load rises (as in `armctl --sim --object-mm`).
+    #[arg(long, value_name = "W", requires = "arm", allow_negative_numbers = true)]
+    pub object_mm: Option<f64>,
 }
 
 /// `--start`: (id, ticks) pairs, each id served, each position on the encoder's turn.
@@ -189,6 +193,20 @@ fn arm_servos(arm: Option<&str>) -> Result<Option<crate::arm::servos::ServoSetup
     Ok(crate::arm::servos::servos_of(&spec))
 }
 
+/// `--object-mm`: the gripper servo and the object between its jaws, checked.
+/// (`--arm`'s servos, its gripper's among them, are all served: [`limits`] checks that.)
+fn object(
+    args: &SimServosArgs,
+    servos: Option<&crate::arm::servos::ServoSetup>,
+) -> Result<Option<(u8, crate::sim::Jaw)>> {
+    let Some(mm) = args.object_mm else { return Ok(None) };
+    let name = args.arm.as_deref().unwrap_or_default();
+    let gripper = servos
+        .and_then(|s| s.gripper)
+        .ok_or_else(|| anyhow::anyhow!("--object-mm: arm {name} has no gripper (its [gripper] table)"))?;
+    Ok(Some((gripper.id, crate::sim::Jaw::for_object(&gripper, mm)?)))
+}
+
 /// Checks the arguments and builds the bus description.
 pub fn config(args: &SimServosArgs) -> Result<SimConfig> {
     let arm = arm_servos(args.arm.as_deref())?;
@@ -223,6 +241,7 @@ pub fn config(args: &SimServosArgs) -> Result<SimConfig> {
     let limits = limits(args.arm.as_deref(), &ids)?;
     // Checked here, applied once the server runs.
     start_positions(args.start.as_deref(), &ids, model)?;
+    object(args, arm.as_ref())?;
     Ok(SimConfig {
         protocol,
         model,
@@ -329,6 +348,10 @@ fn run_servos(args: SimServosArgs, out: &mut dyn Write, err: &mut dyn Write) -> 
     for (id, ticks) in start_positions(args.start.as_deref(), &config.ids, config.model)? {
         server.place(id, ticks);
     }
+    let servos = arm_servos(args.arm.as_deref())?;
+    if let Some((id, jaw)) = object(&args, servos.as_ref())? {
+        server.put_object(id, Some(jaw));
+    }
     writeln!(out, "{}", server.path())?;
     out.flush()?;
     let ids: Vec<String> = config.ids.iter().map(u8::to_string).collect();
@@ -338,6 +361,9 @@ fn run_servos(args: SimServosArgs, out: &mut dyn Write, err: &mut dyn Write) -> 
     }
     if let Some(arm) = &args.arm {
         extras.push_str(&format!(", goals checked against the limits of {arm}"));
+    }
+    if let Some(mm) = args.object_mm {
+        extras.push_str(&format!(", a {mm} mm object between the gripper's jaws"));
     }
     writeln!(
         err,

@@ -10,6 +10,7 @@
 //! - [`pty`]: a bus served on a pseudo-terminal, on real time.
 //! - [`latency`]: a USB serial adapter's latency timer, for the replies on a pty.
 //! - [`monitor`]: safety monitors that check every goal the servos receive.
+//! - [`scene`]: an object on the table for a simulated gripper to pick up.
 //!
 //! The codecs, control tables and wire-time arithmetic are the firmware's own
 //! ([`firmware::bus`]): the simulator exercises the same code the boards run.
@@ -22,6 +23,7 @@ pub mod monitor;
 pub mod motion;
 pub mod port;
 pub mod pty;
+pub mod scene;
 pub mod servo;
 
 pub use bus::{BusStats, SimBus, WireByte};
@@ -30,6 +32,7 @@ pub use faults::{FaultStats, Faults};
 pub use monitor::{limits_of, GoalLimit, MonitorReport, RealTimeMonitor};
 pub use port::{PortStats, SharedBus, SimPort};
 pub use pty::{so101_bus, PtyServer, SimConfig};
+pub use scene::Scene;
 pub use servo::{Jaw, SimServo};
 
 /// A bus shared with a port on a fresh virtual clock: what a SIL test connects a master to.

@@ -34,6 +34,7 @@ use super::bus::{SimBus, WireByte};
 use super::faults::{FaultState, Faults};
 use super::latency::LatencyTimer;
 use super::monitor::{GoalLimit, MonitorReport, RealTimeMonitor};
+use super::servo::Jaw;
 
 /// Ticks between a duplicate servo's position and its twin's, so that their replies to a position
 /// read differ and collide visibly (two real servos never stand at the same tick).
@@ -106,6 +107,8 @@ enum Hand {
     Place { id: u8, ticks: i64 },
     /// To `from` at once, then steadily to `to` in `seconds`; reported under `ticket`.
     Move { ticket: u64, id: u8, from: i64, to: i64, seconds: f64 },
+    /// An object between the jaws of gripper servo `id` (`None` takes it away), unreported.
+    Object { id: u8, jaw: Option<Jaw> },
 }
 
 /// How a hand's move ended ([`PtyServer::hand`]).
@@ -177,6 +180,13 @@ impl PtyServer {
     /// carried out, never reported. A servo that is not on the bus is left out.
     pub fn place(&self, id: u8, ticks: i64) {
         self.hand_queue().requests.push_back(Hand::Place { id, ticks });
+    }
+
+    /// Puts an object between the jaws of gripper servo `id` (`None` takes it away), as
+    /// [`super::SimServo::set_jaw`] does, before the next bytes from the pty are carried out. A
+    /// servo that is not on the bus is left out.
+    pub fn put_object(&self, id: u8, jaw: Option<Jaw>) {
+        self.hand_queue().requests.push_back(Hand::Object { id, jaw });
     }
 
     /// A hand turns servo `id`'s horn (torque off) to `from` at once, then steadily to `to` in
@@ -263,6 +273,11 @@ impl Control {
                 Hand::Place { id, ticks } => {
                     if let Some(servo) = bus.servo_mut(id) {
                         servo.set_position(ticks, now_ns);
+                    }
+                }
+                Hand::Object { id, jaw } => {
+                    if let Some(servo) = bus.servo_mut(id) {
+                        servo.set_jaw(jaw, now_ns);
                     }
                 }
                 Hand::Move { ticket, id, from, to, seconds } => {

@@ -129,8 +129,8 @@ impl Jaw {
         (position - self.contact as f64) * closing > 0.0
     }
 
-    /// Whether `position` is at the contact or past it.
-    fn reached(&self, position: f64) -> bool {
+    /// Whether `position` (reported ticks) is at the contact or past it: the jaws touch the object.
+    pub fn reached(&self, position: f64) -> bool {
         let closing = (self.closed - self.contact).signum() as f64;
         (position - self.contact as f64) * closing >= 0.0
     }

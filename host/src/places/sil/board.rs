@@ -6,7 +6,7 @@
 use embedded_io::{Read, ReadReady, Write};
 use firmware::app::Firmware;
 use firmware::bus::master::{Clock, Master, NoDirectionPin};
-use firmware::controller::{Counters, Mode, TickReport};
+use firmware::controller::{Counters, GripperState, Mode, TickReport};
 use firmware::link::session::SessionStats;
 use kinematics::nalgebra::SVector;
 
@@ -28,6 +28,8 @@ pub trait SimFirmware {
     fn setpoints(&self) -> Vec<f64>;
     /// Measured joint values (rad).
     fn measured(&self) -> Vec<f64>;
+    /// The gripper as the firmware sees it (`None` without one).
+    fn gripper(&self) -> Option<GripperState>;
     /// Whether the servos' torque is on.
     fn torque(&self) -> bool;
     /// The goal bounds of the arm in use (empty before there is one).
@@ -84,6 +86,10 @@ where
 
     fn measured(&self) -> Vec<f64> {
         self.firmware.controller().map_or_else(Vec::new, |c| to_vec(c.measured()))
+    }
+
+    fn gripper(&self) -> Option<GripperState> {
+        self.firmware.controller().and_then(|c| c.gripper())
     }
 
     fn torque(&self) -> bool {

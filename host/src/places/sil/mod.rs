@@ -13,7 +13,9 @@
 //! - [`board`]: the firmware and its bus master, for any joint count.
 //!
 //! The safety monitor that checks every goal the servos receive is the simulator's
-//! ([`crate::sim::monitor`]), re-exported here.
+//! ([`crate::sim::monitor`]), re-exported here. An object to pick up ([`crate::sim::Scene`]) can be
+//! put on the table ([`Sil::put_object`]): the harness then follows the tool by forward kinematics
+//! of the measured joints each tick.
 
 pub mod board;
 pub mod wire;
@@ -25,10 +27,11 @@ use firmware::app::{Board, Firmware};
 use firmware::builtin;
 use firmware::bus::master::{BusConfig, Master, NoDirectionPin};
 use firmware::bus::table::{Model, STS3215, XM430_W350};
-use firmware::controller::{Config, TickReport};
+use firmware::controller::{Config, GripperState, TickReport};
 
+use crate::arm::dof::DynArm;
 pub use crate::sim::monitor::{GoalState, SafetyMonitor, Violation};
-use crate::sim::{connect, Faults, SharedBus, SimBus, VirtualClock};
+use crate::sim::{connect, Faults, Scene, SharedBus, SimBus, VirtualClock};
 use board::{SimBoard, SimFirmware, QUEUE};
 use wire::Wire;
 
@@ -74,11 +77,16 @@ impl SimArm {
     }
 }
 
+/// The gripper of the simulated `arm`.
+fn gripper_of(arm: SimArm) -> Result<crate::arm::servos::GripperSpec> {
+    crate::arm::servos::ServoSetup::for_arm(arm.name())
+        .and_then(|s| s.gripper)
+        .ok_or_else(|| anyhow::anyhow!("--object-mm: the simulated {} has no gripper", arm.name()))
+}
+
 /// Puts an object `mm` wide between the jaws of `arm`'s gripper on `bus` (`None` takes it away).
 fn put_object(bus: &SharedBus, arm: SimArm, mm: Option<f64>) -> Result<()> {
-    let gripper = crate::arm::servos::ServoSetup::for_arm(arm.name())
-        .and_then(|s| s.gripper)
-        .ok_or_else(|| anyhow::anyhow!("--object-mm: the simulated {} has no gripper", arm.name()))?;
+    let gripper = gripper_of(arm)?;
     let jaw = mm.map(|mm| crate::sim::Jaw::for_object(&gripper, mm)).transpose()?;
     let mut bus = bus.borrow_mut();
     let now = bus.now_ns();
@@ -134,6 +142,10 @@ pub struct TraceSample {
     pub setpoints: Vec<f64>,
     /// Positions read back (rad).
     pub measured: Vec<f64>,
+    /// The gripper as the firmware saw it after the tick (`None` without one).
+    pub gripper: Option<GripperState>,
+    /// Whether the jaws held the object on the table (`None` without one: [`Sil::put_object`]).
+    pub object_held: Option<bool>,
 }
 
 /// Counts of the run.
@@ -166,6 +178,8 @@ pub struct Sil {
     last_report: Option<TickReport>,
     stats: SilStats,
     scratch: Vec<u8>,
+    /// An object on the table and the arm whose tool can pick it up.
+    scene: Option<(Scene, Box<dyn DynArm>)>,
 }
 
 impl Sil {
@@ -215,6 +229,7 @@ impl Sil {
             last_report: None,
             stats: SilStats::default(),
             scratch: Vec::new(),
+            scene: None,
         })
     }
 
@@ -226,6 +241,23 @@ impl Sil {
     /// Puts an object `mm` wide between the gripper's jaws (`None` takes it away), now.
     pub fn set_object(&mut self, mm: Option<f64>) -> Result<()> {
         put_object(&self.bus, self.arm, mm)
+    }
+
+    /// Puts an object `width_mm` wide on the table at `position` (m, its centre), for the
+    /// gripper to pick up: from the next tick on, its tool ([`DynArm::tool_pose`] of `arm`, the
+    /// arm the firmware drives) takes it between open jaws that come within
+    /// [`crate::sim::scene::REACH_M`] of it, and carries it while the jaws grip it. Replaces any
+    /// object there was; the jaws let go of it first.
+    pub fn put_object(&mut self, arm: Box<dyn DynArm>, width_mm: f64, position: [f64; 3]) -> Result<()> {
+        let scene = Scene::new(&gripper_of(self.arm)?, width_mm, position)?;
+        put_object(&self.bus, self.arm, None)?;
+        self.scene = Some((scene, arm));
+        Ok(())
+    }
+
+    /// The object on the table, if there is one.
+    pub fn object(&self) -> Option<&Scene> {
+        self.scene.as_ref().map(|(scene, _)| scene)
     }
 
     /// The simulated servo bus (to change faults or inspect servos mid-run).
@@ -321,11 +353,24 @@ impl Sil {
             self.next_tick_ns = self.clock.now_ns();
         }
         let time = now_ns as f64 * 1e-9;
+        if let Some((scene, arm)) = &mut self.scene {
+            // A tool pose that cannot be computed (no joint read yet) leaves the object be.
+            if let Ok(pose) = arm.tool_pose(&self.board.measured()) {
+                let p = pose.translation;
+                scene.update(&self.bus, [p.x, p.y, p.z], self.clock.now_ns());
+            }
+        }
         let goals = self.goals();
         let bounds = self.board.bounds();
         self.monitor.check(time, self.period_ns as f64 * 1e-9, &bounds, goals);
         if let Some(trace) = &mut self.trace {
-            trace.push(TraceSample { time, setpoints: self.board.setpoints(), measured: self.board.measured() });
+            trace.push(TraceSample {
+                time,
+                setpoints: self.board.setpoints(),
+                measured: self.board.measured(),
+                gripper: self.board.gripper(),
+                object_held: self.scene.as_ref().map(|(scene, _)| scene.held()),
+            });
         }
     }
 
