@@ -1,5 +1,6 @@
 //! `armctl demo` end to end as a process: both simulated arms reach every target within a
-//! millimetre, stream every keyframe, keep every goal safe, and write the plot.
+//! millimetre, stream every keyframe, pick the object up at the pick point and set it down at the
+//! place point, keep every goal safe, and write the plot.
 
 use serde_json::Value;
 use std::process::Command;
@@ -31,6 +32,22 @@ fn check(report: &Value) {
     assert!(pp["keyframes"].as_u64().unwrap() > 32, "more keyframes than the queue holds: flow control is used");
     assert!(pp["final_error_mm"].as_f64().unwrap() < 1.0, "{pp}");
     assert!(pp["tool_error_max_mm"].as_f64().unwrap() < 10.0, "{pp}");
+    let g = &report["grasp"];
+    assert_eq!(g["picked"], true, "{g}");
+    // The jaws stop on the 30 mm object, within a tick of the stroke (about 0.07 mm).
+    assert_eq!(g["object_mm"], 30.0);
+    assert!((g["jaw_mm"].as_f64().unwrap() - 30.0).abs() < 0.2, "{g}");
+    // The firmware's hold threshold is 10 %; the presets' effort limit is 50 %.
+    let load = g["load"].as_f64().unwrap();
+    assert!((10.0..=50.5).contains(&load), "{g}");
+    assert!(g["tool_to_pick_mm"].as_f64().unwrap() < 1.0, "{g}");
+    assert!(g["tool_to_place_mm"].as_f64().unwrap() < 1.0, "{g}");
+    assert!(g["object_to_place_mm"].as_f64().unwrap() < 1.0, "{g}");
+    // Carried for at least the path's 3 s between the pick and the place, held on every tick.
+    let carried = g["carried_ticks"].as_u64().unwrap();
+    assert!(carried >= 300, "{g}");
+    assert_eq!(g["held_ticks"], carried, "{g}");
+    assert_eq!(g["touching_ticks"], carried, "{g}");
     assert_eq!(report["loop"]["deadline_misses"], 0);
     assert_eq!(report["loop"]["underruns"], 0);
     assert_eq!(report["safety"]["violations"], 0);
@@ -58,6 +75,7 @@ fn the_table_and_the_plot() {
     let (code, out, err) = demo(&["--plot", path.to_str().unwrap()]);
     assert_eq!(code, 0, "{err}");
     assert!(out.contains("ticks to 1mm") && out.contains("Safety monitor: ") && out.contains("0 violations"), "{out}");
+    assert!(out.contains("jaw stopped at 33.3 % (30.0 mm)") && out.contains("picked and placed"), "{out}");
     let png = std::fs::read(&path).unwrap();
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
     std::fs::remove_file(&path).unwrap();

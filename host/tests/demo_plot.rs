@@ -1,8 +1,32 @@
 //! The `armctl demo` plot: a synthetic trace becomes a PNG of the documented size; bad traces give
 //! one-line errors and leave no file; odd but valid traces draw without panicking.
 
-use armctl::demo::plot::{write_demo_png, DemoTrace, MIN_HEIGHT, WIDTH};
+use armctl::demo::plot::{write_demo_png, DemoTrace, GripperTrace, MIN_HEIGHT, WIDTH};
 use std::path::PathBuf;
+
+/// A gripper that opens, closes on something at 35 % from 4 s to 7 s, then opens again.
+fn gripper(time: &[f64]) -> GripperTrace {
+    let goal: Vec<f64> = time.iter().map(|&t| if (3.0..7.0).contains(&t) { 0.0 } else { 100.0 }).collect();
+    let holding: Vec<bool> = time.iter().map(|&t| (4.0..7.0).contains(&t)).collect();
+    GripperTrace {
+        opening: time
+            .iter()
+            .zip(&holding)
+            .map(|(&t, &h)| {
+                if h {
+                    35.0
+                } else if t < 3.0 {
+                    100.0
+                } else {
+                    60.0
+                }
+            })
+            .collect(),
+        load: holding.iter().map(|&h| if h { 50.0 } else { 2.0 }).collect(),
+        goal,
+        holding,
+    }
+}
 
 /// Five joints following sinusoids for 10 s at 50 Hz; the servos lag 40 ms and droop slightly.
 fn trace() -> DemoTrace {
@@ -23,6 +47,7 @@ fn trace() -> DemoTrace {
         tool_measured: measured.iter().map(fk).collect(),
         targets: [0.0, 2.0, 4.0, 6.2, 8.0].iter().map(|&t| fk(&(0..JOINTS).map(|j| q(t, j)).collect())).collect(),
         phases: vec![(0.0, "move to targets".into()), (6.2, "pick and place".into())],
+        gripper: Some(gripper(&time)),
         time,
         planned,
         measured,
@@ -56,13 +81,15 @@ fn synthetic_trace_writes_a_png() {
 #[test]
 fn bad_traces_are_one_line_errors_and_write_nothing() {
     type Case = (&'static str, fn(&mut DemoTrace), &'static str);
-    let cases: [Case; 6] = [
+    let cases: [Case; 8] = [
         ("nan", |t| t.measured[7][2] = f64::NAN, "measured[7][2] is NaN"),
         ("inf", |t| t.tool_planned[3][1] = f64::INFINITY, "tool_planned[3][1] is inf"),
         ("short", |t| t.tool_measured.truncate(499), "500 time samples but 499 tool_measured"),
         ("row", |t| t.planned[9].truncate(4), "planned[9] has 4 values for 5 joints"),
         ("empty", |t| *t = DemoTrace { joint_names: t.joint_names.clone(), ..empty() }, "empty trace"),
         ("backwards", |t| t.time[100] = 0.0, "time decreases from sample 99 to 100"),
+        ("gripper nan", |t| t.gripper.as_mut().unwrap().load[42] = f64::NAN, "gripper load[42] is NaN"),
+        ("gripper short", |t| t.gripper.as_mut().unwrap().holding.truncate(499), "499 gripper holding"),
     ];
     for (name, spoil, expected) in cases {
         let path = scratch(&format!("{name}.png"));
@@ -94,6 +121,7 @@ fn empty() -> DemoTrace {
         tool_measured: vec![],
         targets: vec![],
         phases: vec![],
+        gripper: None,
     }
 }
 
@@ -111,6 +139,7 @@ fn odd_traces_draw() {
         tool_measured: vec![[1e3, 1e3, 1e3]],
         targets: vec![],
         phases: vec![(-5.0, "before".into()), (2e6, "after".into())],
+        gripper: Some(GripperTrace { goal: vec![0.0], opening: vec![20.0], load: vec![30.0], holding: vec![true] }),
     };
     write_demo_png(&scratch("one.png"), &one).unwrap();
 
@@ -126,10 +155,17 @@ fn odd_traces_draw() {
         tool_measured: (0..n).map(|i| [0.1, 0.0, f64::from(i) * 1e-3]).collect(),
         targets: vec![],
         phases: vec![(0.0, String::new())],
+        gripper: None,
     };
     let path = scratch("many.png");
     write_demo_png(&path, &many).unwrap();
     let (w, h) = png_size(&std::fs::read(&path).unwrap());
     assert_eq!(w, WIDTH);
     assert!(h > MIN_HEIGHT, "{h}");
+    // The gripper gets a panel of its own below the joints: the image grows by one panel.
+    let with_gripper = DemoTrace { gripper: Some(gripper(&many.time)), ..many };
+    let path = scratch("many-gripper.png");
+    write_demo_png(&path, &with_gripper).unwrap();
+    let (_, taller) = png_size(&std::fs::read(&path).unwrap());
+    assert_eq!(taller, h + 150, "one panel (150 px) more");
 }

@@ -1,12 +1,16 @@
 //! `armctl demo`: the whole product on the PC, without hardware. The firmware application runs
 //! in software in the loop ([`crate::places::sil`]) against simulated servos; the host drives it over the
 //! simulated link exactly as it drives a board: the tool goes to Cartesian targets (IK on the
-//! firmware), then plays a pick-and-place path streamed as Cartesian keyframes with flow control.
-//! It prints what was reached and how the loop ran, and plots planned against measured motion.
+//! firmware), then plays a pick-and-place path streamed as Cartesian keyframes with flow control,
+//! the gripper's opening in them: a simulated object lies at the pick point, and the firmware's
+//! gripper closes on it, carries it and lets go at the place point. It prints what was reached,
+//! how the grasp went and how the loop ran, and plots planned against measured motion.
 //!
 //! - [`scenario`]: the targets and the path of each arm.
+//! - [`grasp`]: how the pick went, read from the recorded ticks.
 //! - [`run`](self::run): the run, its measurements and the report.
 
+pub mod grasp;
 pub mod plot;
 mod scenario;
 
@@ -20,7 +24,8 @@ use firmware::link::message::{CartesianKeyframe, CartesianTarget, HostMessage, N
 use serde_json::{json, Value};
 
 use crate::arm::dof::DynArm;
-use crate::demo::plot::{write_demo_png, DemoTrace};
+use crate::demo::grasp::Grasp;
+use crate::demo::plot::{write_demo_png, DemoTrace, GripperTrace};
 use crate::drive::connection::handshake;
 use crate::link::client::{LinkClient, LinkConfig, LinkError};
 use crate::places::sil::{Sil, SilOptions, TraceSample};
@@ -146,24 +151,32 @@ struct Streamed {
     joint_max: f64,
     final_error_mm: f64,
     duration_s: f64,
+    grasp: Grasp,
 }
 
-/// Streams the pick-and-place keyframes (flow control by the client), starts once the queue holds
-/// a second of path, and measures the tracking while it plays.
+/// Puts the object on the table at the pick point, streams the pick-and-place keyframes (flow
+/// control by the client), starts once the queue holds a second of path, and measures the
+/// tracking and the grasp while it plays.
 fn pick_and_place(
     c: &mut Client,
     arm: &dyn DynArm,
     scenario: &Scenario,
     trace: &mut Vec<TraceSample>,
 ) -> Result<Streamed> {
+    let gripper = crate::arm::servos::servos_of(arm.spec())
+        .and_then(|s| s.gripper)
+        .with_context(|| format!("the arm {} has no gripper to pick with", arm.spec().name))?;
+    let follower = crate::arm::dof::build(arm.spec().clone())?;
+    c.transport().put_object(follower, scenario.object_mm, scenario.pick.map(f64::from))?;
     trace.extend(c.transport().take_trace());
     let first_tick = trace.len();
     let start = c.transport().now_s();
     let keyframes = scenario.keyframes();
     let mut acked = 0;
     let mut started = false;
-    for &(time, position) in &keyframes {
-        let k = CartesianKeyframe { time, target: CartesianTarget { position, orientation: None }, gripper: None };
+    for &(time, position, opening) in &keyframes {
+        let target = CartesianTarget { position, orientation: None };
+        let k = CartesianKeyframe { time, target, gripper: Some(opening) };
         c.push(&HostMessage::PushCartesianKeyframe(k)).with_context(|| format!("keyframe at {time} s"))?;
         acked += 1;
         if !started && time >= 1.0 {
@@ -189,6 +202,8 @@ fn pick_and_place(
     }
     let joints = arm.spec().dof().max(1);
     let last = keyframes.last().map_or([0.0; 3], |k| k.1);
+    let object = c.transport().object().map_or([f64::NAN; 3], |o| o.position());
+    let grasp = grasp::measure(&trace[first_tick..], start, arm, &gripper, scenario, object)?;
     Ok(Streamed {
         keyframes: keyframes.len(),
         acked,
@@ -198,6 +213,19 @@ fn pick_and_place(
         joint_max,
         final_error_mm: distance(tool(arm, &to_f64(&end.measured))?, last) * 1e3,
         duration_s: c.transport().now_s() - start,
+        grasp,
+    })
+}
+
+/// The gripper's curves when every sample has it.
+fn gripper_trace(samples: &[&TraceSample]) -> Option<GripperTrace> {
+    let states: Option<Vec<_>> = samples.iter().map(|s| s.gripper).collect();
+    let states = states.filter(|s| !s.is_empty())?;
+    Some(GripperTrace {
+        goal: states.iter().map(|g| f64::from(g.goal)).collect(),
+        opening: states.iter().map(|g| f64::from(g.opening)).collect(),
+        load: states.iter().map(|g| f64::from(g.load.abs())).collect(),
+        holding: states.iter().map(|g| g.holding).collect(),
     })
 }
 
@@ -224,6 +252,7 @@ fn plot(
             .map(|p| p.map(f64::from))
             .collect(),
         phases,
+        gripper: gripper_trace(&samples),
     };
     for s in &samples {
         data.tool_planned.push(tool(arm, &s.setpoints)?);
@@ -289,6 +318,7 @@ pub fn run(args: &DemoArgs, out: &mut dyn Write) -> Result<i32> {
             "pick_and_place": {"keyframes": streamed.keyframes, "acked": streamed.acked, "tool_error_rms_mm": streamed.tool_rms_mm,
                 "tool_error_max_mm": streamed.tool_max_mm, "joint_error_rms_rad": streamed.joint_rms, "joint_error_max_rad": streamed.joint_max,
                 "final_error_mm": streamed.final_error_mm, "duration_s": streamed.duration_s},
+            "grasp": streamed.grasp.json(&scenario),
             "loop": {"ticks": stats.ticks, "late_ticks": stats.late_ticks, "overruns": stats.overruns,
                 "loop_time_mean_us": status.timing.mean_us, "deadline_misses": status.timing.overruns,
                 "bus_timeouts": status.errors.bus_timeouts, "bus_errors": status.errors.bus_errors, "underruns": status.errors.underruns,
@@ -333,6 +363,10 @@ pub fn run(args: &DemoArgs, out: &mut dyn Write) -> Result<i32> {
         writeln!(out, "  tool tracking error (measured against planned): rms {:.2} mm, max {:.2} mm; joints rms {:.4} rad, max {:.4} rad", streamed.tool_rms_mm, streamed.tool_max_mm, streamed.joint_rms, streamed.joint_max)?;
         writeln!(out, "  final tool error to the last keyframe: {:.3} mm", streamed.final_error_mm)?;
         writeln!(out)?;
+        for line in streamed.grasp.lines(&scenario) {
+            writeln!(out, "{line}")?;
+        }
+        writeln!(out)?;
         writeln!(out, "Loop: {} ticks, {} late, {} deadline misses; bus time per tick {} us mean; bus timeouts {}, bus errors {}, queue underruns {}", stats.ticks, stats.late_ticks, status.timing.overruns, status.timing.mean_us, status.errors.bus_timeouts, status.errors.bus_errors, status.errors.underruns)?;
         writeln!(out, "Link: {} requests, {} retransmissions", link.requests, link.retransmissions)?;
         writeln!(
@@ -347,5 +381,6 @@ pub fn run(args: &DemoArgs, out: &mut dyn Write) -> Result<i32> {
         }
         writeln!(out, "{simulated_s:.1} s simulated in {wall_s:.2} s")?;
     }
-    Ok(if monitor.violation_count == 0 { 0 } else { 1 })
+    // A violation or a pick that did not pick fails the run; the report above says which.
+    Ok(if monitor.violation_count == 0 && streamed.grasp.picked() { 0 } else { 1 })
 }

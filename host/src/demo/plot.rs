@@ -1,5 +1,6 @@
 //! The PNG plot of `armctl demo`: planned against measured joint curves (left column, one panel per
-//! joint) and the tool path seen from above (x-y) and from the side (x-z) with equal-aspect axes
+//! joint, then the gripper's opening, goal and load with the time it held something shaded) and
+//! the tool path seen from above (x-y) and from the side (x-z) with equal-aspect axes
 //! (right column). Phase starts are vertical lines across the joint panels; targets are crosses.
 //!
 //! [`write_demo_png`] checks the whole trace before it creates the file, so a bad trace gives a
@@ -34,6 +35,20 @@ pub struct DemoTrace {
     pub targets: Vec<[f64; 3]>,
     /// `(start time, label)` of each phase, drawn as vertical lines.
     pub phases: Vec<(f64, String)>,
+    /// The gripper, per sample (`None`: the arm has none, no panel).
+    pub gripper: Option<GripperTrace>,
+}
+
+/// The gripper as the firmware reported it, once per sample.
+pub struct GripperTrace {
+    /// The goal opening, percent (0 closed to 100 open).
+    pub goal: Vec<f64>,
+    /// The measured opening, percent.
+    pub opening: Vec<f64>,
+    /// The load, percent of the servo's full effort.
+    pub load: Vec<f64>,
+    /// Whether the firmware said it holds something.
+    pub holding: Vec<bool>,
 }
 
 /// Image width in pixels; the height grows with the number of joints beyond six.
@@ -59,12 +74,15 @@ const PHASE: RGBColor = RGBColor(150, 150, 150);
 const TARGET: RGBColor = RGBColor(200, 0, 0);
 const TOOL_PLANNED: RGBColor = RGBColor(40, 40, 40);
 const TOOL_MEASURED: RGBColor = RGBColor(31, 119, 180);
+const GRIPPER: RGBColor = RGBColor(90, 60, 160);
+const LOAD: RGBColor = RGBColor(230, 120, 20);
+const HELD: RGBColor = RGBColor(40, 170, 70);
 
 /// Draws `trace` to the PNG file `path`.
 pub fn write_demo_png(path: &Path, trace: &DemoTrace) -> Result<()> {
     check(trace)?;
-    let joints = trace.joint_names.len() as u32;
-    let height = MIN_HEIGHT.max(TITLE_HEIGHT + joints * PANEL_HEIGHT);
+    let panels = (trace.joint_names.len() + usize::from(trace.gripper.is_some())) as u32;
+    let height = MIN_HEIGHT.max(TITLE_HEIGHT + panels * PANEL_HEIGHT);
     write_png(path, (WIDTH, height), |root| draw(root, trace))
         .map_err(|e| anyhow::anyhow!("cannot write plot {}: {e}", path.display()))
 }
@@ -124,6 +142,19 @@ fn check(t: &DemoTrace) -> Result<()> {
     if let Some((i, (x, _))) = t.phases.iter().enumerate().find(|(_, (x, _))| bad(*x)) {
         bail!("phase {i} starts at {}", describe(*x));
     }
+    if let Some(g) = &t.gripper {
+        for (name, values) in [("gripper goal", &g.goal), ("gripper opening", &g.opening), ("gripper load", &g.load)] {
+            if values.len() != n {
+                bail!("length mismatch: {n} time samples but {} {name} samples", values.len());
+            }
+            if let Some((i, &x)) = values.iter().enumerate().find(|(_, &x)| bad(x)) {
+                bail!("{name}[{i}] is {}", describe(x));
+            }
+        }
+        if g.holding.len() != n {
+            bail!("length mismatch: {n} time samples but {} gripper holding samples", g.holding.len());
+        }
+    }
     Ok(())
 }
 
@@ -157,8 +188,11 @@ fn draw_joints(area: &DrawingArea<BitMapBackend, Shift>, t: &DemoTrace) -> Resul
         (Some(&a), _) => padded(std::iter::once(a), 0.5),
         _ => (0.0, 1.0),
     };
-    let panels = area.split_evenly((t.joint_names.len(), 1));
+    let panels = area.split_evenly((t.joint_names.len() + usize::from(t.gripper.is_some()), 1));
     let last = panels.len().saturating_sub(1);
+    if let (Some(g), Some(panel)) = (&t.gripper, panels.last()) {
+        draw_gripper(panel, t, g, (t0, t1))?;
+    }
     for (j, (panel, name)) in panels.iter().zip(&t.joint_names).enumerate() {
         let c = colour(j);
         let (lo, hi) = padded(t.planned.iter().chain(&t.measured).map(|q| q[j]), MIN_HALF_RAD);
@@ -226,6 +260,84 @@ fn draw_joints(area: &DrawingArea<BitMapBackend, Shift>, t: &DemoTrace) -> Resul
             .draw()
             .map_err(error)?;
     }
+    Ok(())
+}
+
+/// The gripper's panel, the bottom one of the joint column: its opening (solid) and goal (dashed)
+/// in percent, its load in percent of full effort, and the time it held something shaded.
+fn draw_gripper(
+    panel: &DrawingArea<BitMapBackend, Shift>,
+    t: &DemoTrace,
+    g: &GripperTrace,
+    (t0, t1): (f64, f64),
+) -> Result<()> {
+    let (lo, hi) = padded(g.goal.iter().chain(&g.opening).chain(&g.load).copied().chain([0.0, 100.0]), 1.0);
+    let mut chart = ChartBuilder::on(panel)
+        .margin(MARGIN)
+        .x_label_area_size(X_LABELS)
+        .y_label_area_size(Y_LABELS)
+        .build_cartesian_2d(t0..t1, lo..hi)
+        .map_err(error)?;
+    chart
+        .configure_mesh()
+        .y_desc("gripper (%)")
+        .x_desc("t (s)")
+        .y_labels(5)
+        .light_line_style(RGBColor(235, 235, 235))
+        .label_style(("sans-serif", 14))
+        .axis_desc_style(("sans-serif", 15))
+        .draw()
+        .map_err(error)?;
+    // Each run of samples that held something, shaded from its first to its last sample.
+    let mut spans = Vec::new();
+    let mut from = None;
+    for (i, &held) in g.holding.iter().enumerate() {
+        match (held, from) {
+            (true, None) => from = Some(i),
+            (false, Some(a)) => {
+                spans.push((t.time[a], t.time[i - 1]));
+                from = None;
+            }
+            _ => {}
+        }
+    }
+    if let (Some(a), Some(&end)) = (from, t.time.last()) {
+        spans.push((t.time[a], end));
+    }
+    chart
+        .draw_series(spans.iter().map(|&(a, b)| Rectangle::new([(a, lo), (b, hi)], HELD.mix(0.25).filled())))
+        .map_err(error)?
+        .label("holding something")
+        .legend(|(x, y)| Rectangle::new([(x, y - 5), (x + 24, y + 5)], HELD.mix(0.25).filled()));
+    for (start, _) in t.phases.iter().filter(|(s, _)| (t0..=t1).contains(s)) {
+        chart
+            .draw_series(std::iter::once(PathElement::new(vec![(*start, lo), (*start, hi)], PHASE.stroke_width(2))))
+            .map_err(error)?;
+    }
+    let series = |values: &[f64]| t.time.iter().copied().zip(values.iter().copied()).collect::<Vec<_>>();
+    chart
+        .draw_series(LineSeries::new(series(&g.opening), GRIPPER.mix(0.55).stroke_width(3)))
+        .map_err(error)?
+        .label("opening")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], GRIPPER.mix(0.55).stroke_width(3)));
+    chart
+        .draw_series(DashedLineSeries::new(series(&g.goal), 6, 4, GRIPPER.stroke_width(2)))
+        .map_err(error)?
+        .label("goal")
+        .legend(|(x, y)| DashedPathElement::new(vec![(x, y), (x + 24, y)], 6, 4, GRIPPER.stroke_width(2)));
+    chart
+        .draw_series(LineSeries::new(series(&g.load), LOAD.stroke_width(2)))
+        .map_err(error)?
+        .label("load (% of full effort)")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], LOAD.stroke_width(2)));
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK.mix(0.3))
+        .label_font(("sans-serif", 13))
+        .draw()
+        .map_err(error)?;
     Ok(())
 }
 
