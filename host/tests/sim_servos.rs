@@ -923,31 +923,45 @@ fn id_lists_parse() {
 
 /// `armctl sim servos --arm so101 --object-mm 30`: the PC-hosted core (`--bus`) closes the
 /// gripper on the simulated object; the jaws stop at 30 mm with the load up and the firmware says
-/// it holds something. A width that does not fit, or no arm to name the gripper, is one line.
+/// it holds something; a second command (a second core, the torque left on) opens it. Every goal
+/// the gripper received kept to its speed, its first ramp step after the torque came on included.
+/// A width that does not fit, or no arm to name the gripper, is one line.
 #[test]
 fn armctl_sim_servos_puts_an_object_between_the_jaws() {
-    use std::io::BufRead;
+    use std::io::{BufRead, Read};
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_armctl"))
         .args(["sim", "servos", "--pty", "--arm", "so101", "--object-mm", "30"])
         .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
     let mut line = String::new();
     std::io::BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
     let path = line.trim().to_string();
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_armctl"))
-        .args(["--bus", &path, "--protocol", "sts", "--arm", "so101", "--json", "gripper", "close"])
-        .output()
-        .unwrap();
+    let gripper = |action: &str| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_armctl"))
+            .args(["--bus", &path, "--protocol", "sts", "--arm", "so101", "--json", "gripper", action])
+            .output()
+            .unwrap()
+    };
+    let (closed, opened) = (gripper("close"), gripper("open"));
     child.kill().unwrap();
     child.wait().unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let stdout = String::from_utf8(out.stdout).unwrap();
-    let g: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
+    let mut monitor = String::new();
+    child.stderr.take().unwrap().read_to_string(&mut monitor).unwrap();
+    for out in [&closed, &opened] {
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    }
+    let json = |out: &std::process::Output| -> serde_json::Value {
+        serde_json::from_str(String::from_utf8_lossy(&out.stdout).lines().last().unwrap()).unwrap()
+    };
+    let g = json(&closed);
     assert_eq!(g["holding"], true, "{g}");
     assert!((g["opening_mm"].as_f64().unwrap() - 30.0).abs() < 0.2, "{g}");
     assert!(g["load"].as_f64().unwrap().abs() >= 10.0, "{g}");
+    let g = json(&opened);
+    assert!(g["holding"] == false && g["opening"].as_f64().unwrap() > 98.0, "{g}");
+    assert!(!monitor.contains("violation"), "{monitor}");
 
     for (args, expected) in [
         (&["--arm", "so101", "--object-mm", "95"][..], "does not fit the gripper"),

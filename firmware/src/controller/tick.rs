@@ -41,9 +41,11 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         if !self.torque_known && self.pending_torque.is_none() && self.all_seen() {
             self.adopt_torque(master);
         }
+        let mut switched_on = false;
         if let Some(on) = self.pending_torque {
             if self.write_torque(master, on) {
                 self.pending_torque = None;
+                switched_on = on;
             }
         }
         if self.torque {
@@ -52,7 +54,11 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             self.setpoint = limit_step(&self.setpoint, &desired, &velocity, &self.limits, dt);
             self.after_step();
             let playing = (self.mode == Mode::Playing).then_some(self.play.time);
-            if let Some(g) = self.gripper.as_mut() {
+            // The gripper's ramp starts a tick after its torque comes on: the goal written with
+            // the torque a moment ago is where it stands, and a full step at once would be a
+            // period's motion in a fraction of one. (The joints start from rest, limited by
+            // their acceleration, so their first step is a small fraction of a tick.)
+            if let Some(g) = self.gripper.as_mut().filter(|_| !switched_on) {
                 g.step(dt, playing);
             }
             self.write_gripper_effort(master);

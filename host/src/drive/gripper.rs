@@ -22,6 +22,12 @@ const ARRIVED: f32 = 1.5;
 const STILL: f32 = 0.2;
 /// Polls standing still short of the goal after which the wait ends.
 const STILL_POLLS: u32 = 15;
+/// How long a grasp must have held (s of controller time) before the command ends: the firmware
+/// backs the goal off from wherever closing took it to the small squeeze past the contact, at the
+/// gripper's speed, and a PC-hosted core that ended sooner would leave the servo pushing with its
+/// whole effort limit. Closing runs at most 5 reads (with the load read every fourth tick) past
+/// the contact before the grasp is seen: under 0.1 s of travel at the default speed.
+const HOLD_SETTLE_S: f32 = 0.15;
 
 /// A checked gripper request.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -68,8 +74,8 @@ fn of(driver: &Driver, status: &Status) -> Result<GripperStatus> {
     })
 }
 
-/// Sends the request and waits until the gripper is at its goal, holds something or stands
-/// still; prints where it stopped. Returns the exit code.
+/// Sends the request and waits until the gripper is at its goal, has held something for
+/// [`HOLD_SETTLE_S`] or stands still; prints where it stopped. Returns the exit code.
 pub fn run(
     driver: &mut Driver,
     request: GripperRequest,
@@ -88,6 +94,7 @@ pub fn run(
     Driver::note_torque(switched, err)?;
     let mut last = of(driver, &start)?;
     let mut still = 0;
+    let mut held_since = None;
     let first = start.time;
     let status = loop {
         if interrupt::requested() {
@@ -99,7 +106,9 @@ pub fn run(
         let arrived = (g.opening - g.goal).abs() <= ARRIVED;
         still = if (g.opening - last.opening).abs() <= STILL { still + 1 } else { 0 };
         last = g;
-        if arrived || g.holding || still >= STILL_POLLS {
+        held_since = if g.holding { held_since.or(Some(status.time)) } else { None };
+        let settled = held_since.is_some_and(|t| status.time - t >= HOLD_SETTLE_S);
+        if (arrived && !g.holding) || settled || still >= STILL_POLLS {
             break status;
         }
         if f64::from(status.time - first) > request.timeout {
