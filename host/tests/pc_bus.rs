@@ -20,6 +20,14 @@ use serde_json::Value;
 
 const BAUD: u32 = 1_000_000;
 
+/// One test at a time: each runs a core and a servo server on the real clock, and seven of them
+/// at once on two cores starved each other into timeouts that a lone arm never sees.
+fn one_at_a_time() -> std::sync::MutexGuard<'static, ()> {
+    static LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    // A test that failed holding the lock leaves it poisoned; the next one still runs.
+    LOCK.lock().unwrap_or_else(|e| e.into_inner())
+}
+
 /// The arms of the two protocols: preset, `--protocol`, a reachable joint target.
 const ARMS: [(&str, &str, &[f64]); 2] =
     [("so101", "sts", &[0.3, -0.4, 0.5, 0.2, -0.3]), ("open-manipulator-x", "dxl2", &[0.3, -0.3, 0.4, 0.2])];
@@ -128,6 +136,7 @@ fn tool_at(arm: &str, q: &[f64]) -> [f64; 3] {
 /// stays where a command left it (torque on, holding), and the next command takes it from there.
 #[test]
 fn every_drive_command_drives_the_servos_through_bus_on_both_protocols() {
+    let _one = one_at_a_time();
     for (arm, protocol, q) in ARMS {
         let server = servos(arm, Faults::default(), None);
         let bus = |args: &[&str]| {
@@ -175,6 +184,7 @@ fn every_drive_command_drives_the_servos_through_bus_on_both_protocols() {
 /// servos are left as they were.
 #[test]
 fn bad_ports_and_the_wrong_protocol_are_one_line_and_move_nothing() {
+    let _one = one_at_a_time();
     armctl(&["--bus", "/dev/armctl-no-such-port", "--protocol", "sts", "status"])
         .fails(&["/dev/armctl-no-such-port: no such serial port"]);
     let server = servos("so101", Faults::default(), None);
@@ -242,6 +252,7 @@ fn exit_code(child: &mut Child) -> i32 {
 /// whose keyframe queue plays in the served core. SIGTERM then stops it, holding, with exit 0.
 #[test]
 fn one_served_arm_keeps_its_state_across_five_commands() {
+    let _one = one_at_a_time();
     let (mut child, pty, errors) = serve(&["--sim", "--arm", "so101"]);
     let port = |args: &[&str]| {
         let mut all = vec!["--port", pty.as_str()];
@@ -280,6 +291,7 @@ fn one_served_arm_keeps_its_state_across_five_commands() {
 /// signal, while it still brakes, switches the torque off.
 #[test]
 fn signals_stop_the_served_arm_then_switch_its_torque_off() {
+    let _one = one_at_a_time();
     for second in [false, true] {
         let (mut child, pty, errors) = serve(&["--sim"]);
         let port = |args: &[&str]| {
@@ -362,6 +374,7 @@ fn until_rest(conn: &mut connection::Connection, limit: Duration) -> Status {
 /// and counts as recovered when it answers again.
 #[test]
 fn a_servo_that_stops_answering_mid_move_is_reported_and_recovers() {
+    let _one = one_at_a_time();
     let server = servos("so101", Faults::default(), None);
     let mut conn = connect(&server, "so101", Protocol::Feetech);
     torque_on(&mut conn);
@@ -398,6 +411,7 @@ fn a_servo_that_stops_answering_mid_move_is_reported_and_recovers() {
 /// loop reports the rate it reached, and the safety monitor sees no goal beyond the limits.
 #[test]
 fn burst_latency_sets_the_period_and_the_rate_is_reported_with_no_violation() {
+    let _one = one_at_a_time();
     for (arm, protocol, q) in [ARMS[0], ARMS[1]] {
         let protocol = if protocol == "sts" { Protocol::Feetech } else { Protocol::Dxl2 };
         for burst_ms in [1u64, 16] {
@@ -427,6 +441,7 @@ fn burst_latency_sets_the_period_and_the_rate_is_reported_with_no_violation() {
 /// no further than the limits allow over the time that passed.
 #[test]
 fn a_stalled_pc_is_a_late_tick_not_a_jump() {
+    let _one = one_at_a_time();
     let server = servos("so101", Faults::default(), None);
     let mut conn = connect(&server, "so101", Protocol::Feetech);
     torque_on(&mut conn);
