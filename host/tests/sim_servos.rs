@@ -703,18 +703,25 @@ fn limits_of_maps_an_arm_as_the_firmware_does() {
     }
 }
 
-#[test]
-fn armctl_sim_servos_serves_a_pty_and_refuses_bad_input() {
+/// `armctl sim servos ARGS` as a process, its stderr to `stderr`; returns it and the pty's path
+/// (its first line).
+fn serve_sim(args: &[&str], stderr: std::process::Stdio) -> (std::process::Child, String) {
     use std::io::BufRead;
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_armctl"))
-        .args(["sim", "servos", "--protocol", "sts", "--ids", "1-3,7", "--pty"])
+        .args(["sim", "servos"])
+        .args(args)
         .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::null())
+        .stderr(stderr)
         .spawn()
         .unwrap();
     let mut line = String::new();
     std::io::BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
-    let path = line.trim().to_string();
+    (child, line.trim().to_string())
+}
+
+#[test]
+fn armctl_sim_servos_serves_a_pty_and_refuses_bad_input() {
+    let (mut child, path) = serve_sim(&["--protocol", "sts", "--ids", "1-3,7", "--pty"], std::process::Stdio::null());
     let reply = std::panic::catch_unwind(|| exchange(&path, &[0xFF, 0xFF, 0x07, 0x02, 0x01, 0xF5], 6));
     child.kill().unwrap();
     child.wait().unwrap();
@@ -855,15 +862,8 @@ fn armctl_sim_servos_refuses_a_bad_burst_period_and_an_arm_it_does_not_serve() {
 #[test]
 fn armctl_sim_servos_prints_the_violations_it_finds() {
     use std::io::BufRead;
-    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_armctl"))
-        .args(["sim", "servos", "--protocol", "sts", "--ids", "1-6", "--pty", "--arm", "so101", "--burst-ms", "1"])
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    std::io::BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
-    let path = line.trim().to_string();
+    let args = ["--protocol", "sts", "--ids", "1-6", "--pty", "--arm", "so101", "--burst-ms", "1"];
+    let (mut child, path) = serve_sim(&args, std::process::Stdio::piped());
     let (tx, rx) = std::sync::mpsc::channel();
     let stderr = child.stderr.take().unwrap();
     std::thread::spawn(move || {
@@ -928,16 +928,9 @@ fn id_lists_parse() {
 /// A width that does not fit, or no arm to name the gripper, is one line.
 #[test]
 fn armctl_sim_servos_puts_an_object_between_the_jaws() {
-    use std::io::{BufRead, Read};
-    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_armctl"))
-        .args(["sim", "servos", "--pty", "--arm", "so101", "--object-mm", "30"])
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    std::io::BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
-    let path = line.trim().to_string();
+    use std::io::Read;
+    let args = ["--pty", "--arm", "so101", "--object-mm", "30"];
+    let (mut child, path) = serve_sim(&args, std::process::Stdio::piped());
     let gripper = |action: &str| {
         std::process::Command::new(env!("CARGO_BIN_EXE_armctl"))
             .args(["--bus", &path, "--protocol", "sts", "--arm", "so101", "--json", "gripper", action])

@@ -9,6 +9,7 @@
 
 use crate::plot::{colour, error, write_png};
 use anyhow::{bail, Result};
+use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::element::DashedPathElement;
 use plotters::prelude::*;
@@ -251,14 +252,7 @@ fn draw_joints(area: &DrawingArea<BitMapBackend, Shift>, t: &DemoTrace) -> Resul
                 .draw_series([Circle::new((*s, m[j]), 5, c.mix(0.55).filled()), Circle::new((*s, p[j]), 3, c.filled())])
                 .map_err(error)?;
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK.mix(0.3))
-            .label_font(("sans-serif", 13))
-            .draw()
-            .map_err(error)?;
+        legend(&mut chart, SeriesLabelPosition::UpperRight)?;
     }
     Ok(())
 }
@@ -330,15 +324,7 @@ fn draw_gripper(
         .map_err(error)?
         .label("load (% of full effort)")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], LOAD.stroke_width(2)));
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK.mix(0.3))
-        .label_font(("sans-serif", 13))
-        .draw()
-        .map_err(error)?;
-    Ok(())
+    legend(&mut chart, SeriesLabelPosition::UpperLeft)
 }
 
 /// Ranges for an equal-aspect chart of `plot` pixels covering both given ranges.
@@ -410,13 +396,20 @@ fn draw_view(
             .label("start")
             .legend(|(x, y)| Circle::new((x + 12, y), 5, TOOL_MEASURED.filled()));
     }
+    legend(&mut chart, SeriesLabelPosition::UpperRight)
+}
+
+/// A chart of the plot: seconds, radians, percent or metres on both axes.
+type Chart<'a, 'b> = ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// The series' legend box at `position`.
+fn legend<'a, 'b: 'a>(chart: &mut Chart<'a, 'b>, position: SeriesLabelPosition) -> Result<()> {
     chart
         .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
+        .position(position)
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK.mix(0.3))
         .label_font(("sans-serif", 13))
         .draw()
-        .map_err(error)?;
-    Ok(())
+        .map_err(error)
 }
