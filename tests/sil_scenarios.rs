@@ -21,12 +21,12 @@ fn client(options: &SilOptions) -> Client {
     let mut client = LinkClient::new(sil, LinkConfig::default());
     let info = client.hello().unwrap();
     if info.arm_name.is_empty() {
-        let arm = ArmSpec::load(options.arm.name(), None).unwrap();
+        let arm = options.arm.clone();
         let servos = ServoSetup::for_arm(&arm.name).unwrap();
         for m in configure_messages(&arm, &servos).unwrap() {
             client.request(&m).unwrap();
         }
-        assert_eq!(client.hello().unwrap().arm_name.as_str(), options.arm.name());
+        assert_eq!(client.hello().unwrap().arm_name.as_str(), options.arm.name.as_str());
     }
     client
 }

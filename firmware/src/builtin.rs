@@ -10,6 +10,8 @@ use crate::controller::{ConfigError, GripperConfig};
 
 /// Joint count of the built-in arm.
 pub const JOINTS: usize = 5;
+/// Its name, as the host's preset calls it.
+pub const NAME: &str = "so101";
 
 /// Joint speed limit of the built-in arm (rad/s): under half the STS3215's no-load speed at 7.4 V
 /// (about 4.7 rad/s), so the servos keep up under load.
@@ -37,7 +39,7 @@ pub fn setup() -> Result<ArmSetup<JOINTS>, ConfigError> {
     let mappings = core::array::from_fn(|j| JointMapping::centred(j as u8 + 1, STS3215.ticks_per_revolution));
     let velocity = SVector::repeat(MAX_VELOCITY);
     let acceleration = SVector::repeat(MAX_ACCELERATION);
-    let mut setup = ArmSetup::new("so101", chain, mappings, &STS3215, velocity, acceleration)?;
+    let mut setup = ArmSetup::new(NAME, chain, mappings, &STS3215, velocity, acceleration)?;
     setup.gripper = Some(GRIPPER);
     Ok(setup)
 }

@@ -153,7 +153,7 @@ impl LinkArgs {
                     object_mm: self.object_mm,
                     ..crate::places::sil::SilOptions::new(arm)?
                 };
-                Ok((Target::Sim(options), Some(arm)))
+                Ok((Target::Sim(Box::new(options)), Some(arm)))
             }
             (Some(_), true) => bail!("--port and --sim exclude each other: give one"),
             (None, false) if self.baud.is_some() => {

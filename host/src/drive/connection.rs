@@ -31,7 +31,7 @@ pub enum Target {
         baud: u32,
     },
     /// The firmware core simulated in this process.
-    Sim(SilOptions),
+    Sim(Box<SilOptions>),
     /// The firmware core run in this process against real servos on a USB adapter.
     Bus(Box<PcOptions>),
 }
@@ -83,33 +83,31 @@ fn configure<T: Transport>(client: &mut LinkClient<T>, arm: &ArmSpec) -> Result<
 /// and wrote is said on `err`.
 pub fn open(target: Target, arm: Option<&str>, err: &mut dyn std::io::Write) -> Result<Connection> {
     let mut pc = None;
-    let mut bus_arm = None;
-    let (transport, sim_arm): (Box<dyn Transport>, Option<&'static str>) = match target {
+    // The arm --bus or --sim loaded (with a calibration, or its servos simulated): sent as it is.
+    let mut loaded_arm = None;
+    let transport: Box<dyn Transport> = match target {
         Target::Port { path, baud } => {
             let port = serialport::new(&path, baud).timeout(READ_TIMEOUT).open().map_err(|e| open_error(&path, e))?;
-            (Box::new(port), None)
+            Box::new(port)
         }
         Target::Bus(options) => {
             let mut core = Pc::start(&options, true, err)?;
-            bus_arm = Some(options.arm);
+            loaded_arm = Some(options.arm);
             let link = core.take_link().ok_or_else(|| anyhow!("the core's link was taken"))?;
             pc = Some(core);
-            (Box::new(link), None)
+            Box::new(link)
         }
         Target::Sim(mut options) => {
             options.read_timeout_ms = READ_TIMEOUT.as_millis() as u64;
-            let name = options.arm.name();
-            if arm.is_some_and(|a| a != name) {
-                bail!("the simulated board runs {name}; --arm {} is not one it can drive", arm.unwrap_or_default());
-            }
-            (Box::new(Sil::new(&options)?), Some(name))
+            let sil = Sil::new(&options)?;
+            loaded_arm = Some(options.arm);
+            Box::new(sil)
         }
     };
     let mut client = LinkClient::new(transport, LinkConfig::default());
-    let (info, spec) = match bus_arm {
-        // The arm --bus loaded (its servos were set up already): sent as it is.
+    let (info, spec) = match loaded_arm {
         Some(spec) => handshake_with(&mut client, Some(spec))?,
-        None => handshake(&mut client, arm.or(sim_arm))?,
+        None => handshake(&mut client, arm)?,
     };
     if let Some(core) = &pc {
         // Until every servo and its torque are read, the status would call a torqued arm limp.

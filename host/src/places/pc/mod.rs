@@ -39,7 +39,7 @@ use crate::arm::servos::{servos_of, ServoSetup};
 use crate::arm::ArmSpec;
 use crate::link::channel::{self, ChannelLink, CoreEnd};
 use crate::link::serial::{SerialTransport, StdClock};
-use crate::places::sil::board::{SimBoard, QUEUE};
+use crate::places::sil::board::{for_joints, SimBoard, WithFirmware, QUEUE};
 use runner::PcCore;
 pub use runner::{LoopSummary, Shared};
 
@@ -337,19 +337,12 @@ fn check_calibration(
 /// The firmware for an arm of `joints` joints (configured by the host over the link) with
 /// `master` on the serial port.
 fn core_for(joints: usize, board: Board, master: Master<SerialTransport, NoDirectionPin, StdClock>) -> Result<PcCore> {
-    macro_rules! build {
-        ($($n:literal)*) => {
-            match joints {
-                $($n => {
-                    let firmware = Firmware::<$n, QUEUE>::new(board, None).map_err(|e| anyhow!("firmware core: {e}"))?;
-                    Ok(Box::new(SimBoard { firmware, master }) as PcCore)
-                })*
-                _ => bail!(
-                    "the firmware drives 1 to {} joints; this arm has {joints}",
-                    firmware::link::message::MAX_JOINTS
-                ),
-            }
-        };
+    struct OnPort(Master<SerialTransport, NoDirectionPin, StdClock>);
+    impl WithFirmware for OnPort {
+        type Output = PcCore;
+        fn call<const N: usize>(self, firmware: Firmware<N, QUEUE>) -> PcCore {
+            Box::new(SimBoard { firmware, master: self.0 })
+        }
     }
-    build!(1 2 3 4 5 6 7 8)
+    for_joints(joints, board, OnPort(master))
 }

@@ -3,8 +3,9 @@
 //! servo bus and the virtual clock in SIL, on a serial port and the PC's clock in
 //! [`crate::places::pc`].
 
+use anyhow::{anyhow, bail, Result};
 use embedded_io::{Read, ReadReady, Write};
-use firmware::app::Firmware;
+use firmware::app::{Board, Firmware};
 use firmware::bus::master::{Clock, Master, NoDirectionPin};
 use firmware::controller::{Counters, GripperState, Mode, TickReport};
 use firmware::link::session::SessionStats;
@@ -15,6 +16,35 @@ use crate::sim::{SimPort, VirtualClock};
 
 /// Keyframe queue capacity of the simulated firmware (as on the boards).
 pub const QUEUE: usize = 32;
+
+/// What to do with a firmware whose joint count is known only at run time ([`for_joints`]).
+pub trait WithFirmware {
+    /// What it makes of it.
+    type Output;
+    /// Called with the firmware of `N` joints.
+    fn call<const N: usize>(self, firmware: Firmware<N, QUEUE>) -> Self::Output;
+}
+
+/// The firmware for an arm of `joints` joints on `board`, started without an arm (the host
+/// configures it over the link), handed to `with`: one match over the joint counts the firmware
+/// is built for, for every place that runs it.
+pub fn for_joints<W: WithFirmware>(joints: usize, board: Board, with: W) -> Result<W::Output> {
+    macro_rules! build {
+        ($($n:literal)*) => {
+            match joints {
+                $($n => {
+                    let firmware = Firmware::<$n, QUEUE>::new(board, None).map_err(|e| anyhow!("firmware core: {e}"))?;
+                    Ok(with.call(firmware))
+                })*
+                _ => bail!(
+                    "the firmware drives 1 to {} joints; this arm has {joints}",
+                    firmware::link::message::MAX_JOINTS
+                ),
+            }
+        };
+    }
+    build!(1 2 3 4 5 6 7 8)
+}
 
 /// The firmware side of the SIL harness, for any joint count.
 pub trait SimFirmware {

@@ -22,72 +22,29 @@ pub mod wire;
 
 use std::io::{self, ErrorKind, Read, Write};
 
-use anyhow::{bail, Result};
+use anyhow::Result;
 use firmware::app::{Board, Firmware};
 use firmware::builtin;
 use firmware::bus::master::{BusConfig, Master, NoDirectionPin};
-use firmware::bus::table::{Model, STS3215, XM430_W350};
+use firmware::bus::table::Model;
 use firmware::controller::{Config, GripperState, TickReport};
 
 use crate::arm::dof::DynArm;
+use crate::arm::servos::{servos_of, ServoSetup};
+use crate::arm::ArmSpec;
 pub use crate::sim::monitor::{GoalState, SafetyMonitor, Violation};
 use crate::sim::{connect, Faults, Scene, SharedBus, SimBus, VirtualClock};
-use board::{SimBoard, SimFirmware, QUEUE};
+use board::{for_joints, SimBoard, SimFirmware, WithFirmware, QUEUE};
 use wire::Wire;
 
-/// The arms the harness simulates.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum SimArm {
-    /// SO-101 on a Feetech bus: the firmware's built-in arm, STS3215 servos 1 to 5.
-    So101,
-    /// OpenManipulator-X on a Dynamixel bus: XM430-W350 servos 11 to 14, configured by the host
-    /// (the firmware starts without an arm).
-    OpenManipulatorX,
+/// The gripper of `servos`, for `--object-mm` and objects on the table.
+fn gripper_of(arm: &str, servos: &ServoSetup) -> Result<crate::arm::servos::GripperSpec> {
+    servos.gripper.ok_or_else(|| anyhow::anyhow!("--object-mm: the simulated {arm} has no gripper"))
 }
 
-impl SimArm {
-    /// The arm called `name` (`so101` or `open-manipulator-x`).
-    pub fn parse(name: &str) -> Result<Self> {
-        match name {
-            "so101" => Ok(Self::So101),
-            "open-manipulator-x" => Ok(Self::OpenManipulatorX),
-            _ => bail!("no simulated arm {name:?}: use so101 (Feetech) or open-manipulator-x (Dynamixel)"),
-        }
-    }
-
-    /// Its preset name.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::So101 => "so101",
-            Self::OpenManipulatorX => "open-manipulator-x",
-        }
-    }
-
-    /// The servo model.
-    pub fn model(self) -> &'static Model {
-        match self {
-            Self::So101 => &STS3215,
-            Self::OpenManipulatorX => &XM430_W350,
-        }
-    }
-
-    /// The servo ids, base first, then the gripper's: the preset's.
-    pub fn ids(self) -> Vec<u8> {
-        crate::arm::servos::ServoSetup::for_arm(self.name()).map(|s| s.bus_ids()).unwrap_or_default()
-    }
-}
-
-/// The gripper of the simulated `arm`.
-fn gripper_of(arm: SimArm) -> Result<crate::arm::servos::GripperSpec> {
-    crate::arm::servos::ServoSetup::for_arm(arm.name())
-        .and_then(|s| s.gripper)
-        .ok_or_else(|| anyhow::anyhow!("--object-mm: the simulated {} has no gripper", arm.name()))
-}
-
-/// Puts an object `mm` wide between the jaws of `arm`'s gripper on `bus` (`None` takes it away).
-fn put_object(bus: &SharedBus, arm: SimArm, mm: Option<f64>) -> Result<()> {
-    let gripper = gripper_of(arm)?;
-    let jaw = mm.map(|mm| crate::sim::Jaw::for_object(&gripper, mm)).transpose()?;
+/// Puts an object `mm` wide between the jaws of `gripper` on `bus` (`None` takes it away).
+fn put_object(bus: &SharedBus, gripper: &crate::arm::servos::GripperSpec, mm: Option<f64>) -> Result<()> {
+    let jaw = mm.map(|mm| crate::sim::Jaw::for_object(gripper, mm)).transpose()?;
     let mut bus = bus.borrow_mut();
     let now = bus.now_ns();
     if let Some(servo) = bus.servo_mut(gripper.id) {
@@ -96,11 +53,25 @@ fn put_object(bus: &SharedBus, arm: SimArm, mm: Option<f64>) -> Result<()> {
     Ok(())
 }
 
+/// Whether `arm` is the firmware's built-in SO-101, servos and all: the simulated board then
+/// starts with it, as a board does, instead of being sent it.
+fn is_builtin(arm: &ArmSpec, servos: &ServoSetup) -> bool {
+    arm.name == builtin::NAME && ServoSetup::for_arm(builtin::NAME).as_ref() == Some(servos)
+}
+
+/// The servos of `arm`, which the simulated bus serves.
+fn servos(arm: &ArmSpec) -> Result<ServoSetup> {
+    servos_of(arm).ok_or_else(|| {
+        anyhow::anyhow!("arm {} has no servos to simulate: add a [servos] table to its arm file", arm.name)
+    })
+}
+
 /// How the harness is set up.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SilOptions {
-    /// The arm.
-    pub arm: SimArm,
+    /// The arm: a preset or an arm file, with a `[servos]` table (or a preset's servos), whose
+    /// servo models the simulated bus serves.
+    pub arm: ArmSpec,
     /// Host link baud rate (10 bits per byte).
     pub link_baud: u32,
     /// Servo bus baud rate.
@@ -118,10 +89,17 @@ pub struct SilOptions {
 }
 
 impl SilOptions {
-    /// The defaults for `arm`: 1 Mbps link and bus, no faults, 100 Hz, 20 ms read timeout.
+    /// The defaults for `arm` (a preset's name or an arm file): 1 Mbps link and bus, no faults,
+    /// 100 Hz, 20 ms read timeout.
     pub fn new(arm: &str) -> Result<Self> {
+        Self::for_arm(ArmSpec::load(arm, None)?)
+    }
+
+    /// [`SilOptions::new`] for an arm already loaded; fails for one without servos.
+    pub fn for_arm(arm: ArmSpec) -> Result<Self> {
+        servos(&arm)?;
         Ok(Self {
-            arm: SimArm::parse(arm)?,
+            arm,
             link_baud: 1_000_000,
             bus_baud: 1_000_000,
             link_faults: Faults::default(),
@@ -163,7 +141,8 @@ pub struct SilStats {
 
 /// The SIL harness; the host's end of the link.
 pub struct Sil {
-    arm: SimArm,
+    arm: ArmSpec,
+    servos: ServoSetup,
     clock: VirtualClock,
     bus: SharedBus,
     model: &'static Model,
@@ -185,29 +164,32 @@ pub struct Sil {
 impl Sil {
     /// A board with its servos at rest at their middle position, torque off, at time 0.
     pub fn new(options: &SilOptions) -> Result<Self> {
-        let arm = options.arm;
-        let model = arm.model();
-        let bus =
-            SimBus::new(model.protocol, model, &arm.ids(), options.bus_baud).with_faults(options.bus_faults.clone());
+        let arm = options.arm.clone();
+        let servos = servos(&arm)?;
+        let model = servos.model;
+        let bus = SimBus::new(model.protocol, model, &servos.bus_ids(), options.bus_baud)
+            .with_faults(options.bus_faults.clone());
         let (bus, port, clock) = connect(bus);
         if options.object_mm.is_some() {
-            put_object(&bus, arm, options.object_mm)?;
+            put_object(&bus, &gripper_of(&arm.name, &servos)?, options.object_mm)?;
         }
         let bus_config = BusConfig::new(model.protocol, options.bus_baud);
         let board = Board { bus: bus_config, model, control: options.control };
         let master = Master::new(port, NoDirectionPin, clock.clone(), bus_config);
-        let board: Box<dyn SimFirmware> = match arm {
-            SimArm::So101 => {
-                let setup = builtin::setup().map_err(|e| anyhow::anyhow!("built-in arm: {e}"))?;
-                let firmware = Firmware::<{ builtin::JOINTS }, QUEUE>::new(board, Some(setup))
-                    .map_err(|e| anyhow::anyhow!("simulated board: {e}"))?;
-                Box::new(SimBoard { firmware, master })
+        let board: Box<dyn SimFirmware> = if is_builtin(&arm, &servos) {
+            let setup = builtin::setup().map_err(|e| anyhow::anyhow!("built-in arm: {e}"))?;
+            let firmware = Firmware::<{ builtin::JOINTS }, QUEUE>::new(board, Some(setup))
+                .map_err(|e| anyhow::anyhow!("simulated board: {e}"))?;
+            Box::new(SimBoard { firmware, master })
+        } else {
+            struct OnSimBus(Master<crate::sim::SimPort, NoDirectionPin, VirtualClock>);
+            impl WithFirmware for OnSimBus {
+                type Output = Box<dyn SimFirmware>;
+                fn call<const N: usize>(self, firmware: Firmware<N, QUEUE>) -> Box<dyn SimFirmware> {
+                    Box::new(SimBoard { firmware, master: self.0 })
+                }
             }
-            SimArm::OpenManipulatorX => {
-                let firmware =
-                    Firmware::<4, QUEUE>::new(board, None).map_err(|e| anyhow::anyhow!("simulated board: {e}"))?;
-                Box::new(SimBoard { firmware, master })
-            }
+            for_joints(arm.dof(), board, OnSimBus(master))?
         };
         let period_ns = u64::from(board.period_us()) * 1000;
         // The link's faults get their own seed stream per direction, so the two differ.
@@ -215,6 +197,7 @@ impl Sil {
         upstream.seed = upstream.seed.wrapping_add(0x5EED);
         Ok(Self {
             arm,
+            servos,
             clock,
             bus,
             model,
@@ -240,7 +223,12 @@ impl Sil {
 
     /// Puts an object `mm` wide between the gripper's jaws (`None` takes it away), now.
     pub fn set_object(&mut self, mm: Option<f64>) -> Result<()> {
-        put_object(&self.bus, self.arm, mm)
+        put_object(&self.bus, &gripper_of(&self.arm.name, &self.servos)?, mm)
+    }
+
+    /// The simulated arm.
+    pub fn arm(&self) -> &ArmSpec {
+        &self.arm
     }
 
     /// Puts an object `width_mm` wide on the table at `position` (m, its centre), for the
@@ -249,8 +237,9 @@ impl Sil {
     /// [`crate::sim::scene::REACH_M`] of it, and carries it while the jaws grip it. Replaces any
     /// object there was; the jaws let go of it first.
     pub fn put_object(&mut self, arm: Box<dyn DynArm>, width_mm: f64, position: [f64; 3]) -> Result<()> {
-        let scene = Scene::new(&gripper_of(self.arm)?, width_mm, position)?;
-        put_object(&self.bus, self.arm, None)?;
+        let gripper = gripper_of(&self.arm.name, &self.servos)?;
+        let scene = Scene::new(&gripper, width_mm, position)?;
+        put_object(&self.bus, &gripper, None)?;
         self.scene = Some((scene, arm));
         Ok(())
     }
