@@ -81,11 +81,27 @@ fn the_table_and_the_plot() {
     std::fs::remove_file(&path).unwrap();
 }
 
+/// An arm file with a `[servos]` table: the six-joint example, its points drawn from its own
+/// workspace, passes the same checks; two runs draw the same points.
 #[test]
-fn an_unknown_arm_is_a_one_line_error() {
-    let (code, out, err) = demo(&["--arm", "ur5e"]);
-    assert_eq!(code, 1);
-    assert!(out.is_empty());
-    assert_eq!(err.lines().count(), 1, "{err}");
-    assert!(err.starts_with("error: ") && err.contains("so101"), "{err}");
+fn a_six_joint_arm_file() {
+    let arm = format!("{}/examples/arms/six-dof.toml", env!("CARGO_MANIFEST_DIR"));
+    let report = json(&["--arm", &arm, "--json", "--no-plot"]);
+    assert_eq!(report["arm"], "six-dof");
+    assert!(report["bus"].as_str().unwrap().starts_with("7 x STS3215"), "{}", report["bus"]);
+    check(&report);
+    let again = json(&["--arm", &arm, "--json", "--no-plot"]);
+    assert_eq!(report["targets"], again["targets"]);
+    assert_eq!(report["grasp"]["pick"], again["grasp"]["pick"]);
+}
+
+#[test]
+fn an_arm_without_servos_is_a_one_line_error() {
+    for (arm, needle) in [("ur5e", "no servos to simulate"), ("no-such-arm", "unknown arm")] {
+        let (code, out, err) = demo(&["--arm", arm]);
+        assert_eq!(code, 1);
+        assert!(out.is_empty());
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(err.starts_with("error: ") && err.contains(needle), "{err}");
+    }
 }

@@ -302,3 +302,28 @@ fn drive_options_go_before_or_after_the_command() {
     let v = run.json();
     assert!(v["error_mm"].as_f64().is_some_and(|e| e < 1.0), "{v}");
 }
+
+/// The six-joint example arm file (STS3215 servos 1 to 6, gripper 7).
+fn six_dof() -> String {
+    format!("{}/examples/arms/six-dof.toml", env!("CARGO_MANIFEST_DIR"))
+}
+
+/// `--sim --arm FILE`: any arm with a `[servos]` table runs through the firmware core on simulated
+/// servos of its model: a 6-joint file reaches a point its own forward kinematics gives, within a
+/// millimetre, and closes its gripper on an object; an arm without servos is one line.
+#[test]
+fn any_arm_file_with_servos_runs_in_simulation() {
+    let arm = six_dof();
+    let spec = armctl::arm::ArmSpec::load(&arm, None).unwrap();
+    let fk = armctl::arm::dof::build(spec).unwrap();
+    let p = fk.tool_pose(&[0.4, 0.3, 0.6, 0.0, 0.5, 0.0]).unwrap().translation;
+    let target = [p.x, p.y, p.z];
+    let v = armctl(&["--sim", "--arm", &arm, "--json", "status"]).json();
+    assert_eq!((&v["arm"], v["measured"].as_array().map(Vec::len)), (&"six-dof".into(), Some(6)), "{v}");
+    let v = armctl(&["--sim", "--arm", &arm, "--json", "move", "--to", &join(&target)]).json();
+    assert!(distance(&numbers(&v["reached"]), &target) < 1e-3, "{v}");
+    let v = armctl(&["--sim", "--arm", &arm, "--object-mm", "30", "--json", "gripper", "close"]).json();
+    assert_eq!(v["holding"], true, "{v}");
+    assert!((v["opening_mm"].as_f64().unwrap() - 30.0).abs() < 0.2, "{v}");
+    assert_fails(&["--sim", "--arm", "ur5e", "status"], &["ur5e", "no servos to simulate", "[servos]"]);
+}

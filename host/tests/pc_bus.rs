@@ -458,3 +458,22 @@ fn a_stalled_pc_is_a_late_tick_not_a_jump() {
     assert_eq!(report.violation_count, 0, "{:?}", report.violations);
     assert!(report.max_step_ratio <= 1.0, "{report:?}");
 }
+
+/// `serve --sim --arm FILE`: an arm file's servos (six STS3215 and a gripper) served and driven by
+/// the core behind the pty; a client of the same file moves its tool within a millimetre of a
+/// point its forward kinematics gives.
+#[test]
+fn serve_sim_takes_an_arm_file() {
+    let _one = one_at_a_time();
+    let arm = format!("{}/examples/arms/six-dof.toml", env!("CARGO_MANIFEST_DIR"));
+    let fk = armctl::arm::dof::build(ArmSpec::load(&arm, None).unwrap()).unwrap();
+    let p = fk.tool_pose(&[-0.4, 0.3, 0.6, 0.0, 0.5, 0.0]).unwrap().translation;
+    let target = [p.x, p.y, p.z];
+    let (mut child, pty, errors) = serve(&["--sim", "--arm", &arm]);
+    let moved = armctl(&["--port", &pty, "--arm", &arm, "move", "--to", &join(&target), "--json"]).json("move");
+    signal(&child, "TERM");
+    assert_eq!(exit_code(&mut child), 0);
+    assert!(largest_difference(&numbers(&moved["reached"]), &target) < 1e-3, "{moved}");
+    let errors = errors.join().unwrap();
+    assert!(errors.contains("safety monitor:") && errors.contains(" 0 violations"), "{errors}");
+}

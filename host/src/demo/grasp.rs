@@ -148,7 +148,7 @@ impl Grasp {
         let p = |v: [f32; 3]| format!("{:.3} {:.3} {:.3}", v[0], v[1], v[2]);
         let mut out = vec![format!(
             "Grasp: a {} mm object at the pick point ({} m), to be set down at {} m",
-            scenario.object_mm,
+            scenario.object_mm.unwrap_or_default(),
             p(scenario.pick),
             p(scenario.place)
         )];

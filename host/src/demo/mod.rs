@@ -6,7 +6,7 @@
 //! gripper closes on it, carries it and lets go at the place point. It prints what was reached,
 //! how the grasp went and how the loop ran, and plots planned against measured motion.
 //!
-//! - [`scenario`]: the targets and the path of each arm.
+//! - [`scenario`]: the targets and the path, drawn from the arm's reachable workspace.
 //! - [`grasp`]: how the pick went, read from the recorded ticks.
 //! - [`run`](self::run): the run, its measurements and the report.
 
@@ -26,7 +26,7 @@ use serde_json::{json, Value};
 use crate::arm::dof::DynArm;
 use crate::demo::grasp::Grasp;
 use crate::demo::plot::{write_demo_png, DemoTrace, GripperTrace};
-use crate::drive::connection::handshake;
+use crate::drive::connection::handshake_with;
 use crate::link::client::{LinkClient, LinkConfig, LinkError};
 use crate::places::sil::{Sil, SilOptions, TraceSample};
 use scenario::Scenario;
@@ -34,7 +34,8 @@ use scenario::Scenario;
 /// `armctl demo` options.
 #[derive(Args, Debug)]
 pub struct DemoArgs {
-    /// The simulated arm: so101 (Feetech STS3215 bus) or open-manipulator-x (Dynamixel XM430 bus).
+    /// The simulated arm: a preset with servos (so101 on a Feetech STS3215 bus,
+    /// open-manipulator-x on a Dynamixel XM430 bus) or an arm file with a [servos] table.
     #[arg(long, default_value = "so101")]
     arm: String,
     /// Where to write the PNG plot (default demo-ARM.png in the current directory).
@@ -151,7 +152,8 @@ struct Streamed {
     joint_max: f64,
     final_error_mm: f64,
     duration_s: f64,
-    grasp: Grasp,
+    /// How the grasp went (`None`: the arm has no gripper).
+    grasp: Option<Grasp>,
 }
 
 /// Puts the object on the table at the pick point, streams the pick-and-place keyframes (flow
@@ -163,11 +165,11 @@ fn pick_and_place(
     scenario: &Scenario,
     trace: &mut Vec<TraceSample>,
 ) -> Result<Streamed> {
-    let gripper = crate::arm::servos::servos_of(arm.spec())
-        .and_then(|s| s.gripper)
-        .with_context(|| format!("the arm {} has no gripper to pick with", arm.spec().name))?;
-    let follower = crate::arm::dof::build(arm.spec().clone())?;
-    c.transport().put_object(follower, scenario.object_mm, scenario.pick.map(f64::from))?;
+    let gripper = crate::arm::servos::servos_of(arm.spec()).and_then(|s| s.gripper);
+    if let Some(width) = scenario.object_mm {
+        let follower = crate::arm::dof::build(arm.spec().clone())?;
+        c.transport().put_object(follower, width, scenario.pick.map(f64::from))?;
+    }
     trace.extend(c.transport().take_trace());
     let first_tick = trace.len();
     let start = c.transport().now_s();
@@ -176,7 +178,7 @@ fn pick_and_place(
     let mut started = false;
     for &(time, position, opening) in &keyframes {
         let target = CartesianTarget { position, orientation: None };
-        let k = CartesianKeyframe { time, target, gripper: Some(opening) };
+        let k = CartesianKeyframe { time, target, gripper: opening };
         c.push(&HostMessage::PushCartesianKeyframe(k)).with_context(|| format!("keyframe at {time} s"))?;
         acked += 1;
         if !started && time >= 1.0 {
@@ -202,8 +204,13 @@ fn pick_and_place(
     }
     let joints = arm.spec().dof().max(1);
     let last = keyframes.last().map_or([0.0; 3], |k| k.1);
-    let object = c.transport().object().map_or([f64::NAN; 3], |o| o.position());
-    let grasp = grasp::measure(&trace[first_tick..], start, arm, &gripper, scenario, object)?;
+    let grasp = match (&gripper, c.transport().object()) {
+        (Some(gripper), Some(object)) => {
+            let object = object.position();
+            Some(grasp::measure(&trace[first_tick..], start, arm, gripper, scenario, object)?)
+        }
+        _ => None,
+    };
     Ok(Streamed {
         keyframes: keyframes.len(),
         acked,
@@ -268,15 +275,16 @@ fn fmt3(p: [f64; 3]) -> String {
 /// Runs `armctl demo`.
 pub fn run(args: &DemoArgs, out: &mut dyn Write) -> Result<i32> {
     let wall = Instant::now();
-    let scenario = Scenario::for_arm(&args.arm)
-        .with_context(|| format!("no demo for arm {:?}: use so101 or open-manipulator-x", args.arm))?;
     let options = SilOptions::new(&args.arm)?;
     let mut sil = Sil::new(&options)?;
     sil.record();
     let mut c = LinkClient::new(sil, LinkConfig::default());
-    let (info, spec) = handshake(&mut c, Some(&args.arm))?;
+    let (info, spec) = handshake_with(&mut c, Some(options.arm.clone()))?;
+    let gripper = crate::arm::servos::servos_of(&spec).and_then(|s| s.gripper);
     let arm = crate::arm::dof::build(spec)?;
     torque_on(&mut c)?;
+    let start = to_f64(&c.status()?.measured);
+    let scenario = Scenario::for_arm(arm.as_ref(), &start, gripper.as_ref())?;
     let mut trace = Vec::new();
     let t_targets = c.transport().now_s();
     let reached = reach_targets(&mut c, arm.as_ref(), &scenario, &mut trace)?;
@@ -284,8 +292,8 @@ pub fn run(args: &DemoArgs, out: &mut dyn Write) -> Result<i32> {
     let streamed = pick_and_place(&mut c, arm.as_ref(), &scenario, &mut trace)?;
     let status = c.status()?;
     trace.extend(c.transport().take_trace());
-    let plot_path =
-        (!args.no_plot).then(|| args.plot.clone().unwrap_or_else(|| PathBuf::from(format!("demo-{}.png", args.arm))));
+    let plot_path = (!args.no_plot)
+        .then(|| args.plot.clone().unwrap_or_else(|| PathBuf::from(format!("demo-{}.png", arm.spec().name))));
     if let Some(path) = &plot_path {
         let phases = vec![(t_targets, "move to targets".to_string()), (t_stream, "pick and place".to_string())];
         plot(path, arm.as_ref(), &scenario, &trace, phases)?;
@@ -295,10 +303,11 @@ pub fn run(args: &DemoArgs, out: &mut dyn Write) -> Result<i32> {
     let monitor = sil.monitor().clone();
     let simulated_s = sil.now_s();
     let link = c.stats();
-    let model = options.arm.model();
+    let servos = crate::arm::servos::servos_of(&options.arm).context("the simulated arm's servos")?;
+    let model = servos.model;
     let bus = format!(
         "{} x {} on {} at {} baud",
-        options.arm.ids().len(),
+        servos.bus_ids().len(),
         model.name,
         if model.protocol == firmware::bus::protocol::Protocol::Dxl2 { "Dynamixel 2.0" } else { "Feetech" },
         options.bus_baud
@@ -318,7 +327,7 @@ pub fn run(args: &DemoArgs, out: &mut dyn Write) -> Result<i32> {
             "pick_and_place": {"keyframes": streamed.keyframes, "acked": streamed.acked, "tool_error_rms_mm": streamed.tool_rms_mm,
                 "tool_error_max_mm": streamed.tool_max_mm, "joint_error_rms_rad": streamed.joint_rms, "joint_error_max_rad": streamed.joint_max,
                 "final_error_mm": streamed.final_error_mm, "duration_s": streamed.duration_s},
-            "grasp": streamed.grasp.json(&scenario),
+            "grasp": streamed.grasp.as_ref().map(|g| g.json(&scenario)),
             "loop": {"ticks": stats.ticks, "late_ticks": stats.late_ticks, "overruns": stats.overruns,
                 "loop_time_mean_us": status.timing.mean_us, "deadline_misses": status.timing.overruns,
                 "bus_timeouts": status.errors.bus_timeouts, "bus_errors": status.errors.bus_errors, "underruns": status.errors.underruns,
@@ -363,8 +372,13 @@ pub fn run(args: &DemoArgs, out: &mut dyn Write) -> Result<i32> {
         writeln!(out, "  tool tracking error (measured against planned): rms {:.2} mm, max {:.2} mm; joints rms {:.4} rad, max {:.4} rad", streamed.tool_rms_mm, streamed.tool_max_mm, streamed.joint_rms, streamed.joint_max)?;
         writeln!(out, "  final tool error to the last keyframe: {:.3} mm", streamed.final_error_mm)?;
         writeln!(out)?;
-        for line in streamed.grasp.lines(&scenario) {
-            writeln!(out, "{line}")?;
+        match &streamed.grasp {
+            Some(grasp) => {
+                for line in grasp.lines(&scenario) {
+                    writeln!(out, "{line}")?;
+                }
+            }
+            None => writeln!(out, "Grasp: none, the arm has no gripper (the path is played without one)")?,
         }
         writeln!(out)?;
         writeln!(out, "Loop: {} ticks, {} late, {} deadline misses; bus time per tick {} us mean; bus timeouts {}, bus errors {}, queue underruns {}", stats.ticks, stats.late_ticks, status.timing.overruns, status.timing.mean_us, status.errors.bus_timeouts, status.errors.bus_errors, status.errors.underruns)?;
@@ -382,5 +396,6 @@ pub fn run(args: &DemoArgs, out: &mut dyn Write) -> Result<i32> {
         writeln!(out, "{simulated_s:.1} s simulated in {wall_s:.2} s")?;
     }
     // A violation or a pick that did not pick fails the run; the report above says which.
-    Ok(if monitor.violation_count == 0 && streamed.grasp.picked() { 0 } else { 1 })
+    let picked = streamed.grasp.as_ref().is_none_or(Grasp::picked);
+    Ok(if monitor.violation_count == 0 && picked { 0 } else { 1 })
 }
