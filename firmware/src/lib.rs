@@ -9,6 +9,7 @@
 #![warn(missing_docs)]
 
 pub mod app;
+pub mod board;
 pub mod builtin;
 pub mod bus;
 pub mod controller;
