@@ -1,6 +1,8 @@
-//! The firmware for the MPS2 AN386 board under QEMU: UART0 is the host link, UART1 the servo bus
-//! (Feetech, 1 Mbps), SysTick the time base; the built-in SO-101 arm. Everything else is the
-//! firmware core ([`firmware::app::Firmware`]): this file only wires the hardware to it.
+//! The firmware for the MPS2 AN386 board under QEMU: UART0 is the host link (its bytes kept by the
+//! receive interrupt, [`irq::LINK_RX`]), UART1 the servo bus (Feetech, 1 Mbps), SysTick the time
+//! base; the built-in SO-101 arm. Everything else is the firmware core: the application
+//! ([`firmware::app::Firmware`]) and the main loop every board runs
+//! ([`firmware::board::MainLoop`]); this file only wires the hardware to them.
 #![no_std]
 #![no_main]
 
@@ -12,8 +14,8 @@ use board_mps2_an386::clock::{self, SysTickClock};
 use board_mps2_an386::uart::{self, Uart};
 use board_mps2_an386::{halt, irq, stack};
 use cortex_m_rt::entry;
-use embedded_io::{Read, ReadReady};
 use firmware::app::{Board, Firmware};
+use firmware::board::MainLoop;
 use firmware::bus::master::{BusConfig, Master, NoDirectionPin};
 use firmware::bus::table::STS3215;
 use firmware::controller::{Config, ConfigError};
@@ -62,7 +64,7 @@ fn start() -> Option<(&'static mut App, &'static mut BusMaster, Uart)> {
     let core = cortex_m::Peripherals::take()?;
     clock::start(core.SYST);
     let mut link = Uart::new(uart::UART0, clock::SYSCLK_HZ, BAUD);
-    irq::enable_link_wakeup(&mut link);
+    irq::enable_link_receive(&mut link);
     let bus = BusConfig::new(STS3215.protocol, BAUD);
     let board = Board { bus, model: &STS3215, control: Config::default() };
     let setup = firmware::builtin::setup().ok()?;
@@ -81,34 +83,23 @@ fn start() -> Option<(&'static mut App, &'static mut BusMaster, Uart)> {
     Some((app, master, link))
 }
 
-/// The control loop: host bytes as they come, a tick on the fixed schedule, and sleep in between
-/// (SysTick wakes the core every millisecond, a host byte at once).
+/// The control loop ([`MainLoop`]): host bytes as the receive interrupt kept them, a tick on the
+/// fixed schedule, and sleep in between (SysTick wakes the core every millisecond, a host byte at
+/// once); once a second, the stack's high-water mark, logged when it grew.
 #[inline(never)]
 fn run(app: &'static mut App, master: &'static mut BusMaster, mut link: Uart) -> ! {
     let clock = SysTickClock;
-    let period = u64::from(app.period_us());
-    let mut next_tick = clock.now();
-    let mut next_stack_check = next_tick + STACK_CHECK_US;
+    let mut next_stack_check = clock.now() + STACK_CHECK_US;
     let mut stack_logged = 0;
-    let mut received = [0u8; 64];
-    loop {
-        while link.read_ready().unwrap_or(false) {
-            let n = link.read(&mut received).unwrap_or(0);
-            let _ = app.receive(received.get(..n).unwrap_or_default(), clock.now(), &mut link);
-        }
-        let now = clock.now();
-        if now >= next_tick {
-            let _ = app.tick(master, now, &mut link);
-            // The next slot on the fixed schedule; missed slots are skipped, not made up.
-            next_tick = (next_tick + period).max(clock.now());
-        }
+    MainLoop::new(app, master, &irq::LINK_RX).run(&mut link, |next_tick, rx| {
         // Interrupts off between the last check and `wfi`, so a byte that comes in between wakes
         // it (a pending interrupt ends `wfi` even while masked) instead of waiting for SysTick.
         cortex_m::interrupt::free(|_| {
-            if !link.read_ready().unwrap_or(true) && clock.now() < next_tick {
+            if rx.is_empty() && clock.now() < next_tick {
                 cortex_m::asm::wfi();
             }
         });
+        let now = clock.now();
         if now >= next_stack_check {
             next_stack_check = now + STACK_CHECK_US;
             let depth = stack::high_water();
@@ -117,7 +108,7 @@ fn run(app: &'static mut App, master: &'static mut BusMaster, mut link: Uart) ->
                 defmt::info!("control loop stack high-water: {=usize} bytes", depth);
             }
         }
-    }
+    })
 }
 
 /// The release firmware has no panic path: every index, slice and clamp in the code it runs is

@@ -46,6 +46,14 @@ impl Uart {
         Self { base }.write_reg(INTCLEAR, RX_FULL);
     }
 
+    /// Hands every byte the UART at `base` holds to `keep` (from its receive interrupt).
+    pub fn drain_rx(base: usize, mut keep: impl FnMut(u8)) {
+        let uart = Self { base };
+        while uart.rx_ready() {
+            keep(uart.read_reg(DATA) as u8);
+        }
+    }
+
     fn read_reg(&self, offset: usize) -> u32 {
         // SAFETY: `base` is one of the UART blocks of the MPS2 memory map (UART0/UART1 above), so
         // `base + offset` is a valid, aligned device register for volatile access.

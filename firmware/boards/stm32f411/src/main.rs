@@ -1,7 +1,9 @@
 //! The firmware for an STM32F411 "Black Pill" (STM32F411CEU6, 25 MHz crystal): USART1 is the host
-//! link to a USB-serial adapter, USART2 the servo bus (Feetech, 1 Mbps, one wire), TIM2 the time
-//! base; the built-in SO-101 arm. Everything else is the firmware core
-//! ([`firmware::app::Firmware`]): this file only wires the hardware to it.
+//! link to a USB-serial adapter (its bytes kept by the receive interrupt, `link_rx.rs`), USART2
+//! the servo bus (Feetech, 1 Mbps, one wire), TIM2 the time base; the built-in SO-101 arm.
+//! Everything else is the firmware core: the application ([`firmware::app::Firmware`]) and the
+//! main loop every board runs ([`firmware::board::MainLoop`]); this file only wires the hardware
+//! to them.
 //!
 //! | pin  | use                                                                   |
 //! |------|-----------------------------------------------------------------------|
@@ -14,6 +16,7 @@
 
 mod clock;
 mod half_duplex;
+mod link_rx;
 mod serial;
 
 use core::mem::MaybeUninit;
@@ -22,8 +25,8 @@ use core::sync::atomic::{AtomicBool, Ordering};
 
 use cortex_m_rt::entry;
 use defmt_rtt as _;
-use embedded_io::{Read, ReadReady};
 use firmware::app::{Board, Firmware};
+use firmware::board::MainLoop;
 use firmware::bus::master::{BusConfig, Master};
 use firmware::bus::table::STS3215;
 use firmware::controller::{Config, ConfigError};
@@ -31,7 +34,7 @@ use stm32f4xx_hal::gpio::{Output, PinState, PA1};
 use stm32f4xx_hal::pac;
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::rcc;
-use stm32f4xx_hal::serial::{config::Config as SerialConfig, Serial};
+use stm32f4xx_hal::serial::{config::Config as SerialConfig, Event as SerialEvent, Serial};
 
 use clock::Tim2Clock;
 use half_duplex::HalfDuplex;
@@ -81,8 +84,10 @@ fn start() -> Option<(&'static mut App, &'static mut BusMaster, Link, Tim2Clock)
 
     let link_config = SerialConfig::default().baudrate(BAUD.bps());
     // The pull-up holds RX idle (high) with the adapter unplugged, instead of reading noise as bytes.
-    let link_rx = gpioa.pa10.internal_pull_up(true);
-    let usart1 = Serial::new(dp.USART1, (gpioa.pa9, link_rx), link_config, &mut rcc).ok()?;
+    let rx_pin = gpioa.pa10.internal_pull_up(true);
+    let mut usart1 = Serial::new(dp.USART1, (gpioa.pa9, rx_pin), link_config, &mut rcc).ok()?;
+    usart1.listen(SerialEvent::RxNotEmpty);
+    link_rx::enable();
     let link = Link::new(usart1);
 
     // The internal pull-up (~40 kΩ) only keeps the line defined with nothing attached; the bus
@@ -109,24 +114,11 @@ fn start() -> Option<(&'static mut App, &'static mut BusMaster, Link, Tim2Clock)
     Some((app, master, link, clock))
 }
 
-/// The control loop: host bytes as they come, a tick on the fixed schedule.
+/// The control loop ([`MainLoop`]): host bytes as the receive interrupt kept them, a tick on the
+/// fixed schedule. It does not sleep: TIM2 counts time but raises no interrupt to wake it.
 #[inline(never)]
-fn run(app: &'static mut App, master: &'static mut BusMaster, mut link: Link, clock: Tim2Clock) -> ! {
-    let period = u64::from(app.period_us());
-    let mut next_tick = clock.now();
-    let mut received = [0u8; 64];
-    loop {
-        while link.read_ready().unwrap_or(false) {
-            let n = link.read(&mut received).unwrap_or(0);
-            let _ = app.receive(received.get(..n).unwrap_or_default(), clock.now(), &mut link);
-        }
-        let now = clock.now();
-        if now >= next_tick {
-            let _ = app.tick(master, now, &mut link);
-            // The next slot on the fixed schedule; missed slots are skipped, not made up.
-            next_tick = (next_tick + period).max(clock.now());
-        }
-    }
+fn run(app: &'static mut App, master: &'static mut BusMaster, mut link: Link, _clock: Tim2Clock) -> ! {
+    MainLoop::new(app, master, &link_rx::LINK_RX).run(&mut link, |_, _| {})
 }
 
 /// Stops the core for good (a broken start-up; the host sees no handshake).
