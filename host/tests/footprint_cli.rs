@@ -32,3 +32,47 @@ fn the_mps2_binary_is_sized_and_has_no_panic_path() {
     assert!(bounds[2]["bytes"].as_u64() < bounds[1]["bytes"].as_u64());
     assert!(board["measured_stack"].is_null(), "--no-qemu");
 }
+
+/// The STM32F411 binary: no panic path, its defmt logger included (the board's own RTT logger,
+/// which drops a nested frame where defmt-rtt panicked), and the RTT control block laid out as
+/// probe-rs finds it: the id, one up channel named `defmt` over a 1 KiB buffer in RAM, starting in
+/// non-blocking mode.
+#[test]
+fn the_stm32_binary_has_no_panic_path_and_an_rtt_control_block() {
+    use object::{Object, ObjectSection, ObjectSymbol};
+    let (mut out, mut err) = (Vec::new(), Vec::new());
+    let code = armctl::cli::main(["armctl", "footprint", "--board", "stm32f411", "--json"], &mut out, &mut err);
+    assert_eq!(code, 0, "armctl footprint failed: {}", String::from_utf8_lossy(&err));
+    let report: Value = serde_json::from_slice(&out).unwrap();
+    let board = &report["boards"][0];
+    assert_eq!(board["board"], "stm32f411");
+    assert_eq!(board["panic_site_count"], 0, "panic sites: {}", board["panic_sites"]);
+
+    let elf = std::fs::read(board["elf"].as_str().unwrap()).unwrap();
+    let file = object::File::parse(&*elf).unwrap();
+    // The initial value of a symbol, from its section's data.
+    let initial = |name: &str, len: usize| -> (u64, Vec<u8>) {
+        let symbol = file.symbols().find(|s| s.name() == Ok(name)).unwrap_or_else(|| panic!("no {name}"));
+        let section = file.section_by_index(symbol.section_index().unwrap()).unwrap();
+        let data = section.data().unwrap();
+        let at = (symbol.address() - section.address()) as usize;
+        (symbol.address(), data[at..at + len].to_vec())
+    };
+    let (_, block) = initial("_SEGGER_RTT", 16 + 8 + 24);
+    let word = |i: usize| u32::from_le_bytes(block[i..i + 4].try_into().unwrap());
+    assert_eq!(&block[..16], b"SEGGER RTT\0\0\0\0\0\0");
+    assert_eq!((word(16), word(20)), (1, 0), "one up channel, no down channel");
+    assert_eq!(word(32), 1024, "buffer size");
+    assert_eq!((word(36), word(40), word(44)), (0, 0, 1), "cursors at 0, non-blocking trim");
+    // The name and the buffer lie in the F411's RAM (0x2000_0000..0x2002_0000).
+    for pointer in [word(24), word(28)] {
+        assert!((0x2000_0000..0x2002_0000).contains(&pointer), "{pointer:#x}");
+    }
+    let name_section = file
+        .sections()
+        .find(|s| (s.address()..s.address() + s.size()).contains(&u64::from(word(24))))
+        .expect("the section of the channel's name");
+    let data = name_section.data().unwrap();
+    let at = (u64::from(word(24)) - name_section.address()) as usize;
+    assert_eq!(&data[at..at + 6], b"defmt\0");
+}

@@ -17,6 +17,7 @@
 mod clock;
 mod half_duplex;
 mod link_rx;
+mod rtt_log;
 mod serial;
 
 use core::mem::MaybeUninit;
@@ -24,7 +25,6 @@ use core::ptr::addr_of_mut;
 use core::sync::atomic::{AtomicBool, Ordering};
 
 use cortex_m_rt::entry;
-use defmt_rtt as _;
 use firmware::app::{Board, Firmware};
 use firmware::board::MainLoop;
 use firmware::bus::master::{BusConfig, Master};
