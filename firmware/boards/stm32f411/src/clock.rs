@@ -22,7 +22,7 @@ pub struct Tim2Clock {
 impl Tim2Clock {
     /// Starts TIM2 counting microseconds from 0. Returns `None` if called twice (TIM2 has one
     /// owner) or if the timer clock is not a whole number of MHz (the prescaler could not make
-    /// exact microseconds; the clock setup in main gives 96 MHz).
+    /// exact microseconds; the clock setup in main gives 84 MHz).
     pub fn start(tim: TIM2, rcc: &mut Rcc) -> Option<Self> {
         let timer_hz = TIM2::timer_clock(&rcc.clocks).raw();
         let prescaler = u16::try_from(timer_hz / 1_000_000).ok()?.checked_sub(1)?;

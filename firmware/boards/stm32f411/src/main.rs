@@ -35,6 +35,7 @@ use stm32f4xx_hal::pac;
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::rcc;
 use stm32f4xx_hal::serial::{config::Config as SerialConfig, Event as SerialEvent, Serial};
+use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
 use clock::Tim2Clock;
 use half_duplex::HalfDuplex;
@@ -61,31 +62,49 @@ static mut APP: MaybeUninit<Result<App, ConfigError>> = MaybeUninit::uninit();
 static mut MASTER: MaybeUninit<BusMaster> = MaybeUninit::uninit();
 static STARTED: AtomicBool = AtomicBool::new(false);
 
-#[entry]
-fn main() -> ! {
-    let Some((app, master, link, clock)) = start() else { halt() };
-    run(app, master, link, clock)
+/// How long the main loop may go without feeding the independent watchdog before it resets the
+/// chip: fifteen control periods, far above a tick's few milliseconds.
+const WATCHDOG_MS: u32 = 150;
+
+/// Logs why start-up stopped (the host then sees no handshake) and gives up.
+fn refused<T>(what: &str) -> Option<T> {
+    defmt::error!("start-up stopped: {=str}", what);
+    None
 }
 
-/// Brings up the clocks, the two USARTs, the timer and the firmware core; `None` if anything is
-/// refused or this ran before (the statics are written once). Never inlined, so that its frame is
-/// gone before the control loop starts.
+#[entry]
+fn main() -> ! {
+    let Some((app, master, link, watchdog)) = start() else { halt() };
+    run(app, master, link, watchdog)
+}
+
+/// Brings up the clocks, the two USARTs, the timer, the watchdog and the firmware core; `None`
+/// (with an error line in the log) if anything is refused or this ran before (the statics are
+/// written once). Never inlined, so that its frame is gone before the control loop starts.
 #[inline(never)]
-fn start() -> Option<(&'static mut App, &'static mut BusMaster, Link, Tim2Clock)> {
+fn start() -> Option<(&'static mut App, &'static mut BusMaster, Link, IndependentWatchdog)> {
     if STARTED.swap(true, Ordering::Relaxed) {
-        return None;
+        return refused("started twice");
     }
-    let dp = pac::Peripherals::take()?;
-    // 25 MHz crystal, PLL to 96 MHz: USART1 (APB2, 96 MHz) and USART2 (APB1, 48 MHz) both divide
-    // exactly to 1 Mbps, and the PLL's 48 MHz output is ready for USB later.
-    let mut rcc = dp.RCC.freeze(rcc::Config::hse(25.MHz()).sysclk(96.MHz()));
-    let clock = Tim2Clock::start(dp.TIM2, &mut rcc)?;
+    let Some(dp) = pac::Peripherals::take() else { return refused("peripherals taken") };
+    // Was the last reset the watchdog's? Read before anything else, then clear the flags
+    // (RCC_CSR: IWDGRSTF is `wdgrstf` in the device crate; RMVF clears them all).
+    let watchdog_reset = dp.RCC.csr().read().wdgrstf().bit_is_set();
+    dp.RCC.csr().modify(|_, w| w.rmvf().set_bit());
+    // 25 MHz crystal, PLL to 84 MHz: the most the F411 runs at in power scale 2 (RM0383 §5.1.3,
+    // PWR_CR.VOS), where it comes out of reset and where the HAL leaves it (96 MHz would need
+    // scale 1 set before the PLL starts). USART1 (APB2, 84 MHz: USARTDIV 5.25) and USART2 (APB1,
+    // 42 MHz: USARTDIV 2.625) both divide exactly to 1 Mbps, and TIM2's 84 MHz to microseconds.
+    let mut rcc = dp.RCC.freeze(rcc::Config::hse(25.MHz()).sysclk(84.MHz()));
+    let Some(clock) = Tim2Clock::start(dp.TIM2, &mut rcc) else { return refused("TIM2 clock") };
     let gpioa = dp.GPIOA.split(&mut rcc);
 
     let link_config = SerialConfig::default().baudrate(BAUD.bps());
     // The pull-up holds RX idle (high) with the adapter unplugged, instead of reading noise as bytes.
     let rx_pin = gpioa.pa10.internal_pull_up(true);
-    let mut usart1 = Serial::new(dp.USART1, (gpioa.pa9, rx_pin), link_config, &mut rcc).ok()?;
+    let Ok(mut usart1) = Serial::new(dp.USART1, (gpioa.pa9, rx_pin), link_config, &mut rcc) else {
+        return refused("USART1 (host link)");
+    };
     usart1.listen(SerialEvent::RxNotEmpty);
     link_rx::enable();
     let link = Link::new(usart1);
@@ -94,7 +113,7 @@ fn start() -> Option<(&'static mut App, &'static mut BusMaster, Link, Tim2Clock)
     // needs the external ~1 kΩ one for 1 Mbps edges.
     let _bus_pin = gpioa.pa2.into_alternate_open_drain::<7>().internal_pull_up(true);
     let direction: DirectionPin = gpioa.pa1.into_push_pull_output_in_state(PinState::Low);
-    let bus_port = HalfDuplex::new(dp.USART2, BAUD, &mut rcc)?;
+    let Some(bus_port) = HalfDuplex::new(dp.USART2, BAUD, &mut rcc) else { return refused("USART2 (servo bus)") };
     // The receiver is off while the board transmits (see half_duplex.rs): no echo to skip.
     let bus = BusConfig { echo: false, ..BusConfig::new(STS3215.protocol, BAUD) };
 
@@ -106,19 +125,30 @@ fn start() -> Option<(&'static mut App, &'static mut BusMaster, Link, Tim2Clock)
     );
 
     let board = Board { bus, model: &STS3215, control: Config::default() };
-    let setup = firmware::builtin::setup().ok()?;
+    let Ok(setup) = firmware::builtin::setup() else { return refused("built-in arm") };
     // SAFETY: STARTED guarantees this runs once, so these are the only references to the statics.
     let (app_slot, master_slot) = unsafe { (&mut *addr_of_mut!(APP), &mut *addr_of_mut!(MASTER)) };
-    let app = app_slot.write(App::new(board, Some(setup))).as_mut().ok()?;
+    let Ok(app) = app_slot.write(App::new(board, Some(setup))).as_mut() else { return refused("firmware state") };
     let master = master_slot.write(BusMaster::new(bus_port, direction, clock, bus));
-    Some((app, master, link, clock))
+    if watchdog_reset {
+        // The loop hung and the watchdog reset the chip: the servos may still hold torque toward
+        // the goal they had. Limp, until the host switches torque on again.
+        defmt::error!("reset by the watchdog: the servos' torque goes off");
+        app.torque_off(clock.now());
+    }
+    // Started last, once start-up's own long steps are done; paused while a debugger halts the core.
+    let mut watchdog = IndependentWatchdog::new(dp.IWDG);
+    watchdog.stop_on_debug(&dp.DBGMCU, true);
+    watchdog.start(WATCHDOG_MS.millis());
+    Some((app, master, link, watchdog))
 }
 
 /// The control loop ([`MainLoop`]): host bytes as the receive interrupt kept them, a tick on the
-/// fixed schedule. It does not sleep: TIM2 counts time but raises no interrupt to wake it.
+/// fixed schedule, the watchdog fed on every pass. It does not sleep: TIM2 counts time but raises
+/// no interrupt to wake it.
 #[inline(never)]
-fn run(app: &'static mut App, master: &'static mut BusMaster, mut link: Link, _clock: Tim2Clock) -> ! {
-    MainLoop::new(app, master, &link_rx::LINK_RX).run(&mut link, |_, _| {})
+fn run(app: &'static mut App, master: &'static mut BusMaster, mut link: Link, mut watchdog: IndependentWatchdog) -> ! {
+    MainLoop::new(app, master, &link_rx::LINK_RX).run(&mut link, |_, _| watchdog.feed())
 }
 
 /// Stops the core for good (a broken start-up; the host sees no handshake).
@@ -128,7 +158,10 @@ fn halt() -> ! {
     }
 }
 
+/// The release firmware has no panic site (`armctl footprint` checks); should one come back, the
+/// panic says so in the log before the core stops, and the watchdog then resets the chip.
 #[panic_handler]
 fn panic(_: &core::panic::PanicInfo) -> ! {
+    defmt::error!("panic");
     halt()
 }
