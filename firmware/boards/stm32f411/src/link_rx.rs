@@ -3,31 +3,27 @@
 //! F411's USART holds one received byte and has no FIFO (RM0383 §19.3.3): at 1 Mbps the next byte
 //! overwrites it 10 µs later (an overrun), while a bus cycle takes about 1 ms.
 //!
-//! The vector table is cortex-m-rt's own (the HAL's device crate is built without `rt`), which
-//! sends every device interrupt to `DefaultHandler`; only USART1's is unmasked.
+//! The handler is the device crate's `USART1` vector (stm32f4's `rt` feature, on by default, lays
+//! out the table; every other device interrupt stays masked and at `DefaultHandler`).
 
 use cortex_m::peripheral::NVIC;
-use cortex_m_rt::exception;
 use firmware::board::RxRing;
-use stm32f4xx_hal::pac::{self, Interrupt};
+use stm32f4xx_hal::pac::{self, interrupt, Interrupt};
 
 /// The host link's received bytes: two of the largest frames, more than 3.5 ms of bytes at 1 Mbps.
 pub static LINK_RX: RxRing<512> = RxRing::new();
 
 /// Lets USART1's interrupt reach the NVIC. Call once USART1 listens for RXNE.
 pub fn enable() {
-    // SAFETY: the handler below only reads USART1's status and data registers and pushes into the
+    // SAFETY: `USART1` below only reads USART1's status and data registers and pushes into the
     // lock-free ring; the main loop uses USART1 for transmitting only and the ring's consumer side,
     // so the interrupt cannot break a critical section of the main loop.
     unsafe { NVIC::unmask(Interrupt::USART1) };
 }
 
-/// Every device interrupt lands here; only USART1's is enabled.
-#[exception]
-unsafe fn DefaultHandler(irqn: i16) {
-    if irqn != Interrupt::USART1 as i16 {
-        return;
-    }
+/// USART1's interrupt: a byte received (RXNE), or an overrun (ORE).
+#[interrupt]
+fn USART1() {
     // SAFETY: the USART1 register block's address from the device crate; reading SR then DR is
     // the documented sequence that clears RXNE and the error flags (RM0383 §19.6.1), and nothing
     // else reads USART1's receive side.
