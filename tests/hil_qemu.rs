@@ -3,7 +3,7 @@
 //! pty and its UART0 on a pty that the host opens as a serial port (the serialport crate), exactly
 //! as `armctl --port` does with a board. The SIL scenarios' expectations are checked again here:
 //! targets within a millimetre, a streamed trajectory with no keyframe lost, faults on the servo
-//! side reported and survived. Skips with a message where qemu-system-arm is missing, and fails
+//! side reported and survived, the gripper closing on an object and opening. Skips with a message where qemu-system-arm is missing, and fails
 //! instead when the `CI` variable is set.
 
 use std::sync::Mutex;
@@ -170,6 +170,45 @@ fn faults_on_the_servo_side_are_reported_and_survived() {
     let after = c.status().unwrap().errors;
     assert!(after.bus_timeouts + after.bus_errors > before.bus_timeouts + before.bus_errors, "the faults did happen");
     eprintln!("stack high-water: {} bytes", logged_stack(&rig.board));
+    drop(rig.link);
+    rig.bus.stop().unwrap();
+}
+
+/// Polls status (one read timeout of wall time each) until `done` or `timeout`.
+fn poll_until(c: &mut Client, timeout: Duration, done: impl Fn(&Status) -> bool) -> Status {
+    let end = std::time::Instant::now() + timeout;
+    loop {
+        let status = c.status().unwrap();
+        if done(&status) || std::time::Instant::now() >= end {
+            return status;
+        }
+        c.wait_once().unwrap();
+    }
+}
+
+/// The real firmware's gripper (servo 6, in the joints' sync write and read) closes on a 30 mm
+/// object between the simulated jaws: it stops there, the load rises, and its own grasp detection
+/// says it holds something; opened, it lets go.
+#[test]
+fn the_real_firmware_closes_the_gripper_on_an_object_and_opens_it() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let Some(mut rig) = rig() else { return };
+    let gripper = ServoSetup::for_arm("so101").unwrap().gripper.unwrap();
+    rig.bus.put_object(gripper.id, Some(armctl::sim::Jaw::for_object(&gripper, 30.0).unwrap()));
+    let c = &mut rig.link.client;
+    torque_on(c);
+    c.request(&HostMessage::Gripper { opening: 0.0, effort: None }).unwrap();
+    let held = poll_until(c, Duration::from_secs(5), |s| s.gripper.is_some_and(|g| g.holding));
+    let g = held.gripper.expect("the built-in SO-101 has a gripper");
+    assert!(g.holding, "no grasp: {g:?}");
+    let contact = 30.0 / gripper.opening_mm * 100.0;
+    assert!((f64::from(g.opening) - contact).abs() < 0.3, "stopped at {g:?}, the object at {contact:.1} %");
+    assert!(g.load.abs() >= 10.0, "load {g:?}");
+    c.request(&HostMessage::Gripper { opening: 100.0, effort: None }).unwrap();
+    let open = poll_until(c, Duration::from_secs(5), |s| s.gripper.is_some_and(|g| g.opening > 99.0));
+    let g = open.gripper.unwrap();
+    assert!(!g.holding && g.opening > 99.0, "{g:?}");
+    assert_eq!(open.errors.bus_errors, 0);
     drop(rig.link);
     rig.bus.stop().unwrap();
 }
