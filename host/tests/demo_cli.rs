@@ -105,3 +105,22 @@ fn an_arm_without_servos_is_a_one_line_error() {
         assert!(err.starts_with("error: ") && err.contains(needle), "{err}");
     }
 }
+
+/// An arm without a gripper: the same points drawn, the path played without one, no grasp
+/// reported, and the run still succeeds.
+#[test]
+fn an_arm_without_a_gripper_plays_the_path_without_one() {
+    let source = format!("{}/examples/arms/six-dof.toml", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(source).unwrap();
+    let without = text.split("[gripper]").next().unwrap().replace("name = \"six-dof\"", "name = \"six-dof-bare\"");
+    let path = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("six-dof-bare.toml");
+    std::fs::write(&path, without).unwrap();
+    let report = json(&["--arm", path.to_str().unwrap(), "--json", "--no-plot"]);
+    assert!(report["grasp"].is_null(), "{}", report["grasp"]);
+    assert!(report["bus"].as_str().unwrap().starts_with("6 x STS3215"), "{}", report["bus"]);
+    for t in report["targets"].as_array().unwrap() {
+        assert!(t["error_mm"].as_f64().unwrap() < 1.0, "{t}");
+    }
+    assert_eq!(report["safety"]["violations"], 0);
+    assert_eq!(report["loop"]["underruns"], 0);
+}
