@@ -8,11 +8,12 @@
 use serde_json::Value;
 
 /// Every operation the issue asks for.
-const OPERATIONS: [&str; 8] = [
+const OPERATIONS: [&str; 9] = [
     "fk6",
     "dls_iter",
     "ik_track_1cm",
     "hermite6",
+    "hermite6_gripper",
     "sync_write6_sts",
     "sync_write6_dxl2",
     "sync_read6_sts",

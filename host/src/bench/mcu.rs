@@ -32,16 +32,17 @@ pub const CALIBRATION: &str = "calib_nop";
 const EMPTY: &str = "empty";
 
 /// The goals the issue sets, in instructions per operation.
-pub const GOALS: [(&str, u64); 3] = [("ik_track_1cm", 50_000), ("fk6", 4_000), ("hermite6", 1_500)];
+pub const GOALS: [(&str, u64); 3] = [("ik_track_1cm", 50_000), ("fk6", 4_000), ("hermite6_gripper", 1_500)];
 
 /// What each operation is, for the table's readers.
-const DESCRIPTIONS: [(&str, &str); 11] = [
+const DESCRIPTIONS: [(&str, &str); 12] = [
     ("fk6", "tool pose of the 6-joint UR5e, f32"),
     ("sincos", "one f32 sin and cos (kinematics::trig, in f32)"),
     ("sincos_libm", "the same with libm's sincosf (f64 inside, software)"),
     ("dls_iter", "one damped-least-squares iteration, full pose"),
     ("ik_track_1cm", "tracking IK step, target 1 cm away, warm start"),
     ("hermite6", "player tick, 6 joints, inside a Hermite segment"),
+    ("hermite6_gripper", "the same tick with the gripper's keyframe track and ramp"),
     ("sync_write6_sts", "encode a Feetech sync write of 6 goals"),
     ("sync_write6_dxl2", "encode a Dynamixel 2.0 sync write of 6 goals"),
     ("sync_read6_sts", "decode 6 Feetech replies of a sync read"),

@@ -27,6 +27,7 @@ use firmware::bus::master::MAX_GROUP;
 use firmware::bus::stream::StreamDecoder;
 use firmware::bus::table::{Model, STS3215, XL430_W250};
 use firmware::bus::{Id, Instruction, InstructionPacket, Status, BROADCAST};
+use firmware::controller::gripper::Gripper;
 use firmware::controller::Config;
 use firmware::tracking::Tracker;
 use kinematics::ik::{DampedLeastSquares, IkConfig, IkMethod, IkStatus, Residual, Target};
@@ -147,6 +148,22 @@ fn kinematics_ops(syst: &mut SYST) {
         player.tick(black_box(now))
     });
     report("hermite6", REPS, ticks);
+
+    // The same tick with the gripper as the controller steps it after the player: its own track
+    // of keyframes (one per joint keyframe) sampled on the playback clock, then its ramp.
+    let mut gripper = Gripper::<32>::new(firmware::builtin::GRIPPER);
+    gripper.observe(gripper.ticks_of(50.0));
+    gripper.push(0.5, 100.0, Some(0.0));
+    for i in 2..=30u16 {
+        gripper.push(0.5 * f32::from(i), f32::from(i % 2) * 100.0, None);
+    }
+    let ticks = measure(syst, REPS, || {
+        now += 0.001;
+        let player = player.tick(black_box(now));
+        gripper.step(0.001, Some(black_box(now)));
+        (player, gripper.goal_ticks())
+    });
+    report("hermite6_gripper", REPS, ticks);
 }
 
 /// Encoding the sync write of six goals and decoding the six replies of a sync read, for `model`.
