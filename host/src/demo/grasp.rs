@@ -22,11 +22,11 @@ pub struct Grasp {
     pub at_s: Option<f64>,
     /// The tool's distance from the pick point then, mm.
     pub tool_to_pick_mm: f64,
-    /// Where the jaw stopped, percent open and mm apart.
+    /// Where the jaw stopped, percent open.
     pub jaw_percent: f64,
     /// The same in millimetres between the jaws.
     pub jaw_mm: f64,
-    /// The load once the grasp had settled (the largest while held), percent of full effort.
+    /// The largest load while it was carried, percent of full effort.
     pub load: f64,
     /// Ticks from the grasp until the gripper was told to open.
     pub carried_ticks: usize,
