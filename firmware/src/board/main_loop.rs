@@ -72,9 +72,4 @@ where
             idle(next, self.rx);
         }
     }
-
-    /// The firmware (for a board's own reports).
-    pub fn app(&self) -> &Firmware<N, Q> {
-        self.app
-    }
 }

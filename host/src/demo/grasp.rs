@@ -7,6 +7,7 @@ use anyhow::Result;
 use firmware::controller::gripper::SQUEEZE;
 
 use super::scenario::Scenario;
+use super::{distance, tool};
 use crate::arm::dof::DynArm;
 use crate::arm::servos::GripperSpec;
 use crate::places::sil::TraceSample;
@@ -56,12 +57,7 @@ impl Grasp {
 }
 
 fn distance_mm(a: [f64; 3], b: [f32; 3]) -> f64 {
-    (0..3).map(|i| (a[i] - f64::from(b[i])).powi(2)).sum::<f64>().sqrt() * 1e3
-}
-
-fn tool(arm: &dyn DynArm, q: &[f64]) -> Result<[f64; 3]> {
-    let p = arm.tool_pose(q)?.translation;
-    Ok([p.x, p.y, p.z])
+    distance(a, b) * 1e3
 }
 
 /// Reads the grasp from `ticks` (the path's, in order), starting at `start_s`; the object ended

@@ -29,8 +29,6 @@ pub struct Scene {
     between: bool,
     /// Its offset from the tool point while the jaws grip it (m): it moves with the tool.
     grip: Option<[f64; 3]>,
-    /// Control ticks on which the jaws held it.
-    held_ticks: u64,
 }
 
 fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
@@ -45,7 +43,7 @@ impl Scene {
             bail!("the object's position {position:?} is not a finite point");
         }
         let jaw = Jaw::for_object(gripper, width_mm)?;
-        Ok(Self { gripper: *gripper, jaw, position, between: false, grip: None, held_ticks: 0 })
+        Ok(Self { gripper: *gripper, jaw, position, between: false, grip: None })
     }
 
     /// Where the object is (m).
@@ -56,11 +54,6 @@ impl Scene {
     /// Whether the jaws hold it now.
     pub fn held(&self) -> bool {
         self.grip.is_some()
-    }
-
-    /// Control ticks on which the jaws held it so far.
-    pub fn held_ticks(&self) -> u64 {
-        self.held_ticks
     }
 
     /// Whether the object is between the jaws (held or not).
@@ -96,6 +89,5 @@ impl Scene {
         }
         let offset = *self.grip.get_or_insert([0, 1, 2].map(|i| self.position[i] - tool[i]));
         self.position = [0, 1, 2].map(|i| tool[i] + offset[i]);
-        self.held_ticks += 1;
     }
 }

@@ -226,11 +226,6 @@ impl Sil {
         put_object(&self.bus, &gripper_of(&self.arm.name, &self.servos)?, mm)
     }
 
-    /// The simulated arm.
-    pub fn arm(&self) -> &ArmSpec {
-        &self.arm
-    }
-
     /// Puts an object `width_mm` wide on the table at `position` (m, its centre), for the
     /// gripper to pick up: from the next tick on, its tool ([`DynArm::tool_pose`] of `arm`, the
     /// arm the firmware drives) takes it between open jaws that come within
