@@ -1,6 +1,5 @@
 //! The arm the firmware drives when the host configures none: an SO-101 (Feetech STS3215 servos).
 
-use kinematics::nalgebra::SVector;
 use kinematics::{presets, Chain, ChainError};
 
 use crate::app::ArmSetup;
@@ -31,15 +30,16 @@ pub fn arm() -> Result<Chain<f32, JOINTS>, ChainError> {
 /// (rounded). Effort 50 %, LeRobot's Max_Torque_Limit 500 of 1000; 100 % of the stroke a second.
 pub const GRIPPER: GripperConfig = GripperConfig { id: 6, closed: 1934, open: 3186, effort: 50.0, speed: 100.0 };
 
-/// The built-in arm with its servos: ids 1 to 5 from the base (as the SO-101 assembly guide sets
-/// them), 4096 ticks per turn, centred at zero, turning with the joint axes; and
-/// its gripper, servo 6 ([`GRIPPER`]).
-pub fn setup() -> Result<ArmSetup<JOINTS>, ConfigError> {
+/// The built-in arm with its servos, on a firmware of `N` joints (at least [`JOINTS`]; more are
+/// padding): ids 1 to 5 from the base (as the SO-101 assembly guide sets them), 4096 ticks per
+/// turn, centred at zero, turning with the joint axes; and its gripper, servo 6 ([`GRIPPER`]).
+pub fn setup<const N: usize>() -> Result<ArmSetup<N>, ConfigError> {
     let chain = arm().map_err(|_| ConfigError::BadLimits { joint: 0 })?;
-    let mappings = core::array::from_fn(|j| JointMapping::centred(j as u8 + 1, STS3215.ticks_per_revolution));
-    let velocity = SVector::repeat(MAX_VELOCITY);
-    let acceleration = SVector::repeat(MAX_ACCELERATION);
-    let mut setup = ArmSetup::new(NAME, chain, mappings, &STS3215, velocity, acceleration)?;
+    let mappings: [JointMapping; JOINTS] =
+        core::array::from_fn(|j| JointMapping::centred(j as u8 + 1, STS3215.ticks_per_revolution));
+    let (velocity, acceleration) = ([MAX_VELOCITY; JOINTS], [MAX_ACCELERATION; JOINTS]);
+    let mut setup =
+        ArmSetup::padded(NAME, chain.joints(), *chain.tool(), &mappings, &STS3215, &velocity, &acceleration)?;
     setup.gripper = Some(GRIPPER);
     Ok(setup)
 }

@@ -50,7 +50,7 @@ fn bytes_that_come_during_a_long_bus_cycle_are_all_answered() {
         let (_bus, port, mut clock) = connect(bus);
         let config = BusConfig::new(STS3215.protocol, BAUD);
         let mut master: Master<_, _, _> = Master::new(port, NoDirectionPin, clock.clone(), config);
-        let board = Board { bus: config, model: &STS3215, control: Config::default() };
+        let board = Board { bus: config, model: &STS3215, control: Config::default(), max_bus_baud: u32::MAX };
         let mut app = Firmware::<5, 32>::new(board, Some(firmware::builtin::setup().unwrap())).unwrap();
         static BIG: RxRing<512> = RxRing::new();
         static SMALL: RxRing<64> = RxRing::new();
@@ -94,4 +94,122 @@ fn bytes_that_come_during_a_long_bus_cycle_are_all_answered() {
             assert!(answered.len() < 60 / 2, "{name}: {} answered", answered.len());
         }
     }
+}
+
+/// Sends `messages` through the ring, one frame each, and polls until every one is answered;
+/// returns the replies in order.
+fn send<const R: usize, P, D, C, const BUF: usize>(
+    main: &mut MainLoop<'_, { firmware::board::JOINTS }, 32, R, P, D, C, BUF>,
+    ring: &RxRing<R>,
+    messages: &[HostMessage],
+    first_seq: u8,
+) -> Vec<FirmwareMessage>
+where
+    P: embedded_io::Read + embedded_io::Write + embedded_io::ReadReady + firmware::board::BusPort,
+    D: embedded_hal::digital::OutputPin,
+    C: Clock,
+{
+    let mut tx = Vec::new();
+    for (i, m) in messages.iter().enumerate() {
+        let mut frame = [0u8; MAX_ENCODED];
+        let n = encode_message(first_seq.wrapping_add(i as u8), FrameKind::Request, m, &mut frame).unwrap();
+        for &b in &frame[..n] {
+            assert!(ring.push(b));
+        }
+        main.poll(&mut tx);
+    }
+    let replies: Vec<FirmwareMessage> = replies(&tx).into_iter().map(|(_, m)| m).collect();
+    assert_eq!(replies.len(), messages.len(), "{replies:?}");
+    replies
+}
+
+/// The boards' build, started with the built-in SO-101 on Feetech at 1 Mbps, on a bus of
+/// OpenManipulator-X servos (Dynamixel 2.0) set to 2 Mbps. The arm sent over the link switches the
+/// main loop's bus to the arm's protocol and baud rate, and the firmware then reads every servo:
+/// four joints of the six the build holds, the link carrying four values. Sendings it cannot take
+/// (an arm on a bus too slow for the control period or faster than the board's UART, more joints
+/// than the build, a bus named with no arm begun) are refused and change nothing.
+#[test]
+fn an_arm_sent_over_the_link_switches_the_bus_and_uses_four_of_six_joints() {
+    use armctl::arm::servos::ServoSetup;
+    use armctl::arm::ArmSpec;
+    use armctl::link::arm_config::configure_messages;
+    use firmware::bus::table::XM430_W350;
+    use firmware::link::message::{BusProtocol, NakReason, Problem};
+
+    let omx = ArmSpec::load("open-manipulator-x", None).unwrap();
+    let mut servos = ServoSetup::for_arm("open-manipulator-x").unwrap();
+    servos.baud = 2_000_000;
+    let mut bus = SimBus::new(XM430_W350.protocol, &XM430_W350, &servos.bus_ids(), servos.baud);
+    // The board's UART starts at the built-in arm's 1 Mbps: the servos hear nothing of it.
+    bus.set_baud(BAUD);
+    let (shared, port, clock) = connect(bus);
+    let config = BusConfig::new(STS3215.protocol, BAUD);
+    let mut master: Master<_, _, _> = Master::new(port, NoDirectionPin, clock.clone(), config);
+    let board = Board { bus: config, model: &STS3215, control: Config::default(), max_bus_baud: 2_000_000 };
+    let mut app =
+        Firmware::<{ firmware::board::JOINTS }, 32>::new(board, Some(firmware::builtin::setup().unwrap())).unwrap();
+    static RING: RxRing<512> = RxRing::new();
+    let mut main = MainLoop::new(&mut app, &mut master, &RING);
+    let hello = HostMessage::Hello { protocol_version: firmware::link::message::PROTOCOL_VERSION };
+    let info = |m: &FirmwareMessage| match m {
+        FirmwareMessage::Info(i) => (i.arm_name.to_string(), i.joints),
+        other => panic!("{other:?}"),
+    };
+    assert_eq!(info(&send(&mut main, &RING, std::slice::from_ref(&hello), 1)[0]), ("so101".to_string(), 5));
+
+    // Refused at commit: the same arm at 115.2 kbps (a cycle of five Dynamixel servos takes
+    // longer than the 10 ms period) and at 3 Mbps (beyond this board's UART); seven joints at
+    // once.
+    let bus_refused = |m: &FirmwareMessage| {
+        matches!(m, FirmwareMessage::Nak { reason: NakReason::BadValue(v) }
+            if v.field == firmware::link::message::Field::Bus && v.problem == Problem::OutOfRange)
+    };
+    for (k, baud) in [115_200, 3_000_000].into_iter().enumerate() {
+        let refused = ServoSetup { baud, ..servos.clone() };
+        let replies = send(&mut main, &RING, &configure_messages(&omx, &refused).unwrap(), 10 + 20 * k as u8);
+        assert!(bus_refused(replies.last().unwrap()), "{baud}: {replies:?}");
+    }
+    let mut seven = configure_messages(&omx, &servos).unwrap().remove(0);
+    if let HostMessage::ConfigureBegin { joints, .. } = &mut seven {
+        *joints = 7;
+    }
+    let replies = send(&mut main, &RING, &[seven], 50);
+    assert!(
+        matches!(&replies[0], FirmwareMessage::Nak { reason: NakReason::BadValue(v) } if v.problem == Problem::Count)
+    );
+    assert_eq!(info(&send(&mut main, &RING, std::slice::from_ref(&hello), 55)[0]), ("so101".to_string(), 5));
+    assert_eq!(main_bus(&shared), BAUD, "the line untouched");
+
+    // Taken: the bus follows, and every servo answers at 2 Mbps.
+    let replies = send(&mut main, &RING, &configure_messages(&omx, &servos).unwrap(), 60);
+    assert!(replies.iter().all(|m| matches!(m, FirmwareMessage::Ack { .. })), "{replies:?}");
+    assert_eq!(info(&send(&mut main, &RING, &[hello], 80)[0]), ("open-manipulator-x".to_string(), 4));
+    assert_eq!(main_bus(&shared), 2_000_000);
+    // The arm committed, nothing is begun: a bus named now has no arm to go with.
+    let early = HostMessage::ConfigureBus { protocol: BusProtocol::Dynamixel2, baud: 1_000_000 };
+    assert_eq!(send(&mut main, &RING, &[early], 85)[0], FirmwareMessage::Nak { reason: NakReason::NotReady });
+    for _ in 0..20 {
+        let next = main.poll(&mut Vec::new());
+        clock.advance_to(next * 1000);
+    }
+    let status = send(&mut main, &RING, &[HostMessage::GetStatus], 90);
+    let FirmwareMessage::Status(s) = &status[0] else { panic!("{status:?}") };
+    assert_eq!((s.measured.len(), s.setpoints.len(), s.lost_servos), (4, 4, 0), "{s:?}");
+    assert!(s.measured.iter().all(|q| q.abs() < 1e-3), "servos at their middle: {:?}", s.measured);
+    assert!(s.gripper.is_some());
+    // Five values for a four-joint arm: the wrong count.
+    let five = HostMessage::MoveJoints {
+        positions: [0.0; 5].into_iter().collect(),
+        timing: firmware::link::message::Timing::Duration(1.0),
+    };
+    let reply = send(&mut main, &RING, &[five], 100);
+    assert!(
+        matches!(&reply[0], FirmwareMessage::Nak { reason: NakReason::BadValue(v) } if v.problem == Problem::Count),
+        "{reply:?}"
+    );
+}
+
+fn main_bus(bus: &armctl::sim::SharedBus) -> u32 {
+    bus.borrow().baud()
 }

@@ -473,7 +473,7 @@ fn one_cycle_costs_the_wire_time_and_return_delays() {
             let protocol = model.protocol;
             let ids = [1, 2, 3, 4, 5, 6];
             let mut r = rig_at(model, &ids, Faults::default(), baud);
-            let group = ServoGroup { model, ids };
+            let group = ServoGroup::new(model, ids);
             let goals = [2048; 6];
             let mut positions = [0; 6];
             let (t0, sent0) = (r.clock.now_ns(), r.master.stats().bytes_sent);
@@ -489,6 +489,42 @@ fn one_cycle_costs_the_wire_time_and_return_delays() {
             assert!(took >= ideal && took <= ideal + slack, "{} at {baud}: {took} ns vs {ideal} ns", model.name);
             assert_eq!(positions, [2048; 6]);
         }
+    }
+}
+
+/// A group padded for a firmware built for more joints than its arm has: only the servos on the
+/// bus are written and read (the wire carries as many records as a group of that size), the
+/// padding joints keep their values and count as answered, and the extra servo (a gripper) keeps
+/// its bit at `N` whatever the padding.
+#[test]
+fn a_padded_group_reads_and_writes_only_its_servos() {
+    for model in [&XL430_W250, &STS3215] {
+        let protocol = model.protocol;
+        let mut r = rig(model, &[1, 2, 3, 6]);
+        let group = ServoGroup { servos: 3, ..ServoGroup::new(model, [1, 2, 3, 4, 5]) };
+        let sent0 = r.master.stats().bytes_sent;
+        let item = model.items.goal_position;
+        group.write_with(&mut r.master, item, &[2000, 2010, 2020, 9999, 9999], Some((6, 2030))).unwrap();
+        let written = r.master.stats().bytes_sent - sent0;
+        assert_eq!(written as usize, sync_write_len(protocol, 4, item.len()), "{}", model.name);
+        for (id, goal) in [(1, 2000), (2, 2010), (3, 2020), (6, 2030)] {
+            assert_eq!(r.table(id, item), goal, "{}", model.name);
+        }
+        let mut values = [0, 0, 0, -7, -8];
+        let mut gripper = 0;
+        let sent0 = r.master.stats().bytes_sent;
+        let report =
+            group.read_with(&mut r.master, model.items.present_position, &mut values, Some((6, &mut gripper))).unwrap();
+        let asked = r.master.stats().bytes_sent - sent0;
+        assert_eq!(asked as usize, sync_read_request_len(protocol, 4), "{}", model.name);
+        assert_eq!(values[3..], [-7, -8], "padding keeps its values");
+        assert_eq!((report.count, report.answered), (6, 0b11_1111), "{}: {report:?}", model.name);
+        assert!(report.complete());
+        // The gripper silent: its bit (5, after the five joints) is the one missing.
+        let mut r = rig(model, &[1, 2, 3]);
+        let report =
+            group.read_with(&mut r.master, model.items.present_position, &mut values, Some((6, &mut gripper))).unwrap();
+        assert_eq!(report.answered, 0b01_1111, "{}: {report:?}", model.name);
     }
 }
 
@@ -644,7 +680,7 @@ fn the_pty_servers_monitor_checks_every_goal_it_receives() {
         for id in [1, 2] {
             master.write(id, items.torque_enable.address, &[1]).expect("torque on");
         }
-        let group = ServoGroup { model: &STS3215, ids: [1u8, 2] };
+        let group = ServoGroup::new(&STS3215, [1u8, 2]);
         let mut positions = [0i32; 2];
         // A tick: read the positions, then write the goals. The read also makes sure that the
         // server has seen the goals before it (the bytes arrive in order).
@@ -896,7 +932,7 @@ fn armctl_sim_servos_prints_the_violations_it_finds() {
         let limits = armctl::sim::limits_of(&arm).unwrap();
         let items = STS3215.items;
         let mut master = pty_master(&path);
-        let group = ServoGroup { model: &STS3215, ids: [1u8, 2, 3, 4, 5] };
+        let group = ServoGroup::new(&STS3215, [1u8, 2, 3, 4, 5]);
         group.write_all(&mut master, items.torque_enable, &[1; 5]).unwrap();
         let mut positions = [0i32; 5];
         // Every goal a tick outside its joint's range: 5 violations a write, 150 in all (and the

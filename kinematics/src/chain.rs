@@ -95,6 +95,9 @@ impl<T: Real> JointMotion<T> {
             JointKind::Prismatic => {
                 Self { cos_part: Matrix3::zeros(), sin_part: Matrix3::zeros(), fixed_part: r, slide: u }
             }
+            JointKind::Fixed => {
+                Self { cos_part: Matrix3::zeros(), sin_part: Matrix3::zeros(), fixed_part: r, slide: Vector3::zeros() }
+            }
         }
     }
 }
@@ -149,6 +152,12 @@ impl<T: Real, const N: usize> Chain<T, N> {
     /// The joints, base first.
     pub fn joints(&self) -> &[Joint<T>; N] {
         &self.joints
+    }
+
+    /// The joints before the first fixed one: an arm's own joints, when fixed joints pad the chain
+    /// for a build with room for more (see [`JointKind::Fixed`]).
+    pub fn moving_joints(&self) -> usize {
+        self.joints.iter().take_while(|j| j.kind != JointKind::Fixed).count()
     }
 
     /// The tool frame relative to the last joint frame.

@@ -45,6 +45,7 @@ impl<T: Real, const N: usize> Chain<T, N> {
             JointKind::Prismatic => {
                 Pose { rotation: m.fixed_part, translation: joint.origin.translation + m.slide * q }
             }
+            JointKind::Fixed => Pose { rotation: m.fixed_part, translation: joint.origin.translation },
             JointKind::Revolute | JointKind::Continuous => {
                 let (s, c) = q.sin_cos_fast();
                 Pose {
@@ -78,6 +79,8 @@ impl<T: Real, const N: usize> Chain<T, N> {
             let linear = match joint.kind {
                 JointKind::Prismatic => axis,
                 JointKind::Revolute | JointKind::Continuous => axis.cross(&(point - frame.translation)),
+                // Moves nothing: its column stays zero.
+                JointKind::Fixed => continue,
             };
             j.fixed_view_mut::<3, 1>(0, k).copy_from(&linear);
             if joint.kind != JointKind::Prismatic {

@@ -13,6 +13,10 @@ pub enum JointKind {
     Continuous,
     /// Translation along the axis, kept within `[lower, upper]` (metres).
     Prismatic,
+    /// No motion: the frame stays at its origin whatever the value, which the limits keep (as
+    /// URDF's `fixed`). A firmware built for more joints than an arm has pads the chain with these,
+    /// so one build drives any joint count: their Jacobian columns are zero, so no solver moves them.
+    Fixed,
 }
 
 /// Position limits of a joint (radians or metres).
@@ -98,6 +102,12 @@ impl<T: Real> Joint<T> {
         Self { origin, axis: Vector3::from(axis), kind: JointKind::Continuous, limits: Limits::symmetric(pi) }
     }
 
+    /// A fixed joint at `origin`: no motion, its value held at zero.
+    pub fn fixed(origin: Pose<T>) -> Self {
+        let zero = Limits { lower: T::zero(), upper: T::zero() };
+        Self { origin, axis: Vector3::z(), kind: JointKind::Fixed, limits: zero }
+    }
+
     /// A prismatic joint.
     pub fn prismatic(origin: Pose<T>, axis: [T; 3], limits: Limits<T>) -> Self {
         Self { origin, axis: Vector3::from(axis), kind: JointKind::Prismatic, limits }
@@ -109,6 +119,7 @@ impl<T: Real> Joint<T> {
         match self.kind {
             JointKind::Prismatic => Pose::from_translation(self.axis * q),
             JointKind::Revolute | JointKind::Continuous => Pose::from_axis_angle(&self.axis, q),
+            JointKind::Fixed => Pose::identity(),
         }
     }
 
@@ -127,7 +138,7 @@ impl<T: Real> Joint<T> {
         let two_pi = T::two_pi();
         match self.kind {
             JointKind::Continuous => (wrap_angle(q), false),
-            JointKind::Prismatic => (clamp(q, self.limits), !self.limits.contains(q)),
+            JointKind::Prismatic | JointKind::Fixed => (clamp(q, self.limits), !self.limits.contains(q)),
             JointKind::Revolute => {
                 if self.limits.contains(q) {
                     return (q, false);

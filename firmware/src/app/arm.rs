@@ -1,6 +1,10 @@
 //! The arm the firmware drives: the built-in one, or one the host sends joint by joint
 //! (configure begin, one message per joint, commit), checked as a whole before it replaces the arm
 //! in use.
+//!
+//! A firmware of `N` joints drives any arm of 1 to `N`: the arm's joints come first and fixed
+//! joints pad the rest ([`kinematics::JointKind::Fixed`]: no motion, no servo, held at zero), so one
+//! build, one copy of the controller in flash, serves every arm.
 
 use heapless::String;
 use kinematics::nalgebra::{SVector, Vector3};
@@ -10,6 +14,7 @@ use kinematics::{Chain, Joint, JointKind, Limits, Pose};
 use super::Board;
 use crate::bus::mapping::{Direction, JointMapping};
 use crate::bus::table::Model;
+use crate::bus::Protocol;
 use crate::controller::{joint_limits, ConfigError, Controller, GripperConfig};
 use crate::link::message::{Field, JointConfig, JointType, NakReason, Problem, ValueError, MAX_NAME};
 
@@ -28,10 +33,26 @@ pub struct ArmSetup<const N: usize> {
     pub limits: JointLimits<f32, N>,
     /// The gripper, if the arm has one.
     pub gripper: Option<GripperConfig>,
+    /// The baud rate of its servos' bus; `None`: whatever the firmware's bus runs at.
+    pub baud: Option<u32>,
 }
+
+/// What pads joint `j` of an arm with fewer joints than the build: fixed at the tool end, no
+/// servo (id 0 is never asked: the group leaves padding out), zero at the servo's middle.
+fn padding_joint() -> Joint<f32> {
+    Joint::fixed(Pose::identity())
+}
+
+fn padding_mapping(model: &Model) -> JointMapping {
+    JointMapping::centred(0, model.ticks_per_revolution)
+}
+
+/// Speed and acceleration limits of a padding joint: any positive value (it never moves).
+const PADDING_LIMIT: f32 = 1.0;
 
 impl<const N: usize> ArmSetup<N> {
     /// A setup from its parts; the limits are the chain's intersected with the servos' ranges.
+    /// Joints after the arm's own ([`Chain::moving_joints`]) must be fixed padding.
     pub fn new(
         name: &str,
         chain: Chain<f32, N>,
@@ -47,7 +68,41 @@ impl<const N: usize> ArmSetup<N> {
                 break;
             }
         }
-        Ok(Self { name: owned, chain, mappings, model, limits, gripper: None })
+        Ok(Self { name: owned, chain, mappings, model, limits, gripper: None, baud: None })
+    }
+
+    /// An arm of `joints.len()` joints (at most `N`) on this build: its joints, servos and
+    /// limits first, padding after ([`Joint::fixed`] at the tool end, so the tool is where the
+    /// arm's own chain puts it).
+    #[allow(clippy::too_many_arguments)]
+    pub fn padded(
+        name: &str,
+        joints: &[Joint<f32>],
+        tool: Pose<f32>,
+        mappings: &[JointMapping],
+        model: &'static Model,
+        max_velocity: &[f32],
+        max_acceleration: &[f32],
+    ) -> Result<Self, ConfigError> {
+        let n = joints.len();
+        if n == 0 || n > N || mappings.len() != n || max_velocity.len() != n || max_acceleration.len() != n {
+            return Err(ConfigError::TooManyJoints);
+        }
+        let joint = |j: usize| joints.get(j).copied().unwrap_or_else(padding_joint);
+        let chain = Chain::new(core::array::from_fn(joint), tool).map_err(|e| match e {
+            kinematics::ChainError::ZeroAxis { joint } | kinematics::ChainError::BadLimits { joint } => {
+                ConfigError::BadLimits { joint }
+            }
+            _ => ConfigError::BadLimits { joint: 0 },
+        })?;
+        let mappings = core::array::from_fn(|j| mappings.get(j).copied().unwrap_or_else(|| padding_mapping(model)));
+        let limit = |values: &[f32]| SVector::from_fn(|j, _| values.get(j).copied().unwrap_or(PADDING_LIMIT));
+        Self::new(name, chain, mappings, model, limit(max_velocity), limit(max_acceleration))
+    }
+
+    /// The arm's own joints: the first this many (the rest pad the build).
+    pub fn joints(&self) -> usize {
+        self.chain.moving_joints()
     }
 
     /// A controller for this arm on `board`.
@@ -68,12 +123,16 @@ pub struct Staging<const N: usize> {
     /// Joints received (bit per joint); the others hold [`EMPTY`].
     received: u32,
     gripper: Option<GripperConfig>,
+    /// The bus named by the host: protocol and baud rate.
+    bus: Option<(Protocol, u32)>,
 }
 
 /// The arm-wide part of an arm being received.
 #[derive(Clone, Debug)]
 struct Begun {
     name: String<MAX_NAME>,
+    /// Its joint count (1..=N).
+    joints: usize,
     tool: Pose<f32>,
     model: u16,
 }
@@ -113,24 +172,35 @@ fn bad(field: Field, problem: Problem) -> NakReason {
 impl<const N: usize> Staging<N> {
     /// Nothing received.
     pub const fn new() -> Self {
-        Self { begun: None, joints: [EMPTY; N], received: 0, gripper: None }
+        Self { begun: None, joints: [EMPTY; N], received: 0, gripper: None, bus: None }
     }
 
-    /// Starts an arm of `joints` joints (which must be this firmware's `N`), dropping any arm
-    /// half received.
+    /// Starts an arm of `joints` joints (1 to this firmware's `N`), dropping any arm half
+    /// received.
     pub fn begin(&mut self, name: &String<MAX_NAME>, joints: u8, tool: Pose<f32>, model: u16) -> Result<(), NakReason> {
-        if usize::from(joints) != N {
+        let joints = usize::from(joints);
+        if joints == 0 || joints > N {
             return Err(bad(Field::JointCount, Problem::Count));
         }
         *self = Self::new();
-        self.begun = Some(Begun { name: name.clone(), tool, model });
+        self.begun = Some(Begun { name: name.clone(), joints, tool, model });
+        Ok(())
+    }
+
+    /// Stores the bus the arm's servos are on.
+    pub fn bus(&mut self, protocol: Protocol, baud: u32) -> Result<(), NakReason> {
+        if self.begun.is_none() {
+            return Err(NakReason::NotReady);
+        }
+        self.bus = Some((protocol, baud));
         Ok(())
     }
 
     /// Stores joint `index`.
     pub fn joint(&mut self, index: u8, joint: &JointConfig) -> Result<(), NakReason> {
-        if self.begun.is_none() {
-            return Err(NakReason::NotReady);
+        let begun = self.begun.as_ref().ok_or(NakReason::NotReady)?;
+        if usize::from(index) >= begun.joints {
+            return Err(bad(Field::JointIndex, Problem::OutOfRange));
         }
         let slot = self.joints.get_mut(usize::from(index)).ok_or(bad(Field::JointIndex, Problem::OutOfRange))?;
         *slot = *joint;
@@ -153,23 +223,26 @@ impl<const N: usize> Staging<N> {
         Ok(())
     }
 
-    /// The whole arm, checked: every joint sent, distinct servo ids, a model on `board`'s bus, a
-    /// valid chain, limits that leave each joint a range within its servo's. The staging is
-    /// emptied on success; on failure it is kept, so a corrected joint can be resent.
+    /// The whole arm, checked: every joint sent, distinct servo ids, a model of the arm's bus
+    /// protocol (the one named, or `board`'s), a valid chain, limits that leave each joint a range
+    /// within its servo's. The staging is emptied on success; on failure it is kept, so a
+    /// corrected joint can be resent.
     pub fn commit(&mut self, board: &Board) -> Result<ArmSetup<N>, NakReason> {
         let begun = self.begun.as_ref().ok_or(NakReason::NotReady)?;
+        let n = begun.joints;
         // N is at most MAX_JOINTS (8), so the mask fits.
-        if self.received != (1u32 << N) - 1 {
+        if self.received != (1u32 << n) - 1 {
             return Err(NakReason::NotReady);
         }
-        let configs = self.joints;
-        let model = Model::by_number(board.bus.protocol, begun.model).ok_or(bad(Field::Servo, Problem::OutOfRange))?;
+        let configs = self.joints.get(..n).ok_or(NakReason::NotReady)?;
+        let protocol = self.bus.map_or(board.bus.protocol, |(p, _)| p);
+        let model = Model::by_number(protocol, begun.model).ok_or(bad(Field::Servo, Problem::OutOfRange))?;
         for (j, a) in configs.iter().enumerate() {
-            if configs[..j].iter().any(|b| b.servo.id == a.servo.id) {
+            if configs.iter().take(j).any(|b| b.servo.id == a.servo.id) {
                 return Err(bad(Field::Servo, Problem::OutOfRange));
             }
         }
-        let joints = configs.map(|c| Joint {
+        let joint = |c: &JointConfig| Joint {
             origin: Pose::from_xyz_rpy(c.origin_xyz, c.origin_rpy),
             axis: Vector3::from(c.axis),
             kind: match c.kind {
@@ -178,9 +251,8 @@ impl<const N: usize> Staging<N> {
                 JointType::Prismatic => JointKind::Prismatic,
             },
             limits: Limits::new(c.lower, c.upper),
-        });
-        let chain = Chain::new(joints, begun.tool).map_err(|_| bad(Field::Axis, Problem::OutOfRange))?;
-        let mappings = configs.map(|c| JointMapping {
+        };
+        let mapping = |c: &JointConfig| JointMapping {
             id: c.servo.id,
             ticks_per_revolution: c.servo.ticks_per_revolution,
             zero: c.servo.zero,
@@ -189,11 +261,17 @@ impl<const N: usize> Staging<N> {
             max_ticks: c.servo.max_ticks,
             zero_half: c.servo.zero_half,
             truncate: c.servo.truncate,
-        });
-        let velocity = SVector::from(configs.map(|c| c.max_velocity));
-        let acceleration = SVector::from(configs.map(|c| c.max_acceleration));
+        };
+        // The arm's joints, servos and limits, each as an array of N padded after the arm's.
+        let config = |j: usize| configs.get(j);
+        let joints: [Joint<f32>; N] = core::array::from_fn(|j| config(j).map_or_else(padding_joint, joint));
+        let chain = Chain::new(joints, begun.tool).map_err(|_| bad(Field::Axis, Problem::OutOfRange))?;
+        let mappings = core::array::from_fn(|j| config(j).map_or_else(|| padding_mapping(model), mapping));
+        let velocity = SVector::from_fn(|j, _| config(j).map_or(PADDING_LIMIT, |c| c.max_velocity));
+        let acceleration = SVector::from_fn(|j, _| config(j).map_or(PADDING_LIMIT, |c| c.max_acceleration));
         let mut setup = ArmSetup::new(&begun.name, chain, mappings, model, velocity, acceleration)
             .map_err(|_| bad(Field::Limits, Problem::OutOfRange))?;
+        setup.baud = self.bus.map(|(_, baud)| baud);
         if let Some(g) = self.gripper {
             // Within the servo's range, and not one of the joints' servos.
             let top = i64::from(model.ticks_per_revolution) - 1;

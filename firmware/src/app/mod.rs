@@ -40,6 +40,8 @@ pub struct Board {
     pub model: &'static Model,
     /// Control rate, watchdog and IK budget.
     pub control: Config,
+    /// The fastest baud rate the servo bus's UART reaches: an arm on a faster bus is refused.
+    pub max_bus_baud: u32,
 }
 
 /// The arm in use and its controller.
@@ -73,13 +75,18 @@ impl<const N: usize, const Q: usize> Firmware<N, Q> {
     /// Firmware for `board`, driving `builtin` until the host configures another arm (with no
     /// built-in arm, motion requests are refused until the host sends one). Fails if the control
     /// period is shorter than one bus cycle for `N` servos, or the built-in arm is unusable.
-    pub fn new(board: Board, builtin: Option<ArmSetup<N>>) -> Result<Self, ConfigError> {
+    pub fn new(board: Board, mut builtin: Option<ArmSetup<N>>) -> Result<Self, ConfigError> {
         if N > crate::link::message::MAX_JOINTS {
             return Err(ConfigError::TooManyJoints);
         }
         let minimum_us = minimum_period_us(board.model, &board.bus, N);
         if board.control.period_us < minimum_us {
             return Err(ConfigError::PeriodTooShort { minimum_us });
+        }
+        // The built-in arm is on the board's bus: switching back to it from an arm on another bus
+        // switches the bus back too.
+        if let Some(setup) = builtin.as_mut() {
+            setup.baud.get_or_insert(board.bus.baud);
         }
         let running = match &builtin {
             Some(setup) => Some(Running { name: setup.name.clone(), controller: setup.controller(&board)? }),

@@ -117,8 +117,9 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
         Status {
             time,
             state,
-            measured: joints(c.measured().iter().copied()),
-            setpoints: joints(c.setpoint().position.iter().copied()),
+            // The arm's own joints only: the padding after them is not the host's.
+            measured: joints(c.measured().iter().copied().take(c.joints())),
+            setpoints: joints(c.setpoint().position.iter().copied().take(c.joints())),
             queued: u16::try_from(c.queued()).unwrap_or(u16::MAX),
             free_slots: free_slots(c.free_slots()),
             ik,

@@ -6,7 +6,8 @@ use kinematics::trajectory::PlayerKeyframe;
 
 use super::report::{free_slots, LinkCounts};
 use super::{Core, Running};
-use crate::controller::{Command, Pace, Refusal};
+use crate::bus::master::BusConfig;
+use crate::controller::{minimum_period_us, Command, Pace, Refusal};
 use crate::link::message::{
     EStopMode, Field, FirmwareMessage, HostMessage, Info, Joints, NakReason, Problem, Timing, ValueError,
     PROTOCOL_VERSION,
@@ -54,12 +55,13 @@ fn nak(refusal: Refusal) -> NakReason {
     }
 }
 
-/// Joint values of a message as the arm's vector, if there is one value per joint.
-fn vector<const N: usize>(values: &Joints, field: Field) -> Result<SVector<f32, N>, NakReason> {
-    if values.len() != N {
+/// Joint values of a message as the build's vector, if there is one value per joint of the arm
+/// (`joints`); the padding joints after the arm's are zero, where they are held.
+fn vector<const N: usize>(values: &Joints, joints: usize, field: Field) -> Result<SVector<f32, N>, NakReason> {
+    if values.len() != joints || joints > N {
         return Err(bad(field, Problem::Count));
     }
-    Ok(SVector::from_fn(|j, _| values[j]))
+    Ok(SVector::from_fn(|j, _| values.get(j).copied().unwrap_or(0.0)))
 }
 
 impl<const N: usize, const Q: usize> Core<N, Q> {
@@ -85,21 +87,42 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
         FirmwareMessage::Info(Info {
             protocol_version: PROTOCOL_VERSION,
             firmware_version: FIRMWARE_VERSION,
-            joints: N as u8,
+            // The arm's own joints: the host sends and reads that many values.
+            joints: self.running.as_ref().map_or(N, |r| r.controller.joints()) as u8,
             arm_name: self.running.as_ref().map(|r| r.name.clone()).unwrap_or_default(),
             queue_capacity: free_slots(Q),
             control_rate_hz: u16::try_from(control_rate_hz).unwrap_or(u16::MAX),
         })
     }
 
-    /// Swaps the arm, which needs the torque off: a new arm starts limp and reads its servos.
+    /// Swaps the arm, which needs the torque off: a new arm starts limp and reads its servos. Its
+    /// bus becomes the firmware's ([`super::Firmware::bus`]; the board's loop switches the port).
+    /// Refused, changing nothing, when the control period is shorter than one bus cycle of the
+    /// arm's servos at its baud rate.
     #[inline(never)]
     fn switch_arm(&mut self, setup: &super::ArmSetup<N>) -> Result<(), NakReason> {
         if self.running.as_ref().is_some_and(|r| r.controller.torque()) {
             return Err(NakReason::NotReady);
         }
-        let controller = setup.controller(&self.board).map_err(|_| bad(Field::Limits, Problem::OutOfRange))?;
+        let current = self.board.bus;
+        let protocol = setup.model.protocol;
+        let baud = setup.baud.unwrap_or(current.baud);
+        // Another bus: the protocol's factory return delay and the baud's idle gap; what the board's
+        // wiring sets (an echo to skip, the margin) stays.
+        let bus = if (protocol, baud) == (current.protocol, current.baud) {
+            current
+        } else {
+            BusConfig { echo: current.echo, margin_us: current.margin_us, ..BusConfig::new(protocol, baud) }
+        };
+        let servos = setup.joints() + usize::from(setup.gripper.is_some());
+        if baud > self.board.max_bus_baud || self.board.control.period_us < minimum_period_us(setup.model, &bus, servos)
+        {
+            return Err(bad(Field::Bus, Problem::OutOfRange));
+        }
+        let board = super::Board { bus, model: setup.model, ..self.board };
+        let controller = setup.controller(&board).map_err(|_| bad(Field::Limits, Problem::OutOfRange))?;
         self.running = Some(Running { name: setup.name.clone(), controller });
+        self.board.bus = bus;
         Ok(())
     }
 
@@ -171,12 +194,17 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
                 self.staging.gripper(g)?;
                 return Ok(self.ack());
             }
+            HostMessage::ConfigureBus { protocol, baud } => {
+                self.staging.bus((*protocol).into(), *baud)?;
+                return Ok(self.ack());
+            }
             HostMessage::ConfigureCommit => return self.commit_arm(),
             HostMessage::UseBuiltinArm => return self.use_builtin_arm(),
             _ => {}
         }
         let running = self.running.as_mut().ok_or(NakReason::NotReady)?;
         let controller = &mut running.controller;
+        let joints = controller.joints();
         let command = match message {
             HostMessage::Torque { on: true } => Command::TorqueOn,
             HostMessage::Torque { on: false } => Command::TorqueOff,
@@ -189,7 +217,7 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
                 },
             },
             HostMessage::MoveJoints { positions, timing } => {
-                let q: SVector<f32, N> = vector(positions, Field::Joints)?;
+                let q: SVector<f32, N> = vector(positions, joints, Field::Joints)?;
                 let duration = match *timing {
                     Timing::Duration(d) => d,
                     // The joint that moves furthest sets the time; the controller lengthens it
@@ -199,9 +227,9 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
                 Command::MoveJoints { q: q.into(), duration }
             }
             HostMessage::PushKeyframe(k) => {
-                let position = vector(&k.positions, Field::Joints)?;
+                let position = vector(&k.positions, joints, Field::Joints)?;
                 let velocity = match &k.velocities {
-                    Some(v) => Some(vector(v, Field::Velocities)?),
+                    Some(v) => Some(vector(v, joints, Field::Velocities)?),
                     None => None,
                 };
                 Command::PushKeyframe {
@@ -228,6 +256,7 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
             | HostMessage::ConfigureBegin { .. }
             | HostMessage::ConfigureJoint { .. }
             | HostMessage::ConfigureGripper(_)
+            | HostMessage::ConfigureBus { .. }
             | HostMessage::ConfigureCommit
             | HostMessage::UseBuiltinArm => return Err(NakReason::UnknownMessage),
         };

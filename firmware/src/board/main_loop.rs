@@ -13,6 +13,7 @@ use embedded_hal::digital::OutputPin;
 use embedded_io::{Read, ReadReady, Write};
 
 use super::rx_ring::RxRing;
+use super::BusPort;
 use crate::app::Firmware;
 use crate::bus::master::{Clock, Master};
 
@@ -30,7 +31,7 @@ pub struct MainLoop<'a, const N: usize, const Q: usize, const R: usize, P, D, C,
 
 impl<'a, const N: usize, const Q: usize, const R: usize, P, D, C, const BUF: usize> MainLoop<'a, N, Q, R, P, D, C, BUF>
 where
-    P: Read + Write + ReadReady,
+    P: Read + Write + ReadReady + BusPort,
     D: OutputPin,
     C: Clock,
 {
@@ -52,6 +53,7 @@ where
             let now = self.master.clock().now_us();
             // A write error is the link's (a full or broken transmit line): the host retransmits.
             let _ = self.app.receive(chunk.get(..n).unwrap_or_default(), now, tx);
+            self.follow_bus();
         }
         let now = self.master.clock().now_us();
         if now >= self.next_tick {
@@ -61,6 +63,18 @@ where
             self.next_tick = (self.next_tick + period).max(self.master.clock().now_us());
         }
         self.next_tick
+    }
+
+    /// Puts the servo bus where the firmware's arm has it: after an arm on another bus was
+    /// committed, the port's baud rate and the master's protocol and timing.
+    fn follow_bus(&mut self) {
+        let wanted = *self.app.bus();
+        if wanted != *self.master.config() {
+            if wanted.baud != self.master.config().baud {
+                self.master.port_mut().set_baud(wanted.baud);
+            }
+            self.master.set_config(wanted);
+        }
     }
 
     /// Polls for ever. Between passes `idle(next_tick, rx)` may sleep until an interrupt: it must

@@ -3,10 +3,22 @@
 //! - [`rx_ring`]: the ring the host link's receive interrupt fills, byte by byte, so that no byte
 //!   is lost while the loop is busy with the servo bus;
 //! - [`main_loop`]: the loop that hands those bytes to the firmware and runs the control tick on
-//!   its schedule.
+//!   its schedule, and switches the servo bus when the host sends an arm on another one.
 
 pub mod main_loop;
 pub mod rx_ring;
 
 pub use main_loop::MainLoop;
 pub use rx_ring::RxRing;
+
+/// The joints a board binary is built for: it drives any arm of 1 to this many joints (and a
+/// gripper), the rest padding ([`crate::app::ArmSetup::padded`]).
+pub const JOINTS: usize = 6;
+
+/// The servo bus's UART, as the main loop needs it beyond reading and writing: a board switches
+/// its baud rate when the host sends an arm on another bus.
+pub trait BusPort {
+    /// Sets the line's baud rate; the board's [`crate::app::Board::max_bus_baud`] bounds what it is
+    /// asked for.
+    fn set_baud(&mut self, baud: u32);
+}

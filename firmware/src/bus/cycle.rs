@@ -17,9 +17,24 @@ pub struct ServoGroup<const N: usize> {
     pub model: &'static Model,
     /// Their ids, joint by joint.
     pub ids: [Id; N],
+    /// How many of them are on the bus: the first `servos`. The joints after them pad a firmware
+    /// built for more joints than its arm has (fixed joints, see [`kinematics::JointKind::Fixed`]):
+    /// they are neither written nor read, and a read reports them answered with their values as
+    /// they were.
+    pub servos: usize,
 }
 
 impl<const N: usize> ServoGroup<N> {
+    /// A group of `N` servos, all on the bus.
+    pub const fn new(model: &'static Model, ids: [Id; N]) -> Self {
+        Self { model, ids, servos: N }
+    }
+
+    /// The servos on the bus: at most `N`.
+    fn on_bus(&self) -> usize {
+        self.servos.min(N)
+    }
+
     /// Sends `goals` (ticks, joint by joint) in one sync write, then reads every present position
     /// in one sync read into `positions`. Positions of servos that did not answer are left as they
     /// were; the report says which.
@@ -69,13 +84,14 @@ impl<const N: usize> ServoGroup<N> {
     {
         let mut ids = [0 as Id; MAX_GROUP];
         let mut all = [0i32; MAX_GROUP];
-        let pairs = self.ids.iter().copied().zip(values.iter().copied()).chain(extra);
+        let on_bus = self.on_bus();
+        let pairs = self.ids.iter().copied().zip(values.iter().copied()).take(on_bus).chain(extra);
         let mut count = 0;
         for ((slot, value), (id, v)) in ids.iter_mut().zip(all.iter_mut()).zip(pairs) {
             (*slot, *value) = (id, v);
             count += 1;
         }
-        if count < N + usize::from(extra.is_some()) {
+        if count < on_bus + usize::from(extra.is_some()) {
             return Err(MasterError::BadRequest { reason: "more servos than MAX_GROUP (32)" });
         }
         let (ids, all) = (ids.get(..count).unwrap_or_default(), all.get(..count).unwrap_or_default());
@@ -98,7 +114,8 @@ impl<const N: usize> ServoGroup<N> {
     }
 
     /// As [`ServoGroup::read_all`], with one more servo in the same sync read (`extra`: its id and
-    /// where its value goes); the report's bit `N` is that servo's.
+    /// where its value goes); the report's bit `N` is that servo's, and it counts `N` servos (plus
+    /// the extra one), the padding joints answered.
     pub fn read_with<P, D, C, const BUF: usize>(
         &self,
         master: &mut Master<P, D, C, BUF>,
@@ -111,25 +128,47 @@ impl<const N: usize> ServoGroup<N> {
         D: OutputPin,
         C: Clock,
     {
-        let count = N + usize::from(extra.is_some());
-        if count > MAX_GROUP {
+        let on_bus = self.on_bus();
+        let count = on_bus + usize::from(extra.is_some());
+        if N + usize::from(extra.is_some()) > MAX_GROUP {
             return Err(MasterError::BadRequest { reason: "more servos than MAX_GROUP (32)" });
         }
         let mut ids = [0 as Id; MAX_GROUP];
-        for (slot, id) in ids.iter_mut().zip(self.ids.iter().copied().chain(extra.as_ref().map(|(id, _)| *id))) {
+        let asked = self.ids.iter().copied().take(on_bus).chain(extra.as_ref().map(|(id, _)| *id));
+        for (slot, id) in ids.iter_mut().zip(asked) {
             *slot = id;
         }
         let mut all = [0i32; MAX_GROUP];
-        for (slot, v) in all.iter_mut().zip(values.iter().copied().chain(extra.as_ref().map(|(_, v)| **v))) {
+        let held = values.iter().copied().take(on_bus).chain(extra.as_ref().map(|(_, v)| **v));
+        for (slot, v) in all.iter_mut().zip(held) {
             *slot = v;
         }
         let ids = ids.get(..count).unwrap_or_default();
         let report = read_values(master, self.model, item, ids, all.get_mut(..count).unwrap_or_default())?;
-        let slots = values.iter_mut().chain(extra.map(|(_, v)| v));
+        let slots = values.iter_mut().take(on_bus).chain(extra.map(|(_, v)| v));
         for (v, x) in slots.zip(all) {
             *v = x;
         }
-        Ok(report)
+        Ok(spread(report, on_bus, N))
+    }
+}
+
+/// A report on `on_bus` servos (and an extra one at bit `on_bus`) as one on `n` joints: the extra
+/// servo's bits move to bit `n`, and the padding joints between count as answered.
+fn spread(report: GroupReport, on_bus: usize, n: usize) -> GroupReport {
+    if on_bus >= n {
+        return report;
+    }
+    let below = |k: usize| 1u32.checked_shl(k as u32).map_or(u32::MAX, |b| b - 1);
+    let joints = below(on_bus);
+    let padding = below(n) & !joints;
+    let moved = |bits: u32| (bits & joints) | ((bits >> on_bus) & 1).checked_shl(n as u32).unwrap_or(0);
+    GroupReport {
+        count: report.count + (n - on_bus),
+        answered: moved(report.answered) | padding,
+        alerts: moved(report.alerts),
+        failed: moved(report.failed),
+        attempts: report.attempts,
     }
 }
 

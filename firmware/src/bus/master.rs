@@ -364,6 +364,11 @@ where
         self.config = config;
     }
 
+    /// The port, to change what the master does not (its baud rate).
+    pub fn port_mut(&mut self) -> &mut P {
+        &mut self.port
+    }
+
     /// Counters so far.
     pub fn stats(&self) -> MasterStats {
         self.stats

@@ -169,7 +169,14 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             kinematics::trajectory::LimitError::InvalidLimits { joint } => ConfigError::BadLimits { joint },
             _ => ConfigError::BadLimits { joint: 0 },
         })?;
-        let group = ServoGroup { model, ids: mappings.map(|m| m.id) };
+        // The arm's joints come first; fixed joints after them pad a build for more joints than
+        // the arm has, and have no servo. A fixed joint before a moving one would leave that one
+        // without a servo in the group.
+        let servos = chain.moving_joints();
+        if let Some(joint) = chain.joints().iter().skip(servos).position(|j| j.kind != kinematics::JointKind::Fixed) {
+            return Err(ConfigError::BadLimits { joint: servos + joint });
+        }
+        let group = ServoGroup { servos, ..ServoGroup::new(model, mappings.map(|m| m.id)) };
         Ok(Self {
             tracker: Tracker::new(start, config.ik_iterations_per_tick),
             chain,
@@ -185,7 +192,8 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             setpoint: Setpoint { position: start, velocity: SVector::zeros() },
             hold: start,
             measured: start,
-            present_ticks: [0; N],
+            // Each servo's zero until it is read; a padding joint's for good (its angle stays zero).
+            present_ticks: mappings.map(|m| m.zero),
             goal_ticks: [0; N],
             seen: 0,
             play: PlayClock { time: 0.0, rate: 0.0, paused: false, queued_fresh: false },
@@ -203,7 +211,8 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
 
     /// The same controller with a gripper (a servo of the joints' model, not one of theirs).
     pub fn with_gripper(mut self, config: GripperConfig) -> Result<Self, ConfigError> {
-        if !config.valid() || self.mappings.iter().any(|m| m.id == config.id) || N + 1 > MAX_GROUP {
+        let joints = self.mappings.iter().take(self.group.servos);
+        if !config.valid() || joints.clone().any(|m| m.id == config.id) || N + 1 > MAX_GROUP {
             return Err(ConfigError::BadGripper);
         }
         self.gripper = Some(gripper::Gripper::new(config));
@@ -305,6 +314,12 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
     /// The last IK solve, if any.
     pub fn last_ik(&self) -> Option<IkSummary> {
         self.last_ik
+    }
+
+    /// The arm's own joints: the first this many; the rest, up to `N`, pad the build (fixed
+    /// joints, no servo, held at zero).
+    pub fn joints(&self) -> usize {
+        self.group.servos
     }
 
     /// The joint-to-servo mappings.

@@ -154,7 +154,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         }
         // A sync read of the one servo, not a plain read: the same code as the joints' cycle, so
         // the firmware carries no second read path.
-        let one = ServoGroup { model: self.group.model, ids: [g.config().id] };
+        let one = ServoGroup::new(self.group.model, [g.config().id]);
         let mut load = [0i32; 1];
         match one.read_all(master, force.present, &mut load) {
             Ok(report) if report.complete() => {
@@ -175,7 +175,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         let Some(effort) = g.take_effort() else { return };
         let value = (effort / 100.0 * f32::from(force.limit_full)) as i32;
         // A sync write of one record, as the goals go: no reply to wait for, no second write path.
-        let one = ServoGroup { model: self.group.model, ids: [g.config().id] };
+        let one = ServoGroup::new(self.group.model, [g.config().id]);
         if one.write_all(master, force.limit, &[value]).is_ok() {
             g.effort_written();
         } else {
@@ -197,7 +197,9 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         match self.group.read_all(master, self.group.model.items.torque_enable, &mut on) {
             Ok(report) if report.complete() => {
                 self.torque_known = true;
-                if on.iter().all(|&v| v == 0) || self.mode == Mode::EStopped {
+                // The padding joints' values are not read: only the servos' count.
+                let servos = on.get(..self.group.servos).unwrap_or(&on);
+                if servos.iter().all(|&v| v == 0) || self.mode == Mode::EStopped {
                     return;
                 }
                 self.setpoint = Setpoint { position: self.clamped(&self.measured), velocity: SVector::zeros() };
@@ -206,7 +208,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
                     g.adopt();
                 }
                 // The gripper's torque was not read: written with the joints' to be sure.
-                if on.iter().all(|&v| v != 0) && self.gripper.is_none() {
+                if servos.iter().all(|&v| v != 0) && self.gripper.is_none() {
                     self.torque = true;
                 } else {
                     self.pending_torque = Some(true);

@@ -17,7 +17,7 @@ use heapless::{String, Vec};
 use serde::{Deserialize, Serialize};
 
 /// The protocol version carried by the handshake; bumped on any change to the wire format.
-pub const PROTOCOL_VERSION: u16 = 3;
+pub const PROTOCOL_VERSION: u16 = 4;
 /// The most joints a message carries.
 pub const MAX_JOINTS: usize = 8;
 /// The longest arm name, in bytes of UTF-8.
@@ -267,6 +267,48 @@ pub enum HostMessage {
         /// keeps it.
         effort: Option<f32>,
     },
+    // Added in protocol version 4.
+    /// The servo bus of the arm being sent (optional, after ConfigureBegin and before
+    /// ConfigureCommit): its protocol and baud rate. Without it the arm is on the bus the firmware
+    /// runs now. The firmware switches its bus when the arm is committed.
+    ConfigureBus {
+        /// The servos' protocol.
+        protocol: BusProtocol,
+        /// Their baud rate ([`MIN_BAUD`]..=[`MAX_BAUD`]).
+        baud: u32,
+    },
+}
+
+/// Lowest servo bus baud rate an arm may name (the slowest either protocol's servos offer).
+pub const MIN_BAUD: u32 = 9_600;
+/// Highest servo bus baud rate an arm may name (Dynamixel X-series' 4.5 Mbps).
+pub const MAX_BAUD: u32 = 4_500_000;
+
+/// A servo protocol, as the link names it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum BusProtocol {
+    /// ROBOTIS Dynamixel Protocol 2.0.
+    Dynamixel2,
+    /// Feetech SCS/STS.
+    Feetech,
+}
+
+impl From<BusProtocol> for crate::bus::Protocol {
+    fn from(p: BusProtocol) -> Self {
+        match p {
+            BusProtocol::Dynamixel2 => Self::Dxl2,
+            BusProtocol::Feetech => Self::Feetech,
+        }
+    }
+}
+
+impl From<crate::bus::Protocol> for BusProtocol {
+    fn from(p: crate::bus::Protocol) -> Self {
+        match p {
+            crate::bus::Protocol::Dxl2 => Self::Dynamixel2,
+            crate::bus::Protocol::Feetech => Self::Feetech,
+        }
+    }
 }
 
 /// The handshake's answer.
@@ -410,6 +452,8 @@ pub enum Field {
     Name,
     /// A gripper's configuration, opening or effort.
     Gripper,
+    /// The servo bus of an arm: its baud rate, or a control period it cannot keep.
+    Bus,
 }
 
 /// What is wrong with a field.
@@ -659,6 +703,9 @@ impl HostMessage {
                 effort.map_or(Ok(()), |e| percent(e, true))
             }
             Self::SetTelemetry { rate_hz } => check(Field::Rate, *rate_hz <= MAX_TELEMETRY_HZ, Problem::OutOfRange),
+            Self::ConfigureBus { baud, .. } => {
+                check(Field::Bus, (MIN_BAUD..=MAX_BAUD).contains(baud), Problem::OutOfRange)
+            }
         }
     }
 

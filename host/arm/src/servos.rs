@@ -27,7 +27,14 @@ pub struct ServoSetup {
     pub calibration: Option<Vec<MotorCalibration>>,
     /// The gripper, an actuator outside the kinematic chain on the same bus (`None`: no gripper).
     pub gripper: Option<GripperSpec>,
+    /// The bus's baud rate (the arm file's `baud`, by default [`DEFAULT_BAUD`]): a board switches
+    /// its servo bus to it when the arm is sent.
+    pub baud: u32,
 }
+
+/// The servo bus's baud rate when the arm file names none: 1 Mbps, what LeRobot uses for its
+/// Feetech and Dynamixel arms alike, and the OpenManipulator-X's as ROBOTIS ships it.
+pub const DEFAULT_BAUD: u32 = 1_000_000;
 
 /// A gripper: one servo of the arm's model, driven between two tick positions.
 ///
@@ -115,6 +122,7 @@ impl ServoSetup {
             max_acceleration: 8.0,
             calibration: None,
             gripper: Some(gripper),
+            baud: DEFAULT_BAUD,
         })
     }
 

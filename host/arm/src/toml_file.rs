@@ -24,6 +24,7 @@
 //! reversed = [false, true, false] # optional: servos turning against the joint axis
 //! max_velocity = 2.0       # rad/s, every joint
 //! max_acceleration = 8.0   # rad/s², every joint
+//! baud = 1000000           # optional: the bus's baud rate (default 1 Mbps), one the model offers
 //! # optional, all three or none: a LeRobot calibration of each joint's servo (`armctl calibrate`
 //! # writes them), raw ticks; `reversed` is then LeRobot's drive_mode 1, and `zero` does not apply
 //! homing_offset = [953, -1200, 0]  # written to the servo's Homing_Offset, |offset| <= 2047
@@ -93,6 +94,7 @@ struct ServosEntry {
     reversed: Option<Vec<bool>>,
     max_velocity: f64,
     max_acceleration: f64,
+    baud: Option<u32>,
     homing_offset: Option<Spanned<Vec<i64>>>,
     range_min: Option<Spanned<Vec<i64>>>,
     range_max: Option<Spanned<Vec<i64>>>,
@@ -342,6 +344,11 @@ fn servos(at: &str, text: &str, entry: &ServosEntry, joints: &[JointSpec]) -> Re
             bail!("{at}: {key} must be a positive number, not {v}");
         }
     }
+    let baud = entry.baud.unwrap_or(super::servos::DEFAULT_BAUD);
+    if model.baud_index(baud).is_none() {
+        let offered: Vec<String> = model.bauds.iter().map(|(_, b)| b.to_string()).collect();
+        bail!("{at}: the {} has no baud rate {baud} (it offers {})", model.name, offered.join(", "));
+    }
     let calibration = calibration(text, entry, joints, model.ticks_per_revolution)?;
     Ok(super::servos::ServoSetup {
         model,
@@ -352,6 +359,7 @@ fn servos(at: &str, text: &str, entry: &ServosEntry, joints: &[JointSpec]) -> Re
         max_acceleration: entry.max_acceleration,
         calibration,
         gripper: None,
+        baud,
     })
 }
 
@@ -452,6 +460,7 @@ fn kind_name(kind: JointKind) -> &'static str {
         JointKind::Revolute => "revolute",
         JointKind::Continuous => "continuous",
         JointKind::Prismatic => "prismatic",
+        JointKind::Fixed => "fixed",
     }
 }
 

@@ -28,6 +28,7 @@ pub fn to_text(arm: &ArmSpec, header: &[String]) -> String {
             JointKind::Revolute => "revolute",
             JointKind::Continuous => "continuous",
             JointKind::Prismatic => "prismatic",
+            JointKind::Fixed => "fixed",
         };
         let _ = writeln!(out, "type = \"{kind}\"");
         let (xyz, rpy) = xyz_rpy(&joint.origin);
@@ -35,7 +36,7 @@ pub fn to_text(arm: &ArmSpec, header: &[String]) -> String {
         let _ = writeln!(out, "rpy = {}", list(&rpy));
         let _ = writeln!(out, "axis = {}", list(&joint.axis));
         match joint.kind {
-            JointKind::Continuous => {}
+            JointKind::Continuous | JointKind::Fixed => {}
             JointKind::Prismatic => {
                 let _ = writeln!(out, "limits = {}  # metres", list(&[joint.lower, joint.upper]));
             }
@@ -75,6 +76,9 @@ fn servos_table(out: &mut String, servos: &ServoSetup) {
     }
     let _ = writeln!(out, "max_velocity = {:?}  # rad/s", servos.max_velocity);
     let _ = writeln!(out, "max_acceleration = {:?}  # rad/s²", servos.max_acceleration);
+    if servos.baud != super::servos::DEFAULT_BAUD {
+        let _ = writeln!(out, "baud = {}", servos.baud);
+    }
     if let Some(c) = &servos.calibration {
         let field = |f: fn(&super::calibration::MotorCalibration) -> i32| list(&c.iter().map(f).collect::<Vec<_>>());
         let _ = writeln!(out, "homing_offset = {}", field(|m| m.homing_offset));

@@ -62,7 +62,7 @@ fn simulate<const N: usize>(model: &'static Model, baud: u32, delay_units: i64, 
     let mut config = BusConfig::new(model.protocol, baud);
     config.return_delay_us = (delay_units as u32) * model.return_delay_unit_us;
     let mut master: Master<_, _, _> = Master::new(port, NoDirectionPin, clock.clone(), config);
-    let group = ServoGroup { model, ids };
+    let group = ServoGroup::new(model, ids);
     let goals = [2048i32; N];
     let mut positions = [0i32; N];
     let mut cycle_ns = Vec::with_capacity(cycles);

@@ -59,6 +59,7 @@ impl KArm {
                 }
                 JointKind::Continuous => (k::JointType::Rotational { axis }, None),
                 JointKind::Prismatic => (k::JointType::Linear { axis }, Some(k::joint::Range::new(j.lower, j.upper))),
+                JointKind::Fixed => (k::JointType::Fixed, None),
             };
             let node: k::Node<f64> = k::NodeBuilder::new()
                 .name(&j.name)

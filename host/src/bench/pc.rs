@@ -54,6 +54,7 @@ fn arm(args: &PcBenchArgs) -> Result<ArmSpec> {
         reversed: None,
         max_velocity: 2.0,
         max_acceleration: 8.0,
+        baud: armctl_arm::servos::DEFAULT_BAUD,
         calibration: None,
         gripper: None,
     });

@@ -1,4 +1,5 @@
-//! The messages that send an arm to the firmware: [`HostMessage::ConfigureBegin`], one
+//! The messages that send an arm to the firmware: [`HostMessage::ConfigureBegin`], its bus
+//! ([`HostMessage::ConfigureBus`]), one
 //! [`HostMessage::ConfigureJoint`] per joint, [`HostMessage::ConfigureGripper`] if the arm has a
 //! gripper, [`HostMessage::ConfigureCommit`]. The geometry comes
 //! from the host's arm description ([`ArmSpec`]); the servos (model, ids, speed limits) from a
@@ -66,11 +67,16 @@ pub fn configure_messages(arm: &ArmSpec, servos: &ServoSetup) -> Result<Vec<Host
         tool_rpy: f32s(rpy(&arm.tool.rotation)),
         model: servos.model.number,
     }];
+    // The bus goes with the arm: a board switches its servo bus to it (protocol and baud rate).
+    messages.push(HostMessage::ConfigureBus { protocol: servos.model.protocol.into(), baud: servos.baud });
     for (j, (joint, &id)) in arm.joints.iter().zip(&servos.ids).enumerate() {
         let kind = match joint.kind {
             JointKind::Revolute => JointType::Revolute,
             JointKind::Continuous => JointType::Continuous,
             JointKind::Prismatic => bail!("joint {}: prismatic joints have no servo mapping yet", joint.name),
+            JointKind::Fixed => {
+                bail!("joint {}: a fixed joint has no servo: fold it into the next joint's origin", joint.name)
+            }
         };
         messages.push(HostMessage::ConfigureJoint {
             index: j as u8,

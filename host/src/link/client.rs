@@ -166,6 +166,7 @@ impl std::fmt::Display for Value<'_> {
             Field::Rate => "telemetry rate",
             Field::Name => "arm name",
             Field::Gripper => "gripper opening, effort or configuration",
+            Field::Bus => "servo bus (its baud rate, or a cycle too long for the control period)",
         };
         let problem = match self.0.problem {
             Problem::NotFinite => "not a finite number",

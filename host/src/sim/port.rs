@@ -83,6 +83,16 @@ impl SimPort {
     }
 }
 
+/// A board's main loop switches the line's baud rate when the host sends an arm on another bus:
+/// only the servos set to the new rate hear it, as on a real bus, and a waiting master's poll
+/// step becomes a byte time at it.
+impl firmware::board::BusPort for SimPort {
+    fn set_baud(&mut self, baud: u32) {
+        self.bus.borrow_mut().set_baud(baud);
+        self.poll_ns = wire_time_ns(1, baud).max(1);
+    }
+}
+
 impl ErrorType for SimPort {
     type Error = Infallible;
 }

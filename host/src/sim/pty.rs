@@ -416,6 +416,26 @@ fn serve(
     Ok(())
 }
 
+/// The bus of `arm`'s servos (its `[servos]` table, or its preset's): the joints' and the
+/// gripper's, their model and protocol at its baud rate, with the safety monitor on their goal
+/// limits ([`super::monitor::limits_of`]). A board's UART may set the pty's rate to the nearest
+/// standard one: the servos stay at the arm's.
+pub fn arm_bus(arm: &crate::arm::ArmSpec, faults: super::Faults) -> anyhow::Result<SimConfig> {
+    let servos =
+        crate::arm::servos::servos_of(arm).ok_or_else(|| anyhow::anyhow!("arm {} has no [servos] table", arm.name))?;
+    Ok(SimConfig {
+        protocol: servos.model.protocol,
+        model: servos.model,
+        ids: servos.bus_ids(),
+        baud: servos.baud,
+        faults,
+        duplicates: Vec::new(),
+        fixed_baud: true,
+        burst: None,
+        limits: Some(super::monitor::limits_of(arm)?),
+    })
+}
+
 /// The SO-101's bus as the built-in firmware expects it: the five joints' servos and the gripper's.
 pub fn so101_bus(faults: super::Faults) -> SimConfig {
     use firmware::bus::table::STS3215;

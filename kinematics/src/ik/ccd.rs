@@ -106,6 +106,7 @@ fn sweep<T: Real, const N: usize>(chain: &Chain<T, N>, residual: &Residual<T>, q
         let o = frame.translation;
         let current = q[k];
         let next = match joint.kind {
+            JointKind::Fixed => continue,
             JointKind::Prismatic => {
                 let (mut num, mut den) = (T::zero(), T::zero());
                 for i in 0..set.len {

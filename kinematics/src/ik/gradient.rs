@@ -164,7 +164,7 @@ fn displacement<T: Real, const N: usize>(
     to: &SVector<T, N>,
 ) -> SVector<T, N> {
     SVector::from_fn(|i, _| match chain.joints()[i].kind {
-        JointKind::Prismatic => to[i] - from[i],
+        JointKind::Prismatic | JointKind::Fixed => to[i] - from[i],
         JointKind::Revolute | JointKind::Continuous => wrap_angle(to[i] - from[i]),
     })
 }

@@ -472,3 +472,49 @@ fn chain_normalise_and_admits_work_per_joint() {
     // Middle: limit midpoints, zero for the continuous joint.
     assert_eq!(chain.middle(), SVector::from([0.0, 0.25, 0.0]));
 }
+
+// ---------------------------------------------------------------------------------------------
+// Fixed joints: the padding that lets one firmware build drive fewer joints than it holds
+// ---------------------------------------------------------------------------------------------
+
+/// The SO-101's five joints, then a fixed one (with an offset of its own, folded into the tool):
+/// the tool pose is the unpadded chain's whatever value the fixed joint is given, its Jacobian
+/// column is zero and the other five are the unpadded chain's, and damped least squares reaches a
+/// reachable target with the fixed joint left at zero.
+#[test]
+fn a_fixed_joint_pads_a_chain_without_changing_it() {
+    let five = presets::so101::<f64>().unwrap();
+    let offset = Pose::from_xyz_rpy([0.01, -0.02, 0.03], [0.1, 0.2, -0.3]);
+    let joints: [Joint<f64>; 6] = core::array::from_fn(|j| if j < 5 { five.joints()[j] } else { Joint::fixed(offset) });
+    let six = Chain::new(joints, Pose::identity()).unwrap();
+    let padded_tool = |q5: &SVector<f64, 5>, q6: f64| {
+        six.tool_pose(&SVector::<f64, 6>::from_fn(|j, _| if j < 5 { q5[j] } else { q6 }))
+    };
+    for q5 in [SVector::<f64, 5>::zeros(), SVector::from([0.3, -0.4, 0.5, 0.2, -0.3])] {
+        // `six` ends at the fixed joint with no tool: the five joints with the offset as their tool.
+        let unpadded = Chain::new(*five.joints(), offset).unwrap().tool_pose(&q5);
+        for q6 in [0.0, 1.0, -2.5] {
+            let p = padded_tool(&q5, q6);
+            assert!((p.translation - unpadded.translation).norm() < 1e-12);
+            assert!((p.rotation - unpadded.rotation).norm() < 1e-12);
+        }
+        let q6 = SVector::<f64, 6>::from_fn(|j, _| if j < 5 { q5[j] } else { 0.0 });
+        let j6 = six.jacobian(&q6);
+        let j5 = Chain::new(*five.joints(), offset).unwrap().jacobian(&q5);
+        assert_eq!(j6.column(5).norm(), 0.0);
+        assert!((j6.fixed_columns::<5>(0) - j5).norm() < 1e-12);
+    }
+    let goal = six.tool_pose(&SVector::from([0.2, -0.3, 0.4, 0.1, 0.0, 0.0]));
+    let problem = kinematics::ik::IkProblem {
+        target: kinematics::ik::Target::Position(goal.translation),
+        seed: six.middle(),
+        config: kinematics::ik::IkConfig::default(),
+    };
+    let solution = six.solve(&problem);
+    assert_eq!(solution.status, kinematics::ik::IkStatus::Converged, "{:?}", solution.status);
+    assert_eq!(solution.q[5], 0.0);
+    assert!((six.tool_pose(&solution.q).translation - goal.translation).norm() < 1e-5);
+    // Its value is held at zero by its limits.
+    assert_eq!(six.joints()[5].normalise(0.7), 0.0);
+    assert_eq!(six.joints()[5].kind, JointKind::Fixed);
+}

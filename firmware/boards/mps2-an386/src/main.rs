@@ -22,8 +22,8 @@ use firmware::controller::{Config, ConfigError};
 
 /// Host link and servo bus baud rate.
 const BAUD: u32 = 1_000_000;
-/// The built-in arm's joints.
-const JOINTS: usize = firmware::builtin::JOINTS;
+/// The joints the firmware is built for: any arm of 1 to this many (the built-in SO-101 has 5).
+const JOINTS: usize = firmware::board::JOINTS;
 /// Keyframe queue slots.
 const QUEUE: usize = 32;
 /// How often the stack's high-water mark is checked and, when it grew, logged.
@@ -66,7 +66,8 @@ fn start() -> Option<(&'static mut App, &'static mut BusMaster, Uart)> {
     let mut link = Uart::new(uart::UART0, clock::SYSCLK_HZ, BAUD);
     irq::enable_link_receive(&mut link);
     let bus = BusConfig::new(STS3215.protocol, BAUD);
-    let board = Board { bus, model: &STS3215, control: Config::default() };
+    let board =
+        Board { bus, model: &STS3215, control: Config::default(), max_bus_baud: Uart::max_baud(clock::SYSCLK_HZ) };
     let setup = firmware::builtin::setup().ok()?;
     // SAFETY: STARTED guarantees this runs once, so these are the only references to the statics.
     let (app_slot, master_slot) = unsafe { (&mut *addr_of_mut!(APP), &mut *addr_of_mut!(MASTER)) };
@@ -74,7 +75,7 @@ fn start() -> Option<(&'static mut App, &'static mut BusMaster, Uart)> {
     let port = Uart::new(uart::UART1, clock::SYSCLK_HZ, BAUD);
     let master = master_slot.write(BusMaster::new(port, NoDirectionPin, SysTickClock, bus));
     defmt::info!(
-        "mps2-an386: so101, {=usize} joints, {=usize} queue slots, {=u32} us period, link and bus at {=u32} baud",
+        "mps2-an386: so101 built in, up to {=usize} joints, {=usize} queue slots, {=u32} us period, link and bus at {=u32} baud",
         JOINTS,
         QUEUE,
         app.period_us(),

@@ -5,6 +5,8 @@
 
 use core::ptr::{read_volatile, write_volatile};
 
+use firmware::board::BusPort;
+
 const DATA: usize = 0x00;
 const STATE: usize = 0x04;
 const CTRL: usize = 0x08;
@@ -23,16 +25,22 @@ pub const UART1: usize = 0x4000_5000;
 /// One UART, owned by whoever holds this value (the board's main creates each once).
 pub struct Uart {
     base: usize,
+    /// Its peripheral clock, for the baud divider.
+    clock_hz: u32,
 }
 
 impl Uart {
     /// Enables the UART at `base` at `baud` for a `sysclk_hz` peripheral clock.
     pub fn new(base: usize, sysclk_hz: u32, baud: u32) -> Self {
-        let uart = Self { base };
-        // The divider must be at least 16 (CMSDK); QEMU does not time the line anyway.
-        uart.write_reg(BAUDDIV, (sysclk_hz / baud.max(1)).max(16));
+        let mut uart = Self { base, clock_hz: sysclk_hz };
+        uart.set_baud(baud);
         uart.write_reg(CTRL, ENABLE_TX_RX);
         uart
+    }
+
+    /// The fastest baud rate the divider reaches (CMSDK: BAUDDIV at least 16).
+    pub const fn max_baud(sysclk_hz: u32) -> u32 {
+        sysclk_hz / 16
     }
 
     /// Raises the UART's receive interrupt when a byte comes, so that a core sleeping in `wfi`
@@ -43,12 +51,12 @@ impl Uart {
 
     /// Acknowledges the receive interrupt (the byte stays in DATA until read).
     pub fn clear_rx_interrupt(base: usize) {
-        Self { base }.write_reg(INTCLEAR, RX_FULL);
+        Self { base, clock_hz: 0 }.write_reg(INTCLEAR, RX_FULL);
     }
 
     /// Hands every byte the UART at `base` holds to `keep` (from its receive interrupt).
     pub fn drain_rx(base: usize, mut keep: impl FnMut(u8)) {
-        let uart = Self { base };
+        let uart = Self { base, clock_hz: 0 };
         while uart.rx_ready() {
             keep(uart.read_reg(DATA) as u8);
         }
@@ -68,6 +76,15 @@ impl Uart {
 
     fn rx_ready(&self) -> bool {
         self.read_reg(STATE) & RX_FULL != 0
+    }
+}
+
+/// The servo bus's baud rate follows the arm the host sends. (QEMU does not time the line; it
+/// passes the rate on to the pty, which the simulated servos may follow.)
+impl BusPort for Uart {
+    fn set_baud(&mut self, baud: u32) {
+        // The divider must be at least 16 (CMSDK).
+        self.write_reg(BAUDDIV, (self.clock_hz / baud.max(1)).max(16));
     }
 }
 

@@ -22,6 +22,15 @@ use stm32f4xx_hal::rcc::{BusClock, Enable, Rcc, Reset};
 /// USART2, one wire, 8N1.
 pub struct HalfDuplex {
     usart: USART2,
+    /// APB1's clock, for the baud divider.
+    pclk: u32,
+}
+
+/// USARTDIV in sixteenths for `baud` from `pclk` (RM0383 §19.3.4, OVER8 = 0: BRR holds it as 12.4
+/// fixed point), rounded; `None` when out of BRR's reach (below 1 or above 4095.9375).
+fn divider(pclk: u32, baud: u32) -> Option<u32> {
+    let div = (pclk + baud / 2).checked_div(baud)?;
+    (16..=0xFFFF).contains(&div).then_some(div)
 }
 
 impl HalfDuplex {
@@ -30,22 +39,36 @@ impl HalfDuplex {
     /// `None` when `baud` is out of reach of the APB1 clock (USARTDIV below 1 or above 4095).
     pub fn new(usart: USART2, baud: u32, rcc: &mut Rcc) -> Option<Self> {
         let pclk = USART2::clock(&rcc.clocks).raw();
-        // USARTDIV in sixteenths (RM0383 §19.3.4, OVER8 = 0): BRR holds it as 12.4 fixed point.
-        let div = (pclk + baud / 2).checked_div(baud)?;
-        if !(16..=0xFFFF).contains(&div) {
-            return None;
-        }
+        let div = divider(pclk, baud)?;
         USART2::enable(rcc);
         USART2::reset(rcc);
         usart.brr().write(|w| w.div_mantissa().set((div >> 4) as u16).div_fraction().set((div & 0xF) as u8));
         // Half-duplex requires LINEN and CLKEN (CR2), SCEN and IREN (CR3) clear: the reset values.
         usart.cr3().write(|w| w.hdsel().set_bit());
         usart.cr1().write(|w| w.ue().set_bit().te().set_bit().re().set_bit());
-        Some(Self { usart })
+        Some(Self { usart, pclk })
+    }
+
+    /// The fastest baud rate BRR reaches from APB1's clock (USARTDIV 1: 2.625 Mbps at 42 MHz).
+    pub fn max_baud(&self) -> u32 {
+        self.pclk / 16
     }
 
     fn receiver(&self, on: bool) {
         self.usart.cr1().modify(|_, w| w.re().bit(on));
+    }
+}
+
+/// The servo bus's baud rate follows the arm the host sends (the firmware refuses one above
+/// [`HalfDuplex::max_baud`]). Changed between bus cycles, with the line idle: the master has
+/// flushed, so no frame is cut.
+impl firmware::board::BusPort for HalfDuplex {
+    fn set_baud(&mut self, baud: u32) {
+        if let Some(div) = divider(self.pclk, baud) {
+            // RM0383 (fractional baud rate generation): the counters take a new BRR at once, so it
+            // must not change during a transfer; between bus cycles the line is idle.
+            self.usart.brr().write(|w| w.div_mantissa().set((div >> 4) as u16).div_fraction().set((div & 0xF) as u8));
+        }
     }
 }
 

@@ -52,7 +52,8 @@ const BAUD: u32 = 1_000_000;
 /// whose receive buffer it disables). The master raises it before the first byte and lowers it after
 /// `flush`, which waits for transmission complete.
 type DirectionPin = PA1<Output>;
-type App = Firmware<{ firmware::builtin::JOINTS }, 32>;
+/// Any arm of 1 to [`firmware::board::JOINTS`] joints (the built-in SO-101 has 5).
+type App = Firmware<{ firmware::board::JOINTS }, 32>;
 type BusMaster = Master<HalfDuplex, DirectionPin, Tim2Clock>;
 
 /// The firmware state, in static RAM so that the stack holds only call frames. The constructor's
@@ -124,7 +125,7 @@ fn start() -> Option<(&'static mut App, &'static mut BusMaster, Link, Independen
         rcc.clocks.sysclk().raw()
     );
 
-    let board = Board { bus, model: &STS3215, control: Config::default() };
+    let board = Board { bus, model: &STS3215, control: Config::default(), max_bus_baud: bus_port.max_baud() };
     let Ok(setup) = firmware::builtin::setup() else { return refused("built-in arm") };
     // SAFETY: STARTED guarantees this runs once, so these are the only references to the statics.
     let (app_slot, master_slot) = unsafe { (&mut *addr_of_mut!(APP), &mut *addr_of_mut!(MASTER)) };

@@ -154,6 +154,9 @@ impl Pc {
             bus: choice.bus,
             model: connected.servos.model,
             control: Config { period_us: choice.period_us, ..Config::default() },
+            // The PC's port stays at the baud it was opened with; the host sends the arm it
+            // connected with, so its bus never changes.
+            max_bus_baud: u32::MAX,
         };
         let core = core_for(options.arm.dof(), board, master)?;
         let (link, end) = channel::pair(crate::link::READ_TIMEOUT);

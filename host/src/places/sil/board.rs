@@ -26,9 +26,15 @@ pub trait WithFirmware {
 }
 
 /// The firmware for an arm of `joints` joints on `board`, started without an arm (the host
-/// configures it over the link), handed to `with`: one match over the joint counts the firmware
-/// is built for, for every place that runs it.
+/// configures it over the link), handed to `with`. An arm of up to [`firmware::board::JOINTS`]
+/// runs on the boards' own build, its joints padded as on a board; the link's larger counts on a
+/// build of their own.
 pub fn for_joints<W: WithFirmware>(joints: usize, board: Board, with: W) -> Result<W::Output> {
+    const BOARD: usize = firmware::board::JOINTS;
+    if (1..=BOARD).contains(&joints) {
+        let firmware = Firmware::<BOARD, QUEUE>::new(board, None).map_err(|e| anyhow!("firmware core: {e}"))?;
+        return Ok(with.call(firmware));
+    }
     macro_rules! build {
         ($($n:literal)*) => {
             match joints {
@@ -43,7 +49,7 @@ pub fn for_joints<W: WithFirmware>(joints: usize, board: Board, with: W) -> Resu
             }
         };
     }
-    build!(1 2 3 4 5 6 7 8)
+    build!(7 8)
 }
 
 /// The firmware side of the SIL harness, for any joint count.
@@ -88,8 +94,9 @@ pub struct SimBoard<const N: usize, P = SimPort, C = VirtualClock> {
     pub(crate) master: Master<P, NoDirectionPin, C>,
 }
 
-fn to_vec<const N: usize>(v: &SVector<f32, N>) -> Vec<f64> {
-    v.iter().map(|x| f64::from(*x)).collect()
+/// The arm's own joints of a build's vector (the padding after them left out).
+fn to_vec<const N: usize>(v: &SVector<f32, N>, joints: usize) -> Vec<f64> {
+    v.iter().take(joints).map(|x| f64::from(*x)).collect()
 }
 
 impl<const N: usize, P, C> SimFirmware for SimBoard<N, P, C>
@@ -111,11 +118,11 @@ where
     }
 
     fn setpoints(&self) -> Vec<f64> {
-        self.firmware.controller().map_or_else(Vec::new, |c| to_vec(&c.setpoint().position))
+        self.firmware.controller().map_or_else(Vec::new, |c| to_vec(&c.setpoint().position, c.joints()))
     }
 
     fn measured(&self) -> Vec<f64> {
-        self.firmware.controller().map_or_else(Vec::new, |c| to_vec(c.measured()))
+        self.firmware.controller().map_or_else(Vec::new, |c| to_vec(c.measured(), c.joints()))
     }
 
     fn gripper(&self) -> Option<GripperState> {
@@ -160,6 +167,7 @@ where
         let period_s = f64::from(self.firmware.period_us()) * 1e-6;
         c.mappings()
             .iter()
+            .take(c.joints())
             .enumerate()
             .map(|(j, m)| {
                 let a = i64::from(m.to_ticks(limits.lower[j]).unwrap_or(m.min_ticks));
