@@ -87,6 +87,26 @@ fn move_to(c: &mut Client, arm: &ArmSpec, target: [f32; 3]) {
     assert!(error < 1e-3, "target {target:?} missed by {error} m");
 }
 
+/// Streams `keyframes` (more than the queue holds) as slots free, as `armctl play` does, starting
+/// playback at the 16th; waits until the arm is at rest and checks that no keyframe came late and
+/// that the arm ended on the last one within 0.01 rad.
+fn stream(c: &mut Client, keyframes: &[JointKeyframe]) -> Status {
+    let before = c.status().unwrap();
+    for (i, k) in keyframes.iter().enumerate() {
+        c.push(&HostMessage::PushKeyframe(k.clone())).unwrap_or_else(|e| panic!("keyframe {i}: {e}"));
+        if i == 15 {
+            c.request(&HostMessage::Start).unwrap();
+        }
+    }
+    let status = wait_idle(c, 5000).unwrap();
+    assert_eq!(status.state, RunState::Idle);
+    assert_eq!(status.errors.underruns, before.errors.underruns, "the host kept the queue fed");
+    for (j, (m, k)) in status.measured.iter().zip(&keyframes.last().unwrap().positions).enumerate() {
+        assert!((m - k).abs() < 0.01, "joint {j}: ended at {m}, last keyframe {k}");
+    }
+    status
+}
+
 /// The control loop's stack high-water mark, as the firmware logged it last.
 fn logged_stack(board: &Qemu) -> u64 {
     armctl::footprint::measure::logged_bytes(board.log(), "control loop stack high-water").unwrap()
@@ -111,20 +131,7 @@ fn the_real_firmware_reaches_targets_and_follows_a_streamed_trajectory() {
             JointKeyframe { time: t, positions: positions.collect(), velocities: None, gripper: None }
         })
         .collect();
-    let before = c.status().unwrap();
-    for (i, k) in keyframes.iter().enumerate() {
-        c.push(&HostMessage::PushKeyframe(k.clone())).unwrap_or_else(|e| panic!("keyframe {i}: {e}"));
-        if i == 15 {
-            c.request(&HostMessage::Start).unwrap();
-        }
-    }
-    let status = wait_idle(c, 5000).unwrap();
-    assert_eq!(status.state, RunState::Idle);
-    assert_eq!(status.errors.underruns, before.errors.underruns, "the host kept the queue fed");
-    let last = &keyframes.last().unwrap().positions;
-    for (j, (m, k)) in status.measured.iter().zip(last).enumerate() {
-        assert!((m - k).abs() < 0.01, "joint {j}: ended at {m}, last keyframe {k}");
-    }
+    let status = stream(c, &keyframes);
     assert_eq!(status.errors.bus_errors, 0);
     assert_eq!(status.errors.watchdog_trips, 0);
     eprintln!("control loop: mean {} us, max {} us", status.timing.mean_us, status.timing.max_us);
@@ -280,19 +287,7 @@ fn any_arm_on_the_real_firmware(arm: &str) {
             JointKeyframe { time: t, positions: positions.collect(), velocities: None, gripper }
         })
         .collect();
-    let before = c.status().unwrap();
-    for (i, k) in keyframes.iter().enumerate() {
-        c.push(&HostMessage::PushKeyframe(k.clone())).unwrap_or_else(|e| panic!("keyframe {i}: {e}"));
-        if i == 15 {
-            c.request(&HostMessage::Start).unwrap();
-        }
-    }
-    let status = wait_idle(c, 5000).unwrap();
-    assert_eq!(status.state, RunState::Idle);
-    assert_eq!(status.errors.underruns, before.errors.underruns, "the host kept the queue fed");
-    for (j, (m, k)) in status.measured.iter().zip(&keyframes.last().unwrap().positions).enumerate() {
-        assert!((m - k).abs() < 0.01, "joint {j}: ended at {m}, last keyframe {k}");
-    }
+    stream(c, &keyframes);
     // Waits in wall time: under QEMU the firmware's clock runs slower than the wall's while it
     // busy-waits for replies (1 ns of virtual time per instruction emulated), and Dynamixel's
     // 500 µs return delays make that most of a tick.

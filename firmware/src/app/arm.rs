@@ -47,8 +47,15 @@ fn padding_mapping(model: &Model) -> JointMapping {
     JointMapping::centred(0, model.ticks_per_revolution)
 }
 
-/// Speed and acceleration limits of a padding joint: any positive value (it never moves).
-const PADDING_LIMIT: f32 = 1.0;
+/// A speed or acceleration limit per joint of the build: the arm's own, then for the padding the
+/// largest of the arm's. A padding joint never moves, but the player and the limiter take minima
+/// and maxima over every joint (how soon a pause can stop, how long a move must last): the
+/// largest of the arm's own changes neither.
+fn padded_limits<const N: usize>(own: impl Iterator<Item = f32> + Clone) -> SVector<f32, N> {
+    let largest = own.clone().fold(0.0f32, f32::max);
+    let mut own = own;
+    SVector::from_fn(|_, _| own.next().unwrap_or(largest))
+}
 
 impl<const N: usize> ArmSetup<N> {
     /// A setup from its parts; the limits are the chain's intersected with the servos' ranges.
@@ -96,8 +103,9 @@ impl<const N: usize> ArmSetup<N> {
             _ => ConfigError::BadLimits { joint: 0 },
         })?;
         let mappings = core::array::from_fn(|j| mappings.get(j).copied().unwrap_or_else(|| padding_mapping(model)));
-        let limit = |values: &[f32]| SVector::from_fn(|j, _| values.get(j).copied().unwrap_or(PADDING_LIMIT));
-        Self::new(name, chain, mappings, model, limit(max_velocity), limit(max_acceleration))
+        let (velocity, acceleration) =
+            (padded_limits(max_velocity.iter().copied()), padded_limits(max_acceleration.iter().copied()));
+        Self::new(name, chain, mappings, model, velocity, acceleration)
     }
 
     /// The arm's own joints: the first this many (the rest pad the build).
@@ -267,8 +275,8 @@ impl<const N: usize> Staging<N> {
         let joints: [Joint<f32>; N] = core::array::from_fn(|j| config(j).map_or_else(padding_joint, joint));
         let chain = Chain::new(joints, begun.tool).map_err(|_| bad(Field::Axis, Problem::OutOfRange))?;
         let mappings = core::array::from_fn(|j| config(j).map_or_else(|| padding_mapping(model), mapping));
-        let velocity = SVector::from_fn(|j, _| config(j).map_or(PADDING_LIMIT, |c| c.max_velocity));
-        let acceleration = SVector::from_fn(|j, _| config(j).map_or(PADDING_LIMIT, |c| c.max_acceleration));
+        let velocity = padded_limits(configs.iter().map(|c| c.max_velocity));
+        let acceleration = padded_limits(configs.iter().map(|c| c.max_acceleration));
         let mut setup = ArmSetup::new(&begun.name, chain, mappings, model, velocity, acceleration)
             .map_err(|_| bad(Field::Limits, Problem::OutOfRange))?;
         setup.baud = self.bus.map(|(_, baud)| baud);

@@ -53,6 +53,21 @@ impl ArmSpec {
         self.joints.len()
     }
 
+    /// The baud rate its servos' bus runs at (the arm file's, or the default), if it has servos.
+    pub fn bus_baud(&self) -> Option<u32> {
+        servos::servos_of(self).map(|s| s.baud)
+    }
+
+    /// The same arm with its servos' bus at `baud` (a preset's servos taken as shipped): what is
+    /// sent to a firmware core driving a port opened at that rate.
+    pub fn at_baud(mut self, baud: u32) -> Self {
+        if let Some(mut s) = servos::servos_of(&self) {
+            s.baud = baud;
+            self.servos = Some(s);
+        }
+        self
+    }
+
     /// The fixed-size chain in scalar `T`; fails if `N` is not the joint count or the description is
     /// invalid (zero axis, bad limits).
     pub fn chain<T: Real, const N: usize>(&self) -> Result<Chain<T, N>> {

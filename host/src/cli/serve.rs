@@ -16,7 +16,7 @@ use clap::Args;
 use crate::args::bus::ProtocolArg;
 use crate::arm::servos::servos_of;
 use crate::arm::ArmSpec;
-use crate::drive::args::{calibrated, default_bus_arm, DEFAULT_BAUD, DEFAULT_SIM_ARM};
+use crate::drive::args::{calibrated, default_bus_arm, DEFAULT_SIM_ARM};
 use crate::drive::connection::handshake_with;
 use crate::drive::interrupt;
 use crate::link::client::{LinkClient, LinkConfig};
@@ -41,7 +41,7 @@ pub struct ServeArgs {
     /// The servos' protocol, sts (Feetech) or dxl2 (Dynamixel 2.0); with --sim, the arm's.
     #[arg(long, value_enum)]
     pub protocol: Option<ProtocolArg>,
-    /// The servos' baud rate [default: 1000000].
+    /// The servos' baud rate [default: the arm file's `baud`, else 1000000].
     #[arg(long)]
     pub baud: Option<u32>,
     /// A preset or an arm file with a [servos] table [default: so101 on sts, open-manipulator-x on
@@ -72,7 +72,8 @@ pub fn run(args: ServeArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
         Some(p) => p.into(),
         None => servos.model.protocol,
     };
-    let baud = args.baud.unwrap_or(DEFAULT_BAUD);
+    // The arm file's rate unless --baud names one.
+    let baud = args.baud.unwrap_or(servos.baud);
     let burst = args.burst_ms.map(burst).transpose()?;
     // With --sim the servos are served on a pty of their own, and the core drives them there
     // exactly as it drives an adapter's port.

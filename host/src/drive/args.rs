@@ -39,7 +39,7 @@ pub struct LinkArgs {
     /// With --bus: the servos' protocol, sts (Feetech) or dxl2 (Dynamixel 2.0).
     #[arg(long, value_enum)]
     pub protocol: Option<ProtocolArg>,
-    /// Baud rate of --port or of the --bus servos [default: 1000000].
+    /// Baud rate of --port or of the --bus servos [default: 1000000; for --bus, the arm file's `baud`].
     #[arg(long)]
     pub baud: Option<u32>,
     /// Drive the firmware core simulated on this PC with simulated servos (software in the loop).
@@ -130,7 +130,8 @@ impl LinkArgs {
             let options = PcOptions {
                 path: path.clone(),
                 protocol: protocol.into(),
-                baud: self.baud.unwrap_or(DEFAULT_BAUD),
+                // The arm file's rate unless --baud names one.
+                baud: self.baud.or(spec.bus_baud()).unwrap_or(DEFAULT_BAUD),
                 arm: spec,
                 calibration_file: self.calibration.as_ref().map(|f| f.display().to_string()),
             };

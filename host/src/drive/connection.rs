@@ -92,7 +92,8 @@ pub fn open(target: Target, arm: Option<&str>, err: &mut dyn std::io::Write) -> 
         }
         Target::Bus(options) => {
             let mut core = Pc::start(&options, true, err)?;
-            loaded_arm = Some(options.arm);
+            // Sent with the port's rate, which the core cannot change.
+            loaded_arm = Some(options.arm.at_baud(options.baud));
             let link = core.take_link().ok_or_else(|| anyhow!("the core's link was taken"))?;
             pc = Some(core);
             Box::new(link)
