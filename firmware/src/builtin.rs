@@ -12,6 +12,12 @@ pub const JOINTS: usize = 5;
 /// Its name, as the host's preset calls it.
 pub const NAME: &str = "so101";
 
+/// Its digest ([`crate::link::message::Info::arm_digest`]): the one the host computes for the
+/// `so101` preset with its servos as shipped, so that a host sending that preset finds it already
+/// running, and one sending another arm of the name (a calibrated SO-101) finds it different.
+/// `host/src/link/arm_config.rs` checks that the two agree.
+pub const DIGEST: u32 = 0xb24a_4ff4;
+
 /// Joint speed limit of the built-in arm (rad/s): under half the STS3215's no-load speed at 7.4 V
 /// (about 4.7 rad/s), so the servos keep up under load.
 pub const MAX_VELOCITY: f32 = 2.0;
@@ -41,5 +47,6 @@ pub fn setup<const N: usize>() -> Result<ArmSetup<N>, ConfigError> {
     let mut setup =
         ArmSetup::padded(NAME, chain.joints(), *chain.tool(), &mappings, &STS3215, &velocity, &acceleration)?;
     setup.gripper = Some(GRIPPER);
+    setup.digest = DIGEST;
     Ok(setup)
 }

@@ -111,6 +111,7 @@ impl Toy {
                 arm_name: "toy".try_into().unwrap(),
                 queue_capacity: CAPACITY as u16,
                 control_rate_hz: 100,
+                arm_digest: 0,
             }),
             HostMessage::GetStatus => FirmwareMessage::Status(self.status()),
             HostMessage::Start => {

@@ -35,6 +35,8 @@ pub struct ArmSetup<const N: usize> {
     pub gripper: Option<GripperConfig>,
     /// The baud rate of its servos' bus; `None`: whatever the firmware's bus runs at.
     pub baud: Option<u32>,
+    /// Its digest as its sender computed it (see [`crate::link::message::Info::arm_digest`]).
+    pub digest: u32,
 }
 
 /// What pads joint `j` of an arm with fewer joints than the build: fixed at the tool end, no
@@ -75,7 +77,7 @@ impl<const N: usize> ArmSetup<N> {
                 break;
             }
         }
-        Ok(Self { name: owned, chain, mappings, model, limits, gripper: None, baud: None })
+        Ok(Self { name: owned, chain, mappings, model, limits, gripper: None, baud: None, digest: 0 })
     }
 
     /// An arm of `joints.len()` joints (at most `N`) on this build: its joints, servos and
@@ -133,6 +135,8 @@ pub struct Staging<const N: usize> {
     gripper: Option<GripperConfig>,
     /// The bus named by the host: protocol and baud rate.
     bus: Option<(Protocol, u32)>,
+    /// The digest named by the host.
+    digest: u32,
 }
 
 /// The arm-wide part of an arm being received.
@@ -180,7 +184,7 @@ fn bad(field: Field, problem: Problem) -> NakReason {
 impl<const N: usize> Staging<N> {
     /// Nothing received.
     pub const fn new() -> Self {
-        Self { begun: None, joints: [EMPTY; N], received: 0, gripper: None, bus: None }
+        Self { begun: None, joints: [EMPTY; N], received: 0, gripper: None, bus: None, digest: 0 }
     }
 
     /// Starts an arm of `joints` joints (1 to this firmware's `N`), dropping any arm half
@@ -201,6 +205,15 @@ impl<const N: usize> Staging<N> {
             return Err(NakReason::NotReady);
         }
         self.bus = Some((protocol, baud));
+        Ok(())
+    }
+
+    /// Stores the arm's digest.
+    pub fn digest(&mut self, digest: u32) -> Result<(), NakReason> {
+        if self.begun.is_none() {
+            return Err(NakReason::NotReady);
+        }
+        self.digest = digest;
         Ok(())
     }
 
@@ -280,6 +293,7 @@ impl<const N: usize> Staging<N> {
         let mut setup = ArmSetup::new(&begun.name, chain, mappings, model, velocity, acceleration)
             .map_err(|_| bad(Field::Limits, Problem::OutOfRange))?;
         setup.baud = self.bus.map(|(_, baud)| baud);
+        setup.digest = self.digest;
         if let Some(g) = self.gripper {
             // Within the servo's range, and not one of the joints' servos.
             let top = i64::from(model.ticks_per_revolution) - 1;

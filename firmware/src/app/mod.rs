@@ -48,6 +48,8 @@ pub struct Board {
 #[derive(Clone, Debug)]
 struct Running<const N: usize, const Q: usize> {
     name: String<MAX_NAME>,
+    /// Its digest ([`ArmSetup::digest`]).
+    digest: u32,
     controller: Controller<N, Q>,
 }
 
@@ -89,7 +91,9 @@ impl<const N: usize, const Q: usize> Firmware<N, Q> {
             setup.baud.get_or_insert(board.bus.baud);
         }
         let running = match &builtin {
-            Some(setup) => Some(Running { name: setup.name.clone(), controller: setup.controller(&board)? }),
+            Some(setup) => {
+                Some(Running { name: setup.name.clone(), digest: setup.digest, controller: setup.controller(&board)? })
+            }
             None => None,
         };
         Ok(Self {

@@ -92,6 +92,7 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
             arm_name: self.running.as_ref().map(|r| r.name.clone()).unwrap_or_default(),
             queue_capacity: free_slots(Q),
             control_rate_hz: u16::try_from(control_rate_hz).unwrap_or(u16::MAX),
+            arm_digest: self.running.as_ref().map_or(0, |r| r.digest),
         })
     }
 
@@ -121,7 +122,7 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
         }
         let board = super::Board { bus, model: setup.model, ..self.board };
         let controller = setup.controller(&board).map_err(|_| bad(Field::Limits, Problem::OutOfRange))?;
-        self.running = Some(Running { name: setup.name.clone(), controller });
+        self.running = Some(Running { name: setup.name.clone(), digest: setup.digest, controller });
         self.board.bus = bus;
         Ok(())
     }
@@ -194,6 +195,10 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
                 self.staging.gripper(g)?;
                 return Ok(self.ack());
             }
+            HostMessage::ConfigureDigest { digest } => {
+                self.staging.digest(*digest)?;
+                return Ok(self.ack());
+            }
             HostMessage::ConfigureBus { protocol, baud } => {
                 self.staging.bus((*protocol).into(), *baud)?;
                 return Ok(self.ack());
@@ -257,6 +262,7 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
             | HostMessage::ConfigureJoint { .. }
             | HostMessage::ConfigureGripper(_)
             | HostMessage::ConfigureBus { .. }
+            | HostMessage::ConfigureDigest { .. }
             | HostMessage::ConfigureCommit
             | HostMessage::UseBuiltinArm => return Err(NakReason::UnknownMessage),
         };

@@ -122,6 +122,9 @@ pub struct Controller<const N: usize, const Q: usize> {
     torque_known: bool,
     /// A torque change requested by a command, written on the next tick.
     pending_torque: Option<bool>,
+    /// The last torque write is still to be read back: a sync write has no reply, and a line that
+    /// loses it would leave the servos limp (or torqued) while the controller thinks otherwise.
+    torque_unconfirmed: bool,
     setpoint: Setpoint<N>,
     hold: SVector<f32, N>,
     measured: SVector<f32, N>,
@@ -189,6 +192,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             torque: false,
             torque_known: false,
             pending_torque: None,
+            torque_unconfirmed: false,
             setpoint: Setpoint { position: start, velocity: SVector::zeros() },
             hold: start,
             measured: start,

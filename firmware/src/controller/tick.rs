@@ -45,8 +45,11 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         if let Some(on) = self.pending_torque {
             if self.write_torque(master, on) {
                 self.pending_torque = None;
+                self.torque_unconfirmed = true;
                 switched_on = on;
             }
+        } else if self.torque_unconfirmed {
+            self.confirm_torque(master);
         }
         if self.torque {
             self.watchdog(now_us, &mut report);
@@ -217,6 +220,36 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             // Someone did not answer: asked again next tick.
             Ok(_) => {}
             Err(_) => self.counters.bus_errors = self.counters.bus_errors.saturating_add(1),
+        }
+    }
+
+    /// Reads back the torque item the last torque write set, the gripper's too: a servo that
+    /// missed the write (its sync write lost on the line) is written again on the next tick. Until
+    /// every servo has answered, it is asked again each tick.
+    fn confirm_torque<P, D, C, const BUF: usize>(&mut self, master: &mut Master<P, D, C, BUF>)
+    where
+        P: Read + Write + ReadReady,
+        D: OutputPin,
+        C: Clock,
+    {
+        let mut on = [0i32; N];
+        let mut gripper_on = 0;
+        let extra = self.gripper.as_ref().map(|g| (g.config().id, &mut gripper_on));
+        let has_gripper = extra.is_some();
+        let Ok(report) = self.group.read_with(master, self.group.model.items.torque_enable, &mut on, extra) else {
+            self.counters.bus_errors = self.counters.bus_errors.saturating_add(1);
+            return;
+        };
+        if !report.complete() {
+            return;
+        }
+        let servos = on.get(..self.group.servos).unwrap_or(&on);
+        let missed =
+            servos.iter().any(|&v| (v != 0) != self.torque) || (has_gripper && (gripper_on != 0) != self.torque);
+        self.torque_unconfirmed = false;
+        if missed {
+            self.counters.bus_errors = self.counters.bus_errors.saturating_add(1);
+            self.pending_torque = Some(self.torque);
         }
     }
 

@@ -277,6 +277,13 @@ pub enum HostMessage {
         /// Their baud rate ([`MIN_BAUD`]..=[`MAX_BAUD`]).
         baud: u32,
     },
+    /// The digest of the arm being sent (optional, after ConfigureBegin and before
+    /// ConfigureCommit): what [`Info::arm_digest`] reports while it runs, so that a host can tell
+    /// whether the board runs exactly the arm it has.
+    ConfigureDigest {
+        /// The sender's digest of the arm's other configure messages.
+        digest: u32,
+    },
 }
 
 /// Lowest servo bus baud rate an arm may name (the slowest either protocol's servos offer).
@@ -326,6 +333,10 @@ pub struct Info {
     pub queue_capacity: u16,
     /// Control rate (Hz).
     pub control_rate_hz: u16,
+    /// The digest of the current arm, as its sender computed it ([`HostMessage::ConfigureDigest`];
+    /// [`crate::builtin::DIGEST`] for the built-in arm, 0 for an arm sent without one): two arms
+    /// of one name that differ (another calibration, an edited file) have different digests.
+    pub arm_digest: u32,
 }
 
 /// What the player is doing.
@@ -665,6 +676,7 @@ impl HostMessage {
         match self {
             Self::Hello { .. }
             | Self::ConfigureCommit
+            | Self::ConfigureDigest { .. }
             | Self::UseBuiltinArm
             | Self::Torque { .. }
             | Self::Start

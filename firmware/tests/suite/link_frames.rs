@@ -158,6 +158,8 @@ fn host_messages() -> std::vec::Vec<HostMessage> {
         HostMessage::ConfigureGripper(GripperConfig { id: 6, closed: 1934, open: 3186, effort: 50.0, speed: 100.0 }),
         HostMessage::Gripper { opening: 100.0, effort: Some(30.0) },
         HostMessage::Gripper { opening: 0.0, effort: None },
+        HostMessage::ConfigureBus { protocol: firmware::link::message::BusProtocol::Dynamixel2, baud: 4_500_000 },
+        HostMessage::ConfigureDigest { digest: 0xb24a_4ff4 },
         HostMessage::PushKeyframe(JointKeyframe {
             time: 0.0,
             positions: joints(1, 0.0),
@@ -198,6 +200,7 @@ fn firmware_messages() -> std::vec::Vec<FirmwareMessage> {
         arm_name: name("abcdefghijklmnopqrstuvwx"),
         queue_capacity: 16,
         control_rate_hz: 200,
+        arm_digest: u32::MAX,
     }));
     out.push(FirmwareMessage::Status(status(MAX_JOINTS)));
     out.push(FirmwareMessage::Telemetry(status(6)));

@@ -199,12 +199,18 @@ impl Rig {
     }
 
     /// Reads the positions, turns the torque on (holding) and returns when the measured ticks
-    /// start, µs: once the set-up ticks are over, as the torque-on tick writes more than a cycle.
+    /// start, µs: once the set-up ticks are over, as the torque-on tick writes more than a cycle
+    /// and the tick after it reads the torque back (one plain tick follows, so that the first
+    /// measured tick does not count that longer one's time as lateness).
     fn start(&mut self) -> Result<u64> {
         self.ctl.tick(&mut self.master, 0);
         let now = self.clock_us();
         self.ctl.command(Command::TorqueOn, now).map_err(|e| anyhow!("torque on refused: {e}"))?;
         self.ctl.tick(&mut self.master, now);
+        for _ in 0..2 {
+            let now = self.clock_us();
+            self.ctl.tick(&mut self.master, now);
+        }
         if self.ctl.mode() != Mode::Holding {
             bail!("the controller did not hold after torque on (mode {:?})", self.ctl.mode());
         }

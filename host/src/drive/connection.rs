@@ -124,8 +124,14 @@ pub fn open(target: Target, arm: Option<&str>, err: &mut dyn std::io::Write) -> 
     Ok(Connection { client, info, arm: spec, pc })
 }
 
-/// The handshake over an open link: makes sure the firmware runs `arm` if given (sending it
-/// unless it already runs it), else any arm this host knows; returns its info and description.
+/// The handshake over an open link: makes sure the firmware runs `arm` if given, else any arm this
+/// host knows; returns its info and description.
+///
+/// `arm` is sent when the board runs an arm of another name, or the built-in arm where `arm` differs
+/// from it (a calibrated SO-101). It is not sent when the board already runs it, digest and all
+/// ([`crate::link::arm_config::digest_of`]). A board running another arm of the same name (another
+/// calibration, an edited file, sent by another host or by `armctl serve`) is not overwritten:
+/// that is an error, which says what to do.
 pub fn handshake<T: Transport>(client: &mut LinkClient<T>, arm: Option<&str>) -> Result<(Info, ArmSpec)> {
     handshake_with(client, arm.map(|name| ArmSpec::load(name, None)).transpose()?)
 }
@@ -137,6 +143,18 @@ pub fn handshake_with<T: Transport>(client: &mut LinkClient<T>, arm: Option<ArmS
         Some(spec) => {
             if info.arm_name.as_str() != spec.name {
                 info = configure(client, &spec)?;
+            } else if let Some(servos) = servos_of(&spec) {
+                let digest = crate::link::arm_config::arm_digest(&spec, &servos)?;
+                if info.arm_digest == firmware::builtin::DIGEST && digest != info.arm_digest {
+                    // The default the board starts with gives way to the arm the host names.
+                    info = configure(client, &spec)?;
+                } else if digest != info.arm_digest {
+                    bail!(
+                        "the board runs another arm named {} (another calibration or an edited file): not replaced; \
+                         leave out --arm to drive the board's, or give this arm a name of its own to send it",
+                        spec.name
+                    );
+                }
             }
             spec
         }

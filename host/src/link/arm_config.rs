@@ -44,6 +44,35 @@ pub fn servo_config(m: &JointMapping) -> ServoConfig {
     }
 }
 
+/// The digest of an arm's configure messages (FNV-1a, 32 bits, over their frames as the link
+/// encodes them), never 0: what the firmware reports while it runs the arm
+/// ([`firmware::link::message::Info::arm_digest`]). Any change to what is sent (a joint, a servo's
+/// calibration, the gripper, the bus) changes it.
+pub fn digest_of(messages: &[HostMessage]) -> u32 {
+    let mut hash: u32 = 0x811c_9dc5;
+    let mut frame = [0u8; firmware::link::frame::MAX_ENCODED];
+    for m in messages {
+        let n = firmware::link::frame::encode_message(0, firmware::link::frame::FrameKind::Request, m, &mut frame)
+            .unwrap_or(0);
+        for &b in &frame[..n] {
+            hash = (hash ^ u32::from(b)).wrapping_mul(0x0100_0193);
+        }
+    }
+    hash.max(1)
+}
+
+/// The digest [`configure_messages`] sends for `arm` with `servos`.
+pub fn arm_digest(arm: &ArmSpec, servos: &ServoSetup) -> Result<u32> {
+    let messages = configure_messages(arm, servos)?;
+    match messages.iter().rev().find_map(|m| match m {
+        HostMessage::ConfigureDigest { digest } => Some(*digest),
+        _ => None,
+    }) {
+        Some(d) => Ok(d),
+        None => bail!("arm {}: no digest among its configure messages", arm.name),
+    }
+}
+
 /// The messages that configure `arm` with `servos` on the firmware.
 pub fn configure_messages(arm: &ArmSpec, servos: &ServoSetup) -> Result<Vec<HostMessage>> {
     let n = arm.joints.len();
@@ -102,6 +131,8 @@ pub fn configure_messages(arm: &ArmSpec, servos: &ServoSetup) -> Result<Vec<Host
             speed: g.speed as f32,
         }));
     }
+    let digest = digest_of(&messages);
+    messages.push(HostMessage::ConfigureDigest { digest });
     messages.push(HostMessage::ConfigureCommit);
     for m in &messages {
         if let Err(e) = m.validate() {
@@ -123,5 +154,22 @@ mod tests {
             let back = Pose::<f64>::from_xyz_rpy([0.0; 3], rpy(&pose.rotation));
             assert!((back.rotation - pose.rotation).amax() < 1e-7, "{rpy_in:?}");
         }
+    }
+
+    /// The built-in arm reports the digest of the `so101` preset as shipped, so a host sending
+    /// the preset finds it running; a calibration, another gripper or another bus changes it.
+    #[test]
+    fn the_builtin_digest_is_the_so101_presets() {
+        let so101 = ArmSpec::load("so101", None).unwrap();
+        let shipped = ServoSetup::for_arm("so101").unwrap();
+        let digest = arm_digest(&so101, &shipped).unwrap();
+        assert_eq!(digest, firmware::builtin::DIGEST, "firmware::builtin::DIGEST should be {digest:#010x}");
+        let mut other = shipped.clone();
+        other.zero = Some(vec![2048, 2048, 2049, 2048, 2048]);
+        assert_ne!(arm_digest(&so101, &other).unwrap(), digest);
+        let slower = ServoSetup { baud: 500_000, ..shipped.clone() };
+        assert_ne!(arm_digest(&so101, &slower).unwrap(), digest);
+        let no_gripper = ServoSetup { gripper: None, ..shipped };
+        assert_ne!(arm_digest(&so101, &no_gripper).unwrap(), digest);
     }
 }
