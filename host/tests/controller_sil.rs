@@ -452,3 +452,29 @@ fn servos_found_limp_are_left_limp() {
     assert!(!r.ctl.torque());
     assert!(r.item(STS3215.items.torque_enable).iter().all(|&t| t == 0));
 }
+
+/// A torque write the line lost (a sync write has no reply): the tick after the write reads the
+/// torque back, finds the servo that missed it, and the next tick writes it again.
+#[test]
+fn a_servo_that_missed_the_torque_write_is_written_again() {
+    let mut r = rig_with(Faults::default());
+    r.command(Command::TorqueOn).unwrap();
+    r.tick();
+    assert_eq!(r.item(STS3215.items.torque_enable), [1; J]);
+    // As if servo 3 had not heard it.
+    r.bus.borrow_mut().servo_mut(3).unwrap().set(STS3215.items.torque_enable, 0);
+    let errors = r.ctl.counters().bus_errors;
+    r.tick();
+    assert_eq!(r.ctl.counters().bus_errors, errors + 1, "the read-back found it");
+    r.tick();
+    assert_eq!(r.item(STS3215.items.torque_enable), [1; J], "written again");
+    // That write is read back in turn; confirmed, the torque is not read again until the next
+    // torque write.
+    r.tick();
+    assert_eq!(r.ctl.counters().bus_errors, errors + 1);
+    r.bus.borrow_mut().servo_mut(3).unwrap().set(STS3215.items.torque_enable, 0);
+    for _ in 0..3 {
+        r.tick();
+    }
+    assert_eq!(r.item(STS3215.items.torque_enable)[2], 0, "checked after a torque write only");
+}

@@ -122,9 +122,10 @@ pub struct Controller<const N: usize, const Q: usize> {
     torque_known: bool,
     /// A torque change requested by a command, written on the next tick.
     pending_torque: Option<bool>,
-    /// The last torque write is still to be read back: a sync write has no reply, and a line that
-    /// loses it would leave the servos limp (or torqued) while the controller thinks otherwise.
-    torque_unconfirmed: bool,
+    /// Reads left to confirm the last torque write (`CONFIRM_TRIES` in tick.rs after a write, 0
+    /// once confirmed): a sync write has no reply, and a line that loses it would leave the servos
+    /// limp (or torqued) while the controller thinks otherwise.
+    torque_unconfirmed: u8,
     setpoint: Setpoint<N>,
     hold: SVector<f32, N>,
     measured: SVector<f32, N>,
@@ -192,7 +193,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             torque: false,
             torque_known: false,
             pending_torque: None,
-            torque_unconfirmed: false,
+            torque_unconfirmed: 0,
             setpoint: Setpoint { position: start, velocity: SVector::zeros() },
             hold: start,
             measured: start,

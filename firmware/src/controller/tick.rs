@@ -16,6 +16,10 @@ use crate::bus::master::{Clock, Master};
 /// Ticks between two reads of the gripper's load.
 pub const LOAD_EVERY: u32 = 4;
 
+/// Ticks that read the torque back after a torque write, at most: a servo that stays silent
+/// (counted lost by the position reads) does not cost a second timeout on every tick for ever.
+pub const CONFIRM_TRIES: u8 = 10;
+
 impl<const N: usize, const Q: usize> Controller<N, Q> {
     /// Runs one control tick at `now_us` (the caller's clock, the same as the master's): sync read
     /// of present positions, setpoint of the mode, limits, sync write of goals.
@@ -45,10 +49,11 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         if let Some(on) = self.pending_torque {
             if self.write_torque(master, on) {
                 self.pending_torque = None;
-                self.torque_unconfirmed = true;
+                self.torque_unconfirmed = CONFIRM_TRIES;
                 switched_on = on;
             }
-        } else if self.torque_unconfirmed {
+        } else if self.torque_unconfirmed > 0 {
+            self.torque_unconfirmed -= 1;
             self.confirm_torque(master);
         }
         if self.torque {
@@ -225,7 +230,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
 
     /// Reads back the torque item the last torque write set, the gripper's too: a servo that
     /// missed the write (its sync write lost on the line) is written again on the next tick. Until
-    /// every servo has answered, it is asked again each tick.
+    /// every servo has answered, it is asked again each tick, [`CONFIRM_TRIES`] times at most.
     fn confirm_torque<P, D, C, const BUF: usize>(&mut self, master: &mut Master<P, D, C, BUF>)
     where
         P: Read + Write + ReadReady,
@@ -246,7 +251,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         let servos = on.get(..self.group.servos).unwrap_or(&on);
         let missed =
             servos.iter().any(|&v| (v != 0) != self.torque) || (has_gripper && (gripper_on != 0) != self.torque);
-        self.torque_unconfirmed = false;
+        self.torque_unconfirmed = 0;
         if missed {
             self.counters.bus_errors = self.counters.bus_errors.saturating_add(1);
             self.pending_torque = Some(self.torque);
