@@ -18,7 +18,7 @@ use armctl::link::ready::{request_when_ready, wait_idle};
 use armctl::link::Transport;
 use armctl::places::qemu::{self, Qemu, QemuConfig};
 use armctl::sim::so101_bus;
-use armctl::sim::{Faults, PtyServer};
+use armctl::sim::{Faults, PtyServer, SimConfig};
 use firmware::link::message::{CartesianTarget, HostMessage, JointKeyframe, RunState, Status, Timing};
 
 type Client = LinkClient<Box<dyn Transport>>;
@@ -34,7 +34,9 @@ struct Rig {
     board: Qemu,
 }
 
-fn rig() -> Option<Rig> {
+/// The firmware under QEMU with its servo bus on `servos`, its link opened as `armctl --port PTY
+/// [--arm ARM]` opens a board's; `None` (after saying so) where qemu-system-arm is missing.
+fn rig_on(servos: SimConfig, arm: Option<&str>) -> Option<Rig> {
     if !qemu::available() {
         assert!(std::env::var_os("CI").is_none(), "qemu-system-arm is missing, and CI is set: the HIL tests must run");
         eprintln!(
@@ -43,13 +45,19 @@ fn rig() -> Option<Rig> {
         return None;
     }
     let elf = qemu::build(qemu::FIRMWARE_BIN).unwrap();
-    let bus = PtyServer::spawn(so101_bus(Faults::default())).unwrap();
+    let bus = PtyServer::spawn(servos).unwrap();
     let board = Qemu::start(&QemuConfig { elf, bus: Some(bus.path().to_string()) }).unwrap();
-    let link = open(Target::Port { path: board.link_path().to_string(), baud: 1_000_000 }, None, &mut std::io::sink())
-        .unwrap();
-    assert_eq!(link.info.arm_name.as_str(), "so101");
+    let path = board.link_path().to_string();
+    let link = open(Target::Port { path, baud: 1_000_000 }, arm, &mut std::io::sink()).unwrap();
     assert_eq!(link.info.queue_capacity, 32);
     Some(Rig { link, bus, board })
+}
+
+/// The built-in SO-101, found without `--arm`.
+fn rig() -> Option<Rig> {
+    let rig = rig_on(so101_bus(Faults::default()), None)?;
+    assert_eq!(rig.link.info.arm_name.as_str(), "so101");
+    Some(rig)
 }
 
 fn torque_on(c: &mut Client) {
@@ -68,11 +76,16 @@ fn poll_for(c: &mut Client, duration: Duration) -> Status {
     }
 }
 
-fn tool_error(arm: &ArmSpec, q: &[f32], target: [f32; 3]) -> f64 {
+/// Where the tool is at joint values `q` (m, forward kinematics in f64).
+fn tool_position(arm: &ArmSpec, q: &[f32]) -> [f64; 3] {
     let q: Vec<f64> = q.iter().map(|x| f64::from(*x)).collect();
-    let reached = armctl::arm::dof::build(arm.clone()).unwrap().tool_pose(&q).unwrap().translation;
-    let d = [reached.x - f64::from(target[0]), reached.y - f64::from(target[1]), reached.z - f64::from(target[2])];
-    d.iter().map(|x| x * x).sum::<f64>().sqrt()
+    let p = armctl::arm::dof::build(arm.clone()).unwrap().tool_pose(&q).unwrap().translation;
+    [p.x, p.y, p.z]
+}
+
+fn tool_error(arm: &ArmSpec, q: &[f32], target: [f32; 3]) -> f64 {
+    let reached = tool_position(arm, q);
+    reached.iter().zip(target).map(|(r, t)| (r - f64::from(t)).powi(2)).sum::<f64>().sqrt()
 }
 
 fn move_to(c: &mut Client, arm: &ArmSpec, target: [f32; 3]) {
@@ -224,20 +237,11 @@ fn the_real_firmware_closes_the_gripper_on_an_object_and_opens_it() {
 /// sent over the link as `armctl --port PTY --arm ...` sends it: the board switches from its
 /// built-in SO-101 on Feetech to the arm's joints, gripper, protocol and baud rate.
 fn rig_for(arm: &str) -> Option<(Rig, ArmSpec)> {
-    if !qemu::available() {
-        assert!(std::env::var_os("CI").is_none(), "qemu-system-arm is missing, and CI is set: the HIL tests must run");
-        eprintln!("SKIPPED: qemu-system-arm is not installed; the HIL test did not run");
-        return None;
-    }
     let spec = ArmSpec::load(arm, None).unwrap();
-    let elf = qemu::build(qemu::FIRMWARE_BIN).unwrap();
-    let bus = PtyServer::spawn(armctl::sim::arm_bus(&spec, Faults::default()).unwrap()).unwrap();
-    let board = Qemu::start(&QemuConfig { elf, bus: Some(bus.path().to_string()) }).unwrap();
-    let path = board.link_path().to_string();
-    let link = open(Target::Port { path, baud: 1_000_000 }, Some(arm), &mut std::io::sink()).unwrap();
-    assert_eq!(link.info.arm_name.as_str(), spec.name);
-    assert_eq!(usize::from(link.info.joints), spec.dof());
-    Some((Rig { link, bus, board }, spec))
+    let rig = rig_on(armctl::sim::arm_bus(&spec, Faults::default()).unwrap(), Some(arm))?;
+    assert_eq!(rig.link.info.arm_name.as_str(), spec.name);
+    assert_eq!(usize::from(rig.link.info.joints), spec.dof());
+    Some((rig, spec))
 }
 
 /// A joint vector a fraction of the way from the middle of each joint's range to its ends.
@@ -252,10 +256,9 @@ fn inside(arm: &ArmSpec, fractions: impl Fn(usize) -> f64) -> Vec<f32> {
         .collect()
 }
 
+/// A Cartesian target: the tool at joint values `q`.
 fn tool_at(arm: &ArmSpec, q: &[f32]) -> [f32; 3] {
-    let q: Vec<f64> = q.iter().map(|x| f64::from(*x)).collect();
-    let p = armctl::arm::dof::build(arm.clone()).unwrap().tool_pose(&q).unwrap().translation;
-    [p.x as f32, p.y as f32, p.z as f32]
+    tool_position(arm, q).map(|x| x as f32)
 }
 
 /// One board binary for any arm: `arm` sent over the link, then two Cartesian targets (the tool

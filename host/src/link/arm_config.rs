@@ -1,7 +1,8 @@
 //! The messages that send an arm to the firmware: [`HostMessage::ConfigureBegin`], its bus
 //! ([`HostMessage::ConfigureBus`]), one
 //! [`HostMessage::ConfigureJoint`] per joint, [`HostMessage::ConfigureGripper`] if the arm has a
-//! gripper, [`HostMessage::ConfigureCommit`]. The geometry comes
+//! gripper, its digest ([`HostMessage::ConfigureDigest`]), [`HostMessage::ConfigureCommit`]. The
+//! geometry comes
 //! from the host's arm description ([`ArmSpec`]); the servos (model, ids, speed limits) from a
 //! [`ServoSetup`].
 
@@ -63,18 +64,21 @@ pub fn digest_of(messages: &[HostMessage]) -> u32 {
 
 /// The digest [`configure_messages`] sends for `arm` with `servos`.
 pub fn arm_digest(arm: &ArmSpec, servos: &ServoSetup) -> Result<u32> {
-    let messages = configure_messages(arm, servos)?;
-    match messages.iter().rev().find_map(|m| match m {
-        HostMessage::ConfigureDigest { digest } => Some(*digest),
-        _ => None,
-    }) {
-        Some(d) => Ok(d),
-        None => bail!("arm {}: no digest among its configure messages", arm.name),
-    }
+    Ok(digest_of(&arm_messages(arm, servos)?))
 }
 
-/// The messages that configure `arm` with `servos` on the firmware.
+/// The messages that configure `arm` with `servos` on the firmware: the arm, its digest, commit.
 pub fn configure_messages(arm: &ArmSpec, servos: &ServoSetup) -> Result<Vec<HostMessage>> {
+    let mut messages = arm_messages(arm, servos)?;
+    let digest = digest_of(&messages);
+    messages.push(HostMessage::ConfigureDigest { digest });
+    messages.push(HostMessage::ConfigureCommit);
+    Ok(messages)
+}
+
+/// The messages that describe `arm` with `servos` (begin, bus, joints, gripper), each checked as
+/// the firmware will check it.
+fn arm_messages(arm: &ArmSpec, servos: &ServoSetup) -> Result<Vec<HostMessage>> {
     let n = arm.joints.len();
     if n == 0 || n > MAX_JOINTS {
         bail!("arm {} has {n} joints; the link carries 1 to {MAX_JOINTS}", arm.name);
@@ -131,9 +135,6 @@ pub fn configure_messages(arm: &ArmSpec, servos: &ServoSetup) -> Result<Vec<Host
             speed: g.speed as f32,
         }));
     }
-    let digest = digest_of(&messages);
-    messages.push(HostMessage::ConfigureDigest { digest });
-    messages.push(HostMessage::ConfigureCommit);
     for m in &messages {
         if let Err(e) = m.validate() {
             bail!("arm {} cannot be sent: {:?} is {:?}", arm.name, e.field, e.problem);

@@ -89,7 +89,7 @@ impl SimPort {
 impl firmware::board::BusPort for SimPort {
     fn set_baud(&mut self, baud: u32) {
         self.bus.borrow_mut().set_baud(baud);
-        self.poll_ns = wire_time_ns(1, baud).max(1);
+        self.set_poll_ns(wire_time_ns(1, baud));
     }
 }
 
