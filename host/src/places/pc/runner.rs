@@ -190,13 +190,19 @@ pub(super) fn run(mut core: PcCore, link: CoreEnd, mut clock: StdClock, shared: 
             if next_tick < after {
                 next_tick = after;
             }
+            // Bytes that came during the tick are taken before the next one, even when ticks
+            // overrun back to back (a silent servo costs a bus timeout every tick): otherwise
+            // the host would hear nothing for as long as the overruns last.
+            while let Ok(bytes) = link.from_host.try_recv() {
+                if !receive(&mut core, &link, &bytes, clock.now_us(), &mut out) && end_with_host {
+                    finishing.get_or_insert(FINISHING_TICKS);
+                }
+            }
             continue;
         }
         match link.from_host.recv_timeout(Duration::from_micros(next_tick - now)) {
             Ok(bytes) => {
-                out.clear();
-                core.receive(&bytes, clock.now_us(), &mut out);
-                if !out.is_empty() && link.to_host.send(std::mem::take(&mut out)).is_err() && end_with_host {
+                if !receive(&mut core, &link, &bytes, clock.now_us(), &mut out) && end_with_host {
                     finishing.get_or_insert(FINISHING_TICKS);
                 }
             }
@@ -211,6 +217,13 @@ pub(super) fn run(mut core: PcCore, link: CoreEnd, mut clock: StdClock, shared: 
     }
 }
 
+/// Hands the host's bytes to the core and sends its replies; false once the host has gone.
+fn receive(core: &mut PcCore, link: &CoreEnd, bytes: &[u8], now_us: u64, out: &mut Vec<u8>) -> bool {
+    out.clear();
+    core.receive(bytes, now_us, out);
+    out.is_empty() || link.to_host.send(std::mem::take(out)).is_ok()
+}
+
 fn record(shared: &Shared, start_us: u64, loop_us: u32, late: bool) {
     let Ok(mut t) = shared.stats.lock() else { return };
     t.ticks += 1;
@@ -219,5 +232,84 @@ fn record(shared: &Shared, start_us: u64, loop_us: u32, late: bool) {
     t.last_us = start_us;
     if t.loop_us.len() < MAX_SAMPLES {
         t.loop_us.push(loop_us);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::link::channel;
+    use crate::places::sil::board::{JointBounds, SimFirmware};
+    use firmware::controller::{Counters, GripperState, TickReport};
+    use firmware::link::session::SessionStats;
+
+    /// A core whose every tick takes two periods (as with a servo that costs a bus timeout each
+    /// tick on a short period), and which answers each chunk of bytes with the same bytes.
+    struct Overrunning;
+
+    const PERIOD_US: u32 = 2_000;
+
+    impl SimFirmware for Overrunning {
+        fn receive(&mut self, bytes: &[u8], _now_us: u64, tx: &mut Vec<u8>) {
+            tx.extend_from_slice(bytes);
+        }
+        fn tick(&mut self, _now_us: u64, _tx: &mut Vec<u8>) -> Option<TickReport> {
+            std::thread::sleep(Duration::from_micros(2 * u64::from(PERIOD_US)));
+            None
+        }
+        fn period_us(&self) -> u32 {
+            PERIOD_US
+        }
+        fn setpoints(&self) -> Vec<f64> {
+            Vec::new()
+        }
+        fn measured(&self) -> Vec<f64> {
+            Vec::new()
+        }
+        fn gripper(&self) -> Option<GripperState> {
+            None
+        }
+        fn torque(&self) -> bool {
+            false
+        }
+        fn bounds(&self) -> Vec<JointBounds> {
+            Vec::new()
+        }
+        fn counters(&self) -> Option<Counters> {
+            None
+        }
+        fn session(&self) -> SessionStats {
+            SessionStats::default()
+        }
+        fn stop(&mut self, _now_us: u64) {}
+        fn torque_off(&mut self, _now_us: u64) {}
+        fn moving(&self) -> bool {
+            false
+        }
+        fn torque_pending(&self) -> bool {
+            false
+        }
+        fn ready(&self) -> bool {
+            false
+        }
+    }
+
+    /// Ticks that overrun back to back still leave room for the host: every request is answered.
+    /// (Before, a late tick was followed by the next at once, and the link was never read: the
+    /// host gave up on a core that was ticking.)
+    #[test]
+    fn the_host_is_answered_while_every_tick_overruns() {
+        let (host, core) = channel::pair(Duration::from_millis(20));
+        let (to_core, from_core) = host.split();
+        let shared = Arc::new(Shared::default());
+        let loop_shared = Arc::clone(&shared);
+        let runner = std::thread::spawn(move || run(Box::new(Overrunning), core, StdClock::new(), loop_shared, false));
+        for request in 0..5u8 {
+            to_core.send(vec![request]).unwrap();
+            let reply = from_core.recv_timeout(Duration::from_secs(5));
+            assert_eq!(reply, Ok(vec![request]), "request {request} is answered");
+        }
+        shared.quit();
+        runner.join().unwrap();
     }
 }
