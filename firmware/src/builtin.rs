@@ -40,13 +40,19 @@ pub const GRIPPER: GripperConfig = GripperConfig { id: 6, closed: 1934, open: 31
 /// padding): ids 1 to 5 from the base (as the SO-101 assembly guide sets them), 4096 ticks per
 /// turn, centred at zero, turning with the joint axes; and its gripper, servo 6 ([`GRIPPER`]).
 pub fn setup<const N: usize>() -> Result<ArmSetup<N>, ConfigError> {
+    let mut setup = ArmSetup::blank(&STS3215);
+    set_up(&mut setup)?;
+    Ok(setup)
+}
+
+/// [`setup`], in place: how a board builds its built-in arm in static memory.
+pub fn set_up<const N: usize>(setup: &mut ArmSetup<N>) -> Result<(), ConfigError> {
     let chain = arm().map_err(|_| ConfigError::BadLimits { joint: 0 })?;
     let mappings: [JointMapping; JOINTS] =
         core::array::from_fn(|j| JointMapping::centred(j as u8 + 1, STS3215.ticks_per_revolution));
     let (velocity, acceleration) = ([MAX_VELOCITY; JOINTS], [MAX_ACCELERATION; JOINTS]);
-    let mut setup =
-        ArmSetup::padded(NAME, chain.joints(), *chain.tool(), &mappings, &STS3215, &velocity, &acceleration)?;
+    setup.set_padded(NAME, chain.joints(), *chain.tool(), &mappings, &STS3215, &velocity, &acceleration)?;
     setup.gripper = Some(GRIPPER);
     setup.digest = DIGEST;
-    Ok(setup)
+    Ok(())
 }

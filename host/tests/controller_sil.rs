@@ -478,3 +478,42 @@ fn a_servo_that_missed_the_torque_write_is_written_again() {
     }
     assert_eq!(r.item(STS3215.items.torque_enable)[2], 0, "checked after a torque write only");
 }
+
+/// A controller configured in place for another arm is the one `new` builds for it (compared
+/// field by field through Debug), however it ran before; a refused arm changes nothing. The
+/// firmware keeps its one controller in static memory and reconfigures it for every arm it is
+/// sent, so any state this missed would carry over from one arm to the next.
+#[test]
+fn configuring_in_place_is_new_and_a_refused_arm_changes_nothing() {
+    let mut r = armed();
+    r.command(Command::MoveJoints { q: [0.3, -0.2, 0.4, 0.1, -0.3], duration: 0.5 }).unwrap();
+    for _ in 0..20 {
+        r.tick();
+    }
+    assert_eq!(r.ctl.mode(), Mode::Playing);
+    let before = format!("{:?}", r.ctl);
+
+    let chain = builtin::arm().unwrap();
+    let mappings = ids().map(|id| JointMapping::centred(id + 10, 4096));
+    let limits = joint_limits(&chain, &mappings, SVector::repeat(1.0), SVector::repeat(3.0)).unwrap();
+    let config = Config { watchdog_ms: 300, ..Config::default() };
+    let gripper = firmware::controller::GripperConfig { id: 20, ..builtin::GRIPPER };
+    let nan = kinematics::trajectory::JointLimits { max_velocity: SVector::repeat(f32::NAN), ..limits };
+    let refusals = [
+        (nan, Some(gripper), config),
+        (limits, Some(firmware::controller::GripperConfig { id: 11, ..gripper }), config),
+        (limits, Some(firmware::controller::GripperConfig { effort: 0.0, ..gripper }), config),
+        (limits, None, Config { period_us: 0, ..config }),
+    ];
+    for (limits, gripper, config) in refusals {
+        let refused = r.ctl.configure(&chain, &mappings, &STS3215, &limits, gripper, config);
+        assert!(refused.is_err(), "{limits:?} {gripper:?} {config:?}");
+        assert_eq!(format!("{:?}", r.ctl), before, "a refused arm changed the controller");
+    }
+
+    r.ctl.configure(&chain, &mappings, &STS3215, &limits, Some(gripper), config).unwrap();
+    let fresh = Ctl::new(chain, mappings, &STS3215, limits, config).unwrap().with_gripper(gripper).unwrap();
+    assert_eq!(format!("{:?}", r.ctl), format!("{fresh:?}"));
+    assert_eq!(r.ctl.mode(), Mode::Idle);
+    assert!(!r.ctl.torque());
+}

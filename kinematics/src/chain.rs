@@ -105,27 +105,37 @@ impl<T: Real> JointMotion<T> {
 impl<T: Real, const N: usize> Chain<T, N> {
     /// Builds a chain from a URDF-style joint list (each origin relative to the previous joint's
     /// moving frame) and the tool frame relative to the last joint. Axes are normalised.
-    pub fn new(mut joints: [Joint<T>; N], tool: Pose<T>) -> Result<Self, ChainError> {
-        for (i, j) in joints.iter_mut().enumerate() {
-            let n = j.axis.norm();
-            if !n.finite() || n <= T::EPSILON {
-                return Err(ChainError::ZeroAxis { joint: i });
-            }
-            j.axis /= n;
-            if !frame_is_valid(&j.origin) {
-                return Err(ChainError::BadFrame { joint: Some(i) });
-            }
-            let l = j.limits;
-            let limits_ok = l.lower.finite() && l.upper.finite() && l.lower <= l.upper;
-            if j.kind != JointKind::Continuous && !limits_ok {
-                return Err(ChainError::BadLimits { joint: i });
-            }
+    pub fn new(joints: [Joint<T>; N], tool: Pose<T>) -> Result<Self, ChainError> {
+        let mut chain = Self::motionless();
+        chain.set(|i| joints.get(i).copied().unwrap_or_else(|| Joint::fixed(Pose::identity())), tool)?;
+        Ok(chain)
+    }
+
+    /// Makes this the chain [`Chain::new`] builds from joints `joint(0)` to `joint(N - 1)` and
+    /// `tool`, in place: a firmware keeps its chains in static memory and has no stack for
+    /// another. Every joint is checked before anything changes, so a refused chain leaves this
+    /// one as it was (`joint` is called twice per joint).
+    pub fn set(&mut self, joint: impl Fn(usize) -> Joint<T>, tool: Pose<T>) -> Result<(), ChainError> {
+        for i in 0..N {
+            checked(joint(i), i)?;
         }
         if !frame_is_valid(&tool) {
             return Err(ChainError::BadFrame { joint: None });
         }
-        let motion = joints.map(|j| JointMotion::of(&j));
-        Ok(Self { joints, tool, motion })
+        for (i, (slot, motion)) in self.joints.iter_mut().zip(self.motion.iter_mut()).enumerate() {
+            *slot = checked(joint(i), i)?;
+            *motion = JointMotion::of(slot);
+        }
+        self.tool = tool;
+        Ok(())
+    }
+
+    /// A chain that does not move: every joint fixed at the identity, and the tool at the last
+    /// joint. What a controller holds before it is given an arm, built without a check that could
+    /// fail.
+    pub fn motionless() -> Self {
+        let joint = Joint::fixed(Pose::identity());
+        Self { joints: [joint; N], tool: Pose::identity(), motion: [JointMotion::of(&joint); N] }
     }
 
     /// Standard (distal) DH: `T_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i)`, the joint moving about
@@ -184,6 +194,25 @@ impl<T: Real, const N: usize> Chain<T, N> {
     pub fn admits(&self, q: &SVector<T, N>) -> bool {
         q.iter().zip(self.joints.iter()).all(|(v, j)| j.admits(*v))
     }
+}
+
+/// Joint `i` with its axis normalised, if it is valid: a non-zero finite axis, a valid frame,
+/// ordered finite limits (but for a continuous joint).
+fn checked<T: Real>(mut j: Joint<T>, i: usize) -> Result<Joint<T>, ChainError> {
+    let n = j.axis.norm();
+    if !n.finite() || n <= T::EPSILON {
+        return Err(ChainError::ZeroAxis { joint: i });
+    }
+    j.axis /= n;
+    if !frame_is_valid(&j.origin) {
+        return Err(ChainError::BadFrame { joint: Some(i) });
+    }
+    let l = j.limits;
+    let limits_ok = l.lower.finite() && l.upper.finite() && l.lower <= l.upper;
+    if j.kind != JointKind::Continuous && !limits_ok {
+        return Err(ChainError::BadLimits { joint: i });
+    }
+    Ok(j)
 }
 
 fn dh_joint<T: Real>(origin: Pose<T>, row: &DhRow<T>) -> Joint<T> {

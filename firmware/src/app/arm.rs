@@ -59,30 +59,75 @@ fn padded_limits<const N: usize>(own: impl Iterator<Item = f32> + Clone) -> SVec
     SVector::from_fn(|_, _| own.next().unwrap_or(largest))
 }
 
+/// Why an arm cannot be built.
+enum Unusable {
+    /// Its joints and tool make no chain.
+    Chain(kinematics::ChainError),
+    /// Its limits leave a joint no range within its servo's, or are not positive.
+    Limits(ConfigError),
+}
+
+/// An arm's own joints, one at a time, from wherever they are kept (slices, or the joint
+/// messages the host sent): what [`ArmSetup::fill`] reads, so no array of them is built.
+trait ArmSource {
+    /// How many (1 to the build's joints).
+    fn joints(&self) -> usize;
+    fn joint(&self, j: usize) -> Joint<f32>;
+    fn tool(&self) -> Pose<f32>;
+    fn mapping(&self, j: usize) -> JointMapping;
+    fn velocity(&self, j: usize) -> f32;
+    fn acceleration(&self, j: usize) -> f32;
+}
+
+/// An arm given as slices of equal length.
+struct OwnJoints<'a> {
+    joints: &'a [Joint<f32>],
+    tool: Pose<f32>,
+    mappings: &'a [JointMapping],
+    velocity: &'a [f32],
+    acceleration: &'a [f32],
+}
+
+impl ArmSource for OwnJoints<'_> {
+    fn joints(&self) -> usize {
+        self.joints.len()
+    }
+    fn joint(&self, j: usize) -> Joint<f32> {
+        self.joints.get(j).copied().unwrap_or_else(padding_joint)
+    }
+    fn tool(&self) -> Pose<f32> {
+        self.tool
+    }
+    fn mapping(&self, j: usize) -> JointMapping {
+        self.mappings.get(j).copied().unwrap_or(JointMapping::centred(0, 1))
+    }
+    fn velocity(&self, j: usize) -> f32 {
+        self.velocity.get(j).copied().unwrap_or(0.0)
+    }
+    fn acceleration(&self, j: usize) -> f32 {
+        self.acceleration.get(j).copied().unwrap_or(0.0)
+    }
+}
+
 impl<const N: usize> ArmSetup<N> {
-    /// A setup from its parts; the limits are the chain's intersected with the servos' ranges.
-    /// Joints after the arm's own ([`Chain::moving_joints`]) must be fixed padding.
-    pub fn new(
-        name: &str,
-        chain: Chain<f32, N>,
-        mappings: [JointMapping; N],
-        model: &'static Model,
-        max_velocity: SVector<f32, N>,
-        max_acceleration: SVector<f32, N>,
-    ) -> Result<Self, ConfigError> {
-        let limits = joint_limits(&chain, &mappings, max_velocity, max_acceleration)?;
-        let mut owned = String::new();
-        for c in name.chars() {
-            if owned.push(c).is_err() {
-                break;
-            }
+    /// No arm: a motionless chain of `model`'s servos, none on the bus. The slot a firmware
+    /// builds an arm in, in place.
+    pub fn blank(model: &'static Model) -> Self {
+        Self {
+            name: String::new(),
+            chain: Chain::motionless(),
+            mappings: [padding_mapping(model); N],
+            model,
+            limits: JointLimits::still(),
+            gripper: None,
+            baud: None,
+            digest: 0,
         }
-        Ok(Self { name: owned, chain, mappings, model, limits, gripper: None, baud: None, digest: 0 })
     }
 
     /// An arm of `joints.len()` joints (at most `N`) on this build: its joints, servos and
     /// limits first, padding after ([`Joint::fixed`] at the tool end, so the tool is where the
-    /// arm's own chain puts it).
+    /// arm's own chain puts it). The limits are the chain's intersected with the servos' ranges.
     #[allow(clippy::too_many_arguments)]
     pub fn padded(
         name: &str,
@@ -93,21 +138,60 @@ impl<const N: usize> ArmSetup<N> {
         max_velocity: &[f32],
         max_acceleration: &[f32],
     ) -> Result<Self, ConfigError> {
+        let mut setup = Self::blank(model);
+        setup.set_padded(name, joints, tool, mappings, model, max_velocity, max_acceleration)?;
+        Ok(setup)
+    }
+
+    /// [`ArmSetup::padded`], in place. On failure this holds part of an arm.
+    #[allow(clippy::too_many_arguments)]
+    pub fn set_padded(
+        &mut self,
+        name: &str,
+        joints: &[Joint<f32>],
+        tool: Pose<f32>,
+        mappings: &[JointMapping],
+        model: &'static Model,
+        max_velocity: &[f32],
+        max_acceleration: &[f32],
+    ) -> Result<(), ConfigError> {
         let n = joints.len();
         if n == 0 || n > N || mappings.len() != n || max_velocity.len() != n || max_acceleration.len() != n {
             return Err(ConfigError::TooManyJoints);
         }
-        let joint = |j: usize| joints.get(j).copied().unwrap_or_else(padding_joint);
-        let chain = Chain::new(core::array::from_fn(joint), tool).map_err(|e| match e {
-            kinematics::ChainError::ZeroAxis { joint } | kinematics::ChainError::BadLimits { joint } => {
-                ConfigError::BadLimits { joint }
+        let arm = OwnJoints { joints, tool, mappings, velocity: max_velocity, acceleration: max_acceleration };
+        self.fill(name, &arm, model).map_err(|e| match e {
+            Unusable::Chain(
+                kinematics::ChainError::ZeroAxis { joint } | kinematics::ChainError::BadLimits { joint },
+            ) => ConfigError::BadLimits { joint },
+            Unusable::Chain(_) => ConfigError::BadLimits { joint: 0 },
+            Unusable::Limits(e) => e,
+        })
+    }
+
+    /// Makes this slot the arm `arm` describes, in place (the chain alone is larger than a
+    /// board's stack can spare twice); its gripper, bus and digest are left to the caller. On
+    /// failure the slot holds part of an arm: it is a scratch slot, never the running arm.
+    fn fill(&mut self, name: &str, arm: &impl ArmSource, model: &'static Model) -> Result<(), Unusable> {
+        let n = arm.joints();
+        self.chain.set(|j| if j < n { arm.joint(j) } else { padding_joint() }, arm.tool()).map_err(Unusable::Chain)?;
+        for (j, slot) in self.mappings.iter_mut().enumerate() {
+            *slot = if j < n { arm.mapping(j) } else { padding_mapping(model) };
+        }
+        let velocity = padded_limits((0..n).map(|j| arm.velocity(j)));
+        let acceleration = padded_limits((0..n).map(|j| arm.acceleration(j)));
+        self.limits = joint_limits(&self.chain, &self.mappings, velocity, acceleration).map_err(Unusable::Limits)?;
+        self.model = model;
+        self.name.clear();
+        for c in name.chars() {
+            if self.name.push(c).is_err() {
+                break;
             }
-            _ => ConfigError::BadLimits { joint: 0 },
-        })?;
-        let mappings = core::array::from_fn(|j| mappings.get(j).copied().unwrap_or_else(|| padding_mapping(model)));
-        let (velocity, acceleration) =
-            (padded_limits(max_velocity.iter().copied()), padded_limits(max_acceleration.iter().copied()));
-        Self::new(name, chain, mappings, model, velocity, acceleration)
+        }
+        self.gripper = None;
+        self.baud = None;
+        self.digest = 0;
+        Ok(())
     }
 
     /// The arm's own joints: the first this many (the rest pad the build).
@@ -115,13 +199,13 @@ impl<const N: usize> ArmSetup<N> {
         self.chain.moving_joints()
     }
 
-    /// A controller for this arm on `board`.
-    pub(super) fn controller<const Q: usize>(&self, board: &Board) -> Result<Controller<N, Q>, ConfigError> {
-        let controller = Controller::new(self.chain, self.mappings, self.model, self.limits, board.control)?;
-        match self.gripper {
-            Some(g) => controller.with_gripper(g),
-            None => Ok(controller),
-        }
+    /// Makes `controller` this arm's on `board`, in place; a refused arm changes nothing.
+    pub(super) fn configure<const Q: usize>(
+        &self,
+        controller: &mut Controller<N, Q>,
+        board: &Board,
+    ) -> Result<(), ConfigError> {
+        controller.configure(&self.chain, &self.mappings, self.model, &self.limits, self.gripper, board.control)
     }
 }
 
@@ -244,11 +328,11 @@ impl<const N: usize> Staging<N> {
         Ok(())
     }
 
-    /// The whole arm, checked: every joint sent, distinct servo ids, a model of the arm's bus
-    /// protocol (the one named, or `board`'s), a valid chain, limits that leave each joint a range
-    /// within its servo's. The staging is emptied on success; on failure it is kept, so a
-    /// corrected joint can be resent.
-    pub fn commit(&mut self, board: &Board) -> Result<ArmSetup<N>, NakReason> {
+    /// The whole arm, checked, built in `into`: every joint sent, distinct servo ids, a model of
+    /// the arm's bus protocol (the one named, or `board`'s), a valid chain, limits that leave
+    /// each joint a range within its servo's. The staging is emptied on success; on failure it is
+    /// kept, so a corrected joint can be resent (and `into`, a scratch slot, holds part of an arm).
+    pub fn commit(&mut self, board: &Board, into: &mut ArmSetup<N>) -> Result<(), NakReason> {
         let begun = self.begun.as_ref().ok_or(NakReason::NotReady)?;
         let n = begun.joints;
         // N is at most MAX_JOINTS (8), so the mask fits.
@@ -263,7 +347,46 @@ impl<const N: usize> Staging<N> {
                 return Err(bad(Field::Servo, Problem::OutOfRange));
             }
         }
-        let joint = |c: &JointConfig| Joint {
+        let staged = Staged { configs, tool: begun.tool };
+        into.fill(&begun.name, &staged, model).map_err(|e| match e {
+            Unusable::Chain(_) => bad(Field::Axis, Problem::OutOfRange),
+            Unusable::Limits(_) => bad(Field::Limits, Problem::OutOfRange),
+        })?;
+        into.baud = self.bus.map(|(_, baud)| baud);
+        into.digest = self.digest;
+        if let Some(g) = self.gripper {
+            // Within the servo's range, and not one of the joints' servos.
+            let top = i64::from(model.ticks_per_revolution) - 1;
+            let inside = |t: i32| (0..=top).contains(&i64::from(t));
+            if !g.valid() || !inside(g.closed) || !inside(g.open) || configs.iter().any(|c| c.servo.id == g.id) {
+                return Err(bad(Field::Gripper, Problem::OutOfRange));
+            }
+            into.gripper = Some(g);
+        }
+        *self = Self::new();
+        Ok(())
+    }
+}
+
+/// The joints the host sent, as an arm.
+struct Staged<'a> {
+    configs: &'a [JointConfig],
+    tool: Pose<f32>,
+}
+
+impl Staged<'_> {
+    fn config(&self, j: usize) -> &JointConfig {
+        self.configs.get(j).unwrap_or(&EMPTY)
+    }
+}
+
+impl ArmSource for Staged<'_> {
+    fn joints(&self) -> usize {
+        self.configs.len()
+    }
+    fn joint(&self, j: usize) -> Joint<f32> {
+        let c = self.config(j);
+        Joint {
             origin: Pose::from_xyz_rpy(c.origin_xyz, c.origin_rpy),
             axis: Vector3::from(c.axis),
             kind: match c.kind {
@@ -272,38 +395,28 @@ impl<const N: usize> Staging<N> {
                 JointType::Prismatic => JointKind::Prismatic,
             },
             limits: Limits::new(c.lower, c.upper),
-        };
-        let mapping = |c: &JointConfig| JointMapping {
-            id: c.servo.id,
-            ticks_per_revolution: c.servo.ticks_per_revolution,
-            zero: c.servo.zero,
-            direction: if c.servo.reversed { Direction::Reverse } else { Direction::Forward },
-            min_ticks: c.servo.min_ticks,
-            max_ticks: c.servo.max_ticks,
-            zero_half: c.servo.zero_half,
-            truncate: c.servo.truncate,
-        };
-        // The arm's joints, servos and limits, each as an array of N padded after the arm's.
-        let config = |j: usize| configs.get(j);
-        let joints: [Joint<f32>; N] = core::array::from_fn(|j| config(j).map_or_else(padding_joint, joint));
-        let chain = Chain::new(joints, begun.tool).map_err(|_| bad(Field::Axis, Problem::OutOfRange))?;
-        let mappings = core::array::from_fn(|j| config(j).map_or_else(|| padding_mapping(model), mapping));
-        let velocity = padded_limits(configs.iter().map(|c| c.max_velocity));
-        let acceleration = padded_limits(configs.iter().map(|c| c.max_acceleration));
-        let mut setup = ArmSetup::new(&begun.name, chain, mappings, model, velocity, acceleration)
-            .map_err(|_| bad(Field::Limits, Problem::OutOfRange))?;
-        setup.baud = self.bus.map(|(_, baud)| baud);
-        setup.digest = self.digest;
-        if let Some(g) = self.gripper {
-            // Within the servo's range, and not one of the joints' servos.
-            let top = i64::from(model.ticks_per_revolution) - 1;
-            let inside = |t: i32| (0..=top).contains(&i64::from(t));
-            if !g.valid() || !inside(g.closed) || !inside(g.open) || configs.iter().any(|c| c.servo.id == g.id) {
-                return Err(bad(Field::Gripper, Problem::OutOfRange));
-            }
-            setup.gripper = Some(g);
         }
-        *self = Self::new();
-        Ok(setup)
+    }
+    fn tool(&self) -> Pose<f32> {
+        self.tool
+    }
+    fn mapping(&self, j: usize) -> JointMapping {
+        let c = &self.config(j).servo;
+        JointMapping {
+            id: c.id,
+            ticks_per_revolution: c.ticks_per_revolution,
+            zero: c.zero,
+            direction: if c.reversed { Direction::Reverse } else { Direction::Forward },
+            min_ticks: c.min_ticks,
+            max_ticks: c.max_ticks,
+            zero_half: c.zero_half,
+            truncate: c.truncate,
+        }
+    }
+    fn velocity(&self, j: usize) -> f32 {
+        self.config(j).max_velocity
+    }
+    fn acceleration(&self, j: usize) -> f32 {
+        self.config(j).max_acceleration
     }
 }

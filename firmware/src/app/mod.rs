@@ -44,25 +44,68 @@ pub struct Board {
     pub max_bus_baud: u32,
 }
 
-/// The arm in use and its controller.
+/// The arm in use: its name and digest ([`ArmSetup::digest`]). Its controller is
+/// [`Core::controller`], which stays in place from one arm to the next.
 #[derive(Clone, Debug)]
-struct Running<const N: usize, const Q: usize> {
+struct ArmId {
     name: String<MAX_NAME>,
-    /// Its digest ([`ArmSetup::digest`]).
     digest: u32,
-    controller: Controller<N, Q>,
 }
 
 /// Everything but the link's framing: what a request may change.
 #[derive(Clone, Debug)]
 struct Core<const N: usize, const Q: usize> {
     board: Board,
-    builtin: Option<ArmSetup<N>>,
-    running: Option<Running<N, Q>>,
+    /// The built-in arm, if there is one (`has_builtin`): kept to switch back to.
+    builtin: ArmSetup<N>,
+    has_builtin: bool,
+    /// Where an arm the host sends is built when it is committed: in static memory, as the
+    /// controller, for the same reason.
+    incoming: ArmSetup<N>,
+    /// The arm the controller drives; `None` before there is one (the controller is blank).
+    arm: Option<ArmId>,
+    /// The controller, built once and configured in place for each arm: a second one on the
+    /// stack would cost more than a board's whole stack budget.
+    controller: Controller<N, Q>,
     staging: Staging<N>,
     /// Telemetry period (µs) and when the next frame is due.
     telemetry: Option<(u64, u64)>,
     loops: LoopStats,
+}
+
+impl<const N: usize, const Q: usize> Core<N, Q> {
+    /// Checks the board and drives the built-in arm, if there is one.
+    fn start(&mut self) -> Result<(), ConfigError> {
+        if N > crate::link::message::MAX_JOINTS {
+            return Err(ConfigError::TooManyJoints);
+        }
+        let minimum_us = minimum_period_us(self.board.model, &self.board.bus, N);
+        if self.board.control.period_us < minimum_us {
+            return Err(ConfigError::PeriodTooShort { minimum_us });
+        }
+        if !self.has_builtin {
+            return Ok(());
+        }
+        // The built-in arm is on the board's bus: switching back to it from an arm on another bus
+        // switches the bus back too.
+        self.builtin.baud.get_or_insert(self.board.bus.baud);
+        self.builtin.configure(&mut self.controller, &self.board)?;
+        self.arm = Some(ArmId { name: self.builtin.name.clone(), digest: self.builtin.digest });
+        Ok(())
+    }
+
+    /// The controller, once there is an arm.
+    fn running(&self) -> Option<&Controller<N, Q>> {
+        self.arm.as_ref().map(|_| &self.controller)
+    }
+
+    /// The controller, once there is an arm.
+    fn running_mut(&mut self) -> Option<&mut Controller<N, Q>> {
+        match self.arm {
+            Some(_) => Some(&mut self.controller),
+            None => None,
+        }
+    }
 }
 
 /// The firmware of an arm of `N` joints with a keyframe queue of `Q`.
@@ -77,37 +120,61 @@ impl<const N: usize, const Q: usize> Firmware<N, Q> {
     /// Firmware for `board`, driving `builtin` until the host configures another arm (with no
     /// built-in arm, motion requests are refused until the host sends one). Fails if the control
     /// period is shorter than one bus cycle for `N` servos, or the built-in arm is unusable.
-    pub fn new(board: Board, mut builtin: Option<ArmSetup<N>>) -> Result<Self, ConfigError> {
-        if N > crate::link::message::MAX_JOINTS {
-            return Err(ConfigError::TooManyJoints);
-        }
-        let minimum_us = minimum_period_us(board.model, &board.bus, N);
-        if board.control.period_us < minimum_us {
-            return Err(ConfigError::PeriodTooShort { minimum_us });
-        }
-        // The built-in arm is on the board's bus: switching back to it from an arm on another bus
-        // switches the bus back too.
-        if let Some(setup) = builtin.as_mut() {
-            setup.baud.get_or_insert(board.bus.baud);
-        }
-        let running = match &builtin {
-            Some(setup) => {
-                Some(Running { name: setup.name.clone(), digest: setup.digest, controller: setup.controller(&board)? })
-            }
-            None => None,
-        };
-        Ok(Self {
+    pub fn new(board: Board, builtin: Option<ArmSetup<N>>) -> Result<Self, ConfigError> {
+        let mut firmware = Self::blank(board);
+        firmware.start(builtin)?;
+        Ok(firmware)
+    }
+
+    /// Firmware for `board` without an arm, not yet started: built without a check that could
+    /// fail, so that a board can write it straight into static memory, then
+    /// [`Firmware::start`] it there.
+    pub fn blank(board: Board) -> Self {
+        Self {
             decoder: FrameDecoder::new(),
             session: Session::new(),
             core: Core {
                 board,
-                builtin,
-                running,
+                builtin: ArmSetup::blank(board.model),
+                has_builtin: false,
+                incoming: ArmSetup::blank(board.model),
+                arm: None,
+                controller: Controller::blank(board.model, board.control),
                 staging: Staging::new(),
                 telemetry: None,
                 loops: LoopStats::default(),
             },
-        })
+        }
+    }
+
+    /// Writes [`Firmware::blank`] into `slot` and returns it there: a board's way to put its
+    /// firmware in static memory. The slot is this function's own argument, which nothing else
+    /// can reach while it runs, so the compiler builds the firmware in it rather than on the
+    /// stack first (the state is larger than a board's whole stack budget).
+    #[inline(never)]
+    pub fn blank_in(slot: &mut core::mem::MaybeUninit<Self>, board: Board) -> &mut Self {
+        slot.write(Self::blank(board))
+    }
+
+    /// Starts driving `builtin` (or nothing until the host sends an arm). Fails if the control
+    /// period is shorter than one bus cycle for `N` servos, or the built-in arm is unusable; the
+    /// firmware then stays without an arm.
+    pub fn start(&mut self, builtin: Option<ArmSetup<N>>) -> Result<(), ConfigError> {
+        if let Some(setup) = builtin {
+            self.core.builtin = setup;
+            self.core.has_builtin = true;
+        }
+        self.core.start()
+    }
+
+    /// Starts driving the firmware's own built-in arm ([`crate::builtin`]), built in place: how a
+    /// board starts, with its firmware in static memory and little stack. Fails as
+    /// [`Firmware::start`].
+    #[inline(never)]
+    pub fn start_builtin(&mut self) -> Result<(), ConfigError> {
+        crate::builtin::set_up(&mut self.core.builtin)?;
+        self.core.has_builtin = true;
+        self.core.start()
     }
 
     /// The control period (µs): call [`Firmware::tick`] this often.
@@ -122,12 +189,12 @@ impl<const N: usize, const Q: usize> Firmware<N, Q> {
 
     /// The controller, once there is an arm.
     pub fn controller(&self) -> Option<&Controller<N, Q>> {
-        self.core.running.as_ref().map(|r| &r.controller)
+        self.core.running()
     }
 
     /// The name of the arm in use (empty before there is one).
     pub fn arm_name(&self) -> &str {
-        self.core.running.as_ref().map_or("", |r| r.name.as_str())
+        self.core.arm.as_ref().map_or("", |a| a.name.as_str())
     }
 
     /// The link session's counters.
@@ -144,16 +211,16 @@ impl<const N: usize, const Q: usize> Firmware<N, Q> {
     /// ends the process hosting the core): as the host's `Stop`, the arm decelerates within its
     /// limits, drops its queue and holds. Does nothing before there is an arm.
     pub fn stop(&mut self, now_us: u64) {
-        if let Some(r) = self.core.running.as_mut() {
-            let _ = r.controller.command(crate::controller::Command::Stop, now_us);
+        if let Some(c) = self.core.running_mut() {
+            let _ = c.command(crate::controller::Command::Stop, now_us);
         }
     }
 
     /// Torque off from the board itself (a second signal to the process hosting the core): the
     /// arm goes limp on the next tick.
     pub fn torque_off(&mut self, now_us: u64) {
-        if let Some(r) = self.core.running.as_mut() {
-            let _ = r.controller.command(crate::controller::Command::TorqueOff, now_us);
+        if let Some(c) = self.core.running_mut() {
+            let _ = c.command(crate::controller::Command::TorqueOff, now_us);
         }
     }
 
@@ -172,8 +239,8 @@ impl<const N: usize, const Q: usize> Firmware<N, Q> {
                     let core = &mut self.core;
                     // Any whole frame proves the host alive, a repeat included: on a noisy line
                     // the host may retransmit for a while before a reply gets through.
-                    if let Some(r) = core.running.as_mut() {
-                        let _ = r.controller.command(crate::controller::Command::HostAlive, now_us);
+                    if let Some(c) = core.running_mut() {
+                        let _ = c.command(crate::controller::Command::HostAlive, now_us);
                     }
                     self.session.handle(&frame, &mut out, |message| core.apply(message, now_us, link))
                 }
@@ -205,8 +272,8 @@ impl<const N: usize, const Q: usize> Firmware<N, Q> {
         C: Clock,
         W: Write,
     {
-        let Some(running) = self.core.running.as_mut() else { return Ok(None) };
-        let report = running.controller.tick(master, now_us);
+        let Some(controller) = self.core.running_mut() else { return Ok(None) };
+        let report = controller.tick(master, now_us);
         self.core.loops.record(report.loop_us);
         if let Some((period, next)) = self.core.telemetry {
             if now_us >= next {

@@ -71,7 +71,7 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
             naks: link.naks,
             ..ErrorCounters::default()
         };
-        let Some(running) = &self.running else {
+        let Some(c) = self.running() else {
             return Status {
                 time,
                 state: RunState::TorqueOff,
@@ -86,7 +86,6 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
                 gripper: None,
             };
         };
-        let c = &running.controller;
         let counters = c.counters();
         errors.bus_timeouts = counters.missing_replies;
         errors.bus_errors = counters.bus_errors;

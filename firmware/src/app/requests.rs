@@ -5,7 +5,7 @@ use kinematics::nalgebra::SVector;
 use kinematics::trajectory::PlayerKeyframe;
 
 use super::report::{free_slots, LinkCounts};
-use super::{Core, Running};
+use super::Core;
 use crate::bus::master::BusConfig;
 use crate::controller::{minimum_period_us, Command, Pace, Refusal};
 use crate::link::message::{
@@ -78,7 +78,7 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
     }
 
     fn ack(&self) -> FirmwareMessage {
-        let free = self.running.as_ref().map_or(0, |r| r.controller.free_slots());
+        let free = self.running().map_or(0, |c| c.free_slots());
         FirmwareMessage::Ack { free_slots: free_slots(free) }
     }
 
@@ -88,23 +88,25 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
             protocol_version: PROTOCOL_VERSION,
             firmware_version: FIRMWARE_VERSION,
             // The arm's own joints: the host sends and reads that many values.
-            joints: self.running.as_ref().map_or(N, |r| r.controller.joints()) as u8,
-            arm_name: self.running.as_ref().map(|r| r.name.clone()).unwrap_or_default(),
+            joints: self.running().map_or(N, |c| c.joints()) as u8,
+            arm_name: self.arm.as_ref().map(|a| a.name.clone()).unwrap_or_default(),
             queue_capacity: free_slots(Q),
             control_rate_hz: u16::try_from(control_rate_hz).unwrap_or(u16::MAX),
-            arm_digest: self.running.as_ref().map_or(0, |r| r.digest),
+            arm_digest: self.arm.as_ref().map_or(0, |a| a.digest),
         })
     }
 
-    /// Swaps the arm, which needs the torque off: a new arm starts limp and reads its servos. Its
-    /// bus becomes the firmware's ([`super::Firmware::bus`]; the board's loop switches the port).
-    /// Refused, changing nothing, when the control period is shorter than one bus cycle of the
-    /// arm's servos at its baud rate.
+    /// Swaps the arm for the built-in one (`builtin`) or the one just committed, which needs
+    /// the torque off: a new arm starts limp and reads its servos. Its bus becomes the
+    /// firmware's ([`super::Firmware::bus`]; the board's loop switches the port). Refused,
+    /// changing nothing, when the control period is shorter than one bus cycle of the arm's
+    /// servos at its baud rate. The arm is configured from its slot in place, never copied.
     #[inline(never)]
-    fn switch_arm(&mut self, setup: &super::ArmSetup<N>) -> Result<(), NakReason> {
-        if self.running.as_ref().is_some_and(|r| r.controller.torque()) {
+    fn switch_arm(&mut self, builtin: bool) -> Result<(), NakReason> {
+        if self.running().is_some_and(|c| c.torque()) {
             return Err(NakReason::NotReady);
         }
+        let setup = if builtin { &self.builtin } else { &self.incoming };
         let current = self.board.bus;
         let protocol = setup.model.protocol;
         let baud = setup.baud.unwrap_or(current.baud);
@@ -121,33 +123,31 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
             return Err(bad(Field::Bus, Problem::OutOfRange));
         }
         let board = super::Board { bus, model: setup.model, ..self.board };
-        let controller = setup.controller(&board).map_err(|_| bad(Field::Limits, Problem::OutOfRange))?;
-        self.running = Some(Running { name: setup.name.clone(), digest: setup.digest, controller });
+        setup.configure(&mut self.controller, &board).map_err(|_| bad(Field::Limits, Problem::OutOfRange))?;
+        self.arm = Some(super::ArmId { name: setup.name.clone(), digest: setup.digest });
         self.board.bus = bus;
         Ok(())
     }
 
-    /// The staged arm becomes the running one. Never inlined, like the two below: an arm's
-    /// set-up and controller are large values, and inlined their room would be reserved in the
-    /// frame of every request.
+    /// The staged arm becomes the running one. Never inlined, like the one below: inlined, their
+    /// frames would be reserved in the frame of every request.
     #[inline(never)]
     fn commit_arm(&mut self) -> Result<FirmwareMessage, NakReason> {
-        if self.running.as_ref().is_some_and(|r| r.controller.torque()) {
+        if self.running().is_some_and(|c| c.torque()) {
             return Err(NakReason::NotReady);
         }
-        let setup = self.staging.commit(&self.board)?;
-        self.switch_arm(&setup)?;
+        self.staging.commit(&self.board, &mut self.incoming)?;
+        self.switch_arm(false)?;
         Ok(self.ack())
     }
 
     /// The built-in arm becomes the running one again.
     #[inline(never)]
     fn use_builtin_arm(&mut self) -> Result<FirmwareMessage, NakReason> {
-        // Taken out and put back rather than cloned: one arm set-up on the stack, not two.
-        let builtin = self.builtin.take().ok_or(NakReason::NotReady)?;
-        let switched = self.switch_arm(&builtin);
-        self.builtin = Some(builtin);
-        switched?;
+        if !self.has_builtin {
+            return Err(NakReason::NotReady);
+        }
+        self.switch_arm(true)?;
         Ok(self.ack())
     }
 
@@ -161,15 +161,15 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
         match message {
             HostMessage::Hello { .. } => return Ok(self.info()),
             HostMessage::Ping => {
-                if let Some(r) = self.running.as_mut() {
-                    let _ = r.controller.command(Command::HostAlive, now_us);
+                if let Some(c) = self.running_mut() {
+                    let _ = c.command(Command::HostAlive, now_us);
                 }
                 return Ok(self.ack());
             }
             HostMessage::GetStatus => {
-                if let Some(r) = self.running.as_mut() {
+                if let Some(c) = self.running_mut() {
                     // Polling status proves the host alive: the watchdog leaves the arm alone.
-                    let _ = r.controller.command(Command::HostAlive, now_us);
+                    let _ = c.command(Command::HostAlive, now_us);
                 }
                 return Ok(FirmwareMessage::Status(self.status(now_us, link)));
             }
@@ -207,8 +207,7 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
             HostMessage::UseBuiltinArm => return self.use_builtin_arm(),
             _ => {}
         }
-        let running = self.running.as_mut().ok_or(NakReason::NotReady)?;
-        let controller = &mut running.controller;
+        let controller = self.running_mut().ok_or(NakReason::NotReady)?;
         let joints = controller.joints();
         let command = match message {
             HostMessage::Torque { on: true } => Command::TorqueOn,

@@ -96,6 +96,11 @@ impl IkSummary {
     }
 }
 
+impl PlayClock {
+    /// At time 0, not running.
+    const STOPPED: Self = Self { time: 0.0, rate: 0.0, paused: false, queued_fresh: false };
+}
+
 /// A Cartesian goal and the point moving toward it at the requested speed, which IK follows.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct ToolGoal {
@@ -161,18 +166,71 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         limits: JointLimits<f32, N>,
         config: Config,
     ) -> Result<Self, ConfigError> {
+        let mut controller = Self::blank(model, config);
+        controller.configure(&chain, &mappings, model, &limits, None, config)?;
+        Ok(controller)
+    }
+
+    /// A controller without an arm: a motionless chain, no servo on the bus, idle. Built without
+    /// a check that could fail, so that a firmware can build it once, in place, in static memory,
+    /// and [`Controller::configure`] it there for each arm it is given.
+    pub fn blank(model: &'static Model, config: Config) -> Self {
+        let mappings = [JointMapping::centred(0, model.ticks_per_revolution); N];
+        let zero = SVector::zeros();
+        Self {
+            chain: Chain::motionless(),
+            mappings,
+            group: ServoGroup { servos: 0, ..ServoGroup::new(model, [0; N]) },
+            player: Player::still(),
+            tracker: Tracker::new(zero, config.ik_iterations_per_tick),
+            limits: JointLimits::still(),
+            config,
+            mode: Mode::Idle,
+            torque: false,
+            torque_known: false,
+            pending_torque: None,
+            torque_unconfirmed: 0,
+            setpoint: Setpoint { position: zero, velocity: zero },
+            hold: zero,
+            measured: zero,
+            present_ticks: [0; N],
+            goal_ticks: [0; N],
+            seen: 0,
+            play: PlayClock::STOPPED,
+            tool: None,
+            brake: zero,
+            last_host_us: 0,
+            last_tick_us: None,
+            counters: Counters::default(),
+            health: [ServoHealth::default(); N],
+            last_ik: None,
+            queue_tail: zero,
+            gripper: None,
+        }
+    }
+
+    /// Makes this the controller of another arm, in place: what [`Controller::new`] (and
+    /// [`Controller::with_gripper`]) would build, without a second controller on the stack.
+    /// Everything is checked first; a refused arm changes nothing. The new arm starts idle, its
+    /// torque off until [`Command::TorqueOn`], its counters at zero.
+    pub fn configure(
+        &mut self,
+        chain: &Chain<f32, N>,
+        mappings: &[JointMapping; N],
+        model: &'static Model,
+        limits: &JointLimits<f32, N>,
+        gripper: Option<GripperConfig>,
+        config: Config,
+    ) -> Result<(), ConfigError> {
         if N > MAX_GROUP {
             return Err(ConfigError::TooManyJoints);
         }
         if config.period_us == 0 {
             return Err(ConfigError::PeriodTooShort { minimum_us: 1 });
         }
-        let start = chain.middle();
-        let start = start.zip_zip_map(&limits.lower, &limits.upper, limiter::within);
-        let player = Player::new(start, limits).map_err(|e| match e {
-            kinematics::trajectory::LimitError::InvalidLimits { joint } => ConfigError::BadLimits { joint },
-            _ => ConfigError::BadLimits { joint: 0 },
-        })?;
+        if let Err(kinematics::trajectory::LimitError::InvalidLimits { joint }) = limits.validate() {
+            return Err(ConfigError::BadLimits { joint });
+        }
         // The arm's joints come first; fixed joints after them pad a build for more joints than
         // the arm has, and have no servo. A fixed joint before a moving one would leave that one
         // without a servo in the group.
@@ -180,47 +238,50 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         if let Some(joint) = chain.joints().iter().skip(servos).position(|j| j.kind != kinematics::JointKind::Fixed) {
             return Err(ConfigError::BadLimits { joint: servos + joint });
         }
-        let group = ServoGroup { servos, ..ServoGroup::new(model, mappings.map(|m| m.id)) };
-        Ok(Self {
-            tracker: Tracker::new(start, config.ik_iterations_per_tick),
-            chain,
-            mappings,
-            group,
-            player,
-            limits,
-            config,
-            mode: Mode::Idle,
-            torque: false,
-            torque_known: false,
-            pending_torque: None,
-            torque_unconfirmed: 0,
-            setpoint: Setpoint { position: start, velocity: SVector::zeros() },
-            hold: start,
-            measured: start,
-            // Each servo's zero until it is read; a padding joint's for good (its angle stays zero).
-            present_ticks: mappings.map(|m| m.zero),
-            goal_ticks: [0; N],
-            seen: 0,
-            play: PlayClock { time: 0.0, rate: 0.0, paused: false, queued_fresh: false },
-            tool: None,
-            brake: SVector::zeros(),
-            last_host_us: 0,
-            last_tick_us: None,
-            counters: Counters::default(),
-            health: [ServoHealth::default(); N],
-            last_ik: None,
-            queue_tail: start,
-            gripper: None,
-        })
+        if let Some(g) = &gripper {
+            let joints = mappings.iter().take(servos);
+            if !g.valid() || joints.clone().any(|m| m.id == g.id) || N + 1 > MAX_GROUP {
+                return Err(ConfigError::BadGripper);
+            }
+        }
+        let start = chain.middle().zip_zip_map(&limits.lower, &limits.upper, limiter::within);
+        // The last check (a start that is not finite): nothing has changed before it.
+        self.player.reset(start, limits).map_err(|_| ConfigError::BadLimits { joint: 0 })?;
+        self.chain = *chain;
+        self.mappings = *mappings;
+        self.group = ServoGroup { servos, ..ServoGroup::new(model, mappings.map(|m| m.id)) };
+        self.tracker = Tracker::new(start, config.ik_iterations_per_tick);
+        self.limits = *limits;
+        self.config = config;
+        self.mode = Mode::Idle;
+        self.torque = false;
+        self.torque_known = false;
+        self.pending_torque = None;
+        self.torque_unconfirmed = 0;
+        self.setpoint = Setpoint { position: start, velocity: SVector::zeros() };
+        self.hold = start;
+        self.measured = start;
+        // Each servo's zero until it is read; a padding joint's for good (its angle stays zero).
+        self.present_ticks = mappings.map(|m| m.zero);
+        self.goal_ticks = [0; N];
+        self.seen = 0;
+        self.play = PlayClock::STOPPED;
+        self.tool = None;
+        self.brake = SVector::zeros();
+        self.last_host_us = 0;
+        self.last_tick_us = None;
+        self.counters = Counters::default();
+        self.health = [ServoHealth::default(); N];
+        self.last_ik = None;
+        self.queue_tail = start;
+        self.gripper = gripper.map(gripper::Gripper::new);
+        Ok(())
     }
 
     /// The same controller with a gripper (a servo of the joints' model, not one of theirs).
     pub fn with_gripper(mut self, config: GripperConfig) -> Result<Self, ConfigError> {
-        let joints = self.mappings.iter().take(self.group.servos);
-        if !config.valid() || joints.clone().any(|m| m.id == config.id) || N + 1 > MAX_GROUP {
-            return Err(ConfigError::BadGripper);
-        }
-        self.gripper = Some(gripper::Gripper::new(config));
+        let (chain, mappings, limits) = (self.chain, self.mappings, self.limits);
+        self.configure(&chain, &mappings, self.group.model, &limits, Some(config), self.config)?;
         Ok(self)
     }
 
@@ -340,10 +401,10 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
 
     /// A fresh player at rest at the setpoint, with an empty queue.
     fn reset_player(&mut self) {
-        if let Ok(player) = Player::new(self.setpoint.position, self.limits) {
-            self.player = player;
-        }
-        self.play = PlayClock { time: 0.0, rate: 0.0, paused: false, queued_fresh: false };
+        // In place: a second player on the stack would cost its whole queue. The limits were
+        // checked when the arm was configured, and the setpoint is always finite.
+        let _ = self.player.reset(self.setpoint.position, &self.limits);
+        self.play = PlayClock::STOPPED;
         self.queue_tail = self.setpoint.position;
         if let Some(g) = self.gripper.as_mut() {
             g.clear_track();

@@ -194,14 +194,11 @@ impl Program {
         sites
     }
 
-    /// The deepest chain of frames from `root` over direct calls, recursion cut, not entering
-    /// functions whose name contains one of `excluded` (to bound the paths that remain).
-    pub fn stack_bound(&self, root: &Function, excluded: &[&str]) -> StackBound {
+    /// The deepest chain of frames from `root` over direct calls, recursion cut.
+    pub fn stack_bound(&self, root: &Function) -> StackBound {
         let root = self.index[&root.symbol];
         let mut memo: HashMap<usize, (u64, Option<usize>)> = HashMap::new();
-        let mut on_path: Vec<bool> =
-            self.functions.iter().map(|f| excluded.iter().any(|e| f.symbol.contains(e))).collect();
-        on_path[root] = false;
+        let mut on_path = vec![false; self.functions.len()];
         self.deepest(root, &mut memo, &mut on_path);
         let (bytes, _) = memo[&root];
         let mut path = Vec::new();
@@ -213,8 +210,7 @@ impl Program {
             indirect_calls += f.indirect_calls;
             next = memo.get(&i).and_then(|(_, callee)| *callee);
         }
-        let excluded = excluded.iter().map(|e| e.to_string()).collect();
-        StackBound { root: pretty(&self.functions[root].symbol), bytes, path, indirect_calls, excluded }
+        StackBound { root: pretty(&self.functions[root].symbol), bytes, path, indirect_calls }
     }
 
     /// The depth below `i` and the callee that gives it. A function already on the path is a
@@ -273,8 +269,6 @@ pub struct StackBound {
     pub path: Vec<Frame>,
     /// Calls through pointers in the chain's functions, which could go deeper.
     pub indirect_calls: usize,
-    /// The functions (name parts) left out of the walk.
-    pub excluded: Vec<String>,
 }
 
 /// Whether `name` (demangled, no hash) is one of core's panic entry points: everything in
@@ -516,7 +510,7 @@ mod tests {
     #[test]
     fn the_stack_bound_follows_the_deepest_chain_and_cuts_recursion() {
         let program = Program::parse(LISTING);
-        let bound = program.stack_bound(program.find("board_mps2_an386::__cortex_m_rt_main").unwrap(), &[]);
+        let bound = program.stack_bound(program.find("board_mps2_an386::__cortex_m_rt_main").unwrap());
         let chain: Vec<(&str, u64)> = bound.path.iter().map(|f| (f.function.as_str(), f.bytes)).collect();
         assert_eq!(
             chain,

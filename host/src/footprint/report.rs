@@ -12,9 +12,6 @@ use super::elf::Sizes;
 use super::measure::{self, MeasuredStack};
 use super::{Board, FootprintArgs, FLASH_GOAL, STACK_GOAL, STATIC_RAM_GOAL};
 
-/// The firmware core's functions that take a new arm (building its set-up and a whole controller).
-const ARM_SWITCH: &[&str] = &["::commit_arm", "::use_builtin_arm", "::switch_arm"];
-
 impl Board {
     const ALL: [Board; 2] = [Board::Mps2An386, Board::Stm32f411];
 
@@ -171,15 +168,7 @@ fn report(
     let mut static_stack = Vec::new();
     for root in &roots {
         let f = program.find(root).with_context(|| format!("{} has no function {root}", elf.display()))?;
-        static_stack.push(program.stack_bound(f, &[]));
-    }
-    // The control loop again without taking a new arm, the one request that rebuilds the
-    // controller: the bound of driving the arm.
-    if let Some(f) = roots.last().and_then(|r| program.find(r)) {
-        let bound = program.stack_bound(f, ARM_SWITCH);
-        if bound.bytes != static_stack.last().map_or(0, |b| b.bytes) {
-            static_stack.push(bound);
-        }
+        static_stack.push(program.stack_bound(f));
     }
 
     let (measured_stack, measured_stack_skipped) = if board != Some(Board::Mps2An386) {
@@ -251,14 +240,9 @@ fn print_report(out: &mut dyn Write, r: &BoardReport) -> Result<()> {
          bound of the static worst case (the measured figure is the check)"
     )?;
     for bound in &r.static_stack {
-        let leaving_out = if bound.excluded.is_empty() {
-            String::new()
-        } else {
-            format!(" leaving out {}", bound.excluded.join(", "))
-        };
         writeln!(
             out,
-            "    from {}{leaving_out}: {} bytes ({}), {} indirect call sites on the chain not followed",
+            "    from {}: {} bytes ({}), {} indirect call sites on the chain not followed",
             bound.root,
             bound.bytes,
             kib(bound.bytes),

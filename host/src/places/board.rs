@@ -40,6 +40,9 @@ pub fn boards_dir() -> PathBuf {
 /// installed first where they are missing.
 pub fn build(dir: &Path, bin: &str) -> Result<PathBuf> {
     ensure_toolchain(dir)?;
+    if links_with_flip_link(dir) {
+        ensure_flip_link()?;
+    }
     let status = Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()))
         .args(["build", "--release", "--quiet", "--bin", bin])
         .current_dir(dir)
@@ -55,6 +58,46 @@ pub fn build(dir: &Path, bin: &str) -> Result<PathBuf> {
         bail!("building the {bin} binary in {} failed", dir.display());
     }
     Ok(target_dir().join(TARGET).join("release").join(bin))
+}
+
+/// The linker wrapper a board may link with (`linker = "flip-link"` in its
+/// `.cargo/config.toml`): it puts the stack below the statics, at the bottom of RAM, so that an
+/// overflowing stack faults at the edge of RAM instead of overwriting the firmware's state.
+pub const FLIP_LINK: &str = "flip-link";
+
+/// Whether the board crate at `dir` links with [`FLIP_LINK`].
+pub fn links_with_flip_link(dir: &Path) -> bool {
+    std::fs::read_to_string(dir.join(".cargo/config.toml"))
+        .is_ok_and(|config| config.lines().any(|l| l.trim() == format!("linker = \"{FLIP_LINK}\"")))
+}
+
+/// Makes sure [`FLIP_LINK`] is on the PATH, installing it with `cargo install` (a small crate,
+/// seconds to build) when it is not. Checked once per process, as the toolchain is.
+pub fn ensure_flip_link() -> Result<()> {
+    static CHECKED: Mutex<Option<Result<(), String>>> = Mutex::new(None);
+    let mut checked = CHECKED.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+    let outcome = checked.get_or_insert_with(|| {
+        // Run without arguments it reports its own usage; only a missing program fails to start.
+        if Command::new(FLIP_LINK).output().is_ok() {
+            return Ok(());
+        }
+        eprintln!("note: the board build links with {FLIP_LINK}: installing it with cargo install (once)");
+        let output = Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()))
+            .args(["install", FLIP_LINK, "--locked", "--quiet"])
+            .output()
+            .map_err(|e| format!("cannot run cargo install {FLIP_LINK}: {e}"))?;
+        if !output.status.success() {
+            let stderr = String::from_utf8_lossy(&output.stderr);
+            return Err(format!("cargo install {FLIP_LINK} failed: {}", stderr.trim().replace('\n', "; ")));
+        }
+        match Command::new(FLIP_LINK).output() {
+            Ok(_) => Ok(()),
+            Err(_) => Err(format!(
+                "cargo install put {FLIP_LINK} where the PATH does not reach: add cargo's bin folder (~/.cargo/bin) to the PATH"
+            )),
+        }
+    });
+    outcome.clone().map_err(|e| anyhow!("{e}"))
 }
 
 /// The target folder all board builds share: `firmware/boards/target`.
@@ -225,6 +268,13 @@ mod tests {
         // Nothing missing: nothing to run, so no rustup needed.
         install(&[], "armctl-test-no-such-rustup", &dir, Path::new("/opt/rust")).unwrap();
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn the_stm32_board_links_with_flip_link_and_the_mps2_board_does_not() {
+        assert!(links_with_flip_link(&boards_dir().join("stm32f411")));
+        // QEMU's board paints and measures its stack instead; flip-link would move it.
+        assert!(!links_with_flip_link(&boards_dir().join("mps2-an386")));
     }
 
     #[test]

@@ -274,6 +274,13 @@ impl<T: Real, const J: usize> JointLimits<T, J> {
         Ok(limits)
     }
 
+    /// Limits that hold every joint at zero (the position range is that one point; speed and
+    /// acceleration 1): valid without a check, for a player or controller before it has an arm.
+    pub fn still() -> Self {
+        let (zero, one) = (SVector::zeros(), SVector::repeat(T::one()));
+        Self { lower: zero, upper: zero, max_velocity: one, max_acceleration: one }
+    }
+
     /// Every joint's limits are finite, `lower <= upper`, and the velocity and acceleration
     /// limits are positive.
     pub fn validate(&self) -> Result<(), LimitError<T>> {

@@ -166,19 +166,42 @@ pub struct Player<T: Real, const J: usize, const Q: usize> {
 impl<T: Real, const J: usize, const Q: usize> Player<T, J, Q> {
     /// A player at rest at `position`.
     pub fn new(position: SVector<T, J>, limits: JointLimits<T, J>) -> Result<Self, LimitError<T>> {
-        limits.validate()?;
-        if !position.iter().all(|x| x.finite()) {
-            return Err(LimitError::Trajectory(super::TrajectoryError::NonFinite { index: 0 }));
-        }
-        Ok(Self {
-            limits,
+        let mut player = Self::still();
+        player.reset(position, &limits)?;
+        Ok(player)
+    }
+
+    /// A player at rest at zero that cannot move ([`JointLimits::still`]), built without a check
+    /// that could fail: the placeholder of a controller before it has an arm.
+    pub fn still() -> Self {
+        Self {
+            limits: JointLimits::still(),
             queue: Deque::new(),
-            motion: Motion::Rest { position, held: false },
+            motion: Motion::Rest { position: SVector::zeros(), held: false },
             request: Request::None,
             tail: None,
             reached: None,
             underruns: 0,
-        })
+        }
+    }
+
+    /// The player at rest at `position` under `limits`, its queue empty and its counts zero, as
+    /// [`Player::new`] makes it, but in place: a firmware keeps its player in static memory and
+    /// has no stack for a second one. Refused, changing nothing, if the limits are invalid or the
+    /// position is not finite.
+    pub fn reset(&mut self, position: SVector<T, J>, limits: &JointLimits<T, J>) -> Result<(), LimitError<T>> {
+        limits.validate()?;
+        if !position.iter().all(|x| x.finite()) {
+            return Err(LimitError::Trajectory(super::TrajectoryError::NonFinite { index: 0 }));
+        }
+        self.limits = *limits;
+        self.queue.clear();
+        self.motion = Motion::Rest { position, held: false };
+        self.request = Request::None;
+        self.tail = None;
+        self.reached = None;
+        self.underruns = 0;
+        Ok(())
     }
 
     /// The limits braking and chosen velocities respect.
@@ -436,6 +459,28 @@ mod tests {
         assert_eq!(p.replace(&[key(1.0, 0.0, 0.0); 5]), Err(PushError::QueueFull));
         assert_eq!(p.replace(&[key(1.0, 0.0, 0.0), key(1.0, 0.0, 0.0)]), Err(PushError::TimeNotIncreasing));
         assert_eq!(p.queued(), 4);
+    }
+
+    /// A player reset in place is the one `new` makes (compared field by field through Debug,
+    /// which shows the queue's keyframes), and a refused reset changes nothing.
+    #[test]
+    fn reset_in_place_is_new_and_a_refused_reset_changes_nothing() {
+        let mut p = player();
+        p.push(key(0.5, 1.0, 1.0)).unwrap();
+        p.push(key(1.0, 2.0, -1.0)).unwrap();
+        p.tick(0.2);
+        let before = format!("{p:?}");
+        let nan = JointLimits { max_velocity: Vector2::new(f64::NAN, 1.0), ..*p.limits() };
+        assert!(p.reset(Vector2::zeros(), &nan).is_err());
+        let limits = *p.limits();
+        assert!(p.reset(Vector2::new(f64::INFINITY, 0.0), &limits).is_err());
+        assert_eq!(format!("{p:?}"), before);
+        let limits =
+            JointLimits::new(Vector2::repeat(-1.0), Vector2::repeat(1.0), Vector2::repeat(3.0), Vector2::repeat(4.0));
+        let limits = limits.unwrap();
+        p.reset(Vector2::new(0.25, -0.5), &limits).unwrap();
+        let fresh: Player<f64, 2, 4> = Player::new(Vector2::new(0.25, -0.5), limits).unwrap();
+        assert_eq!(format!("{p:?}"), format!("{fresh:?}"));
     }
 
     #[test]

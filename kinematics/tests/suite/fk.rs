@@ -518,3 +518,34 @@ fn a_fixed_joint_pads_a_chain_without_changing_it() {
     assert_eq!(six.joints()[5].normalise(0.7), 0.0);
     assert_eq!(six.joints()[5].kind, JointKind::Fixed);
 }
+
+/// A chain set in place is the one `new` builds (the motionless chain it starts from included),
+/// and a refused one leaves the chain as it was; the motionless chain's tool sits at the base
+/// whatever the joint values, with a zero Jacobian.
+#[test]
+fn a_chain_set_in_place_is_new_and_a_refused_one_changes_nothing() {
+    let motionless = Chain::<f64, 3>::motionless();
+    let q = SVector::<f64, 3>::from([0.4, -1.0, 2.0]);
+    assert_eq!(motionless.tool_pose(&q), Pose::identity());
+    assert_eq!(motionless.jacobian(&q).norm(), 0.0);
+    assert_eq!(motionless.moving_joints(), 0);
+
+    let mut chain = Chain::new(good_joints(), Pose::identity()).unwrap();
+    let before = chain;
+    let mut bad = good_joints();
+    bad[2].axis = Vector3::zeros();
+    assert_eq!(chain.set(|i| bad[i], Pose::identity()), Err(ChainError::ZeroAxis { joint: 2 }));
+    let nan_tool = Pose::from_translation(Vector3::new(f64::NAN, 0.0, 0.0));
+    assert_eq!(chain.set(|i| good_joints()[i], nan_tool), Err(ChainError::BadFrame { joint: None }));
+    assert_eq!(chain, before);
+
+    let mut other = good_joints();
+    other[0].axis = Vector3::new(0.0, 2.0, 0.0);
+    let tool = Pose::from_xyz_rpy([0.0, 0.0, 0.1], [0.0, 0.3, 0.0]);
+    let mut from_motionless = Chain::<f64, 3>::motionless();
+    from_motionless.set(|i| other[i], tool).unwrap();
+    chain.set(|i| other[i], tool).unwrap();
+    let fresh = Chain::new(other, tool).unwrap();
+    assert_eq!(chain, fresh);
+    assert_eq!(from_motionless, fresh);
+}

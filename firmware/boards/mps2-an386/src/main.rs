@@ -18,7 +18,7 @@ use firmware::app::{Board, Firmware};
 use firmware::board::MainLoop;
 use firmware::bus::master::{BusConfig, Master, NoDirectionPin};
 use firmware::bus::table::STS3215;
-use firmware::controller::{Config, ConfigError};
+use firmware::controller::Config;
 
 /// Host link and servo bus baud rate.
 const BAUD: u32 = 1_000_000;
@@ -35,7 +35,7 @@ type BusMaster = Master<Uart, NoDirectionPin, SysTickClock>;
 /// The firmware state, in static RAM so that the stack holds only call frames. The constructor's
 /// result is written straight into it: built on the stack and moved, a 6 KB state would need its
 /// size in stack again at start-up.
-static mut APP: MaybeUninit<Result<App, ConfigError>> = MaybeUninit::uninit();
+static mut APP: MaybeUninit<App> = MaybeUninit::uninit();
 static mut MASTER: MaybeUninit<BusMaster> = MaybeUninit::uninit();
 static STARTED: AtomicBool = AtomicBool::new(false);
 
@@ -68,10 +68,10 @@ fn start() -> Option<(&'static mut App, &'static mut BusMaster, Uart)> {
     let bus = BusConfig::new(STS3215.protocol, BAUD);
     let board =
         Board { bus, model: &STS3215, control: Config::default(), max_bus_baud: Uart::max_baud(clock::SYSCLK_HZ) };
-    let setup = firmware::builtin::setup().ok()?;
     // SAFETY: STARTED guarantees this runs once, so these are the only references to the statics.
     let (app_slot, master_slot) = unsafe { (&mut *addr_of_mut!(APP), &mut *addr_of_mut!(MASTER)) };
-    let app = app_slot.write(App::new(board, Some(setup))).as_mut().ok()?;
+    let app = App::blank_in(app_slot, board);
+    app.start_builtin().ok()?;
     let port = Uart::new(uart::UART1, clock::SYSCLK_HZ, BAUD);
     let master = master_slot.write(BusMaster::new(port, NoDirectionPin, SysTickClock, bus));
     defmt::info!(

@@ -29,7 +29,7 @@ use firmware::app::{Board, Firmware};
 use firmware::board::MainLoop;
 use firmware::bus::master::{BusConfig, Master};
 use firmware::bus::table::STS3215;
-use firmware::controller::{Config, ConfigError};
+use firmware::controller::Config;
 use stm32f4xx_hal::gpio::{Output, PinState, PA1};
 use stm32f4xx_hal::pac;
 use stm32f4xx_hal::prelude::*;
@@ -59,7 +59,7 @@ type BusMaster = Master<HalfDuplex, DirectionPin, Tim2Clock>;
 /// The firmware state, in static RAM so that the stack holds only call frames. The constructor's
 /// result is written straight into it (as on the MPS2 board): built on the stack and moved, it
 /// would need its size in stack again at start-up.
-static mut APP: MaybeUninit<Result<App, ConfigError>> = MaybeUninit::uninit();
+static mut APP: MaybeUninit<App> = MaybeUninit::uninit();
 static mut MASTER: MaybeUninit<BusMaster> = MaybeUninit::uninit();
 static STARTED: AtomicBool = AtomicBool::new(false);
 
@@ -126,10 +126,12 @@ fn start() -> Option<(&'static mut App, &'static mut BusMaster, Link, Independen
     );
 
     let board = Board { bus, model: &STS3215, control: Config::default(), max_bus_baud: bus_port.max_baud() };
-    let Ok(setup) = firmware::builtin::setup() else { return refused("built-in arm") };
     // SAFETY: STARTED guarantees this runs once, so these are the only references to the statics.
     let (app_slot, master_slot) = unsafe { (&mut *addr_of_mut!(APP), &mut *addr_of_mut!(MASTER)) };
-    let Ok(app) = app_slot.write(App::new(board, Some(setup))).as_mut() else { return refused("firmware state") };
+    let app = App::blank_in(app_slot, board);
+    if app.start_builtin().is_err() {
+        return refused("built-in arm");
+    }
     let master = master_slot.write(BusMaster::new(bus_port, direction, clock, bus));
     if watchdog_reset {
         // The loop hung and the watchdog reset the chip: the servos may still hold torque toward
