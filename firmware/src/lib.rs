@@ -15,4 +15,5 @@ pub mod bus;
 pub mod controller;
 mod crc16;
 pub mod link;
+mod place;
 pub mod tracking;

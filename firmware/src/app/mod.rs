@@ -74,6 +74,40 @@ struct Core<const N: usize, const Q: usize> {
 }
 
 impl<const N: usize, const Q: usize> Core<N, Q> {
+    /// The core of [`Firmware::blank`]; only ever built in place, or for the compiler's
+    /// completeness check in [`Firmware::blank_in`].
+    fn blank(board: Board) -> Self {
+        let mut slot = core::mem::MaybeUninit::uninit();
+        // SAFETY: the pointer is the local slot's; `blank_at` initialises it whole.
+        #[allow(unsafe_code)]
+        unsafe {
+            Self::blank_at(slot.as_mut_ptr(), board);
+            slot.assume_init()
+        }
+    }
+
+    /// [`Core::blank`] written field by field at `at`.
+    ///
+    /// # Safety
+    /// `at` must be valid for writes and aligned. Every field is written (see
+    /// [`crate::place::place_fields`]); nothing is read or dropped.
+    #[allow(unsafe_code)]
+    unsafe fn blank_at(at: *mut Self, board: Board) {
+        crate::place::place_fields!(at: Self {
+            board: board,
+            builtin: ArmSetup::blank(board.model),
+            has_builtin: false,
+            incoming: ArmSetup::blank(board.model),
+            arm: None,
+            staging: Staging::new(),
+            telemetry: None,
+            loops: LoopStats::default(),
+        } in place {
+            controller: Controller::blank(board.model, board.control)
+                => |controller| Controller::blank_at(controller, board.model, board.control),
+        });
+    }
+
     /// Checks the board and drives the built-in arm, if there is one.
     fn start(&mut self) -> Result<(), ConfigError> {
         if N > crate::link::message::MAX_JOINTS {
@@ -127,33 +161,36 @@ impl<const N: usize, const Q: usize> Firmware<N, Q> {
     }
 
     /// Firmware for `board` without an arm, not yet started: built without a check that could
-    /// fail, so that a board can write it straight into static memory, then
-    /// [`Firmware::start`] it there.
+    /// fail, so that a board can write it straight into static memory ([`Firmware::blank_in`]),
+    /// then [`Firmware::start`] it there.
     pub fn blank(board: Board) -> Self {
-        Self {
-            decoder: FrameDecoder::new(),
-            session: Session::new(),
-            core: Core {
-                board,
-                builtin: ArmSetup::blank(board.model),
-                has_builtin: false,
-                incoming: ArmSetup::blank(board.model),
-                arm: None,
-                controller: Controller::blank(board.model, board.control),
-                staging: Staging::new(),
-                telemetry: None,
-                loops: LoopStats::default(),
-            },
+        let mut slot = core::mem::MaybeUninit::uninit();
+        Self::blank_in(&mut slot, board);
+        // SAFETY: `blank_in` initialised the slot whole.
+        #[allow(unsafe_code)]
+        unsafe {
+            slot.assume_init()
         }
     }
 
-    /// Writes [`Firmware::blank`] into `slot` and returns it there: a board's way to put its
-    /// firmware in static memory. The slot is this function's own argument, which nothing else
-    /// can reach while it runs, so the compiler builds the firmware in it rather than on the
-    /// stack first (the state is larger than a board's whole stack budget).
-    #[inline(never)]
+    /// Writes [`Firmware::blank`] into `slot`, field by field, and returns it there: a board's
+    /// way to put its firmware in static memory without ever holding it whole on the stack,
+    /// which it is larger than (see [`crate::place`]).
+    #[allow(unsafe_code)]
     pub fn blank_in(slot: &mut core::mem::MaybeUninit<Self>, board: Board) -> &mut Self {
-        slot.write(Self::blank(board))
+        let at = slot.as_mut_ptr();
+        // SAFETY: `at` is the slot's, valid for writes and aligned. `place_fields!` writes every
+        // field (its struct literal does not compile if one is missing), the core through
+        // `Core::blank_at`, which does the same; so the slot is whole before `assume_init_mut`.
+        unsafe {
+            crate::place::place_fields!(at: Self {
+                decoder: FrameDecoder::new(),
+                session: Session::new(),
+            } in place {
+                core: Core::blank(board) => |core| Core::blank_at(core, board),
+            });
+            slot.assume_init_mut()
+        }
     }
 
     /// Starts driving `builtin` (or nothing until the host sends an arm). Fails if the control
@@ -289,5 +326,37 @@ impl<const N: usize, const Q: usize> Firmware<N, Q> {
             }
         }
         Ok(Some(report))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bus::table::STS3215;
+
+    fn board() -> Board {
+        let bus = BusConfig::new(STS3215.protocol, 1_000_000);
+        Board { bus, model: &STS3215, control: Config::default(), max_bus_baud: 2_000_000 }
+    }
+
+    /// The firmware written field by field into a slot full of junk is the blank firmware, every
+    /// field of it (Debug shows them all, the controller's and the arm slots' included), and it
+    /// starts its built-in arm as one built whole does.
+    #[test]
+    fn a_firmware_placed_in_a_slot_of_junk_is_the_blank_one() {
+        let mut slot = core::mem::MaybeUninit::<Firmware<6, 32>>::uninit();
+        // SAFETY: writing bytes into the slot's own memory; nothing reads it as a value before
+        // `blank_in` has written every field.
+        #[allow(unsafe_code)]
+        unsafe {
+            slot.as_mut_ptr().cast::<u8>().write_bytes(0xa5, core::mem::size_of::<Firmware<6, 32>>());
+        }
+        let placed = Firmware::blank_in(&mut slot, board());
+        let whole = Firmware::<6, 32>::blank(board());
+        assert_eq!(format!("{placed:?}"), format!("{whole:?}"));
+        placed.start_builtin().unwrap();
+        let started = Firmware::<6, 32>::new(board(), Some(crate::builtin::setup().unwrap())).unwrap();
+        assert_eq!(format!("{placed:?}"), format!("{started:?}"));
+        assert_eq!(placed.arm_name(), crate::builtin::NAME);
     }
 }

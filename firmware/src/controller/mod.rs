@@ -172,19 +172,35 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
     }
 
     /// A controller without an arm: a motionless chain, no servo on the bus, idle. Built without
-    /// a check that could fail, so that a firmware can build it once, in place, in static memory,
-    /// and [`Controller::configure`] it there for each arm it is given.
+    /// a check that could fail, so that a firmware can build it once, in place, in static memory
+    /// ([`Controller::blank_at`]), and [`Controller::configure`] it there for each arm it is given.
     pub fn blank(model: &'static Model, config: Config) -> Self {
-        let mappings = [JointMapping::centred(0, model.ticks_per_revolution); N];
+        let mut slot = core::mem::MaybeUninit::uninit();
+        // SAFETY: the pointer is the local slot's, valid and aligned; `blank_at` initialises it whole.
+        #[allow(unsafe_code)]
+        unsafe {
+            Self::blank_at(slot.as_mut_ptr(), model, config);
+            slot.assume_init()
+        }
+    }
+
+    /// [`Controller::blank`] written field by field at `at`, never whole on the stack (see
+    /// [`crate::place`]).
+    ///
+    /// # Safety
+    /// `at` must be valid for writes and aligned. Every field is written (the macro's struct
+    /// literal makes a missing one a compile error); nothing is read or dropped.
+    #[allow(unsafe_code)]
+    pub(crate) unsafe fn blank_at(at: *mut Self, model: &'static Model, config: Config) {
         let zero = SVector::zeros();
-        Self {
+        crate::place::place_fields!(at: Self {
             chain: Chain::motionless(),
-            mappings,
+            mappings: [JointMapping::centred(0, model.ticks_per_revolution); N],
             group: ServoGroup { servos: 0, ..ServoGroup::new(model, [0; N]) },
             player: Player::still(),
             tracker: Tracker::new(zero, config.ik_iterations_per_tick),
             limits: JointLimits::still(),
-            config,
+            config: config,
             mode: Mode::Idle,
             torque: false,
             torque_known: false,
@@ -206,7 +222,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             last_ik: None,
             queue_tail: zero,
             gripper: None,
-        }
+        });
     }
 
     /// Makes this the controller of another arm, in place: what [`Controller::new`] (and
