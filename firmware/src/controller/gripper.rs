@@ -80,8 +80,11 @@ pub struct Gripper<const Q: usize> {
     slack_reads: u8,
     /// Where the jaw stopped on the object, ticks, while holding.
     holding: Option<i32>,
-    /// Gripper keyframes: (playback time, opening).
+    /// Gripper keyframes not reached yet: (playback time, opening).
     track: Deque<(f32, f32), Q>,
+    /// The keyframe last reached (or the anchor a fresh track starts from): where the segment
+    /// being played starts. Kept out of the queue so that a tick reads only its front.
+    passed: Option<(f32, f32)>,
 }
 
 impl GripperConfig {
@@ -123,6 +126,7 @@ impl<const Q: usize> Gripper<Q> {
             slack_reads: 0,
             holding: None,
             track: Deque::new(),
+            passed: None,
         }
     }
 
@@ -189,7 +193,7 @@ impl<const Q: usize> Gripper<Q> {
             }
         }
         self.goal = opening;
-        self.track.clear();
+        self.clear_track();
         Ok(())
     }
 
@@ -202,7 +206,7 @@ impl<const Q: usize> Gripper<Q> {
     /// (the start of the segment being played) and one slot for the anchor of a fresh trajectory,
     /// so it fills before the joints' queue does when every keyframe carries the gripper.
     pub fn free_slots(&self) -> usize {
-        Q.saturating_sub(self.track.len() + 1)
+        Q.saturating_sub(self.track.len() + usize::from(self.passed.is_some()) + 1)
     }
 
     /// Queues a gripper keyframe at `time`; `anchor` (a playback time) starts the track afresh
@@ -211,24 +215,25 @@ impl<const Q: usize> Gripper<Q> {
     pub fn push(&mut self, time: f32, opening: f32, anchor: Option<f32>) {
         if let Some(at) = anchor {
             self.track.clear();
-            let _ = self.track.push_back((at, self.setpoint));
+            self.passed = Some((at, self.setpoint));
         }
         let _ = self.track.push_back((time, opening));
     }
 
     /// Whether no gripper keyframe is queued.
     pub fn track_empty(&self) -> bool {
-        self.track.is_empty()
+        self.track.is_empty() && self.passed.is_none()
     }
 
     /// A new trajectory without gripper keyframes: the gripper stays as it is.
     pub fn clear_track(&mut self) {
         self.track.clear();
+        self.passed = None;
     }
 
     /// Freezes the gripper where its setpoint is (stop, emergency stop, torque off).
     pub fn stop(&mut self) {
-        self.track.clear();
+        self.clear_track();
         if self.holding.is_none() {
             self.goal = self.setpoint;
         }
@@ -240,18 +245,25 @@ impl<const Q: usize> Gripper<Q> {
         self.goal = here;
         self.setpoint = here;
         self.holding = None;
-        self.track.clear();
+        self.clear_track();
     }
 
     /// The goal at `time` on the playback clock from the keyframes, dropping those passed.
     fn sample(&mut self, time: f32) -> Option<f32> {
-        while self.track.len() >= 2 && self.track.iter().nth(1).is_some_and(|&(t, _)| t <= time) {
+        while let Some(&next) = self.track.front() {
+            if next.0 > time {
+                break;
+            }
+            self.passed = Some(next);
             let _ = self.track.pop_front();
         }
-        let &(t0, g0) = self.track.front()?;
-        match self.track.iter().nth(1) {
-            Some(&(t1, g1)) if time > t0 => Some(g0 + (g1 - g0) * ((time - t0) / (t1 - t0)).clamp(0.0, 1.0)),
-            _ => Some(g0),
+        let next = self.track.front();
+        match (self.passed, next) {
+            (Some((t0, g0)), Some(&(t1, g1))) if time > t0 => {
+                Some(g0 + (g1 - g0) * ((time - t0) / (t1 - t0)).clamp(0.0, 1.0))
+            }
+            (Some((_, g)), _) | (None, Some(&(_, g))) => Some(g),
+            (None, None) => None,
         }
     }
 
