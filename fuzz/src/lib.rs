@@ -558,8 +558,8 @@ pub fn firmware_app(data: &[u8]) {
     let bus = BusConfig::new(Protocol::Feetech, 1_000_000);
     let mut master: Master<_, _, _, 256> = Master::new(port, NoDirectionPin, clock, bus);
     let board = Board { bus, model: &STS3215, control: Config::default(), max_bus_baud: u32::MAX };
-    let setup = firmware::builtin::setup().expect("the built-in arm is valid");
-    let mut app = Firmware::<{ firmware::builtin::JOINTS }, 32>::new(board, Some(setup)).expect("the board is valid");
+    let mut app =
+        Firmware::<{ firmware::builtin::JOINTS }, 32>::new(board, Some(&firmware::builtin::SO101)).expect("the board is valid");
     let mut tx = Vec::new();
     for chunk in link.chunks(24) {
         let _ = app.receive(chunk, now.get(), &mut tx);

@@ -51,7 +51,7 @@ fn bytes_that_come_during_a_long_bus_cycle_are_all_answered() {
         let config = BusConfig::new(STS3215.protocol, BAUD);
         let mut master: Master<_, _, _> = Master::new(port, NoDirectionPin, clock.clone(), config);
         let board = Board { bus: config, model: &STS3215, control: Config::default(), max_bus_baud: u32::MAX };
-        let mut app = Firmware::<5, 32>::new(board, Some(firmware::builtin::setup().unwrap())).unwrap();
+        let mut app = Firmware::<5, 32>::new(board, Some(&firmware::builtin::SO101)).unwrap();
         static BIG: RxRing<512> = RxRing::new();
         static SMALL: RxRing<64> = RxRing::new();
         let mut tx = Vec::new();
@@ -147,8 +147,7 @@ fn an_arm_sent_over_the_link_switches_the_bus_and_uses_four_of_six_joints() {
     let config = BusConfig::new(STS3215.protocol, BAUD);
     let mut master: Master<_, _, _> = Master::new(port, NoDirectionPin, clock.clone(), config);
     let board = Board { bus: config, model: &STS3215, control: Config::default(), max_bus_baud: 2_000_000 };
-    let mut app =
-        Firmware::<{ firmware::board::JOINTS }, 32>::new(board, Some(firmware::builtin::setup().unwrap())).unwrap();
+    let mut app = Firmware::<{ firmware::board::JOINTS }, 32>::new(board, Some(&firmware::builtin::SO101)).unwrap();
     static RING: RxRing<512> = RxRing::new();
     let mut main = MainLoop::new(&mut app, &mut master, &RING);
     let hello = HostMessage::Hello { protocol_version: firmware::link::message::PROTOCOL_VERSION };

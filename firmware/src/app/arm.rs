@@ -59,54 +59,12 @@ fn padded_limits<const N: usize>(own: impl Iterator<Item = f32> + Clone) -> SVec
     SVector::from_fn(|_, _| own.next().unwrap_or(largest))
 }
 
-/// Why an arm cannot be built.
+/// Why an arm cannot be built: the nak names the axis or the limits.
 enum Unusable {
     /// Its joints and tool make no chain.
-    Chain(kinematics::ChainError),
+    Chain,
     /// Its limits leave a joint no range within its servo's, or are not positive.
-    Limits(ConfigError),
-}
-
-/// An arm's own joints, one at a time, from wherever they are kept (slices, or the joint
-/// messages the host sent): what [`ArmSetup::fill`] reads, so no array of them is built.
-trait ArmSource {
-    /// How many (1 to the build's joints).
-    fn joints(&self) -> usize;
-    fn joint(&self, j: usize) -> Joint<f32>;
-    fn tool(&self) -> Pose<f32>;
-    fn mapping(&self, j: usize) -> JointMapping;
-    fn velocity(&self, j: usize) -> f32;
-    fn acceleration(&self, j: usize) -> f32;
-}
-
-/// An arm given as slices of equal length.
-struct OwnJoints<'a> {
-    joints: &'a [Joint<f32>],
-    tool: Pose<f32>,
-    mappings: &'a [JointMapping],
-    velocity: &'a [f32],
-    acceleration: &'a [f32],
-}
-
-impl ArmSource for OwnJoints<'_> {
-    fn joints(&self) -> usize {
-        self.joints.len()
-    }
-    fn joint(&self, j: usize) -> Joint<f32> {
-        self.joints.get(j).copied().unwrap_or_else(padding_joint)
-    }
-    fn tool(&self) -> Pose<f32> {
-        self.tool
-    }
-    fn mapping(&self, j: usize) -> JointMapping {
-        self.mappings.get(j).copied().unwrap_or(JointMapping::centred(0, 1))
-    }
-    fn velocity(&self, j: usize) -> f32 {
-        self.velocity.get(j).copied().unwrap_or(0.0)
-    }
-    fn acceleration(&self, j: usize) -> f32 {
-        self.acceleration.get(j).copied().unwrap_or(0.0)
-    }
+    Limits,
 }
 
 impl<const N: usize> ArmSetup<N> {
@@ -125,62 +83,21 @@ impl<const N: usize> ArmSetup<N> {
         }
     }
 
-    /// An arm of `joints.len()` joints (at most `N`) on this build: its joints, servos and
-    /// limits first, padding after ([`Joint::fixed`] at the tool end, so the tool is where the
-    /// arm's own chain puts it). The limits are the chain's intersected with the servos' ranges.
-    #[allow(clippy::too_many_arguments)]
-    pub fn padded(
-        name: &str,
-        joints: &[Joint<f32>],
-        tool: Pose<f32>,
-        mappings: &[JointMapping],
-        model: &'static Model,
-        max_velocity: &[f32],
-        max_acceleration: &[f32],
-    ) -> Result<Self, ConfigError> {
-        let mut setup = Self::blank(model);
-        setup.set_padded(name, joints, tool, mappings, model, max_velocity, max_acceleration)?;
-        Ok(setup)
-    }
-
-    /// [`ArmSetup::padded`], in place. On failure this holds part of an arm.
-    #[allow(clippy::too_many_arguments)]
-    pub fn set_padded(
-        &mut self,
-        name: &str,
-        joints: &[Joint<f32>],
-        tool: Pose<f32>,
-        mappings: &[JointMapping],
-        model: &'static Model,
-        max_velocity: &[f32],
-        max_acceleration: &[f32],
-    ) -> Result<(), ConfigError> {
-        let n = joints.len();
-        if n == 0 || n > N || mappings.len() != n || max_velocity.len() != n || max_acceleration.len() != n {
-            return Err(ConfigError::TooManyJoints);
-        }
-        let arm = OwnJoints { joints, tool, mappings, velocity: max_velocity, acceleration: max_acceleration };
-        self.fill(name, &arm, model).map_err(|e| match e {
-            Unusable::Chain(
-                kinematics::ChainError::ZeroAxis { joint } | kinematics::ChainError::BadLimits { joint },
-            ) => ConfigError::BadLimits { joint },
-            Unusable::Chain(_) => ConfigError::BadLimits { joint: 0 },
-            Unusable::Limits(e) => e,
-        })
-    }
-
     /// Makes this slot the arm `arm` describes, in place (the chain alone is larger than a
     /// board's stack can spare twice); its gripper, bus and digest are left to the caller. On
     /// failure the slot holds part of an arm: it is a scratch slot, never the running arm.
-    fn fill(&mut self, name: &str, arm: &impl ArmSource, model: &'static Model) -> Result<(), Unusable> {
+    fn fill(&mut self, name: &str, arm: &Staged<'_>, model: &'static Model) -> Result<(), Unusable> {
         let n = arm.joints();
-        self.chain.set(|j| if j < n { arm.joint(j) } else { padding_joint() }, arm.tool()).map_err(Unusable::Chain)?;
+        self.chain
+            .set(|j| if j < n { arm.joint(j) } else { padding_joint() }, arm.tool())
+            .map_err(|_| Unusable::Chain)?;
         for (j, slot) in self.mappings.iter_mut().enumerate() {
             *slot = if j < n { arm.mapping(j) } else { padding_mapping(model) };
         }
         let velocity = padded_limits((0..n).map(|j| arm.velocity(j)));
         let acceleration = padded_limits((0..n).map(|j| arm.acceleration(j)));
-        self.limits = joint_limits(&self.chain, &self.mappings, velocity, acceleration).map_err(Unusable::Limits)?;
+        self.limits =
+            joint_limits(&self.chain, &self.mappings, velocity, acceleration).map_err(|_| Unusable::Limits)?;
         self.model = model;
         self.name.clear();
         for c in name.chars() {
@@ -349,8 +266,8 @@ impl<const N: usize> Staging<N> {
         }
         let staged = Staged { configs, tool: begun.tool };
         into.fill(&begun.name, &staged, model).map_err(|e| match e {
-            Unusable::Chain(_) => bad(Field::Axis, Problem::OutOfRange),
-            Unusable::Limits(_) => bad(Field::Limits, Problem::OutOfRange),
+            Unusable::Chain => bad(Field::Axis, Problem::OutOfRange),
+            Unusable::Limits => bad(Field::Limits, Problem::OutOfRange),
         })?;
         into.baud = self.bus.map(|(_, baud)| baud);
         into.digest = self.digest;
@@ -378,9 +295,7 @@ impl Staged<'_> {
     fn config(&self, j: usize) -> &JointConfig {
         self.configs.get(j).unwrap_or(&EMPTY)
     }
-}
 
-impl ArmSource for Staged<'_> {
     fn joints(&self) -> usize {
         self.configs.len()
     }

@@ -19,6 +19,8 @@ mod requests;
 
 pub use arm::{ArmSetup, Staging};
 
+use crate::builtin::BuiltinArm;
+
 use embedded_hal::digital::OutputPin;
 use embedded_io::{Read, ReadReady, Write};
 use heapless::String;
@@ -56,9 +58,9 @@ struct ArmId {
 #[derive(Clone, Debug)]
 struct Core<const N: usize, const Q: usize> {
     board: Board,
-    /// The built-in arm, if there is one (`has_builtin`): kept to switch back to.
-    builtin: ArmSetup<N>,
-    has_builtin: bool,
+    /// The built-in arm, if there is one: the messages that configure it, replayed at start and
+    /// on [`crate::link::message::HostMessage::UseBuiltinArm`].
+    builtin: Option<&'static BuiltinArm>,
     /// Where an arm the host sends is built when it is committed: in static memory, as the
     /// controller, for the same reason.
     incoming: ArmSetup<N>,
@@ -95,8 +97,7 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
     unsafe fn blank_at(at: *mut Self, board: Board) {
         crate::place::place_fields!(at: Self {
             board: board,
-            builtin: ArmSetup::blank(board.model),
-            has_builtin: false,
+            builtin: None,
             incoming: ArmSetup::blank(board.model),
             arm: None,
             staging: Staging::new(),
@@ -108,8 +109,8 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
         });
     }
 
-    /// Checks the board and drives the built-in arm, if there is one.
-    fn start(&mut self) -> Result<(), ConfigError> {
+    /// Checks the board and drives `builtin`, if there is one.
+    fn start(&mut self, builtin: Option<&'static BuiltinArm>) -> Result<(), ConfigError> {
         if N > crate::link::message::MAX_JOINTS {
             return Err(ConfigError::TooManyJoints);
         }
@@ -117,14 +118,10 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
         if self.board.control.period_us < minimum_us {
             return Err(ConfigError::PeriodTooShort { minimum_us });
         }
-        if !self.has_builtin {
-            return Ok(());
+        self.builtin = builtin;
+        if builtin.is_some() {
+            self.use_builtin_arm().map_err(|_| ConfigError::BuiltinRefused)?;
         }
-        // The built-in arm is on the board's bus: switching back to it from an arm on another bus
-        // switches the bus back too.
-        self.builtin.baud.get_or_insert(self.board.bus.baud);
-        self.builtin.configure(&mut self.controller, &self.board)?;
-        self.arm = Some(ArmId { name: self.builtin.name.clone(), digest: self.builtin.digest });
         Ok(())
     }
 
@@ -153,8 +150,8 @@ pub struct Firmware<const N: usize, const Q: usize> {
 impl<const N: usize, const Q: usize> Firmware<N, Q> {
     /// Firmware for `board`, driving `builtin` until the host configures another arm (with no
     /// built-in arm, motion requests are refused until the host sends one). Fails if the control
-    /// period is shorter than one bus cycle for `N` servos, or the built-in arm is unusable.
-    pub fn new(board: Board, builtin: Option<ArmSetup<N>>) -> Result<Self, ConfigError> {
+    /// period is shorter than one bus cycle for `N` servos, or the built-in arm is refused.
+    pub fn new(board: Board, builtin: Option<&'static BuiltinArm>) -> Result<Self, ConfigError> {
         let mut firmware = Self::blank(board);
         firmware.start(builtin)?;
         Ok(firmware)
@@ -193,25 +190,11 @@ impl<const N: usize, const Q: usize> Firmware<N, Q> {
         }
     }
 
-    /// Starts driving `builtin` (or nothing until the host sends an arm). Fails if the control
-    /// period is shorter than one bus cycle for `N` servos, or the built-in arm is unusable; the
-    /// firmware then stays without an arm.
-    pub fn start(&mut self, builtin: Option<ArmSetup<N>>) -> Result<(), ConfigError> {
-        if let Some(setup) = builtin {
-            self.core.builtin = setup;
-            self.core.has_builtin = true;
-        }
-        self.core.start()
-    }
-
-    /// Starts driving the firmware's own built-in arm ([`crate::builtin`]), built in place: how a
-    /// board starts, with its firmware in static memory and little stack. Fails as
-    /// [`Firmware::start`].
-    #[inline(never)]
-    pub fn start_builtin(&mut self) -> Result<(), ConfigError> {
-        crate::builtin::set_up(&mut self.core.builtin)?;
-        self.core.has_builtin = true;
-        self.core.start()
+    /// Starts driving `builtin` (or nothing until the host sends an arm), taking it as it takes an
+    /// arm from the host. Fails if the control period is shorter than one bus cycle for `N`
+    /// servos, or the built-in arm is refused; the firmware then stays without an arm.
+    pub fn start(&mut self, builtin: Option<&'static BuiltinArm>) -> Result<(), ConfigError> {
+        self.core.start(builtin)
     }
 
     /// The control period (µs): call [`Firmware::tick`] this often.
@@ -354,8 +337,8 @@ mod tests {
         let placed = Firmware::blank_in(&mut slot, board());
         let whole = Firmware::<6, 32>::blank(board());
         assert_eq!(format!("{placed:?}"), format!("{whole:?}"));
-        placed.start_builtin().unwrap();
-        let started = Firmware::<6, 32>::new(board(), Some(crate::builtin::setup().unwrap())).unwrap();
+        placed.start(Some(&crate::builtin::SO101)).unwrap();
+        let started = Firmware::<6, 32>::new(board(), Some(&crate::builtin::SO101)).unwrap();
         assert_eq!(format!("{placed:?}"), format!("{started:?}"));
         assert_eq!(placed.arm_name(), crate::builtin::NAME);
     }

@@ -96,17 +96,17 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
         })
     }
 
-    /// Swaps the arm for the built-in one (`builtin`) or the one just committed, which needs
-    /// the torque off: a new arm starts limp and reads its servos. Its bus becomes the
-    /// firmware's ([`super::Firmware::bus`]; the board's loop switches the port). Refused,
-    /// changing nothing, when the control period is shorter than one bus cycle of the arm's
-    /// servos at its baud rate. The arm is configured from its slot in place, never copied.
+    /// Swaps the arm for the one just committed (in `incoming`), which needs the torque off: a
+    /// new arm starts limp and reads its servos. Its bus becomes the firmware's
+    /// ([`super::Firmware::bus`]; the board's loop switches the port). Refused, changing
+    /// nothing, when the control period is shorter than one bus cycle of the arm's servos at its
+    /// baud rate. The arm is configured from its slot in place, never copied.
     #[inline(never)]
-    fn switch_arm(&mut self, builtin: bool) -> Result<(), NakReason> {
+    fn switch_arm(&mut self) -> Result<(), NakReason> {
         if self.running().is_some_and(|c| c.torque()) {
             return Err(NakReason::NotReady);
         }
-        let setup = if builtin { &self.builtin } else { &self.incoming };
+        let setup = &self.incoming;
         let current = self.board.bus;
         let protocol = setup.model.protocol;
         let baud = setup.baud.unwrap_or(current.baud);
@@ -129,26 +129,52 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
         Ok(())
     }
 
-    /// The staged arm becomes the running one. Never inlined, like the one below: inlined, their
-    /// frames would be reserved in the frame of every request.
+    /// The staged arm becomes the running one. Never inlined: inlined, its frame would be
+    /// reserved in the frame of every request.
     #[inline(never)]
     fn commit_arm(&mut self) -> Result<FirmwareMessage, NakReason> {
         if self.running().is_some_and(|c| c.torque()) {
             return Err(NakReason::NotReady);
         }
         self.staging.commit(&self.board, &mut self.incoming)?;
-        self.switch_arm(false)?;
+        self.switch_arm()?;
         Ok(self.ack())
     }
 
-    /// The built-in arm becomes the running one again.
-    #[inline(never)]
-    fn use_builtin_arm(&mut self) -> Result<FirmwareMessage, NakReason> {
-        if !self.has_builtin {
-            return Err(NakReason::NotReady);
+    /// The built-in arm becomes the running one: its configure messages, replayed as a host sends
+    /// them (an arm half sent by the host is dropped, as a new `ConfigureBegin` drops it). The
+    /// reply is the commit's.
+    pub(super) fn use_builtin_arm(&mut self) -> Result<FirmwareMessage, NakReason> {
+        let arm = self.builtin.ok_or(NakReason::NotReady)?;
+        let mut reply = Err(NakReason::NotReady);
+        for message in arm.messages() {
+            message.validate().map_err(NakReason::BadValue)?;
+            reply = self.configure(&message).unwrap_or(Err(NakReason::UnknownMessage));
+            if reply.is_err() {
+                // What was staged goes, as after any refused configuration.
+                self.staging = super::Staging::new();
+                return reply;
+            }
         }
-        self.switch_arm(true)?;
-        Ok(self.ack())
+        reply
+    }
+
+    /// Carries out a message that configures an arm (begin, a joint, the gripper, the digest, the
+    /// bus, commit); `None` for any other.
+    fn configure(&mut self, message: &HostMessage) -> Option<Result<FirmwareMessage, NakReason>> {
+        let staged = match message {
+            HostMessage::ConfigureBegin { name, joints, tool_xyz, tool_rpy, model } => {
+                let tool = kinematics::Pose::from_xyz_rpy(*tool_xyz, *tool_rpy);
+                self.staging.begin(name, *joints, tool, *model)
+            }
+            HostMessage::ConfigureJoint { index, joint } => self.staging.joint(*index, joint),
+            HostMessage::ConfigureGripper(g) => self.staging.gripper(g),
+            HostMessage::ConfigureDigest { digest } => self.staging.digest(*digest),
+            HostMessage::ConfigureBus { protocol, baud } => self.staging.bus((*protocol).into(), *baud),
+            HostMessage::ConfigureCommit => return Some(self.commit_arm()),
+            _ => return None,
+        };
+        Some(staged.map(|()| self.ack()))
     }
 
     fn carry_out(
@@ -182,30 +208,11 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
                 };
                 return Ok(self.ack());
             }
-            HostMessage::ConfigureBegin { name, joints, tool_xyz, tool_rpy, model } => {
-                let tool = kinematics::Pose::from_xyz_rpy(*tool_xyz, *tool_rpy);
-                self.staging.begin(name, *joints, tool, *model)?;
-                return Ok(self.ack());
-            }
-            HostMessage::ConfigureJoint { index, joint } => {
-                self.staging.joint(*index, joint)?;
-                return Ok(self.ack());
-            }
-            HostMessage::ConfigureGripper(g) => {
-                self.staging.gripper(g)?;
-                return Ok(self.ack());
-            }
-            HostMessage::ConfigureDigest { digest } => {
-                self.staging.digest(*digest)?;
-                return Ok(self.ack());
-            }
-            HostMessage::ConfigureBus { protocol, baud } => {
-                self.staging.bus((*protocol).into(), *baud)?;
-                return Ok(self.ack());
-            }
-            HostMessage::ConfigureCommit => return self.commit_arm(),
             HostMessage::UseBuiltinArm => return self.use_builtin_arm(),
             _ => {}
+        }
+        if let Some(reply) = self.configure(message) {
+            return reply;
         }
         let controller = self.running_mut().ok_or(NakReason::NotReady)?;
         let joints = controller.joints();

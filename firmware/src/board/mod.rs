@@ -12,7 +12,7 @@ pub use main_loop::MainLoop;
 pub use rx_ring::RxRing;
 
 /// The joints a board binary is built for: it drives any arm of 1 to this many joints (and a
-/// gripper), the rest padding ([`crate::app::ArmSetup::padded`]).
+/// gripper), the rest padding (fixed joints: see [`crate::app::arm`]).
 pub const JOINTS: usize = 6;
 
 /// The servo bus's UART, as the main loop needs it beyond reading and writing: a board switches

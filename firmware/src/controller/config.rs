@@ -53,6 +53,8 @@ pub enum ConfigError {
     /// The gripper's positions coincide, its effort or speed is out of range, or its id is a
     /// joint's.
     BadGripper,
+    /// The built-in arm's configuration was refused (the firmware takes it as a host's).
+    BuiltinRefused,
 }
 
 impl core::fmt::Display for ConfigError {
@@ -62,6 +64,7 @@ impl core::fmt::Display for ConfigError {
             Self::BadLimits { joint } => write!(f, "joint {joint}: unusable limits"),
             Self::TooManyJoints => write!(f, "more joints than one sync read can address"),
             Self::BadGripper => write!(f, "unusable gripper (positions, effort, speed or id)"),
+            Self::BuiltinRefused => write!(f, "the built-in arm's configuration was refused"),
         }
     }
 }

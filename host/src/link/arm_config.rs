@@ -160,6 +160,15 @@ mod tests {
     /// The built-in arm reports the digest of the `so101` preset as shipped, so a host sending
     /// the preset finds it running; a calibration, another gripper or another bus changes it.
     #[test]
+    fn the_builtin_arm_is_the_so101_preset_as_a_host_sends_it() {
+        let so101 = ArmSpec::load("so101", None).unwrap();
+        let shipped = ServoSetup::for_arm("so101").unwrap();
+        let sent = configure_messages(&so101, &shipped).unwrap();
+        let builtin: Vec<HostMessage> = firmware::builtin::SO101.messages().collect();
+        assert_eq!(builtin, sent, "firmware::builtin::SO101 should be these messages");
+    }
+
+    #[test]
     fn the_builtin_digest_is_the_so101_presets() {
         let so101 = ArmSpec::load("so101", None).unwrap();
         let shipped = ServoSetup::for_arm("so101").unwrap();

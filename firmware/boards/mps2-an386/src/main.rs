@@ -71,7 +71,7 @@ fn start() -> Option<(&'static mut App, &'static mut BusMaster, Uart)> {
     // SAFETY: STARTED guarantees this runs once, so these are the only references to the statics.
     let (app_slot, master_slot) = unsafe { (&mut *addr_of_mut!(APP), &mut *addr_of_mut!(MASTER)) };
     let app = App::blank_in(app_slot, board);
-    app.start_builtin().ok()?;
+    app.start(Some(&firmware::builtin::SO101)).ok()?;
     let port = Uart::new(uart::UART1, clock::SYSCLK_HZ, BAUD);
     let master = master_slot.write(BusMaster::new(port, NoDirectionPin, SysTickClock, bus));
     defmt::info!(

@@ -129,7 +129,7 @@ fn start() -> Option<(&'static mut App, &'static mut BusMaster, Link, Independen
     // SAFETY: STARTED guarantees this runs once, so these are the only references to the statics.
     let (app_slot, master_slot) = unsafe { (&mut *addr_of_mut!(APP), &mut *addr_of_mut!(MASTER)) };
     let app = App::blank_in(app_slot, board);
-    if app.start_builtin().is_err() {
+    if app.start(Some(&firmware::builtin::SO101)).is_err() {
         return refused("built-in arm");
     }
     let master = master_slot.write(BusMaster::new(bus_port, direction, clock, bus));

@@ -177,9 +177,8 @@ impl Sil {
         let board = Board { bus: bus_config, model, control: options.control, max_bus_baud: u32::MAX };
         let master = Master::new(port, NoDirectionPin, clock.clone(), bus_config);
         let board: Box<dyn SimFirmware> = if is_builtin(&arm, &servos) {
-            let setup = builtin::setup().map_err(|e| anyhow::anyhow!("built-in arm: {e}"))?;
             // The boards' own build: the built-in SO-101 padded as on a board.
-            let firmware = Firmware::<{ firmware::board::JOINTS }, QUEUE>::new(board, Some(setup))
+            let firmware = Firmware::<{ firmware::board::JOINTS }, QUEUE>::new(board, Some(&builtin::SO101))
                 .map_err(|e| anyhow::anyhow!("simulated board: {e}"))?;
             Box::new(SimBoard { firmware, master })
         } else {
