@@ -18,6 +18,24 @@ pub trait Real: RealField + Copy + core::fmt::Debug + Default {
     /// `(sin, cos)`, in the type's own precision: for `f32` computed in `f32` ([`crate::trig`]),
     /// not through `libm`'s `f64` path, which a single-precision FPU runs in software.
     fn sin_cos_fast(self) -> (Self, Self);
+    /// The nearest value to an integer.
+    fn of_i64(x: i64) -> Self;
+    /// The exact binary value of a finite number: `(negative, m, e)` with `self = ±m · 2^e`
+    /// (`m` below 2^53), read from its bits, so no other float type is involved (an `f32` widened
+    /// to `f64` costs a library call on a single-precision FPU).
+    fn to_binary(self) -> (bool, u64, i32);
+}
+
+/// Splits IEEE 754 bits with `fraction` fraction bits and exponent bias `bias`.
+fn binary(bits: u64, fraction: u32, exponent_bits: u32, bias: i32) -> (bool, u64, i32) {
+    let negative = bits >> (fraction + exponent_bits) & 1 == 1;
+    let exponent = ((bits >> fraction) & ((1 << exponent_bits) - 1)) as i32;
+    let m = bits & ((1 << fraction) - 1);
+    // Subnormals have no hidden bit and the smallest exponent.
+    match exponent {
+        0 => (negative, m, 1 - bias - fraction as i32),
+        e => (negative, m | 1 << fraction, e - bias - fraction as i32),
+    }
 }
 
 impl Real for f32 {
@@ -33,6 +51,12 @@ impl Real for f32 {
     }
     fn sin_cos_fast(self) -> (Self, Self) {
         crate::trig::sin_cos(self)
+    }
+    fn of_i64(x: i64) -> Self {
+        x as f32
+    }
+    fn to_binary(self) -> (bool, u64, i32) {
+        binary(u64::from(self.to_bits()), 23, 8, 127)
     }
 }
 
@@ -50,5 +74,37 @@ impl Real for f64 {
     fn sin_cos_fast(self) -> (Self, Self) {
         // nalgebra's (libm without std): f64 is the FPU-less path anyway.
         nalgebra::ComplexField::sin_cos(self)
+    }
+    fn of_i64(x: i64) -> Self {
+        x as f64
+    }
+    fn to_binary(self) -> (bool, u64, i32) {
+        binary(self.to_bits(), 52, 11, 1023)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `±m · 2^e` rebuilt in f64 (exact for both types' values) is the number, normals and
+    /// subnormals alike.
+    #[test]
+    fn the_binary_value_is_exact() {
+        let rebuild = |(negative, m, e): (bool, u64, i32)| {
+            let v = m as f64 * 2f64.powi(e);
+            if negative {
+                -v
+            } else {
+                v
+            }
+        };
+        for x in [0.0f32, -0.0, 1.0, -1.5, core::f32::consts::PI, 1e-40, -3.4e38, f32::MIN_POSITIVE] {
+            assert_eq!(rebuild(x.to_binary()), f64::from(x), "{x}");
+        }
+        for x in [0.0f64, 1.0, -2.75, core::f64::consts::PI, 1e-310, 1e300] {
+            assert_eq!(rebuild(x.to_binary()), x, "{x}");
+        }
+        assert!((-0.0f32).to_binary().0);
     }
 }

@@ -64,7 +64,9 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
     #[inline(never)]
     pub(super) fn status(&mut self, now_us: u64, link: LinkCounts) -> Status {
         let (mean_us, max_us) = self.loops.take();
-        let time = (now_us as f64 * 1e-6) as f32;
+        // Whole seconds and the rest apart, in f32: the same time to f32's precision, without
+        // the double-precision library a u64 to f64 conversion would pull in on the M4F.
+        let time = (now_us / 1_000_000) as f32 + (now_us % 1_000_000) as f32 * 1e-6;
         let mut errors = ErrorCounters {
             link_corrupt: link.corrupt,
             link_oversized: link.oversized,

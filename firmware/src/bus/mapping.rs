@@ -103,42 +103,61 @@ impl JointMapping {
         }
     }
 
-    /// The angle zero in ticks (`zero`, plus the half tick).
-    fn zero_ticks(&self) -> f64 {
-        f64::from(self.zero) + if self.zero_half { 0.5 } else { 0.0 }
-    }
-
-    fn sign(&self) -> f64 {
-        match self.direction {
-            Direction::Forward => 1.0,
-            Direction::Reverse => -1.0,
-        }
-    }
-
-    /// Ticks per radian (positive).
-    fn ticks_per_radian(&self) -> f64 {
-        f64::from(self.ticks_per_revolution) / core::f64::consts::TAU
-    }
-
-    /// The tick goal for a joint angle, rounded to the nearest tick (or truncated); refused when not finite or
-    /// outside `min_ticks..=max_ticks`.
+    /// The tick goal for a joint angle, rounded to the nearest tick (or truncated); refused when
+    /// not finite or outside `min_ticks..=max_ticks`.
+    ///
+    /// Computed in integers: the angle's exact binary value times the ticks per radian in fixed
+    /// point ([`INV_TAU`]), so a tick is exact for any angle a servo can reach (within 1e-11 of a
+    /// tick, as f64 arithmetic would be) without the double-precision library a
+    /// single-precision FPU would need for it.
     pub fn to_ticks<T: Real>(&self, radians: T) -> Result<i32, MappingError> {
         if !radians.finite() {
             return Err(MappingError::NotFinite { id: self.id });
         }
-        // f64 keeps a tick exact for any angle a servo can reach, in both scalar types.
-        let exact = self.zero_ticks() + self.sign() * radians.to_f64() * self.ticks_per_radian();
-        let ticks = if self.truncate { libm::trunc(exact) } else { round(exact) };
-        if ticks < f64::from(self.min_ticks) || ticks > f64::from(self.max_ticks) {
-            // `as` saturates: the value is only reported.
-            return Err(MappingError::OutOfLimits { id: self.id, ticks: ticks as i64 });
+        let (negative, m, e) = radians.to_binary();
+        // |angle| in ticks, FRAC fraction bits: m · tpr · INV_TAU · 2^(e - 50). m < 2^53, tpr is
+        // capped at 2^24 ticks a turn and INV_TAU < 2^48, so the product fits 125 bits.
+        let tpr = u128::from(self.ticks_per_revolution.min(1 << 24));
+        let product = u128::from(m) * tpr * u128::from(INV_TAU);
+        let shift = e - 50 + FRAC as i32;
+        let magnitude = if product == 0 {
+            0
+        } else if shift >= 0 {
+            // At least 2^FRAC · 2^(shift) · ... : an angle of at least 2^50 / tpr turns, far beyond
+            // any servo: saturated.
+            if shift > 2 {
+                i128::MAX / 4
+            } else {
+                (product << shift).min(u128::MAX >> 2) as i128
+            }
+        } else {
+            (product >> (-shift).min(127)) as i128
+        };
+        let turning_up = negative == (self.direction == Direction::Reverse);
+        let angle = if turning_up { magnitude } else { -magnitude };
+        let zero = (i128::from(self.zero) << FRAC) + if self.zero_half { 1 << (FRAC - 1) } else { 0 };
+        let exact = angle + zero;
+        // Whole ticks: toward zero (LeRobot's int()), or half away from zero.
+        let away = if self.truncate { 0 } else { 1 << (FRAC - 1) };
+        let ticks = if exact >= 0 { (exact + away) >> FRAC } else { -((-exact + away) >> FRAC) };
+        if ticks < i128::from(self.min_ticks) || ticks > i128::from(self.max_ticks) {
+            let reported = i64::try_from(ticks).unwrap_or(if ticks < 0 { i64::MIN } else { i64::MAX });
+            return Err(MappingError::OutOfLimits { id: self.id, ticks: reported });
         }
-        Ok(ticks as i32)
+        // Within min_ticks..=max_ticks, both i32.
+        Ok(i32::try_from(ticks).unwrap_or(self.max_ticks))
     }
 
-    /// The joint angle of a tick value (exact up to the scalar's rounding).
+    /// The joint angle of a tick value (within the scalar's rounding: two roundings in `f32`).
     pub fn to_radians<T: Real>(&self, ticks: i32) -> T {
-        T::of(self.sign() * (f64::from(ticks) - self.zero_ticks()) / self.ticks_per_radian())
+        // In half ticks from the angle zero: exact in integers.
+        let half_ticks = 2 * (i64::from(ticks) - i64::from(self.zero)) - i64::from(self.zero_half);
+        let signed = match self.direction {
+            Direction::Forward => half_ticks,
+            Direction::Reverse => -half_ticks,
+        };
+        let half_ticks_per_turn = 2 * i64::from(self.ticks_per_revolution.max(1));
+        T::of_i64(signed) * (T::of(core::f64::consts::TAU) / T::of_i64(half_ticks_per_turn))
     }
 
     /// The joint range the tick limits allow, `(lowest, highest)` in radians.
@@ -152,10 +171,12 @@ impl JointMapping {
     }
 }
 
-/// Round half away from zero without std.
-fn round(x: f64) -> f64 {
-    libm::round(x)
-}
+/// Fraction bits of the fixed-point ticks [`JointMapping::to_ticks`] computes.
+const FRAC: u32 = 40;
+
+/// 2^50 / 2π, rounded to the nearest integer (179192535600708.08...): radians to turns in fixed
+/// point, with a relative error below 3e-15.
+const INV_TAU: u64 = 179_192_535_600_708;
 
 #[cfg(test)]
 mod tests {
@@ -191,6 +212,62 @@ mod tests {
         let m = JointMapping::centred(1, 4096);
         assert!(m.to_radians::<f64>(i32::MIN) < -3e6);
         assert!(m.to_radians::<f32>(i32::MAX) > 3e6);
+    }
+
+    /// The integer arithmetic against the same formula in f64 (which the firmware used before),
+    /// over a million angles in f32 and in f64 on four mappings: the same tick, but where the
+    /// exact value lies within 1e-9 of where rounding or truncation turns (the last bits of either
+    /// computation may fall either way there); and the angles refused alike.
+    #[test]
+    fn integer_ticks_are_the_f64_formulas() {
+        let f64_ticks = |m: &JointMapping, radians: f64| -> (f64, i64) {
+            let sign = if m.direction == Direction::Reverse { -1.0 } else { 1.0 };
+            let zero = f64::from(m.zero) + if m.zero_half { 0.5 } else { 0.0 };
+            let exact = zero + sign * radians * f64::from(m.ticks_per_revolution) / core::f64::consts::TAU;
+            let whole = if m.truncate { exact.trunc() } else { exact.round() };
+            // How far from where the whole tick changes.
+            let turn = if m.truncate { exact - exact.floor() } else { exact - exact.floor() - 0.5 };
+            (turn.abs().min((1.0 - turn.abs()).abs()), whole as i64)
+        };
+        let mappings = [
+            JointMapping::centred(1, 4096),
+            JointMapping { direction: Direction::Reverse, zero: 1000, ..JointMapping::centred(2, 4096) },
+            JointMapping::lerobot(3, 4096, 893, 3092),
+            JointMapping::lerobot(4, 4096, 758, 3292),
+        ];
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut compared = 0;
+        for i in 0..1_000_000 {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            let m = &mappings[i % mappings.len()];
+            // Uniform over ±4 rad, reaching past both ends of every mapping.
+            let radians = (seed >> 11) as f64 / (1u64 << 53) as f64 * 8.0 - 4.0;
+            for (radians, got) in
+                [(radians, m.to_ticks(radians)), (f64::from(radians as f32), m.to_ticks(radians as f32))]
+            {
+                let (margin, want) = f64_ticks(m, radians);
+                if margin < 1e-9 {
+                    continue;
+                }
+                match got {
+                    Ok(t) => assert_eq!(i64::from(t), want, "{m:?} at {radians}"),
+                    Err(MappingError::OutOfLimits { ticks, .. }) => {
+                        assert_eq!(ticks, want, "{m:?} at {radians}");
+                        assert!(want < i64::from(m.min_ticks) || want > i64::from(m.max_ticks));
+                    }
+                    Err(e) => panic!("{e}"),
+                }
+                compared += 1;
+            }
+        }
+        assert!(compared > 1_999_000, "{compared}");
+        // Far beyond any servo: refused, the reported value saturated, not wrapped.
+        let m = JointMapping::centred(1, 4096);
+        assert!(matches!(m.to_ticks(1e30f32), Err(MappingError::OutOfLimits { ticks, .. }) if ticks > 1_000_000));
+        assert!(matches!(m.to_ticks(-1e300f64), Err(MappingError::OutOfLimits { ticks, .. }) if ticks < -1_000_000));
+        assert_eq!(m.to_ticks(1e-40f32), Ok(2048));
     }
 
     #[test]
