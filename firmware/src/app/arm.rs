@@ -1,6 +1,6 @@
-//! The arm the firmware drives: the built-in one, or one the host sends joint by joint
-//! (configure begin, one message per joint, commit), checked as a whole before it replaces the arm
-//! in use.
+//! The arm the firmware drives, as the host sends it joint by joint (configure begin, one message
+//! per joint, commit; the built-in arm is the same messages, replayed from flash), built in a slot
+//! of its own and checked as a whole before it replaces the arm in use.
 //!
 //! A firmware of `N` joints drives any arm of 1 to `N`: the arm's joints come first and fixed
 //! joints pad the rest ([`kinematics::JointKind::Fixed`]: no motion, no servo, held at zero), so one

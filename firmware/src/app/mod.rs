@@ -342,4 +342,40 @@ mod tests {
         assert_eq!(format!("{placed:?}"), format!("{started:?}"));
         assert_eq!(placed.arm_name(), crate::builtin::NAME);
     }
+
+    /// Another arm on another bus, then `UseBuiltinArm`: the built-in SO-101 runs again, with its
+    /// digest, on its own bus.
+    #[test]
+    fn the_built_in_arm_comes_back_on_its_own_bus() {
+        use crate::bus::table::XM430_W350;
+        use crate::link::message::{BusProtocol, FirmwareMessage, HostMessage};
+        let mut firmware = Firmware::<6, 32>::new(board(), Some(&crate::builtin::SO101)).unwrap();
+        let link = report::LinkCounts::of(&firmware.decoder.stats(), &firmware.session.stats());
+        let apply = |firmware: &mut Firmware<6, 32>, message: HostMessage| firmware.core.apply(&message, 0, link);
+        // The SO-101's joints as another arm, on Dynamixel servos at 2 Mbps.
+        for message in crate::builtin::SO101.messages() {
+            let message = match message {
+                HostMessage::ConfigureBegin { joints, tool_xyz, tool_rpy, .. } => HostMessage::ConfigureBegin {
+                    name: String::try_from("other").unwrap(),
+                    joints,
+                    tool_xyz,
+                    tool_rpy,
+                    model: XM430_W350.number,
+                },
+                HostMessage::ConfigureBus { .. } => {
+                    HostMessage::ConfigureBus { protocol: BusProtocol::Dynamixel2, baud: 2_000_000 }
+                }
+                HostMessage::ConfigureDigest { .. } => HostMessage::ConfigureDigest { digest: 7 },
+                other => other,
+            };
+            assert!(matches!(apply(&mut firmware, message), FirmwareMessage::Ack { .. }));
+        }
+        assert_eq!((firmware.arm_name(), firmware.bus().baud), ("other", 2_000_000));
+        assert_eq!(firmware.bus().protocol, crate::bus::Protocol::Dxl2);
+
+        assert!(matches!(apply(&mut firmware, HostMessage::UseBuiltinArm), FirmwareMessage::Ack { .. }));
+        assert_eq!(firmware.arm_name(), crate::builtin::NAME);
+        assert_eq!(firmware.core.arm.as_ref().map(|a| a.digest), Some(crate::builtin::DIGEST));
+        assert_eq!(*firmware.bus(), board().bus);
+    }
 }

@@ -148,10 +148,11 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
         let arm = self.builtin.ok_or(NakReason::NotReady)?;
         let mut reply = Err(NakReason::NotReady);
         for message in arm.messages() {
-            message.validate().map_err(NakReason::BadValue)?;
-            reply = self.configure(&message).unwrap_or(Err(NakReason::UnknownMessage));
+            let checked = message.validate().map_err(NakReason::BadValue);
+            reply = checked.and_then(|()| self.configure(&message).unwrap_or(Err(NakReason::UnknownMessage)));
             if reply.is_err() {
-                // What was staged goes, as after any refused configuration.
+                // Nothing of it stays staged: no host sent it, so none will correct and resend
+                // a joint of it.
                 self.staging = super::Staging::new();
                 return reply;
             }
