@@ -123,8 +123,8 @@ impl JointMapping {
         let magnitude = if product == 0 {
             0
         } else if shift >= 0 {
-            // At least 2^FRAC · 2^(shift) · ... : an angle of at least 2^50 / tpr turns, far beyond
-            // any servo: saturated.
+            // Only for angles of at least 2^33 rad (f32) or 2^62 rad (f64), far beyond any servo:
+            // saturated, as the value is only reported.
             if shift > 2 {
                 i128::MAX / 4
             } else {
