@@ -2,8 +2,8 @@
 //!
 //! Rust has no placement construction. `slot.write(Firmware::blank(board))` builds the value on
 //! the stack and then copies it, and the compiler removes the copy only when it can prove that
-//! safe, which it does not here: the firmware's state (about 8.7 KB with a 6-joint arm) took 7.9 KB
-//! of a board's start-up stack, whose whole budget is 8 KiB. So the few types that are that large
+//! safe, which it does not here: written that way, the firmware's state (over 7 KB with a 6-joint
+//! arm) took 7.9 KB of a board's start-up stack, whose whole budget is 8 KiB. So the few types that are that large
 //! (the firmware, its core, the controller) have a `blank_at` that writes each field straight into
 //! the destination, and their safe `blank` is built through it.
 

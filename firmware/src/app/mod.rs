@@ -61,8 +61,9 @@ struct Core<const N: usize, const Q: usize> {
     /// The built-in arm, if there is one: the messages that configure it, replayed at start and
     /// on [`crate::link::message::HostMessage::UseBuiltinArm`].
     builtin: Option<&'static BuiltinArm>,
-    /// Where an arm the host sends is built when it is committed: in static memory, as the
-    /// controller, for the same reason.
+    /// Where an arm the host sends is built when it is committed: in static memory, like the
+    /// controller, because an arm's set-up (1.5 KB with six joints) would take a good part of
+    /// the stack budget.
     incoming: ArmSetup<N>,
     /// The arm the controller drives; `None` before there is one (the controller is blank).
     arm: Option<ArmId>,
