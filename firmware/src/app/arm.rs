@@ -86,10 +86,10 @@ impl<const N: usize> ArmSetup<N> {
     /// Makes this slot the arm `arm` describes, in place (the chain alone is larger than a
     /// board's stack can spare twice); its gripper, bus and digest are left to the caller. On
     /// failure the slot holds part of an arm: it is a scratch slot, never the running arm.
-    fn fill(&mut self, name: &str, arm: &Staged<'_>, model: &'static Model) -> Result<(), Unusable> {
-        let n = arm.joints();
+    fn fill(&mut self, name: &String<MAX_NAME>, arm: &Staged<'_>, model: &'static Model) -> Result<(), Unusable> {
+        let n = arm.configs.len();
         self.chain
-            .set(|j| if j < n { arm.joint(j) } else { padding_joint() }, arm.tool())
+            .set(|j| if j < n { arm.joint(j) } else { padding_joint() }, arm.tool)
             .map_err(|_| Unusable::Chain)?;
         for (j, slot) in self.mappings.iter_mut().enumerate() {
             *slot = if j < n { arm.mapping(j) } else { padding_mapping(model) };
@@ -99,12 +99,7 @@ impl<const N: usize> ArmSetup<N> {
         self.limits =
             joint_limits(&self.chain, &self.mappings, velocity, acceleration).map_err(|_| Unusable::Limits)?;
         self.model = model;
-        self.name.clear();
-        for c in name.chars() {
-            if self.name.push(c).is_err() {
-                break;
-            }
-        }
+        self.name.clone_from(name);
         self.gripper = None;
         self.baud = None;
         self.digest = 0;
@@ -296,9 +291,6 @@ impl Staged<'_> {
         self.configs.get(j).unwrap_or(&EMPTY)
     }
 
-    fn joints(&self) -> usize {
-        self.configs.len()
-    }
     fn joint(&self, j: usize) -> Joint<f32> {
         let c = self.config(j);
         Joint {
@@ -311,9 +303,6 @@ impl Staged<'_> {
             },
             limits: Limits::new(c.lower, c.upper),
         }
-    }
-    fn tool(&self) -> Pose<f32> {
-        self.tool
     }
     fn mapping(&self, j: usize) -> JointMapping {
         let c = &self.config(j).servo;

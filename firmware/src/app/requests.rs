@@ -96,16 +96,13 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
         })
     }
 
-    /// Swaps the arm for the one just committed (in `incoming`), which needs the torque off: a
-    /// new arm starts limp and reads its servos. Its bus becomes the firmware's
-    /// ([`super::Firmware::bus`]; the board's loop switches the port). Refused, changing
-    /// nothing, when the control period is shorter than one bus cycle of the arm's servos at its
-    /// baud rate. The arm is configured from its slot in place, never copied.
+    /// Swaps the arm for the one just committed (in `incoming`; [`Core::commit_arm`] has checked
+    /// that the torque is off: a new arm starts limp and reads its servos). Its bus becomes the
+    /// firmware's ([`super::Firmware::bus`]; the board's loop switches the port). Refused,
+    /// changing nothing, when the control period is shorter than one bus cycle of the arm's
+    /// servos at its baud rate. The arm is configured from its slot in place, never copied.
     #[inline(never)]
     fn switch_arm(&mut self) -> Result<(), NakReason> {
-        if self.running().is_some_and(|c| c.torque()) {
-            return Err(NakReason::NotReady);
-        }
         let setup = &self.incoming;
         let current = self.board.bus;
         let protocol = setup.model.protocol;
@@ -133,6 +130,8 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
     /// reserved in the frame of every request.
     #[inline(never)]
     fn commit_arm(&mut self) -> Result<FirmwareMessage, NakReason> {
+        // Before the staging is emptied: refused, the arm can be committed again once the torque
+        // is off.
         if self.running().is_some_and(|c| c.torque()) {
             return Err(NakReason::NotReady);
         }

@@ -43,7 +43,7 @@ pub fn build(dir: &Path, bin: &str) -> Result<PathBuf> {
     if links_with_flip_link(dir) {
         ensure_flip_link()?;
     }
-    let status = Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()))
+    let status = cargo()
         .args(["build", "--release", "--quiet", "--bin", bin])
         .current_dir(dir)
         // One target folder for every board: the crates they share (firmware, kinematics,
@@ -58,6 +58,19 @@ pub fn build(dir: &Path, bin: &str) -> Result<PathBuf> {
         bail!("building the {bin} binary in {} failed", dir.display());
     }
     Ok(target_dir().join(TARGET).join("release").join(bin))
+}
+
+/// The cargo that runs this (`CARGO` under cargo), or the one on the PATH.
+fn cargo() -> Command {
+    Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()))
+}
+
+/// `check()`'s outcome, computed on the first call in this process and remembered (a failure too,
+/// reported again). A mutex rather than a once-cell, so that parallel tests wait for one install
+/// to finish.
+fn once<T: Clone>(cache: &Mutex<Option<Result<T, String>>>, check: impl FnOnce() -> Result<T, String>) -> Result<T> {
+    let mut cached = cache.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+    cached.get_or_insert_with(check).clone().map_err(|e| anyhow!("{e}"))
 }
 
 /// The linker wrapper a board may link with (`linker = "flip-link"` in its
@@ -75,14 +88,13 @@ pub fn links_with_flip_link(dir: &Path) -> bool {
 /// seconds to build) when it is not. Checked once per process, as the toolchain is.
 pub fn ensure_flip_link() -> Result<()> {
     static CHECKED: Mutex<Option<Result<(), String>>> = Mutex::new(None);
-    let mut checked = CHECKED.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-    let outcome = checked.get_or_insert_with(|| {
+    once(&CHECKED, || {
         // Run without arguments it reports its own usage; only a missing program fails to start.
         if Command::new(FLIP_LINK).output().is_ok() {
             return Ok(());
         }
         eprintln!("note: the board build links with {FLIP_LINK}: installing it with cargo install (once)");
-        let output = Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()))
+        let output = cargo()
             .args(["install", FLIP_LINK, "--locked", "--quiet"])
             .output()
             .map_err(|e| format!("cannot run cargo install {FLIP_LINK}: {e}"))?;
@@ -96,8 +108,7 @@ pub fn ensure_flip_link() -> Result<()> {
                 "cargo install put {FLIP_LINK} where the PATH does not reach: add cargo's bin folder (~/.cargo/bin) to the PATH"
             )),
         }
-    });
-    outcome.clone().map_err(|e| anyhow!("{e}"))
+    })
 }
 
 /// The target folder all board builds share: `firmware/boards/target`.
@@ -167,10 +178,8 @@ impl Toolchain {
 /// missing with rustup, and returns it. Checked once per process (a failure is remembered and
 /// reported again).
 pub fn ensure_toolchain(dir: &Path) -> Result<Toolchain> {
-    // A mutex rather than a once-cell, so that parallel tests wait for one install to finish.
     static CHECKED: Mutex<Option<Result<Toolchain, String>>> = Mutex::new(None);
-    let mut checked = CHECKED.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-    let outcome = checked.get_or_insert_with(|| {
+    once(&CHECKED, || {
         let outcome = Toolchain::of(dir).and_then(|toolchain| {
             install(&toolchain.missing(), "rustup", dir, &toolchain.sysroot)?;
             match toolchain.missing().as_slice() {
@@ -179,8 +188,7 @@ pub fn ensure_toolchain(dir: &Path) -> Result<Toolchain> {
             }
         });
         outcome.map_err(|e| format!("{e:#}"))
-    });
-    outcome.clone().map_err(|e| anyhow!("{e}"))
+    })
 }
 
 fn names(missing: &[Missing]) -> String {

@@ -176,7 +176,7 @@ pub(super) fn run(mut core: PcCore, link: CoreEnd, mut clock: StdClock, shared: 
             }
             out.clear();
             let report = core.tick(start, &mut out);
-            if !out.is_empty() && link.to_host.send(std::mem::take(&mut out)).is_err() && end_with_host {
+            if !send(&link, &mut out) && end_with_host {
                 finishing.get_or_insert(FINISHING_TICKS);
             }
             if let Some(report) = report {
@@ -221,6 +221,11 @@ pub(super) fn run(mut core: PcCore, link: CoreEnd, mut clock: StdClock, shared: 
 fn receive(core: &mut PcCore, link: &CoreEnd, bytes: &[u8], now_us: u64, out: &mut Vec<u8>) -> bool {
     out.clear();
     core.receive(bytes, now_us, out);
+    send(link, out)
+}
+
+/// Sends what the core wrote, if anything; false once the host has gone.
+fn send(link: &CoreEnd, out: &mut Vec<u8>) -> bool {
     out.is_empty() || link.to_host.send(std::mem::take(out)).is_ok()
 }
 
