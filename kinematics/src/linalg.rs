@@ -8,14 +8,26 @@ use nalgebra::{SMatrix, SVector};
 /// Solves `a x = b` for a symmetric positive definite `a` by Cholesky (`a = L L^T`), reading only
 /// the lower triangle of `a`. Returns `None` if `a` is not numerically positive definite or the
 /// result is not finite.
+pub fn cholesky_solve<T: Real, const K: usize>(a: &SMatrix<T, K, K>, b: &SVector<T, K>) -> Option<SVector<T, K>> {
+    cholesky_solve_leading(a, b, K)
+}
+
+/// [`cholesky_solve`] of the leading `k x k` block of `a` with the first `k` entries of `b`; the
+/// rest of the result is zero. One solver serves systems of several sizes held in one storage,
+/// with the arithmetic of a solver of size `k`.
 ///
 /// Plain arrays rather than nalgebra indexing: this runs every IK iteration, and the fixed-size
 /// array loops compile without bounds checks. Index loops mirror the textbook algorithm.
 #[allow(clippy::needless_range_loop)]
-pub fn cholesky_solve<T: Real, const K: usize>(a: &SMatrix<T, K, K>, b: &SVector<T, K>) -> Option<SVector<T, K>> {
+pub fn cholesky_solve_leading<T: Real, const K: usize>(
+    a: &SMatrix<T, K, K>,
+    b: &SVector<T, K>,
+    k: usize,
+) -> Option<SVector<T, K>> {
+    let size = k.min(K);
     let mut l = [[T::zero(); K]; K];
     let mut inv_diag = [T::zero(); K];
-    for j in 0..K {
+    for j in 0..size {
         let mut d = a[(j, j)];
         for k in 0..j {
             d -= l[j][k] * l[j][k];
@@ -28,7 +40,7 @@ pub fn cholesky_solve<T: Real, const K: usize>(a: &SMatrix<T, K, K>, b: &SVector
         let d = d.sqrt();
         l[j][j] = d;
         inv_diag[j] = T::one() / d;
-        for i in j + 1..K {
+        for i in j + 1..size {
             let mut s = a[(i, j)];
             for k in 0..j {
                 s -= l[i][k] * l[j][k];
@@ -38,16 +50,16 @@ pub fn cholesky_solve<T: Real, const K: usize>(a: &SMatrix<T, K, K>, b: &SVector
     }
     // Forward then backward substitution.
     let mut y = [T::zero(); K];
-    for i in 0..K {
+    for i in 0..size {
         let mut s = b[i];
         for k in 0..i {
             s -= l[i][k] * y[k];
         }
         y[i] = s * inv_diag[i];
     }
-    for i in (0..K).rev() {
+    for i in (0..size).rev() {
         let mut s = y[i];
-        for k in i + 1..K {
+        for k in i + 1..size {
             s -= l[k][i] * y[k];
         }
         y[i] = s * inv_diag[i];

@@ -8,7 +8,7 @@
 //! only if the error falls, otherwise it is retried with ten times the damping.
 
 use super::{Descent, DescentEnd, ErrorTerms, IkMethod, Residual};
-use crate::linalg::cholesky_solve;
+use crate::linalg::{cholesky_solve, cholesky_solve_leading};
 use crate::{Chain, Frames, Real};
 use nalgebra::{SMatrix, SVector};
 
@@ -45,6 +45,10 @@ const POLISH_PATIENCE: u32 = 5;
 /// answer only asks for a numerically visible fall.
 const ATTEMPT_PROGRESS: f64 = 0.10;
 
+/// One code path for both kinds of target: the task is held in 6 rows, a position target's last
+/// three being zero (see [`Residual::task`]), and the damped system is solved at the task's own
+/// size. Zero rows and padded unknowns add exact zeros, so this gives the bits a 3-row solver
+/// would, while the firmware carries one copy of the loop instead of two (about 2 KB of flash).
 fn descend_with<T: Real, const N: usize>(
     chain: &Chain<T, N>,
     residual: &Residual<T>,
@@ -53,11 +57,7 @@ fn descend_with<T: Real, const N: usize>(
     progress: T,
     patience: u32,
 ) -> Descent<T, N> {
-    if residual.rows() == 3 {
-        descend_task::<T, N, 3>(chain, residual, start, budget, progress, patience)
-    } else {
-        descend_task::<T, N, 6>(chain, residual, start, budget, progress, patience)
-    }
+    descend_task::<T, N, 6>(chain, residual, start, budget, progress, patience)
 }
 
 fn descend_task<T: Real, const N: usize, const M: usize>(
@@ -128,7 +128,7 @@ fn damped_step<T: Real, const N: usize, const M: usize>(
     let mut frozen = [false; N];
     // Each round freezes at least one more joint, so N + 1 rounds always end.
     for _round in 0..=N {
-        let dq = solve_damped::<T, N, M>(&j, &e, lambda)?;
+        let dq = solve_damped::<T, N, M>(&j, &e, residual.rows(), lambda)?;
         let mut froze = false;
         // Indexed by a range over N (not by the joint slice's enumeration), so that every index
         // below is provably in bounds and the firmware links no panic path.
@@ -158,18 +158,19 @@ fn damped_step<T: Real, const N: usize, const M: usize>(
 }
 
 /// `J^T (J J^T + lambda I)^-1 e`, or the equal `(J^T J + lambda I)^-1 J^T e` when that system is
-/// the smaller one.
+/// the smaller one, for a task whose first `rows` rows are live (the rest are zero).
 fn solve_damped<T: Real, const N: usize, const M: usize>(
     j: &SMatrix<T, M, N>,
     e: &SVector<T, M>,
+    rows: usize,
     lambda: T,
 ) -> Option<SVector<T, N>> {
-    if N >= M {
+    if N >= rows {
         let mut a = j * j.transpose();
-        for i in 0..M {
+        for i in 0..rows.min(M) {
             a[(i, i)] += lambda;
         }
-        cholesky_solve(&a, e).map(|y| j.transpose() * y)
+        cholesky_solve_leading(&a, e, rows).map(|y| j.transpose() * y)
     } else {
         let mut a = j.transpose() * j;
         for i in 0..N {

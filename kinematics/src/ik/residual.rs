@@ -80,6 +80,8 @@ impl<T: Real> Residual<T> {
     }
 
     /// The first `M` rows (3 or 6) of the weighted Jacobian and error: the task the solvers see.
+    /// Rows past [`Residual::rows`] are zero (a position target asked for 6 rows), so they add
+    /// exactly nothing to any product: a solver can hold every task in 6 rows.
     pub fn task<const M: usize, const N: usize>(
         &self,
         chain: &Chain<T, N>,
@@ -88,7 +90,12 @@ impl<T: Real> Residual<T> {
     ) -> (SMatrix<T, M, N>, SVector<T, M>) {
         const { assert!(M == 3 || M == 6, "a task has 3 (position) or 6 (pose) rows") };
         let j6 = chain.jacobian_of(frames);
-        let j = SMatrix::<T, M, N>::from_fn(|r, c| if r < 3 { j6[(r, c)] } else { j6[(r, c)] * self.weight });
+        let rows = self.rows();
+        let j = SMatrix::<T, M, N>::from_fn(|r, c| match r {
+            _ if r >= rows => T::zero(),
+            0..3 => j6[(r, c)],
+            _ => j6[(r, c)] * self.weight,
+        });
         let v = SVector::<T, M>::from_fn(|r, _| e.vector[r]);
         (j, v)
     }
