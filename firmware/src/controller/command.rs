@@ -383,6 +383,13 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         Ok(solution.q)
     }
 
+    /// Where the tool is at joint values `q`. Through [`Chain::forward`], which IK runs anyway,
+    /// rather than the leaner `Chain::tool_pose`: this is called once per move and once on
+    /// arrival, and a second copy of forward kinematics would cost 1 KB of flash.
+    pub(super) fn tool_position(&self, q: &SVector<f32, N>) -> Vector3<f32> {
+        self.chain.forward(q).tool.translation
+    }
+
     fn move_tool(&mut self, position: [f32; 3], orientation: Option<[f32; 4]>, pace: Pace) -> Result<(), Refusal> {
         let target = Self::tool_target(position, orientation)?;
         let (value, is_speed) = match pace {
@@ -398,7 +405,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         self.ready()?;
         // Refuse what IK cannot reach from here, with restarts, before anything moves.
         self.solve_reachable(target, self.setpoint.position)?;
-        let start = self.chain.tool_pose(&self.setpoint.position).translation;
+        let start = self.tool_position(&self.setpoint.position);
         let distance = (target.position() - start).norm();
         let speed = if is_speed { value } else { (distance / value).max(1e-6) };
         self.reset_player();

@@ -398,8 +398,8 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
                         && self.setpoint.velocity[j] == 0.0
                 });
                 if arrived && settled {
-                    let error = self.chain.tool_pose(&self.tracker.q).translation;
-                    let reached = self.tool.is_some_and(|g| (error - g.target.position()).norm() < 1e-3);
+                    let tool = self.tool_position(&self.tracker.q);
+                    let reached = self.tool.is_some_and(|g| (tool - g.target.position()).norm() < 1e-3);
                     if reached {
                         self.enter_hold();
                     }

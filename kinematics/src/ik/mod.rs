@@ -130,7 +130,7 @@ impl<T: Real, const N: usize> Chain<T, N> {
         // `best` is always set: the loop runs at least once.
         let mut best = best.unwrap_or(Descent {
             q: start,
-            error: residual.error(&self.tool_pose(&start)),
+            error: residual.error(&self.forward(&start).tool),
             iterations: 0,
             end: DescentEnd::Stalled,
         });
@@ -150,10 +150,11 @@ impl<T: Real, const N: usize> Chain<T, N> {
         // claim. Left unchanged by normalising, they are the point the method measured its error
         // at (a `Descent`'s error is its `q`'s), and FK, being deterministic, would give the same
         // bits again: that error is reused, one FK less per solve (a tenth of a tracking step on
-        // the M4F). Values that normalising changed are measured afresh.
+        // the M4F). Values that normalising changed are measured afresh, by the FK the methods
+        // use (the same products as `tool_pose`, whose second copy would cost the firmware 1 KB).
         let mut q = best.q;
         self.normalise(&mut q);
-        let error = if q == best.q { best.error } else { residual.error(&self.tool_pose(&q)) };
+        let error = if q == best.q { best.error } else { residual.error(&self.forward(&q).tool) };
         let status = if residual.converged(&error) && self.admits(&q) {
             IkStatus::Converged
         } else if best.end == DescentEnd::OutOfBudget {
