@@ -204,7 +204,7 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
                 self.telemetry = match *rate_hz {
                     0 => None,
                     // No faster than the control rate: a frame per tick at most.
-                    hz => Some(((1_000_000 / u64::from(hz)).max(period), now_us)),
+                    hz => Some((u64::from(1_000_000 / u32::from(hz)).max(period), now_us)),
                 };
                 return Ok(self.ack());
             }

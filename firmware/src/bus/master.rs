@@ -22,7 +22,7 @@ use embedded_io::{Read, ReadReady, Write};
 use super::instruction::{BulkReadRecord, Instruction, InstructionPacket};
 use super::protocol::ErrorText;
 use super::stream::StreamDecoder;
-use super::timing::wire_time_ns;
+use super::timing::wire_time_us;
 use super::{EncodeError, Id, Protocol, Status, BROADCAST};
 
 /// A monotonic time source in microseconds (a hardware timer on a board, a virtual clock in
@@ -96,7 +96,7 @@ impl BusConfig {
             Protocol::Dxl2 => 500,
             Protocol::Feetech => 0,
         };
-        let idle_gap_us = (wire_time_ns(3, baud).div_ceil(1000)).max(100) as u32;
+        let idle_gap_us = wire_time_us(3, baud).max(100) as u32;
         Self {
             protocol,
             baud,
@@ -392,7 +392,7 @@ where
             // Byte stuffing can add one byte per three of data.
             bytes += replies * data.div_ceil(3);
         }
-        wire_time_ns(bytes, self.config.baud).div_ceil(1000)
+        wire_time_us(bytes, self.config.baud)
             + replies as u64 * u64::from(self.config.return_delay_us)
             + u64::from(self.config.margin_us)
     }

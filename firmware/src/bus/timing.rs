@@ -10,8 +10,30 @@ pub const BITS_PER_BYTE: u64 = 10;
 
 /// Nanoseconds `bytes` take at `baud` (rounded up; 0 baud is treated as 1).
 pub fn wire_time_ns(bytes: usize, baud: u32) -> u64 {
-    let bits = (bytes as u64).saturating_mul(BITS_PER_BYTE);
-    bits.saturating_mul(1_000_000_000).div_ceil(u64::from(baud.max(1)))
+    wire_time(bytes, baud, 9)
+}
+
+/// Microseconds `bytes` take at `baud`, rounded up: the nanoseconds rounded up to whole
+/// microseconds (rounding up twice is rounding up once).
+pub fn wire_time_us(bytes: usize, baud: u32) -> u64 {
+    wire_time(bytes, baud, 6)
+}
+
+/// `ceil(bits * 10^digits / baud)`, exactly, by long division one decimal digit at a time. Only
+/// 32-bit divisions: the M4F divides 32 bits in hardware, and a 64-bit division would link
+/// compiler_builtins' 900-byte routine into the firmware. Bauds above 100 Mbps (no serial bus
+/// runs there) count as 100 Mbps, so that ten times a remainder always fits 32 bits.
+fn wire_time(bytes: usize, baud: u32, digits: u32) -> u64 {
+    let baud = baud.clamp(1, 100_000_000);
+    let bits = u32::try_from(bytes).unwrap_or(u32::MAX).saturating_mul(BITS_PER_BYTE as u32);
+    let mut quotient = u64::from(bits / baud);
+    let mut remainder = bits % baud;
+    for _ in 0..digits {
+        let next = remainder * 10;
+        quotient = quotient.saturating_mul(10).saturating_add(u64::from(next / baud));
+        remainder = next % baud;
+    }
+    quotient + u64::from(remainder > 0)
 }
 
 /// Parameter bytes ahead of the per-servo records in a sync read or sync write: address and
@@ -55,6 +77,19 @@ pub fn cycle_time_ns(
         + (servos as u64) * u64::from(return_delay_us) * 1000
 }
 
+/// [`cycle_time_ns`] in microseconds, rounded up (what the firmware checks its period against).
+pub fn cycle_time_us(
+    protocol: Protocol,
+    servos: usize,
+    goal_len: usize,
+    position_len: usize,
+    baud: u32,
+    return_delay_us: u32,
+) -> u64 {
+    wire_time_us(cycle_bytes(protocol, servos, goal_len, position_len), baud)
+        + (servos as u64) * u64::from(return_delay_us)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -72,5 +107,23 @@ mod tests {
         assert_eq!(cycle_bytes(Protocol::Feetech, 6, 2, 2), 88);
         assert_eq!(wire_time_ns(88, 1_000_000), 880_000);
         assert_eq!(cycle_time_ns(Protocol::Dxl2, 6, 4, 4, 1_000_000, 500), 1_540_000 + 3_000_000);
+        assert_eq!(cycle_time_us(Protocol::Dxl2, 6, 4, 4, 1_000_000, 500), 1_540 + 3_000);
+    }
+
+    /// The digit-by-digit division equals the plain 64-bit one, rounding included, over byte
+    /// counts and bauds from the slowest to beyond the fastest servo bus; microseconds are the
+    /// nanoseconds rounded up.
+    #[test]
+    fn long_division_matches_64_bit_arithmetic() {
+        let bauds = [1, 7, 9_600, 57_600, 115_200, 1_000_000, 3_000_000, 4_500_000, 99_999_989, 100_000_000];
+        for baud in bauds {
+            for bytes in (0..2_000).chain([65_535, 1 << 24]) {
+                let bits = bytes as u64 * BITS_PER_BYTE;
+                let ns = (bits * 1_000_000_000).div_ceil(u64::from(baud));
+                assert_eq!(wire_time_ns(bytes, baud), ns, "{bytes} bytes at {baud}");
+                assert_eq!(wire_time_us(bytes, baud), ns.div_ceil(1000), "{bytes} bytes at {baud}");
+            }
+        }
+        assert_eq!(wire_time_ns(10, 0), 100_000_000_000);
     }
 }

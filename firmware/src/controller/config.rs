@@ -7,7 +7,7 @@ use kinematics::Chain;
 use crate::bus::mapping::JointMapping;
 use crate::bus::master::BusConfig;
 use crate::bus::table::Model;
-use crate::bus::timing::cycle_time_ns;
+use crate::bus::timing::cycle_time_us;
 
 /// Timing and budgets of the control loop.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -74,8 +74,8 @@ impl core::fmt::Display for ConfigError {
 pub fn minimum_period_us(model: &Model, bus: &BusConfig, joints: usize) -> u32 {
     let goal = model.items.goal_position.len();
     let position = model.items.present_position.len();
-    let ns = cycle_time_ns(bus.protocol, joints, goal, position, bus.baud, bus.return_delay_us);
-    let us = ns.div_ceil(1000) + u64::from(bus.margin_us);
+    let us =
+        cycle_time_us(bus.protocol, joints, goal, position, bus.baud, bus.return_delay_us) + u64::from(bus.margin_us);
     u32::try_from(us).unwrap_or(u32::MAX)
 }
 
