@@ -1,7 +1,7 @@
 //! One joint of a serial chain, as URDF describes it: a fixed origin from the parent frame, then a
 //! motion about (or along) an axis given in the joint's own frame.
 
-use crate::{Pose, Real};
+use crate::{wrap_angle, Pose, Real};
 use nalgebra::Vector3;
 
 /// How a joint moves.
@@ -166,19 +166,4 @@ impl<T: Real> Joint<T> {
 
 fn clamp<T: Real>(q: T, l: Limits<T>) -> T {
     q.max(l.lower).min(l.upper)
-}
-
-/// Wraps an angle to (-pi, pi].
-pub fn wrap_angle<T: Real>(q: T) -> T {
-    let two_pi = T::two_pi();
-    let pi = T::pi();
-    // `%` is exact (IEEE fmod), so even a huge angle keeps its true remainder; the floor form alone
-    // would lose it to rounding in `q / two_pi` beyond about 1e16.
-    let r = q % two_pi;
-    let mut w = r - two_pi * ((r + pi) / two_pi).floor();
-    // floor puts -pi exactly at -pi; map it to +pi so the interval is half-open at the bottom.
-    if w <= -pi {
-        w += two_pi;
-    }
-    w
 }

@@ -20,6 +20,7 @@
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
 
+mod angle;
 mod chain;
 mod fk;
 pub mod ik;
@@ -32,9 +33,10 @@ mod rng;
 pub mod trajectory;
 pub mod trig;
 
+pub use angle::wrap_angle;
 pub use chain::{Chain, ChainError, DhRow};
 pub use fk::Frames;
-pub use joint::{wrap_angle, Joint, JointKind, Limits};
+pub use joint::{Joint, JointKind, Limits};
 pub use pose::{axis_angle_matrix, quaternion_wxyz, rotation_error, Pose};
 pub use real::Real;
 pub use rng::SplitMix64;

@@ -7,9 +7,10 @@
 //!
 //! Accuracy (checked against `f64` in the tests): within 2.5e-7 absolute for |x| <= 100, 1e-6 up
 //! to 8192. Beyond 8192 rad (no joint angle; a continuous joint's accumulated angle after thousands
-//! of turns) the argument is first reduced modulo 2 pi in `f32`, which costs about |x| * 2e-7.
+//! of turns) the argument is first wrapped to one turn in `f32` ([`crate::wrap_angle`]), which
+//! costs about |x| * 2e-7.
 
-use core::f32::consts::{FRAC_2_PI, TAU};
+use core::f32::consts::FRAC_2_PI;
 
 /// pi/2 in three parts: the first has 8 significant bits, so `k * PIO2_1` is exact for |k| < 2^16,
 /// and the rest of pi/2 is carried by the next two (Cephes' DP1..DP3, doubled).
@@ -38,7 +39,7 @@ pub fn sin_cos(x: f32) -> (f32, f32) {
     if !x.is_finite() {
         return (f32::NAN, f32::NAN);
     }
-    let x = if x.abs() > REDUCTION_LIMIT { x % TAU } else { x };
+    let x = if x.abs() > REDUCTION_LIMIT { crate::wrap_angle(x) } else { x };
     // The nearest quadrant: |k| <= 8192 * 2/pi + 1, well inside i32 and the exact range of PIO2_1.
     let k = (x * FRAC_2_PI + 0.5f32.copysign(x)) as i32;
     let kf = k as f32;
