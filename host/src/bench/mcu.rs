@@ -36,7 +36,7 @@ pub const GOALS: [(&str, u64); 3] = [("ik_track_1cm", 50_000), ("fk6", 4_000), (
 
 /// What each operation is, for the table's readers.
 const DESCRIPTIONS: [(&str, &str); 12] = [
-    ("fk6", "tool pose of the 6-joint UR5e, f32"),
+    ("fk6", "forward kinematics of the 6-joint UR5e, every frame, f32"),
     ("sincos", "one f32 sin and cos (kinematics::trig, in f32)"),
     ("sincos_libm", "the same with libm's sincosf (f64 inside, software)"),
     ("dls_iter", "one damped-least-squares iteration, full pose"),

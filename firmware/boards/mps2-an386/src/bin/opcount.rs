@@ -91,7 +91,8 @@ fn main() -> ! {
 fn kinematics_ops(syst: &mut SYST) {
     let Ok(chain) = presets::ur5e::<f32>() else { halt() };
     let q = SVector::<f32, J>::from(SEED);
-    report("fk6", REPS, measure(syst, REPS, || chain.tool_pose(black_box(&q))));
+    // `forward`, every joint frame and the tool: the one FK the firmware links.
+    report("fk6", REPS, measure(syst, REPS, || chain.forward(black_box(&q))));
     // FK's sine and cosine of each joint, apart: the kinematics' own f32 version, and libm's
     // `sincosf` for comparison, which computes in f64 (software on the M4F's single-precision FPU).
     let angle = SEED[3];
