@@ -184,6 +184,20 @@ fn plays_a_joint_keyframe_file() {
     assert!(!run.stderr.contains("warning"), "{}", run.stderr);
 }
 
+/// A file with the gripper column, longer than the queue: before the start the gripper's track
+/// holds one keyframe fewer than the joints' queue (it keeps a slot for where the gripper starts),
+/// so filling the queue must stop at the free slots the firmware reports, not at its capacity.
+#[test]
+fn plays_a_file_with_the_gripper_longer_than_the_queue() {
+    let mut csv = String::from("t,q1,q2,q3,q4,q5,gripper\n");
+    for i in 1..=60 {
+        csv.push_str(&format!("{},0,0,0,0,0,{}\n", 0.05 * f64::from(i), 30.0 + f64::from(i)));
+    }
+    let file = TempFile::new("gripper", &csv);
+    let v = armctl(&["--sim", "--json", "play", file.path()]).json();
+    assert_eq!(v["pushed"], 60, "{v}");
+}
+
 #[test]
 fn plays_a_cartesian_keyframe_file() {
     let points: Vec<[f64; 3]> = (0..6).map(|i| fk(&[0.1 * f64::from(i), -0.3, 0.4, 0.2, 0.0])).collect();

@@ -184,8 +184,10 @@ pub fn run(driver: &mut Driver, plan: Plan, json: bool, out: &mut dyn Write, err
     let mut progress = Progress::new(total, plan.seconds(), std::io::stderr().is_terminal());
     let mut pushed = 0usize;
 
-    // Fill the queue before starting, so the start does not wait on the link.
-    while pushed < total.min(driver.queue_capacity().max(1)) {
+    // Fill the queue before starting, so the start does not wait on the link: as far as the
+    // firmware reports free slots (with a gripper column, its track holds one keyframe fewer than
+    // the joints' queue).
+    while pushed < total.min(driver.queue_capacity().max(1)) && (pushed == 0 || driver.free_slots() > 0) {
         if interrupt::requested() {
             driver.request(&HostMessage::Stop)?;
             let undone = driver.undo_torque(switched);
