@@ -221,6 +221,20 @@ fn a_keyframe_trajectory_is_followed_closely_and_pause_resumes() {
     assert!(end_error < 0.003);
     assert!(worst < 0.01);
 
+    // Between ticks the playback clock runs on at its rate, up to one period (what a status
+    // reports, so that a streaming host can time its keyframes).
+    for k in 1..=4 {
+        let t = k as f32 * 0.25;
+        r.command(Command::PushKeyframe { keyframe: PlayerKeyframe::new(t, at(t)), gripper: None }).unwrap();
+    }
+    r.command(Command::Start).unwrap();
+    r.run(10);
+    let last_tick = r.next_us - PERIOD_US;
+    let at_tick = r.ctl.play_time();
+    assert!((r.ctl.play_time_at(last_tick + 4_000) - (at_tick + 0.004)).abs() < 1e-6);
+    assert!((r.ctl.play_time_at(last_tick + 25_000) - (at_tick + PERIOD_US as f32 * 1e-6)).abs() < 1e-6);
+    r.run_until(200, |_, rep| rep.mode == Mode::Holding);
+
     // Pause mid-trajectory: the playback slows to a stop on the path, then resumes to the end.
     for k in 1..=8 {
         let t = k as f32 * 0.25;

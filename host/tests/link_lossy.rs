@@ -89,6 +89,7 @@ impl Toy {
     fn status(&self) -> Status {
         Status {
             time: self.ticks as f32 * 0.01,
+            play_time: 0.0,
             state: if self.started { RunState::Moving } else { RunState::Idle },
             measured: Default::default(),
             setpoints: Default::default(),

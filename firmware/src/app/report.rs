@@ -84,6 +84,7 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
         let Some(c) = self.running() else {
             return Status {
                 time,
+                play_time: 0.0,
                 state: RunState::TorqueOff,
                 measured: Joints::new(),
                 setpoints: Joints::new(),
@@ -125,6 +126,7 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
         let lost_servos = c.health().iter().enumerate().fold(0u32, |acc, (j, h)| acc | (u32::from(h.lost) << j));
         Status {
             time,
+            play_time: if c.mode() == Mode::Playing { c.play_time_at(now_us) } else { 0.0 },
             state,
             // The arm's own joints only: the padding after them is not the host's.
             measured: joints(c.measured().iter().copied().take(c.joints())),

@@ -382,6 +382,16 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         self.play.time
     }
 
+    /// The playback clock at `now_us`, between ticks: the time since the last tick added at the
+    /// playback rate, up to one period (a late tick advances the clock by no more). A host that
+    /// times keyframes by it needs the clock between ticks: sampled at the tick's own resolution,
+    /// it would be up to a period behind.
+    pub fn play_time_at(&self, now_us: u64) -> f32 {
+        let period = self.config.period_us;
+        let since = self.last_tick_us.map_or(0, |t| now_us.saturating_sub(t).min(u64::from(period)) as u32);
+        self.play.time + since as f32 * 1e-6 * self.play.rate
+    }
+
     /// Room left in the keyframe queue: the joints' and, with a gripper, its track's, whichever
     /// is fuller (acks report it, so a host that keeps to it never has a gripper keyframe refused).
     pub fn free_slots(&self) -> usize {

@@ -406,6 +406,11 @@ pub struct ErrorCounters {
 pub struct Status {
     /// Controller time (s).
     pub time: f32,
+    /// The playback clock (s) when the status was made: the time the player samples its keyframes
+    /// at, zero at `Start` (and while not playing), advanced between ticks by the time since the
+    /// last one. A host streaming keyframes times them by it: a keyframe is due when this clock
+    /// reaches its time.
+    pub play_time: f32,
     /// What the player is doing.
     pub state: RunState,
     /// Measured joint positions.

@@ -85,6 +85,7 @@ fn name(s: &str) -> String<MAX_NAME> {
 fn status(n: usize) -> Status {
     Status {
         time: 12.5,
+        play_time: 3.25,
         state: RunState::Moving,
         measured: joints(n, 0.5),
         setpoints: joints(n, 0.51),
