@@ -145,9 +145,6 @@ pub fn parse_keyframes(text: &str) -> Result<Keyframes> {
         if fields.len() != names.len() {
             bail!("line {line}: {} fields, but the header has {}", fields.len(), names.len());
         }
-        if k.times.len() == MAX_KEYFRAMES {
-            bail!("line {line}: more than {MAX_KEYFRAMES} keyframes (armctl's capacity)");
-        }
         let values = crate::args::numbers::csv_row(line, &fields, &names)?;
         let t = values[0];
         if let (Some(&previous), Some(&previous_line)) = (k.times.last(), k.lines.last()) {
@@ -301,7 +298,14 @@ pub fn sample_times(start: f64, end: f64, rate: f64) -> Result<Vec<f64>> {
 }
 
 /// Builds the curve of `options` from `keyframes` and samples it.
+///
+/// The curves have a fixed capacity of [`MAX_KEYFRAMES`]; `armctl play` streams a file of any
+/// length (the firmware's queue holds a window of it), so the cap is checked here, not when parsing.
 pub fn sample(keyframes: &Keyframes, options: &Options) -> Result<Sampled> {
+    if keyframes.times.len() > MAX_KEYFRAMES {
+        let line = keyframes.lines.get(MAX_KEYFRAMES).copied().unwrap_or_default();
+        bail!("line {line}: more than {MAX_KEYFRAMES} keyframes (the capacity of armctl trajectory's curves)");
+    }
     macro_rules! by_joints {
         ($($n:literal)*) => {
             match keyframes.joints {
