@@ -3,7 +3,8 @@
 //!
 //! The modules, top to bottom (a module uses only those below it):
 //! - [`cli`]: the command line, which uses everything;
-//! - [`demo`], [`bench`], [`footprint`], [`drive`], [`motion`], [`servo`]: what armctl does;
+//! - [`demo`], [`bench`], [`footprint`], [`teleop`], [`drive`], [`motion`], [`servo`]: what armctl
+//!   does;
 //! - [`places`]: where the firmware core runs on this PC (SIL, QEMU);
 //! - [`link`] and [`sim`]: the host link and its transports, the servo-bus simulator;
 //! - [`arm`], [`args`] and [`plot`]: arm descriptions, typed values, PNG drawing.
@@ -24,3 +25,4 @@ pub mod places;
 pub mod plot;
 pub mod servo;
 pub mod sim;
+pub mod teleop;

@@ -17,7 +17,7 @@ const ROWS: &[&[&str]] = &[
     &["places"],
     &["motion", "servo"],
     &["drive"],
-    &["demo", "bench", "footprint"],
+    &["demo", "bench", "footprint", "teleop"],
     &["cli"],
 ];
 

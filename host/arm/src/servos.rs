@@ -152,6 +152,20 @@ impl ServoSetup {
         })
     }
 
+    /// The range joint `j` of `arm` is commanded within, as the firmware holds it (`f32`): the
+    /// joint's limits intersected with what its servo's ticks reach, half a tick inside so that
+    /// rounding to ticks never lands outside ([`firmware::controller::config::joint_limits`]).
+    /// `None` when `j` is beyond the servos or nothing of the range is left.
+    pub fn commanded_range(&self, arm: &ArmSpec, j: usize) -> Option<(f32, f32)> {
+        let joint = arm.joints.get(j)?;
+        let mapping = self.mapping(j)?;
+        let (lo, hi) = mapping.joint_range::<f32>();
+        let half_tick = std::f32::consts::PI / mapping.ticks_per_revolution.max(1) as f32;
+        let lower = (joint.lower as f32).max(lo + half_tick);
+        let upper = (joint.upper as f32).min(hi - half_tick);
+        (lower <= upper).then_some((lower, upper))
+    }
+
     /// Takes a LeRobot calibration: each servo's entry found by its id. Fails, naming the servo,
     /// when one has none.
     pub fn calibrate(&mut self, calibration: &super::calibration::Calibration) -> anyhow::Result<()> {

@@ -80,6 +80,11 @@ enum Command {
     /// range, the ranges moved through by hand as position limits), answering each step with a
     /// line on stdin; writes the servos, an arm file (--out) and LeRobot's file (--lerobot-json).
     Calibrate(crate::servo::calibrate::CalibrateArgs),
+    /// Teleoperation: a leader arm moved by hand (torque off, read by sync read) drives the
+    /// follower given by the drive options (--port, --bus or --sim), through both calibrations,
+    /// as keyframes the follower's firmware plays within its limits. Reports the loop's rate and
+    /// latency; --record writes the session as a keyframe file for `armctl play`.
+    Teleop(crate::teleop::TeleopArgs),
     /// Driving an arm (after --port PORT, --bus PORT --protocol P or --sim): move, joints, play,
     /// status, stop, torque.
     #[command(flatten)]
@@ -181,12 +186,13 @@ pub(crate) fn load(arm: &ArmArgs) -> Result<Box<dyn DynArm>> {
 }
 
 fn run(link: &crate::drive::args::LinkArgs, command: Command, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
-    if !matches!(command, Command::Drive(_)) {
+    if !matches!(&command, Command::Drive(_) | Command::Teleop(_)) {
         link.refuse_for_other_commands()?;
     }
     match command {
         Command::Drive(command) => return crate::drive::run(link, command, out, err),
         Command::Demo(args) => return crate::demo::run(&args, out),
+        Command::Teleop(args) => return crate::teleop::run(link, args, out, err),
         Command::Fk { arm, q } => {
             let arm = load(&arm)?;
             let q = parse::numbers(&q, "--q")?;

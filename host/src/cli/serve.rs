@@ -10,7 +10,7 @@
 use std::io::Write;
 use std::time::{Duration, Instant};
 
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{anyhow, bail, Result};
 use clap::Args;
 
 use crate::args::bus::ProtocolArg;
@@ -22,7 +22,7 @@ use crate::drive::interrupt;
 use crate::link::client::{LinkClient, LinkConfig};
 use crate::places::pc::{Pc, PcOptions};
 use crate::places::serve::PtyLink;
-use crate::sim::{Faults, PtyServer, SimConfig};
+use crate::sim::PtyServer;
 
 /// How long the core may take to read its servos after the arm is configured.
 const READY_TIMEOUT: Duration = Duration::from_secs(2);
@@ -77,23 +77,7 @@ pub fn run(args: ServeArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
     let burst = args.burst_ms.map(burst).transpose()?;
     // With --sim the servos are served on a pty of their own, and the core drives them there
     // exactly as it drives an adapter's port.
-    let simulated = match args.sim {
-        true => Some(
-            PtyServer::spawn(SimConfig {
-                protocol: servos.model.protocol,
-                model: servos.model,
-                ids: servos.bus_ids(),
-                baud,
-                faults: Faults::default(),
-                duplicates: Vec::new(),
-                fixed_baud: false,
-                burst,
-                limits: Some(crate::sim::monitor::limits_of(&arm)?),
-            })
-            .context("cannot open a pseudo-terminal for the simulated servos")?,
-        ),
-        false => None,
-    };
+    let simulated = args.sim.then(|| crate::sim::serve_arm(&arm, baud, burst)).transpose()?;
     let path = match (&simulated, &args.bus) {
         (Some(server), _) => server.path().to_string(),
         (None, Some(path)) => path.clone(),

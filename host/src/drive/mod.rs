@@ -16,7 +16,7 @@ mod gripper;
 pub(crate) mod interrupt;
 mod play;
 mod progress;
-mod session;
+pub mod session;
 
 use std::io::Write;
 

@@ -105,6 +105,16 @@ impl<P: Port, C: Clock> Session<P, C> {
         *self.master.config()
     }
 
+    /// Changes the bus configuration (reply margin and idle gap once the adapter is timed).
+    pub fn set_config(&mut self, config: BusConfig) {
+        self.master.set_config(config);
+    }
+
+    /// The master itself, for what the session does not wrap (timing the bus).
+    pub fn master_mut(&mut self) -> &mut Bus<P, C> {
+        &mut self.master
+    }
+
     /// The protocol spoken.
     pub fn protocol(&self) -> Protocol {
         self.master.config().protocol

@@ -129,6 +129,22 @@ struct HandQueue {
     next_ticket: u64,
 }
 
+/// A hand that turns the horns of a [`PtyServer`]'s servos from another thread.
+#[derive(Clone, Debug)]
+pub struct HandHandle(Arc<Mutex<HandQueue>>);
+
+impl HandHandle {
+    /// As [`PtyServer::hand`].
+    pub fn turn(&self, id: u8, from: i64, to: i64, seconds: f64) -> u64 {
+        // A poisoned lock only means the serving thread panicked; the queue is still whole.
+        let mut queue = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        queue.next_ticket += 1;
+        let ticket = queue.next_ticket;
+        queue.requests.push_back(Hand::Move { ticket, id, from, to, seconds });
+        ticket
+    }
+}
+
 /// A simulated bus on a pseudo-terminal; dropping it stops the serving thread.
 #[derive(Debug)]
 pub struct PtyServer {
@@ -194,11 +210,12 @@ impl PtyServer {
     /// reports it under: done once the horn is at `to` and its position has been read since, or
     /// refused (torque on, no such servo), or cut short by a later move of the same servo.
     pub fn hand(&self, id: u8, from: i64, to: i64, seconds: f64) -> u64 {
-        let mut queue = self.hand_queue();
-        queue.next_ticket += 1;
-        let ticket = queue.next_ticket;
-        queue.requests.push_back(Hand::Move { ticket, id, from, to, seconds });
-        ticket
+        self.hand_handle().turn(id, from, to, seconds)
+    }
+
+    /// The hand, for another thread to turn the horns with (a scripted leader arm).
+    pub fn hand_handle(&self) -> HandHandle {
+        HandHandle(self.hand.clone())
     }
 
     /// The hand's moves that ended since the last call, in the order they ended.
@@ -434,6 +451,15 @@ pub fn arm_bus(arm: &crate::arm::ArmSpec, faults: super::Faults) -> anyhow::Resu
         burst: None,
         limits: Some(super::monitor::limits_of(arm)?),
     })
+}
+
+/// `arm`'s servos served on a pty at `baud` for a firmware core on this PC to drive as it drives a
+/// USB adapter (`armctl serve --sim`, `armctl teleop --sim`): the servos follow the rate the
+/// core sets, replies come in `burst`s as through an adapter's latency timer, and the safety
+/// monitor checks every goal.
+pub fn serve_arm(arm: &crate::arm::ArmSpec, baud: u32, burst: Option<Duration>) -> anyhow::Result<PtyServer> {
+    let config = SimConfig { baud, fixed_baud: false, burst, ..arm_bus(arm, super::Faults::default())? };
+    PtyServer::spawn(config).map_err(|e| anyhow::anyhow!("cannot serve the simulated servos on a pseudo-terminal: {e}"))
 }
 
 /// The SO-101's bus as the built-in firmware expects it: the five joints' servos and the gripper's.

@@ -45,7 +45,7 @@ pub use runner::{LoopSummary, Shared};
 
 /// The master's margin while the servos are looked for and the bus is timed: long enough for any
 /// adapter's latency timer (FTDI's can be set up to 255 ms; the default is 16).
-const SEARCH_MARGIN_US: u32 = 100_000;
+pub(crate) const SEARCH_MARGIN_US: u32 = 100_000;
 
 /// What to connect to.
 #[derive(Clone, Debug)]

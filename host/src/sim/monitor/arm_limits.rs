@@ -27,13 +27,9 @@ pub fn limits_of(arm: &ArmSpec) -> Result<Vec<GoalLimit>> {
         let tpr = mapping.ticks_per_revolution;
         // The speed limit as the firmware holds it (f32), in ticks.
         let max_ticks_per_s = f64::from(servos.max_velocity as f32) * f64::from(tpr) / std::f64::consts::TAU;
-        let (lo, hi) = mapping.joint_range::<f32>();
-        let half_tick = std::f32::consts::PI / tpr.max(1) as f32;
-        let lower = (joint.lower as f32).max(lo + half_tick);
-        let upper = (joint.upper as f32).min(hi - half_tick);
-        if lower.is_nan() || upper.is_nan() || lower > upper {
+        let Some((lower, upper)) = servos.commanded_range(arm, j) else {
             bail!("arm {}: joint {}'s limits leave it no range within servo {id}'s ticks", arm.name, joint.name);
-        }
+        };
         let a = i64::from(mapping.to_ticks(lower).unwrap_or(mapping.min_ticks));
         let b = i64::from(mapping.to_ticks(upper).unwrap_or(mapping.max_ticks));
         limits.push(GoalLimit { id, goal_range: (a.min(b), a.max(b)), max_ticks_per_s });

@@ -1,0 +1,326 @@
+//! `armctl teleop`: a leader arm moved by hand drives a follower arm, as LeRobot's
+//! `lerobot-teleoperate` does, through this project's one mechanism: the leader's joints are read
+//! on a bus of their own (sync read, torque off), passed through both arms' calibrations, and
+//! streamed to the follower's firmware as keyframes, which its player plays within its limits.
+//!
+//! - [`leader`]: the leader's servos, read as joint angles and a gripper opening;
+//! - [`hand`]: a simulated leader, turned by a scripted hand, to try it without an arm;
+//! - [`stream`]: the loop: its rate, the safety clamp, keyframes timed by the follower's playback
+//!   clock, and the figures;
+//! - [`record`]: the session as a keyframe file for `armctl play`.
+//!
+//! The follower is any drive target: `--port` (a board), `--bus` (the core on this PC with the
+//! servos on a USB adapter), or `--sim`, which here runs the core on this PC in real time against
+//! simulated servos on a pseudo-terminal (as `armctl serve --sim`), with a USB adapter's 1 ms
+//! latency and the safety monitor: teleoperation is a real-time loop, which the virtual clock of
+//! the other commands' `--sim` would not pace.
+
+pub mod hand;
+pub mod leader;
+pub mod record;
+pub mod stream;
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::{anyhow, bail, Result};
+use clap::Args;
+use serde_json::json;
+
+use crate::args::bus::ProtocolArg;
+use crate::arm::servos::servos_of;
+use crate::arm::ArmSpec;
+use crate::drive::args::{calibrated, LinkArgs};
+use crate::drive::connection::Target;
+use crate::drive::interrupt;
+use crate::drive::session::{Driver, Waited};
+use crate::places::pc::PcOptions;
+use crate::sim::PtyServer;
+use stream::{quantile, Figures, Settings};
+
+/// The latency timer of the simulated USB adapters (`--sim` follower, `--leader sim`).
+const SIM_ADAPTER_LATENCY: Duration = Duration::from_millis(1);
+/// Added to one period for the default lead: the player heads for a keyframe from the previous
+/// one, so each must be queued one period before it is due, and this margin covers the leader's
+/// read, the link's delay and the loop's jitter.
+const LEAD_MARGIN: Duration = Duration::from_millis(8);
+
+/// `armctl teleop`.
+#[derive(Args, Debug)]
+pub struct TeleopArgs {
+    #[command(flatten)]
+    #[allow(missing_docs)]
+    pub link: LinkArgs,
+    /// The leader arm's serial port (its USB adapter), or `sim`: simulated leader servos, turned by
+    /// --leader-script.
+    #[arg(long, value_name = "PORT|sim")]
+    pub leader: String,
+    /// The leader's servo protocol [default: that of --leader-arm's servos].
+    #[arg(long, value_enum)]
+    pub leader_protocol: Option<ProtocolArg>,
+    /// The leader arm: a preset or an arm file with a [servos] table.
+    #[arg(long, value_name = "ARM", default_value = "so101")]
+    pub leader_arm: String,
+    /// A LeRobot calibration file (JSON) of the leader's servos.
+    #[arg(long, value_name = "FILE")]
+    pub leader_calibration: Option<PathBuf>,
+    /// The leader bus's baud rate [default: the leader arm file's].
+    #[arg(long)]
+    pub leader_baud: Option<u32>,
+    /// With --leader sim: the path the hand moves the leader along, a joint keyframe file
+    /// (t,q1,...,qN[,gripper], as for `armctl play`), straight from keyframe to keyframe.
+    #[arg(long, value_name = "FILE")]
+    pub leader_script: Option<PathBuf>,
+    /// Keyframes per second.
+    #[arg(long, default_value_t = 100.0)]
+    pub rate: f64,
+    /// How long after its reading a keyframe is played on the follower, ms [default: one period
+    /// plus 8].
+    #[arg(long, value_name = "MS")]
+    pub lead_ms: Option<f64>,
+    /// Largest change of a joint from one keyframe to the next, rad (LeRobot's
+    /// max_relative_target) [default: the follower's speed limit over one period].
+    #[arg(long, value_name = "RAD")]
+    pub max_step: Option<f64>,
+    /// End after this many seconds [default: at Ctrl-C; with --leader sim, when the script ends].
+    #[arg(long, value_name = "S")]
+    pub duration: Option<f64>,
+    /// Write the session as a joint keyframe file that `armctl play` replays.
+    #[arg(long, value_name = "FILE.csv")]
+    pub record: Option<PathBuf>,
+}
+
+impl TeleopArgs {
+    /// The loop's settings other than the follower's.
+    fn check(&self) -> Result<(Duration, Duration)> {
+        if !(self.rate.is_finite() && (1.0..=1000.0).contains(&self.rate)) {
+            bail!("--rate: {} must be between 1 and 1000 keyframes per second", self.rate);
+        }
+        let period = Duration::from_secs_f64(1.0 / self.rate);
+        let lead = match self.lead_ms {
+            Some(ms) if ms.is_finite() && ms > 0.0 && ms <= 1000.0 => Duration::from_secs_f64(ms * 1e-3),
+            Some(ms) => bail!("--lead-ms: {ms} must be above 0 and at most 1000"),
+            None => period + LEAD_MARGIN,
+        };
+        if let Some(step) = self.max_step {
+            if !(step.is_finite() && step > 0.0) {
+                bail!("--max-step: {step} must be a positive number of radians");
+            }
+        }
+        if let Some(d) = self.duration {
+            if !(d.is_finite() && d > 0.0) {
+                bail!("--duration: {d} must be a positive number of seconds");
+            }
+        }
+        match (self.leader == "sim", &self.leader_script) {
+            (true, None) => {
+                bail!("--leader sim needs --leader-script FILE: the path the simulated hand moves it along")
+            }
+            (false, Some(_)) => bail!("--leader-script moves a simulated leader: it needs --leader sim"),
+            _ => {}
+        }
+        Ok((period, lead))
+    }
+}
+
+/// The follower: a drive target, with `--sim` made the core on this PC in real time against
+/// simulated servos (kept here for the safety monitor's report).
+fn follower(target: Target, arm: Option<String>) -> Result<(Target, Option<String>, Option<PtyServer>)> {
+    match target {
+        Target::Sim(options) => {
+            let spec = options.arm.clone();
+            let baud = spec.bus_baud().unwrap_or(1_000_000);
+            let servos = crate::sim::serve_arm(&spec, baud, Some(SIM_ADAPTER_LATENCY))?;
+            let protocol =
+                servos_of(&spec).map(|s| s.model.protocol).ok_or_else(|| anyhow!("arm {} has no servos", spec.name))?;
+            let options =
+                PcOptions { path: servos.path().to_string(), protocol, baud, arm: spec, calibration_file: None };
+            Ok((Target::Bus(Box::new(options)), arm, Some(servos)))
+        }
+        other => Ok((other, arm, None)),
+    }
+}
+
+/// Runs `armctl teleop`; returns the exit code.
+pub fn run(link: &LinkArgs, args: TeleopArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+    // Everything the user typed is checked before anything is opened.
+    let link = link.merged(&args.link)?;
+    let (period, lead) = args.check()?;
+    let (target, arm) = link.target()?;
+    let arm = arm.map(str::to_string);
+    let leader_arm = calibrated(ArmSpec::load(&args.leader_arm, None)?, args.leader_calibration.as_deref())?;
+    let bus = leader::bus_config(&leader_arm, args.leader_protocol.map(Into::into), args.leader_baud)?;
+    let mut simulated_leader = match &args.leader_script {
+        Some(script) => Some(hand::SimLeader::spawn(&leader_arm, script, Some(SIM_ADAPTER_LATENCY))?),
+        None => None,
+    };
+    let leader_path = simulated_leader.as_ref().map_or(args.leader.clone(), |l| l.path().to_string());
+    let (mut leader, leader_latency_us) = leader::Leader::open(&leader_path, bus, &leader_arm)?;
+
+    let (target, arm, follower_servos) = follower(target, arm)?;
+    let mut driver = Driver::open(target, arm.as_deref(), err)?;
+    if driver.joints() != leader.joints() {
+        bail!(
+            "the leader arm {} has {} joints, the follower {} has {}: teleoperation maps joint to joint",
+            leader_arm.name,
+            leader.joints(),
+            driver.arm().name,
+            driver.joints()
+        );
+    }
+    let follower_servos_setup = servos_of(driver.arm()).ok_or_else(|| anyhow!("the follower has no servo mapping"))?;
+    let range = (0..driver.joints())
+        .map(|j| {
+            follower_servos_setup
+                .commanded_range(driver.arm(), j)
+                .map(|(lo, hi)| (f64::from(lo), f64::from(hi)))
+                .ok_or_else(|| anyhow!("the follower's joint {} has no range within its servo", j + 1))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let max_velocity = f64::from(follower_servos_setup.max_velocity as f32);
+    let max_step = args.max_step.unwrap_or(max_velocity * period.as_secs_f64());
+    let gripper = leader.has_gripper() && driver.gripper().is_some();
+    let settings = Settings {
+        period,
+        lead,
+        max_step: vec![max_step; driver.joints()],
+        range,
+        max_velocity: vec![max_velocity; driver.joints()],
+        gripper,
+        status_every: 5,
+    };
+    let mut recorder =
+        args.record.as_deref().map(|p| record::Recorder::create(p, driver.joints(), gripper)).transpose()?;
+
+    let until = match (args.duration, &simulated_leader) {
+        (Some(d), _) => Some(Duration::from_secs_f64(d)),
+        // The script's end and a little for the follower to get there.
+        (None, Some(l)) => Some(l.duration() + Duration::from_millis(200)),
+        (None, None) => None,
+    };
+    writeln!(
+        err,
+        "teleop: leader {} on {} (adapter latency {:.1} ms) drives follower {} at {:.0} Hz, {:.1} ms ahead, at most \
+         {:.4} rad per step{}",
+        leader_arm.name,
+        args.leader,
+        leader_latency_us as f64 * 1e-3,
+        driver.arm().name,
+        args.rate,
+        lead.as_secs_f64() * 1e3,
+        max_step,
+        if until.is_none() { "; Ctrl-C ends it" } else { "" }
+    )?;
+    interrupt::catch();
+    if let Some(l) = simulated_leader.as_mut() {
+        l.start()?;
+    }
+    let mut read = || leader.read();
+    let mut done = |elapsed: Duration| interrupt::requested() || until.is_some_and(|u| elapsed >= u);
+    let figures = stream::run(&mut driver, &mut read, &settings, recorder.as_mut(), &mut done);
+    let figures = match figures {
+        Ok(f) => f,
+        Err(e) => {
+            let _ = driver.stop();
+            return Err(e);
+        }
+    };
+    let (code, rest) = if interrupt::requested() {
+        (driver.stop_after_interrupt(err)?, None)
+    } else {
+        match driver.wait_until_rest(10.0)? {
+            Waited::Done(status) => (0, Some(status.measured.iter().map(|&x| f64::from(x)).collect::<Vec<_>>())),
+            Waited::Interrupted => (driver.stop_after_interrupt(err)?, None),
+        }
+    };
+    let recorded = recorder.map(record::Recorder::finish).transpose()?;
+    let monitor = follower_servos.as_ref().and_then(PtyServer::monitor);
+    let ending = Ending { rest, monitor, recorded };
+    report(&figures, period, lead, &ending, link.json, out)?;
+    driver.close(err)?;
+    Ok(if ending.monitor.is_some_and(|m| m.violation_count > 0) { 1 } else { code })
+}
+
+/// How a session ended.
+struct Ending {
+    /// The follower's measured joints once at rest (`None` after Ctrl-C).
+    rest: Option<Vec<f64>>,
+    /// The simulated follower servos' safety monitor.
+    monitor: Option<crate::sim::monitor::MonitorReport>,
+    /// The keyframe file written.
+    recorded: Option<PathBuf>,
+}
+
+/// The session's figures: on `out`, one line of JSON with `json`, else a few lines of text.
+fn report(
+    f: &Figures,
+    period: Duration,
+    lead: Duration,
+    ending: &Ending,
+    as_json: bool,
+    out: &mut dyn Write,
+) -> Result<()> {
+    let (monitor, recorded) = (ending.monitor.as_ref(), ending.recorded.as_deref());
+    let (q50, q99) = (quantile(&f.queued_ms, 0.5), quantile(&f.queued_ms, 0.99));
+    let (g50, g99) = (quantile(&f.goal_ms, 0.5), quantile(&f.goal_ms, 0.99));
+    let (t50, t99, tmax) = (quantile(&f.tracking, 0.5), quantile(&f.tracking, 0.99), quantile(&f.tracking, 1.0));
+    if as_json {
+        let value = json!({
+            "keyframes": f.keyframes, "seconds": f.seconds, "rate_hz": f.rate_hz(),
+            "period_ms": period.as_secs_f64() * 1e3, "lead_ms": lead.as_secs_f64() * 1e3,
+            "late_iterations": f.late_iterations, "read_failures": f.read_failures,
+            "latency_ms": {"read_to_queued_p50": q50, "read_to_queued_p99": q99, "read_to_goal_p50": g50, "read_to_goal_p99": g99},
+            "late_keyframes": f.late_keyframes, "underruns": f.underruns, "restarts": f.restarts, "retimed": f.retimed,
+            "clamped_steps": f.clamped_steps, "limited_values": f.limited_values,
+            "tracking_rad": {"p50": t50, "p99": t99, "max": tmax},
+            "monitor": monitor.map(|m| json!({"goals": m.checked, "violations": m.violation_count, "max_step_ratio": m.max_step_ratio})),
+            "recorded": recorded.map(|p| p.display().to_string()),
+            "follower_at_rest": ending.rest,
+        });
+        writeln!(out, "{value}")?;
+        return Ok(());
+    }
+    writeln!(
+        out,
+        "teleop: {} keyframes in {:.2} s: {:.1} Hz ({} late iterations, {} failed leader reads)",
+        f.keyframes,
+        f.seconds,
+        f.rate_hz(),
+        f.late_iterations,
+        f.read_failures
+    )?;
+    writeln!(
+        out,
+        "latency: read to goal p50 {g50:.1} ms, p99 {g99:.1} ms (read to queued on the follower p50 {q50:.1} ms, p99 \
+         {q99:.1} ms; {} keyframes queued after the player needed them); {} underruns, {} keyframes retimed after one, {} \
+         restarts",
+        f.late_keyframes, f.underruns, f.retimed, f.restarts
+    )?;
+    writeln!(
+        out,
+        "safety: {} steps clamped, {} values brought into range; follower setpoint against the leader one lead \
+         earlier: p50 {t50:.4} rad, p99 {t99:.4} rad, max {tmax:.4} rad",
+        f.clamped_steps, f.limited_values
+    )?;
+    if let Some(m) = monitor {
+        writeln!(
+            out,
+            "safety monitor (simulated follower servos): {} goals checked, {} violations (largest step {:.0}% of the limit)",
+            m.checked,
+            m.violation_count,
+            100.0 * m.max_step_ratio
+        )?;
+    }
+    if let Some(q) = &ending.rest {
+        writeln!(
+            out,
+            "follower at rest at joints {}",
+            q.iter().map(|x| format!("{x:.4}")).collect::<Vec<_>>().join(", ")
+        )?;
+    }
+    if let Some(p) = recorded {
+        writeln!(out, "recorded: {} (replay with `armctl play {}`)", p.display(), p.display())?;
+    }
+    Ok(())
+}
