@@ -3,7 +3,7 @@
 //!
 //! The modules, top to bottom (a module uses only those below it):
 //! - [`cli`]: the command line, which uses everything;
-//! - [`demo`], [`bench`], [`footprint`], [`teleop`], [`drive`], [`motion`], [`servo`]: what armctl
+//! - [`demo`], [`bench`], [`footprint`], [`teleop`], [`drive`], [`mocap`], [`motion`], [`servo`]: what armctl
 //!   does;
 //! - [`places`]: where the firmware core runs on this PC (SIL, QEMU);
 //! - [`link`] and [`sim`]: the host link and its transports, the servo-bus simulator;
@@ -20,6 +20,7 @@ pub mod demo;
 pub mod drive;
 pub mod footprint;
 pub mod link;
+pub mod mocap;
 pub mod motion;
 pub mod places;
 pub mod plot;

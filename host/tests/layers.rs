@@ -16,7 +16,7 @@ const ROWS: &[&[&str]] = &[
     &["link", "sim"],
     &["places"],
     &["motion", "servo"],
-    &["drive"],
+    &["drive", "mocap"],
     &["demo", "bench", "footprint", "teleop"],
     &["cli"],
 ];

@@ -3,6 +3,7 @@
 //! Every failure is one line on `err` starting with `error:` and a non-zero exit code.
 
 mod ik;
+pub mod retarget;
 pub mod serve;
 pub mod sim;
 
@@ -80,6 +81,9 @@ enum Command {
     /// range, the ranges moved through by hand as position limits), answering each step with a
     /// line on stdin; writes the servos, an arm file (--out) and LeRobot's file (--lerobot-json).
     Calibrate(crate::servo::calibrate::CalibrateArgs),
+    /// A human arm from a BVH motion-capture file onto the arm: joint keyframes for `armctl play`
+    /// (--out), the hand's and the tool's paths (--plot), tracking figures; --play streams them.
+    Retarget(retarget::RetargetArgs),
     /// Teleoperation: a leader arm moved by hand (torque off, read by sync read) drives the
     /// follower given by the drive options (--port, --bus or --sim), through both calibrations,
     /// as keyframes the follower's firmware plays within its limits. Reports the loop's rate and
@@ -186,12 +190,16 @@ pub(crate) fn load(arm: &ArmArgs) -> Result<Box<dyn DynArm>> {
 }
 
 fn run(link: &crate::drive::args::LinkArgs, command: Command, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
-    if !matches!(&command, Command::Drive(_) | Command::Teleop(_)) {
+    // `retarget --play` drives an arm too: it takes the drive options.
+    if !matches!(&command, Command::Drive(_) | Command::Teleop(_))
+        && !matches!(&command, Command::Retarget(a) if a.plays())
+    {
         link.refuse_for_other_commands()?;
     }
     match command {
         Command::Drive(command) => return crate::drive::run(link, command, out, err),
         Command::Demo(args) => return crate::demo::run(&args, out),
+        Command::Retarget(args) => return retarget::run(link, args, out, err),
         Command::Teleop(args) => return crate::teleop::run(link, args, out, err),
         Command::Fk { arm, q } => {
             let arm = load(&arm)?;

@@ -1,0 +1,237 @@
+//! `armctl retarget FILE.bvh --arm ARM`: a motion-capture arm onto a robot arm, as joint keyframes
+//! for `armctl play` (`--out`), a plot (`--plot`), and with `--play` streamed to the arm the drive
+//! options name (`--sim`, `--port`, `--bus`) through the same code as `armctl play`.
+//!
+//! The report is one JSON line on stdout; the choices made (chain, rest, axes, scale, placement)
+//! and warnings about the file go to stderr.
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{anyhow, bail, Context, Result};
+use clap::Args;
+use serde_json::json;
+
+use crate::arm::ArmSpec;
+use crate::drive::args::{DriveCommand, LinkArgs, PlayArgs};
+use crate::mocap::rest::Rest;
+use crate::mocap::retarget::{self, Options, Retargeted, Scale};
+use crate::mocap::skeleton::RootOffset;
+use crate::mocap::timing::Timing;
+
+/// `armctl retarget` options.
+#[derive(Args, Debug)]
+pub struct RetargetArgs {
+    /// The arm (--arm, required) and, with --play, where it is (--sim, --port, --bus ...).
+    #[command(flatten)]
+    link: LinkArgs,
+    /// The BVH file.
+    file: PathBuf,
+    /// The human arm's joints, SHOULDER,ELBOW,WRIST [default: the right arm, by the usual names].
+    #[arg(long)]
+    chain: Option<String>,
+    /// The file's rest pose: auto (read from the rest bone directions), t-pose, a-pose or arms-down.
+    #[arg(long, default_value = "auto")]
+    reference: String,
+    /// Metres per file unit, or auto: the arm's reach over the human arm's length.
+    #[arg(long, default_value = "auto")]
+    scale: String,
+    /// Whether the root's OFFSET adds to its translation channels [default: guessed from the file].
+    #[arg(long, value_enum)]
+    root_offset: Option<RootOffset>,
+    /// Keyframes per second (lowered where a file would need more than 20,000).
+    #[arg(long, default_value_t = retarget::DEFAULT_RATE)]
+    rate: f64,
+    /// Only the first this many seconds of the file.
+    #[arg(long)]
+    seconds: Option<f64>,
+    /// Where the human moves faster than the arm's velocity limits: fit (the motion slows down
+    /// there, the tool keeps the hand's path) or captured (the capture's timing kept, joint steps
+    /// cut to the limit: the tool lags).
+    #[arg(long, value_enum, default_value = "fit")]
+    timing: Timing,
+    /// Write the joint keyframes (CSV t,q1,...,qN for armctl play) to this file.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Draw the human hand's path (scaled, in the arm's frame) against the tool's to this PNG.
+    #[arg(long)]
+    plot: Option<PathBuf>,
+    /// Stream the keyframes to the arm (--sim, --port PORT or --bus PORT) once retargeted.
+    #[arg(long)]
+    play: bool,
+    /// With --play: give up this many seconds after the last keyframe's time.
+    #[arg(long, default_value_t = 30.0)]
+    timeout: f64,
+}
+
+impl RetargetArgs {
+    /// Whether the keyframes go to an arm: the drive options are then allowed.
+    pub fn plays(&self) -> bool {
+        self.play
+    }
+}
+
+fn options(args: &RetargetArgs) -> Result<Options> {
+    let reference = match args.reference.as_str() {
+        "auto" => None,
+        "t-pose" => Some(Rest::TPose),
+        "a-pose" => Some(Rest::APose),
+        "arms-down" => Some(Rest::ArmsDown),
+        other => bail!("--reference {other}: expected auto, t-pose, a-pose or arms-down"),
+    };
+    let scale = match args.scale.as_str() {
+        "auto" => Scale::Auto,
+        text => Scale::Factor(
+            text.parse::<f64>()
+                .map_err(|_| anyhow!("--scale {text}: expected auto or a number (metres per file unit)"))?,
+        ),
+    };
+    Ok(Options {
+        chain: args.chain.clone(),
+        reference,
+        scale,
+        root_offset: args.root_offset,
+        rate: args.rate,
+        seconds: args.seconds,
+        timing: args.timing,
+    })
+}
+
+/// The drive options that only make sense with --play.
+fn refuse_without_play(link: &LinkArgs) -> Result<()> {
+    let given: Vec<&str> = [
+        (link.port.is_some(), "--port"),
+        (link.bus.is_some(), "--bus"),
+        (link.protocol.is_some(), "--protocol"),
+        (link.baud.is_some(), "--baud"),
+        (link.sim, "--sim"),
+        (link.calibration.is_some(), "--calibration"),
+        (link.object_mm.is_some(), "--object-mm"),
+    ]
+    .into_iter()
+    .filter_map(|(given, name)| given.then_some(name))
+    .collect();
+    if !given.is_empty() {
+        bail!("{} name an arm to drive: add --play to stream the keyframes to it", given.join(", "));
+    }
+    Ok(())
+}
+
+fn notes(r: &Retargeted, err: &mut dyn Write) -> Result<()> {
+    let [s, e, w] = &r.chain.names;
+    writeln!(err, "note: chain {s} -> {e} -> {w} ({})", r.chain.found_by)?;
+    writeln!(
+        err,
+        "note: rest: {} (the upper arm points {:.1} degrees below horizontal at rest){}",
+        r.reading.rest.name(),
+        r.reading.upper_arm_droop_deg + 0.0,
+        if r.rest == r.reading.rest { String::new() } else { format!("; taken as {} (--reference)", r.rest.name()) }
+    )?;
+    writeln!(
+        err,
+        "note: axes: the file's Y is up and the human faces its +Z; on the arm they face +X (its front), up is +Z, \
+         their left +Y; the hand is taken relative to the shoulder in the torso's frame"
+    )?;
+    writeln!(
+        err,
+        "note: scale {:.5} m per file unit (arm reach {:.3} m, human arm {:.3} units); the path's middle placed at \
+         ({:.3}, {:.3}, {:.3}) m, where {:.0} % of it lies in the arm's sampled workspace above its base",
+        r.scale,
+        r.workspace.reach,
+        r.human_arm_length,
+        r.placed_at[0],
+        r.placed_at[1],
+        r.placed_at[2],
+        100.0 * r.placed_inside
+    )?;
+    for note in &r.notes {
+        writeln!(err, "note: {note}")?;
+    }
+    Ok(())
+}
+
+/// Runs `armctl retarget`; `global` are the drive options given before the command.
+pub fn run(global: &LinkArgs, args: RetargetArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+    let started = Instant::now();
+    let link = global.merged(&args.link)?;
+    if args.play {
+        if link.port.is_none() && link.bus.is_none() && !link.sim {
+            bail!("--play streams the keyframes to an arm: give --sim, --port PORT or --bus PORT");
+        }
+    } else {
+        refuse_without_play(&link)?;
+    }
+    let arm_name = link.arm.clone().ok_or_else(|| anyhow!("--arm is required: the arm to retarget onto"))?;
+    let options = options(&args)?;
+    let spec = crate::drive::args::calibrated(ArmSpec::load(&arm_name, None)?, link.calibration.as_deref())?;
+    let arm = crate::arm::dof::build(spec)?;
+
+    let bvh = crate::mocap::bvh::read(&args.file)?;
+    let shown = args.file.display().to_string();
+    for warning in &bvh.warnings {
+        writeln!(err, "warning: {shown}: {warning}")?;
+    }
+    let r = retarget::retarget(&bvh, arm.as_ref(), &options).with_context(|| shown.clone())?;
+    notes(&r, err)?;
+
+    let keyframes = match (&args.out, args.play) {
+        (Some(path), _) => Some(path.clone()),
+        (None, true) => Some(std::env::temp_dir().join(format!("armctl-retarget-{}.csv", std::process::id()))),
+        (None, false) => None,
+    };
+    if let Some(path) = &keyframes {
+        let mut file = std::fs::File::create(path).with_context(|| format!("cannot write {}", path.display()))?;
+        r.write_csv(&mut file)?;
+    }
+    if let Some(path) = &args.plot {
+        let title = format!("{} onto {}: human hand (scaled) and tool", shown, arm.spec().name);
+        crate::mocap::plot::draw(path, &r, &title).with_context(|| format!("plot {}", path.display()))?;
+    }
+    let tracking = r.tracking_mm();
+    super::print_json(
+        out,
+        &json!({
+            "command": "retarget",
+            "file": shown,
+            "arm": arm.spec().name,
+            "frames": bvh.frames.len(),
+            "frames_used": r.frames_used,
+            "frame_time": bvh.frame_time,
+            "chain": r.chain.names,
+            "rest_detected": r.reading.rest.name(),
+            "rest_used": r.rest.name(),
+            // + 0.0 turns the -0.0 of a horizontal bone into 0.
+            "upper_arm_droop_deg": r.reading.upper_arm_droop_deg + 0.0,
+            "root_offset": r.root_offset,
+            "scale_m_per_unit": r.scale,
+            "placed_at": r.placed_at,
+            "keyframes": r.times.len(),
+            "keyframes_sampled": r.keyframes_sampled,
+            "captured_s": (r.keyframes_sampled - 1) as f64 / r.rate,
+            "duration_s": r.times[r.times.len() - 1] - r.lead_in,
+            "rate_hz": r.rate,
+            "lead_in_s": r.lead_in,
+            "inside_workspace": r.reachable_fraction(),
+            "oriented": r.oriented,
+            "velocity_limited_steps": r.velocity_limited,
+            "reconfigurations": r.reconfigured.iter().filter(|c| **c).count(),
+            "tracking_mm": tracking,
+            "out": args.out.as_ref().map(|p| p.display().to_string()),
+            "plot": args.plot.as_ref().map(|p| p.display().to_string()),
+            "wall_s": started.elapsed().as_secs_f64(),
+        }),
+    )?;
+    let Some(path) = keyframes.filter(|_| args.play) else {
+        return Ok(0);
+    };
+    // The same path as `armctl play FILE`: the file checked against the connected arm, streamed
+    // with flow control, Ctrl-C stopping the arm. Its report follows as a second JSON line.
+    let play_link = LinkArgs { json: true, ..link };
+    let command = DriveCommand::Play(PlayArgs { link: LinkArgs::default(), file: path.clone(), timeout: args.timeout });
+    let code = crate::drive::run(&play_link, command, out, err);
+    if args.out.is_none() {
+        let _ = std::fs::remove_file(&path);
+    }
+    code
+}

@@ -1,0 +1,449 @@
+//! A BVH arm's motion onto a robot arm: joint keyframes whose tool follows the human hand.
+//!
+//! 1. The hand relative to the shoulder, in the torso's frame ([`super::hand`]), smoothed over
+//!    one keyframe spacing and sampled at the keyframe rate.
+//! 2. Axes: the file's Y is up and the human faces its +Z (as in CMU's files and most others);
+//!    on the arm, up is +Z and the human faces +X, the arm's front, so the file's +X (the human's
+//!    left) is the arm's +Y. The human stands where the arm's base is, looking the way it reaches.
+//! 3. Scale: the arm's reach over the human arm's length (shoulder to wrist at rest), or a given
+//!    factor (metres per file unit).
+//! 4. Placement: the scaled path is shifted to where most of it lies in the arm's sampled
+//!    workspace above its base ([`Workspace::place`]), the same for every run.
+//! 5. IK per keyframe (damped least squares, f64), warm-started from the previous keyframe's
+//!    answer: a position target, and on arms of six joints or more the hand's turn too (see
+//!    [`orientation_target`]). A target the solver cannot reach counts as outside the workspace;
+//!    the arm then goes as far as it can along the straight line from its last tool position
+//!    toward it ([`toward`]): a best-effort answer of the solver can lie anywhere (a joint swung
+//!    to its limit), and would be cut by the velocity limit into a lurch.
+//! 6. Limits: IK answers lie within the joint limits; the keyframes ask no joint for more than
+//!    90 % of its velocity and acceleration limits (the servos' `max_velocity` and
+//!    `max_acceleration`, which the firmware enforces too), so the player need not cut corners:
+//!    see [`super::timing`].
+
+use super::bvh::Bvh;
+use super::chain::{self, ArmChain};
+use super::densify::{densify, Added, Track, MAX_JOINT_STEP};
+use super::hand::{self, HandSample};
+use super::rest::{self, Rest, RestReading};
+use super::skeleton::RootOffset;
+use super::solve::{request, toward};
+use super::timing::{time_keyframes, Limits, Timing};
+use super::workspace::{self, Workspace};
+use crate::arm::dof::DynArm;
+use anyhow::{bail, Result};
+use kinematics::ik::IkStatus;
+use kinematics::nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
+
+/// Keyframes per second by default: the firmware's player interpolates between them (cubic
+/// Hermite at its 100 Hz control rate), and 25 Hz carries a human arm's motion (a few hertz).
+pub const DEFAULT_RATE: f64 = 25.0;
+/// The velocity limit of an arm without servos (rad/s): half a turn a second, a UR5e's.
+pub const DEFAULT_MAX_VELOCITY: f64 = std::f64::consts::PI;
+/// The acceleration limit of an arm without servos (rad/s²): the presets' servos'.
+pub const DEFAULT_MAX_ACCELERATION: f64 = 8.0;
+/// The share of the velocity and acceleration limits the keyframes may use, leaving the player's
+/// interpolation room within them.
+pub const VELOCITY_MARGIN: f64 = 0.9;
+/// The most keyframes one retarget writes. `armctl play` streams a file of any length through the
+/// firmware's queue; this bounds the file (about 2 MB) and the IK work (a few seconds).
+pub const MAX_KEYFRAMES: usize = 20_000;
+
+/// How the human is scaled onto the arm.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Scale {
+    /// The arm's reach over the human arm's length.
+    Auto,
+    /// Metres per file unit.
+    Factor(f64),
+}
+
+/// The settings of a retarget.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Options {
+    /// `SHOULDER,ELBOW,WRIST`; `None` for the right arm by its usual names.
+    pub chain: Option<String>,
+    /// The file's rest; `None` reads it from the skeleton.
+    pub reference: Option<Rest>,
+    /// The scale.
+    pub scale: Scale,
+    /// The root's OFFSET; `None` guesses from the file ([`RootOffset::detect`]).
+    pub root_offset: Option<RootOffset>,
+    /// Keyframes per second (lowered to fit the keyframe limit).
+    pub rate: f64,
+    /// Only the first this many seconds of the file.
+    pub seconds: Option<f64>,
+    /// What gives way where the human is faster than the arm.
+    pub timing: Timing,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self {
+            chain: None,
+            reference: None,
+            scale: Scale::Auto,
+            root_offset: None,
+            rate: DEFAULT_RATE,
+            seconds: None,
+            timing: Timing::Fit,
+        }
+    }
+}
+
+/// The result of a retarget.
+#[derive(Clone, Debug)]
+pub struct Retargeted {
+    /// The arm chain used.
+    pub chain: ArmChain,
+    /// The rest as read from the skeleton.
+    pub reading: RestReading,
+    /// The rest used: `--reference`, or the one read.
+    pub rest: Rest,
+    /// How the root's OFFSET was taken.
+    pub root_offset: RootOffset,
+    /// Metres per file unit.
+    pub scale: f64,
+    /// The human arm's length, shoulder to wrist at rest (file units).
+    pub human_arm_length: f64,
+    /// The arm's sampled workspace.
+    pub workspace: Workspace,
+    /// Where the middle of the scaled path's bounding box was put (m, arm base frame).
+    pub placed_at: [f64; 3],
+    /// The share of the path that placement found inside the sampled workspace (a voxel map:
+    /// IK has the last word).
+    pub placed_inside: f64,
+    /// Keyframes per second.
+    pub rate: f64,
+    /// Seconds before the first keyframe (the arm's way to its first pose).
+    /// Keyframe times follow from the rate and [`Timing`].
+    pub lead_in: f64,
+    /// File frames used.
+    pub frames_used: usize,
+    /// Keyframes sampled from the capture, before [`densify`] added any.
+    pub keyframes_sampled: usize,
+    /// Keyframe times (s, from the start of play).
+    pub times: Vec<f64>,
+    /// Joint values per keyframe.
+    pub q: Vec<Vec<f64>>,
+    /// The scaled, placed hand per keyframe (m, arm base frame).
+    pub targets: Vec<[f64; 3]>,
+    /// The tool per keyframe (forward kinematics of `q`).
+    pub tool: Vec<[f64; 3]>,
+    /// Whether IK reached each keyframe's target (position).
+    pub reachable: Vec<bool>,
+    /// Keyframes whose IK answer came from a fresh solve (the warm-started one failed): the arm
+    /// may change its configuration (elbow or wrist flipped, the base swung round) on the way
+    /// there, and its tool leaves the straight line between the two targets meanwhile.
+    pub reconfigured: Vec<bool>,
+    /// The share of the sampled keyframes (before [`densify`] added any) whose target IK reached.
+    pub inside_workspace: f64,
+    /// The share of the sampled keyframes whose pose (position and the hand's turn) IK reached;
+    /// `None` on arms of fewer than six joints, which follow the position only.
+    pub oriented: Option<f64>,
+    /// Keyframe steps that the velocity limit slowed down ([`Timing::Fit`]) or cut short
+    /// ([`Timing::Captured`]).
+    pub velocity_limited: usize,
+    /// Things the caller should print as notes.
+    pub notes: Vec<String>,
+}
+
+/// Mean, 95th percentile and maximum of a set of values.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Spread {
+    /// Mean.
+    pub mean: f64,
+    /// 95th percentile (nearest rank).
+    pub p95: f64,
+    /// Maximum.
+    pub max: f64,
+}
+
+impl Spread {
+    /// The spread of `values`; `None` when there are none.
+    pub fn of(mut values: Vec<f64>) -> Option<Self> {
+        if values.is_empty() {
+            return None;
+        }
+        values.sort_by(f64::total_cmp);
+        let n = values.len();
+        let rank = ((0.95 * n as f64).ceil() as usize).clamp(1, n) - 1;
+        Some(Self { mean: values.iter().sum::<f64>() / n as f64, p95: values[rank], max: values[n - 1] })
+    }
+}
+
+impl Retargeted {
+    /// The share of the sampled keyframes whose target IK reached.
+    pub fn reachable_fraction(&self) -> f64 {
+        self.inside_workspace
+    }
+
+    /// Tool against target (mm) over the keyframes IK reached.
+    pub fn tracking_mm(&self) -> Option<Spread> {
+        let errors = self
+            .targets
+            .iter()
+            .zip(&self.tool)
+            .zip(&self.reachable)
+            .filter(|(_, r)| **r)
+            .map(|((t, p), _)| 1e3 * (Vector3::from(*t) - Vector3::from(*p)).norm())
+            .collect();
+        Spread::of(errors)
+    }
+
+    /// The keyframe CSV `armctl play` reads: `t,q1,...,qN`.
+    pub fn write_csv(&self, out: &mut dyn std::io::Write) -> Result<()> {
+        let n = self.q.first().map_or(0, Vec::len);
+        let header: Vec<String> = std::iter::once("t".to_string()).chain((1..=n).map(|j| format!("q{j}"))).collect();
+        let mut text = header.join(",");
+        text.push('\n');
+        for (t, q) in self.times.iter().zip(&self.q) {
+            use std::fmt::Write;
+            write!(text, "{t:.6}")?;
+            // Joint values in full (the shortest text that reads back as the same f64): rounded to
+            // a few decimals, a value IK left at a joint limit could land just beyond it.
+            for v in q {
+                write!(text, ",{v}")?;
+            }
+            text.push('\n');
+        }
+        out.write_all(text.as_bytes())?;
+        Ok(())
+    }
+}
+
+/// The file's axes to the arm's: arm x = file z (the way the human faces), arm y = file x (their
+/// left), arm z = file y (up). A proper rotation (a cyclic permutation).
+pub fn file_to_arm() -> Rotation3<f64> {
+    Rotation3::from_matrix_unchecked(Matrix3::new(0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0))
+}
+
+/// The tool's target orientation for a hand turned `hand` when the first keyframe's was `first`:
+/// the tool starts as IK left it at the first keyframe (`tool_first`) and turns with the hand,
+/// the turn carried into the arm's axes. A human hand and a tool share no natural "zero", so only
+/// the turn is copied, not an absolute orientation.
+pub fn orientation_target(
+    hand: &UnitQuaternion<f64>,
+    first: &UnitQuaternion<f64>,
+    tool_first: &UnitQuaternion<f64>,
+) -> UnitQuaternion<f64> {
+    let c = UnitQuaternion::from_rotation_matrix(&file_to_arm());
+    c * (hand * first.inverse()) * c.inverse() * tool_first
+}
+
+fn rotation_of(pose: &kinematics::Pose<f64>) -> UnitQuaternion<f64> {
+    UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(pose.rotation))
+}
+
+/// Retargets `bvh` onto `arm`.
+pub fn retarget(bvh: &Bvh, arm: &dyn DynArm, options: &Options) -> Result<Retargeted> {
+    if !(options.rate.is_finite() && options.rate > 0.0) {
+        bail!("--rate {}: keyframes per second must be a positive number", options.rate);
+    }
+    let chain = chain::find(bvh, options.chain.as_deref())?;
+    let reading = rest::detect(bvh, &chain)?;
+    let rest_used = options.reference.unwrap_or(reading.rest);
+    let d = rest::rest_to_t_pose(bvh, &chain, &reading, options.reference);
+    let root_offset = options.root_offset.unwrap_or_else(|| RootOffset::detect(bvh));
+    let mut notes = Vec::new();
+
+    let mut path = hand::hand_path(bvh, &chain, root_offset, &d[2]);
+    if let Some(seconds) = options.seconds {
+        if !(seconds.is_finite() && seconds > 0.0) {
+            bail!("--seconds {seconds}: must be a positive number");
+        }
+        path.truncate(((seconds / bvh.frame_time).floor() as usize + 1).min(path.len()));
+    }
+    let duration = (path.len() - 1) as f64 * bvh.frame_time;
+    if path.len() < 2 {
+        bail!("one frame of motion: a path needs at least two");
+    }
+    let max_keyframes = MAX_KEYFRAMES;
+    let mut rate = options.rate;
+    if (duration * rate).floor() as usize + 1 > max_keyframes {
+        rate = (max_keyframes - 1) as f64 / duration;
+        notes.push(format!(
+            "{duration:.1} s of motion at {} keyframes a second would be more than {max_keyframes} keyframes: \
+             {rate:.2} a second instead",
+            options.rate
+        ));
+    }
+    let count = (duration * rate + 1e-9).floor() as usize + 1;
+
+    let [s, e, w] = chain.joints;
+    let human_arm_length = (rest::rest_position(bvh, e) - rest::rest_position(bvh, s)).norm()
+        + (rest::rest_position(bvh, w) - rest::rest_position(bvh, e)).norm();
+    if human_arm_length <= 0.0 {
+        bail!("the arm {}..{} has zero length at rest", chain.names[0], chain.names[2]);
+    }
+    let ws = workspace::sample(arm)?;
+    let scale = match options.scale {
+        Scale::Auto => ws.reach / human_arm_length,
+        Scale::Factor(f) if f.is_finite() && f > 0.0 => f,
+        Scale::Factor(f) => bail!("--scale {f}: must be a positive number (metres per file unit) or auto"),
+    };
+
+    let c = file_to_arm();
+    let samples: Vec<HandSample> =
+        (0..count).map(|k| hand::sample(&path, bvh.frame_time, k as f64 / rate, 1.0 / rate)).collect();
+    let scaled: Vec<Vector3<f64>> = samples.iter().map(|h| c * h.position * scale).collect();
+    let (shift, placed_inside) = ws.place(&scaled);
+    let lo = scaled.iter().fold(Vector3::repeat(f64::INFINITY), |a, p| a.inf(p));
+    let hi = scaled.iter().fold(Vector3::repeat(f64::NEG_INFINITY), |a, p| a.sup(p));
+    let targets: Vec<Vector3<f64>> = scaled.iter().map(|p| p + shift).collect();
+
+    let with_orientation = arm.spec().dof() >= 6;
+    let v_max = crate::arm::servos::servos_of(arm.spec()).map_or(DEFAULT_MAX_VELOCITY, |s| s.max_velocity);
+    let mut q: Vec<Vec<f64>> = Vec::with_capacity(count);
+    let mut reachable = Vec::with_capacity(count);
+    let mut reconfigured = Vec::with_capacity(count);
+    let mut oriented = 0usize;
+    let mut tool_first = UnitQuaternion::identity();
+    for (k, target) in targets.iter().enumerate() {
+        let previous = q.last().cloned();
+        let mut fresh_start = false;
+        let mut solved = arm.solve(&request(*target, None, previous.clone()))?;
+        if let (false, Some(prev)) = (solved.status == IkStatus::Converged, &previous) {
+            // Stuck (often at the stretched-out singularity the last unreachable target left the
+            // arm in): solve afresh with restarts, else go as far as the line allows.
+            let fresh = arm.solve(&request(*target, None, None))?;
+            if fresh.status == IkStatus::Converged {
+                solved = fresh;
+                fresh_start = true;
+            } else {
+                solved.q = toward(arm, prev, target)?;
+            }
+        }
+        if k == 0 {
+            tool_first = rotation_of(&arm.tool_pose(&solved.q)?);
+        }
+        let mut reached = solved.status == IkStatus::Converged;
+        if with_orientation {
+            let goal = orientation_target(&samples[k].orientation, &samples[0].orientation, &tool_first);
+            let seed = previous.clone().unwrap_or_else(|| solved.q.clone());
+            let mut posed = arm.solve(&request(*target, Some(&goal), Some(seed)))?;
+            let mut posed_fresh = false;
+            if posed.status != IkStatus::Converged && k > 0 {
+                // As for the position: afresh, with restarts, before settling for position only.
+                posed = arm.solve(&request(*target, Some(&goal), None))?;
+                posed_fresh = true;
+            }
+            if posed.status == IkStatus::Converged {
+                oriented += 1;
+                reached = true;
+                solved = posed;
+                fresh_start = posed_fresh;
+            }
+        }
+        reachable.push(reached);
+        reconfigured.push(fresh_start);
+        q.push(solved.q);
+    }
+
+    let inside_workspace = reachable.iter().filter(|r| **r).count() as f64 / count as f64;
+    let track = Track { q, targets, reachable, reconfigured, steps: vec![1.0 / rate; count - 1] };
+    let (track, added) = densify(arm, track, with_orientation, max_keyframes)?;
+    match added {
+        Added::Keyframes(0) => {}
+        Added::Keyframes(n) => notes.push(format!(
+            "{n} keyframes added where a joint would move more than {MAX_JOINT_STEP} rad between two (the tool \
+             would bow off the hand's path)"
+        )),
+        Added::TooMany(n) => notes.push(format!(
+            "no keyframes added between those where a joint moves more than {MAX_JOINT_STEP} rad: that would make \
+             {n}, more than {max_keyframes}; the tool bows off the hand's path there (a lower --rate or --seconds \
+             leaves room)"
+        )),
+    }
+    let Track { mut q, targets, reachable, reconfigured, steps } = track;
+    let keyframes = q.len();
+
+    // Time for the arm to come to the first pose: from the middle of its limits at half its
+    // velocity limit, plus a second to settle.
+    let middle = arm.middle();
+    let far = q[0].iter().zip(&middle).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    let lead_in = 1.0 + far / (0.5 * v_max);
+    let a_max = crate::arm::servos::servos_of(arm.spec()).map_or(DEFAULT_MAX_ACCELERATION, |s| s.max_acceleration);
+    let limits = Limits { velocity: VELOCITY_MARGIN * v_max, acceleration: VELOCITY_MARGIN * a_max };
+    let timed = time_keyframes(&mut q, &steps, &limits, options.timing);
+    let times: Vec<f64> = timed.offsets.iter().map(|t| lead_in + t).collect();
+    let tool = q.iter().map(|qk| arm.tool_pose(qk).map(|p| p.translation.into())).collect::<Result<Vec<[f64; 3]>>>()?;
+    if timed.limited > 0 {
+        notes.push(match options.timing {
+            Timing::Fit => format!(
+                "{} of {} keyframe steps would move or speed up a joint faster than {:.0} % of its limits ({v_max} rad/s, \
+                 {a_max} rad/s²): they take longer, and the motion plays in {:.2} s instead of the captured {:.2} s",
+                timed.limited,
+                keyframes - 1,
+                VELOCITY_MARGIN * 100.0,
+                timed.offsets[keyframes - 1],
+                (count - 1) as f64 / rate
+            ),
+            Timing::Captured => format!(
+                "{} of {} keyframe steps had a joint step cut to {:.0} % of the velocity limit ({v_max} rad/s): the \
+                 tool lags the hand there",
+                timed.limited,
+                keyframes - 1,
+                VELOCITY_MARGIN * 100.0
+            ),
+        });
+    }
+    Ok(Retargeted {
+        chain,
+        reading,
+        rest: rest_used,
+        root_offset,
+        scale,
+        human_arm_length,
+        placed_at: (shift + (lo + hi) / 2.0).into(),
+        placed_inside,
+        workspace: ws,
+        rate,
+        lead_in,
+        frames_used: path.len(),
+        times,
+        q,
+        targets: targets.iter().map(|t| (*t).into()).collect(),
+        keyframes_sampled: count,
+        tool,
+        reachable,
+        reconfigured,
+        inside_workspace,
+        oriented: with_orientation.then_some(oriented as f64 / count as f64),
+        velocity_limited: timed.limited,
+        notes,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn file_axes_map_onto_the_arm_as_documented() {
+        let c = file_to_arm();
+        assert_eq!(c * Vector3::new(0.0, 0.0, 1.0), Vector3::new(1.0, 0.0, 0.0)); // faces +x
+        assert_eq!(c * Vector3::new(1.0, 0.0, 0.0), Vector3::new(0.0, 1.0, 0.0)); // left is +y
+        assert_eq!(c * Vector3::new(0.0, 1.0, 0.0), Vector3::new(0.0, 0.0, 1.0)); // up is +z
+        assert!((c.matrix().determinant() - 1.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn the_tool_turns_as_the_hand_turns() {
+        let first = UnitQuaternion::from_euler_angles(0.3, -0.2, 0.1);
+        let tool_first = UnitQuaternion::from_euler_angles(0.0, 1.0, 0.0);
+        assert!(orientation_target(&first, &first, &tool_first).angle_to(&tool_first) < 1e-12);
+        // A quarter turn of the hand about the file's up axis is a quarter turn of the tool about
+        // the arm's z, applied in the base frame.
+        let turn = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 0.5);
+        let target = orientation_target(&(turn * first), &first, &tool_first);
+        let expected = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.5) * tool_first;
+        assert!(target.angle_to(&expected) < 1e-12);
+    }
+
+    #[test]
+    fn spreads_use_the_nearest_rank() {
+        let s = Spread::of((1..=100).map(f64::from).collect()).unwrap();
+        assert_eq!((s.mean, s.p95, s.max), (50.5, 95.0, 100.0));
+        assert!(Spread::of(Vec::new()).is_none());
+    }
+}
