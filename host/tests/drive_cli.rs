@@ -4,33 +4,10 @@
 
 use serde_json::Value;
 use std::path::PathBuf;
+mod support;
+
 use std::process::{Command, Stdio};
-
-struct Run {
-    code: i32,
-    stdout: String,
-    stderr: String,
-}
-
-impl Run {
-    /// The JSON line on stdout of a successful run.
-    fn json(&self) -> Value {
-        assert_eq!(self.code, 0, "exit code; stderr: {}", self.stderr);
-        let lines: Vec<&str> = self.stdout.lines().collect();
-        assert_eq!(lines.len(), 1, "expected one stdout line, got {:?}", self.stdout);
-        serde_json::from_str(lines[0]).unwrap_or_else(|e| panic!("not JSON ({e}): {}", lines[0]))
-    }
-}
-
-fn armctl(args: &[&str]) -> Run {
-    let output =
-        Command::new(env!("CARGO_BIN_EXE_armctl")).args(args).stdin(Stdio::null()).output().expect("armctl runs");
-    Run {
-        code: output.status.code().expect("armctl exits normally"),
-        stdout: String::from_utf8(output.stdout).expect("UTF-8 stdout"),
-        stderr: String::from_utf8(output.stderr).expect("UTF-8 stderr"),
-    }
-}
+use support::armctl;
 
 /// Asserts a failed run: exit code 1 (2 for clap's own usage errors), nothing on stdout, one
 /// stderr line starting `error:` that contains every one of `needles`.

@@ -11,7 +11,9 @@
 
 use serde_json::Value;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+mod support;
+
+use support::armctl;
 
 /// The leader's path: joints of the SO-101 (rad) and its trigger (percent).
 const SCRIPT: &str = "t,q1,q2,q3,q4,q5,gripper
@@ -23,22 +25,6 @@ const SCRIPT: &str = "t,q1,q2,q3,q4,q5,gripper
 ";
 /// Where the script ends.
 const END: [f64; 5] = [0.1, -0.1, 0.2, 0.1, 0.05];
-
-struct Run {
-    code: i32,
-    stdout: String,
-    stderr: String,
-}
-
-fn armctl(args: &[&str]) -> Run {
-    let output =
-        Command::new(env!("CARGO_BIN_EXE_armctl")).args(args).stdin(Stdio::null()).output().expect("armctl runs");
-    Run {
-        code: output.status.code().expect("armctl exits normally"),
-        stdout: String::from_utf8(output.stdout).expect("UTF-8 stdout"),
-        stderr: String::from_utf8(output.stderr).expect("UTF-8 stderr"),
-    }
-}
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("armctl-teleop-{}", std::process::id()));
