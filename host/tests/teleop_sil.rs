@@ -112,3 +112,29 @@ fn bad_input_is_refused_before_anything_moves() {
         assert!(errors[0].contains(needle), "{args:?}: {:?} does not say {needle:?}", errors[0]);
     }
 }
+
+/// Ctrl-C mid-session stops the follower within its limits (it holds, torque on) and exits 130,
+/// with the figures so far and no goal outside the limits.
+#[test]
+fn ctrl_c_stops_the_follower() {
+    use std::process::{Command, Stdio};
+    let script = script();
+    let child = Command::new(env!("CARGO_BIN_EXE_armctl"))
+        .args(["--sim", "teleop", "--leader", "sim", "--leader-script", s(&script), "--json"])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("armctl starts");
+    // The set-up (servo set-up, the buses timed) takes about half a second; the script 2.6 s.
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let kill = Command::new("kill").args(["-INT", &child.id().to_string()]).status().expect("kill runs");
+    assert!(kill.success());
+    let output = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8(output.stderr).unwrap();
+    assert_eq!(output.status.code(), Some(130), "{stderr}");
+    assert!(stderr.lines().any(|l| l.starts_with("stopped by Ctrl-C at") && l.contains("state Idle")), "{stderr}");
+    let report: Value = serde_json::from_slice(&output.stdout).unwrap();
+    assert_eq!(report["monitor"]["violations"], 0, "{report}");
+    assert!(report["keyframes"].as_u64().unwrap() > 20, "{report}");
+}
