@@ -103,6 +103,7 @@ fn bad_input_is_refused_before_anything_moves() {
             "5 joints",
         ),
         (vec!["teleop", "--leader", "sim", "--leader-script", s(&script)], "--sim"),
+        (vec!["--sim", "--object-mm", "30", "teleop", "--leader", "sim", "--leader-script", s(&script)], "--object-mm"),
     ] {
         let run = armctl(&args);
         assert_eq!(run.code, 1, "{args:?}: {}", run.stderr);

@@ -148,6 +148,9 @@ pub fn run(link: &LinkArgs, args: TeleopArgs, out: &mut dyn Write, err: &mut dyn
     let link = link.merged(&args.link)?;
     let (period, lead) = args.check()?;
     let (target, arm) = link.target()?;
+    if link.object_mm.is_some() {
+        bail!("--object-mm: teleop's simulated follower has no object between its jaws");
+    }
     let arm = arm.map(str::to_string);
     let leader_arm = calibrated(ArmSpec::load(&args.leader_arm, None)?, args.leader_calibration.as_deref())?;
     let bus = leader::bus_config(&leader_arm, args.leader_protocol.map(Into::into), args.leader_baud)?;
