@@ -260,12 +260,18 @@ fn calibrate_end_to_end(arm: &str, protocol: &str, joints: &[Joint]) {
     // Each swept joint from its middle to one stop, to the other, and back to the middle (the
     // full-turn wrist roll is not swept: it gets the whole turn).
     let swept: Vec<&Joint> = joints.iter().filter(|j| j.stops.is_some()).collect();
-    let leg = |from: fn(&Joint) -> i64, to: fn(&Joint) -> i64| -> Vec<String> {
-        swept.iter().map(|j| format!("sweep {} {} {} 0.25", j.id, from(j), to(j))).collect()
+    let leg = |from: fn(&Joint) -> i64, to: fn(&Joint) -> i64, seconds: f64| -> Vec<String> {
+        swept.iter().map(|j| format!("sweep {} {} {} {seconds}", j.id, from(j), to(j))).collect()
     };
-    hand(&mut sim, &leg(|j| j.middle, |j| j.stops.unwrap().0));
-    hand(&mut sim, &leg(|j| j.stops.unwrap().0, |j| j.stops.unwrap().1));
-    hand(&mut sim, &leg(|j| j.stops.unwrap().1, |j| j.middle));
+    // The hand rests a moment at each stop, as a person's does: a move counts as done after one
+    // read of the position there, and on a loaded machine that read's reply can come too late
+    // for the calibration, which would then miss the stop by the ticks of the next move.
+    let (stop0, stop1): (fn(&Joint) -> i64, fn(&Joint) -> i64) = (|j| j.stops.unwrap().0, |j| j.stops.unwrap().1);
+    hand(&mut sim, &leg(|j| j.middle, stop0, 0.25));
+    hand(&mut sim, &leg(stop0, stop0, 0.1));
+    hand(&mut sim, &leg(stop0, stop1, 0.25));
+    hand(&mut sim, &leg(stop1, stop1, 0.1));
+    hand(&mut sim, &leg(stop1, |j| j.middle, 0.25));
     cal.send("");
     let (code, err) = cal.finish();
     assert_eq!(code, 0, "stdout {:?}\nstderr {err}", cal.seen);
