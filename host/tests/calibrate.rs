@@ -266,7 +266,8 @@ fn calibrate_end_to_end(arm: &str, protocol: &str, joints: &[Joint]) {
     // The hand rests a moment at each stop, as a person's does: a move counts as done after one
     // read of the position there, and on a loaded machine that read's reply can come too late
     // for the calibration, which would then miss the stop by the ticks of the next move.
-    let (stop0, stop1): (fn(&Joint) -> i64, fn(&Joint) -> i64) = (|j| j.stops.unwrap().0, |j| j.stops.unwrap().1);
+    let stop0: fn(&Joint) -> i64 = |j| j.stops.unwrap().0;
+    let stop1: fn(&Joint) -> i64 = |j| j.stops.unwrap().1;
     hand(&mut sim, &leg(|j| j.middle, stop0, 0.25));
     hand(&mut sim, &leg(stop0, stop0, 0.1));
     hand(&mut sim, &leg(stop0, stop1, 0.25));
