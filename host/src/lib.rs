@@ -27,3 +27,4 @@ pub mod plot;
 pub mod servo;
 pub mod sim;
 pub mod teleop;
+pub mod view;

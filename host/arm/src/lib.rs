@@ -11,6 +11,7 @@ pub mod servos;
 pub mod toml_file;
 pub mod toml_writer;
 pub mod urdf;
+pub mod urdf_visuals;
 
 use anyhow::{bail, Context, Result};
 use kinematics::{Chain, Joint, JointKind, Limits, Pose, Real};

@@ -1,7 +1,8 @@
 //! URDF import: the serial chain from the root link to a tip link of a `<robot>` description.
 //!
 //! Only `<link>` and `<joint>` elements directly under `<robot>` are read; visuals, collisions,
-//! inertials, transmissions, Gazebo tags and materials are ignored, and joints may come in any order.
+//! inertials, transmissions, Gazebo tags and materials are ignored (the view reads the visual
+//! meshes with [`crate::urdf_visuals`]), and joints may come in any order.
 //! Fixed joints are folded into the next moving joint's origin (or into the tool frame after the
 //! last moving joint). Defaults follow the URDF specification: a missing `<origin>` is the identity,
 //! missing `xyz`/`rpy` are zero and a missing `<axis>` is (1, 0, 0). Every error is one line that
@@ -15,7 +16,7 @@ use std::collections::{BTreeMap, BTreeSet};
 
 /// How a URDF joint moves, including the kinds that cannot be part of an arm chain.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum UrdfKind {
+pub(crate) enum UrdfKind {
     Moving(JointKind),
     Fixed,
     Floating,
@@ -23,13 +24,13 @@ enum UrdfKind {
 }
 
 /// One `<joint>` as read from the file.
-struct UrdfJoint<'a> {
+pub(crate) struct UrdfJoint<'a> {
     name: &'a str,
     line: u32,
-    kind: UrdfKind,
-    parent: &'a str,
-    child: &'a str,
-    origin: Pose<f64>,
+    pub(crate) kind: UrdfKind,
+    pub(crate) parent: &'a str,
+    pub(crate) child: &'a str,
+    pub(crate) origin: Pose<f64>,
     axis: [f64; 3],
     /// `(lower, upper)` from `<limit>` where the element is present (a missing attribute is 0).
     limits: Option<(f64, f64)>,
@@ -184,9 +185,10 @@ pub fn parse(text: &str, tip: Option<&str>) -> Result<ArmSpec> {
     Ok(ArmSpec { name: robot_name.to_string(), joints: specs, tool: pending, servos: None })
 }
 
-fn read_joint<'a>(node: Node<'a, 'a>, line: u32) -> Result<UrdfJoint<'a>> {
+/// Reads the `<joint>` element `node`, declared on `line`.
+pub(crate) fn read_joint<'a>(node: Node<'a, 'a>, line: u32) -> Result<UrdfJoint<'a>> {
     let name = node.attribute("name").ok_or_else(|| anyhow!("line {line}: <joint> has no name attribute"))?;
-    let at = |n: Node| n.document().text_pos_at(n.range().start).row;
+    let owner = &format!("joint {name}");
     let type_name = node.attribute("type").ok_or_else(|| anyhow!("line {line}: joint {name} has no type attribute"))?;
     let kind = match type_name {
         "revolute" => UrdfKind::Moving(JointKind::Revolute),
@@ -204,32 +206,25 @@ fn read_joint<'a>(node: Node<'a, 'a>, line: u32) -> Result<UrdfJoint<'a>> {
         let element = child(node, tag).ok_or_else(|| anyhow!("line {line}: joint {name} has no <{tag} link=...>"))?;
         element
             .attribute("link")
-            .ok_or_else(|| anyhow!("line {}: joint {name}: <{tag}> has no link attribute", at(element)))
+            .ok_or_else(|| anyhow!("line {}: joint {name}: <{tag}> has no link attribute", line_of(element)))
     };
     let parent = link_of("parent")?;
     let child_link = link_of("child")?;
 
-    let origin = match child(node, "origin") {
-        None => Pose::identity(),
-        Some(o) => {
-            let xyz = vector(o, "xyz", name, at(o))?.unwrap_or([0.0; 3]);
-            let rpy = vector(o, "rpy", name, at(o))?.unwrap_or([0.0; 3]);
-            Pose::from_xyz_rpy(xyz, rpy)
-        }
-    };
+    let origin = origin(child(node, "origin"), owner)?;
     let axis = match child(node, "axis") {
         None => [1.0, 0.0, 0.0],
-        Some(a) => vector(a, "xyz", name, at(a))?
-            .ok_or_else(|| anyhow!("line {}: joint {name}: <axis> has no xyz attribute", at(a)))?,
+        Some(a) => vector(a, "xyz", owner, line_of(a))?
+            .ok_or_else(|| anyhow!("line {}: joint {name}: <axis> has no xyz attribute", line_of(a)))?,
     };
     let limits = match child(node, "limit") {
         None => None,
         Some(l) => {
             // URDF specification: a missing lower or upper attribute of <limit> defaults to 0.
-            let lower = scalar(l, "lower", name, at(l))?.unwrap_or(0.0);
-            let upper = scalar(l, "upper", name, at(l))?.unwrap_or(0.0);
+            let lower = scalar(l, "lower", owner, line_of(l))?.unwrap_or(0.0);
+            let upper = scalar(l, "upper", owner, line_of(l))?.unwrap_or(0.0);
             if lower > upper {
-                bail!("line {}: joint {name}: <limit> lower {lower} is above upper {upper}", at(l));
+                bail!("line {}: joint {name}: <limit> lower {lower} is above upper {upper}", line_of(l));
             }
             Some((lower, upper))
         }
@@ -240,35 +235,50 @@ fn read_joint<'a>(node: Node<'a, 'a>, line: u32) -> Result<UrdfJoint<'a>> {
     Ok(UrdfJoint { name, line, kind, parent, child: child_link, origin, axis, limits })
 }
 
+/// The pose an `<origin xyz rpy>` element gives (the identity when there is none); `owner` names
+/// the joint or link it belongs to in errors.
+pub(crate) fn origin(element: Option<Node>, owner: &str) -> Result<Pose<f64>> {
+    let Some(o) = element else { return Ok(Pose::identity()) };
+    let xyz = vector(o, "xyz", owner, line_of(o))?.unwrap_or([0.0; 3]);
+    let rpy = vector(o, "rpy", owner, line_of(o))?.unwrap_or([0.0; 3]);
+    Ok(Pose::from_xyz_rpy(xyz, rpy))
+}
+
+/// The line of the file where `node` starts.
+pub(crate) fn line_of(node: Node) -> u32 {
+    node.document().text_pos_at(node.range().start).row
+}
+
 /// The first child element called `tag`.
-fn child<'a, 'input>(node: Node<'a, 'input>, tag: &str) -> Option<Node<'a, 'input>> {
+pub(crate) fn child<'a, 'input>(node: Node<'a, 'input>, tag: &str) -> Option<Node<'a, 'input>> {
     node.children().find(|n| n.has_tag_name(tag))
 }
 
-fn number(text: &str, element: Node, attribute: &str, joint: &str, line: u32) -> Result<f64> {
+/// `owner` names the element's joint or link (`joint j1`) in errors.
+fn number(text: &str, element: Node, attribute: &str, owner: &str, line: u32) -> Result<f64> {
     let tag = element.tag_name().name();
     match text.parse::<f64>() {
         Ok(v) if v.is_finite() => Ok(v),
-        _ => bail!("line {line}: joint {joint}: <{tag} {attribute}>: {text:?} is not a finite number"),
+        _ => bail!("line {line}: {owner}: <{tag} {attribute}>: {text:?} is not a finite number"),
     }
 }
 
 /// An optional attribute holding one number.
-fn scalar(element: Node, attribute: &str, joint: &str, line: u32) -> Result<Option<f64>> {
-    element.attribute(attribute).map(|text| number(text.trim(), element, attribute, joint, line)).transpose()
+fn scalar(element: Node, attribute: &str, owner: &str, line: u32) -> Result<Option<f64>> {
+    element.attribute(attribute).map(|text| number(text.trim(), element, attribute, owner, line)).transpose()
 }
 
 /// An optional attribute holding three whitespace-separated numbers.
-fn vector(element: Node, attribute: &str, joint: &str, line: u32) -> Result<Option<[f64; 3]>> {
+pub(crate) fn vector(element: Node, attribute: &str, owner: &str, line: u32) -> Result<Option<[f64; 3]>> {
     let Some(text) = element.attribute(attribute) else { return Ok(None) };
     let parts: Vec<&str> = text.split_whitespace().collect();
     if parts.len() != 3 {
         let tag = element.tag_name().name();
-        bail!("line {line}: joint {joint}: <{tag} {attribute}=\"{text}\"> needs 3 numbers, found {}", parts.len());
+        bail!("line {line}: {owner}: <{tag} {attribute}=\"{text}\"> needs 3 numbers, found {}", parts.len());
     }
     let mut v = [0.0; 3];
     for (slot, part) in v.iter_mut().zip(parts) {
-        *slot = number(part, element, attribute, joint, line)?;
+        *slot = number(part, element, attribute, owner, line)?;
     }
     Ok(Some(v))
 }

@@ -89,6 +89,11 @@ enum Command {
     /// as keyframes the follower's firmware plays within its limits. Reports the loop's rate and
     /// latency; --record writes the session as a keyframe file for `armctl play`.
     Teleop(crate::teleop::TeleopArgs),
+    /// The arm live in a browser: a local page with the arm in 3D, joint sliders, a target to
+    /// drag (IK preview, then the move on the firmware), telemetry, keyframe files, stop and
+    /// torque, and the same as a JSON API. Prints the page's URL on the first line; opens no
+    /// browser. Drives --sim (the default, in real time), --port or --bus.
+    View(crate::view::ViewArgs),
     /// Driving an arm (after --port PORT, --bus PORT --protocol P or --sim): move, joints, play,
     /// status, stop, torque.
     #[command(flatten)]
@@ -191,7 +196,7 @@ pub(crate) fn load(arm: &ArmArgs) -> Result<Box<dyn DynArm>> {
 
 fn run(link: &crate::drive::args::LinkArgs, command: Command, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
     // `retarget --play` drives an arm too: it takes the drive options.
-    if !matches!(&command, Command::Drive(_) | Command::Teleop(_))
+    if !matches!(&command, Command::Drive(_) | Command::Teleop(_) | Command::View(_))
         && !matches!(&command, Command::Retarget(a) if a.plays())
     {
         link.refuse_for_other_commands()?;
@@ -201,6 +206,7 @@ fn run(link: &crate::drive::args::LinkArgs, command: Command, out: &mut dyn Writ
         Command::Demo(args) => return crate::demo::run(&args, out),
         Command::Retarget(args) => return retarget::run(link, args, out, err),
         Command::Teleop(args) => return crate::teleop::run(link, args, out, err),
+        Command::View(args) => return crate::view::run(link, args, out, err),
         Command::Fk { arm, q } => {
             let arm = load(&arm)?;
             let q = parse::numbers(&q, "--q")?;

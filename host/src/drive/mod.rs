@@ -14,7 +14,7 @@ mod commands;
 pub mod connection;
 mod gripper;
 pub(crate) mod interrupt;
-mod play;
+pub mod play;
 mod progress;
 pub mod session;
 

@@ -47,16 +47,23 @@ impl Plan {
         }
         let shown = path.display().to_string();
         let text = std::fs::read_to_string(path).with_context(|| format!("cannot read keyframe file {shown}"))?;
-        let Some((line, header)) = cartesian_file::header(&text) else {
+        Self::parse(&text, path, timeout)
+    }
+
+    /// Parses the text of a keyframe file (`path` names it in messages), telling the format by
+    /// its header.
+    pub fn parse(text: &str, path: &Path, timeout: f64) -> Result<Self> {
+        let shown = path.display().to_string();
+        let Some((line, header)) = cartesian_file::header(text) else {
             bail!(
                 "{shown}: empty file: expected a header t,q1,...,qN (joint keyframes) or t,x,y,z (Cartesian keyframes)"
             );
         };
         let second = header.split(',').nth(1).map(str::trim).unwrap_or_default();
         let frames = if cartesian_file::is_cartesian_header(header) {
-            Frames::Cartesian(parse_cartesian_keyframes(&text).context(shown.clone())?)
+            Frames::Cartesian(parse_cartesian_keyframes(text).context(shown.clone())?)
         } else if second.starts_with('q') {
-            Frames::Joint(trajectory::parse_keyframes(&text).context(shown.clone())?)
+            Frames::Joint(trajectory::parse_keyframes(text).context(shown.clone())?)
         } else {
             bail!(
                 "{shown}: line {line}: the header must be t,q1,...,qN[,v1,...,vN] (joint keyframes) or \
@@ -93,7 +100,8 @@ impl Plan {
         Ok(())
     }
 
-    fn at(&self, line: usize) -> String {
+    /// Where line `line` of the file is, for messages.
+    pub(crate) fn at(&self, line: usize) -> String {
         format!("{}: line {line}", self.path.display())
     }
 
@@ -102,8 +110,21 @@ impl Plan {
         self.times_and_lines().0.last().copied().unwrap_or(0.0)
     }
 
+    /// The planned tool path, one point per keyframe (m): the keyframes' positions, or the forward
+    /// kinematics of joint keyframes.
+    pub fn tool_path(&self, driver: &Driver) -> Result<Vec<[f64; 3]>> {
+        match &self.frames {
+            Frames::Cartesian(k) => Ok(k.positions.clone()),
+            Frames::Joint(k) => k
+                .positions
+                .iter()
+                .map(|q| driver.tool_position(&q.iter().map(|&x| x as f32).collect::<Vec<_>>()))
+                .collect(),
+        }
+    }
+
     /// The push messages with their file lines, checked against the connected arm.
-    fn messages(&self, driver: &Driver) -> Result<Vec<(usize, HostMessage)>> {
+    pub(crate) fn messages(&self, driver: &Driver) -> Result<Vec<(usize, HostMessage)>> {
         let column = match &self.frames {
             Frames::Joint(k) => k.gripper.as_ref(),
             Frames::Cartesian(k) => k.gripper.as_ref(),

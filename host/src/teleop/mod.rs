@@ -129,13 +129,7 @@ impl TeleopArgs {
 fn follower(target: Target, arm: Option<String>) -> Result<(Target, Option<String>, Option<PtyServer>)> {
     match target {
         Target::Sim(options) => {
-            let spec = options.arm.clone();
-            let baud = spec.bus_baud().unwrap_or(1_000_000);
-            let servos = crate::sim::serve_arm(&spec, baud, Some(SIM_ADAPTER_LATENCY))?;
-            let protocol =
-                servos_of(&spec).map(|s| s.model.protocol).ok_or_else(|| anyhow!("arm {} has no servos", spec.name))?;
-            let options =
-                PcOptions { path: servos.path().to_string(), protocol, baud, arm: spec, calibration_file: None };
+            let (options, servos) = PcOptions::simulated(options.arm, Some(SIM_ADAPTER_LATENCY))?;
             Ok((Target::Bus(Box::new(options)), arm, Some(servos)))
         }
         other => Ok((other, arm, None)),

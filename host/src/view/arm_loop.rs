@@ -1,0 +1,383 @@
+//! The arm loop: one thread owns the connection to the firmware. It polls the status once per
+//! control period, publishes it as telemetry, carries out the API's requests between polls, and
+//! streams a keyframe file as the firmware's queue frees slots. Nothing else touches the link, so
+//! the page, scripts and the stop button all go through the same queue of requests.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, Receiver, Sender};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use anyhow::Result;
+use firmware::link::message::{CartesianTarget, FirmwareMessage, HostMessage, RunState, Status, Timing, MAX_SPEED};
+use serde_json::{json, Value};
+
+use super::api::{ApiError, Request};
+use super::telemetry::{self, Extras, Latest, RateMeter};
+use crate::arm::dof::DynArm;
+use crate::arm::ArmSpec;
+use crate::drive::connection::Target;
+use crate::drive::play::Plan;
+use crate::drive::session::{check_joints, Driver};
+use crate::link::client::LinkError;
+
+/// The poll period: the firmware's control period, so the telemetry shows every setpoint.
+pub const PERIOD: Duration = Duration::from_millis(10);
+/// The tool speed of a target sent with "go" (m/s): brisk enough to follow a dragged target.
+const TARGET_SPEED: f32 = 0.2;
+/// How long a file may run past its last keyframe before it counts as stuck (s).
+const PLAY_MARGIN: f64 = 30.0;
+
+/// A request with the channel its answer goes back on.
+pub type Job = (Request, Sender<Result<Value, ApiError>>);
+
+/// A file being streamed to the firmware's queue.
+struct Playing {
+    name: String,
+    plan_seconds: f64,
+    messages: Vec<(usize, HostMessage)>,
+    /// Line numbers' owner, for messages.
+    plan: Plan,
+    pushed: usize,
+    started: bool,
+    done: bool,
+    error: Option<String>,
+    play_time: f32,
+}
+
+impl Playing {
+    fn json(&self) -> Value {
+        json!({
+            "name": self.name, "keyframes": self.messages.len(), "pushed": self.pushed, "seconds": self.plan_seconds,
+            "play_time": self.play_time, "done": self.done, "error": self.error,
+        })
+    }
+}
+
+/// The running loop; dropping it ends the thread after it has stopped the arm.
+pub struct ArmLoop {
+    jobs: Sender<Job>,
+    quit: Arc<AtomicBool>,
+    thread: Option<JoinHandle<Result<String>>>,
+}
+
+impl ArmLoop {
+    /// Connects to `target` (configuring `arm` on it when given) on the loop's own thread, which
+    /// then owns the link, and starts polling; returns once connected, with the arm the firmware
+    /// runs and its queue capacity. What connecting says is written on `err`.
+    pub fn spawn(
+        target: Target,
+        arm: Option<String>,
+        latest: Arc<Latest>,
+        err: &mut dyn std::io::Write,
+    ) -> Result<(Self, ArmSpec, usize)> {
+        let (jobs, inbox) = mpsc::channel::<Job>();
+        let (opened, connected) = mpsc::channel();
+        let quit = Arc::new(AtomicBool::new(false));
+        let thread = {
+            let quit = quit.clone();
+            std::thread::Builder::new().name("view-arm".into()).spawn(move || {
+                // What connecting says is handed back to the caller, which holds the stderr lock.
+                let mut said = Vec::new();
+                let open = || -> Result<(Driver, Box<dyn DynArm>)> {
+                    let driver = Driver::open(target, arm.as_deref(), &mut said)?;
+                    let fk = crate::arm::dof::build(driver.arm().clone())?;
+                    Ok((driver, fk))
+                };
+                let (driver, fk) = match open() {
+                    Ok(both) => both,
+                    Err(e) => {
+                        let _ = opened.send((said, Err(e)));
+                        return Ok(String::new());
+                    }
+                };
+                let capacity = driver.queue_capacity();
+                let _ = opened.send((said, Ok((driver.arm().clone(), capacity))));
+                let extras = Extras { queue_capacity: capacity, ..Extras::default() };
+                let state = LoopState { driver, fk, latest, extras, playing: None, seq: 0, rate: RateMeter::default() };
+                state.run(&inbox, &quit)
+            })?
+        };
+        let (said, answer) = connected.recv().map_err(|_| anyhow::anyhow!("the arm loop ended before connecting"))?;
+        err.write_all(&said)?;
+        let (spec, capacity) = answer?;
+        Ok((Self { jobs, quit, thread: Some(thread) }, spec, capacity))
+    }
+
+    /// A sender for requests.
+    pub fn jobs(&self) -> Sender<Job> {
+        self.jobs.clone()
+    }
+
+    /// True once the loop has ended (the link failed for good).
+    pub fn is_finished(&self) -> bool {
+        self.thread.as_ref().is_none_or(JoinHandle::is_finished)
+    }
+
+    /// Stops the arm (decelerating within its limits), waits until it holds, ends the loop and
+    /// closes the connection; returns what closing said, or the loop's error.
+    pub fn finish(mut self) -> Result<String> {
+        self.quit.store(true, Ordering::SeqCst);
+        match self.thread.take() {
+            Some(t) => t.join().unwrap_or_else(|_| Err(anyhow::anyhow!("the arm loop panicked"))),
+            None => Ok(String::new()),
+        }
+    }
+}
+
+impl Drop for ArmLoop {
+    fn drop(&mut self) {
+        self.quit.store(true, Ordering::SeqCst);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+struct LoopState {
+    driver: Driver,
+    fk: Box<dyn DynArm>,
+    latest: Arc<Latest>,
+    extras: Extras,
+    playing: Option<Playing>,
+    seq: u64,
+    rate: RateMeter,
+}
+
+/// A link error as an API error: a refusal is the firmware's word (422), anything else means the
+/// firmware is not answering (503).
+fn link_error(e: LinkError) -> ApiError {
+    match e {
+        LinkError::Nak(_) => ApiError::new(422, format!("{e}")),
+        other => ApiError::new(503, format!("the firmware did not answer: {other}")),
+    }
+}
+
+fn ok() -> Result<Value, ApiError> {
+    Ok(json!({"ok": true}))
+}
+
+impl LoopState {
+    /// Returns what closing the connection said (for `--bus`, the control loop's counts).
+    fn run(mut self, inbox: &Receiver<Job>, quit: &AtomicBool) -> Result<String> {
+        let mut next = Instant::now();
+        let mut last_status: Option<Status> = None;
+        while !quit.load(Ordering::SeqCst) {
+            // Requests first: a stop must not wait behind a poll.
+            while let Ok((request, reply)) = inbox.try_recv() {
+                let answer = self.handle(request, last_status.as_ref());
+                if let Err(e) = &answer {
+                    self.extras.last_error = Some(e.message.clone());
+                }
+                let _ = reply.send(answer);
+            }
+            self.feed();
+            match self.driver.status() {
+                Ok(status) => {
+                    self.follow_play(&status);
+                    self.publish(&status);
+                    last_status = Some(status);
+                }
+                Err(e) => self.extras.last_error = Some(format!("status: {e:#}")),
+            }
+            next += PERIOD;
+            let now = Instant::now();
+            match next.checked_duration_since(now) {
+                Some(wait) => std::thread::sleep(wait),
+                // Late (a slow request): start the next period from now rather than catch up.
+                None => next = now,
+            }
+        }
+        // Ctrl-C: the arm decelerates within its limits and holds before the link closes.
+        let stopped = self.driver.stop();
+        let mut said = Vec::new();
+        let closed = self.driver.close(&mut said);
+        stopped.and(closed).map(|_| String::from_utf8_lossy(&said).into_owned())
+    }
+
+    fn publish(&mut self, status: &Status) {
+        self.seq += 1;
+        let rate = self.rate.tick();
+        if let Some(p) = &self.playing {
+            self.extras.play = p.json();
+        }
+        match telemetry::telemetry(self.fk.as_ref(), self.seq, status, &self.extras, rate) {
+            Ok(t) => self.latest.publish(self.seq, t.to_string()),
+            Err(e) => self.extras.last_error = Some(format!("telemetry: {e:#}")),
+        }
+    }
+
+    fn busy_playing(&self) -> Result<(), ApiError> {
+        match &self.playing {
+            Some(p) if !p.done => Err(ApiError::new(409, format!("{} is playing: stop it first", p.name))),
+            _ => Ok(()),
+        }
+    }
+
+    fn handle(&mut self, request: Request, last: Option<&Status>) -> Result<Value, ApiError> {
+        match request {
+            Request::Stop => {
+                if let Some(p) = self.playing.as_mut().filter(|p| !p.done) {
+                    p.done = true;
+                    p.error = Some(format!("stopped after {} of {} keyframes were pushed", p.pushed, p.messages.len()));
+                }
+                self.driver.request(&HostMessage::Stop).map_err(link_error)?;
+                ok()
+            }
+            Request::Torque(on) => {
+                let answer = match on {
+                    true => self.driver.torque_on(),
+                    false => self.driver.request(&HostMessage::Torque { on: false }),
+                };
+                answer.map_err(link_error)?;
+                ok()
+            }
+            Request::Gripper(percent) => {
+                if self.driver.gripper().is_none() {
+                    return Err(ApiError::bad(format!("the arm {} has no gripper", self.driver.arm().name)));
+                }
+                self.ready()?;
+                self.driver
+                    .request(&HostMessage::Gripper { opening: percent as f32, effort: None })
+                    .map_err(link_error)?;
+                ok()
+            }
+            Request::Joints { q, speed } => {
+                self.busy_playing()?;
+                let positions = check_joints(&self.driver, &q, "q").map_err(|e| ApiError::bad(format!("{e:#}")))?;
+                self.ready()?;
+                let timing = Timing::MaxSpeed(speed.map_or(MAX_SPEED, |s| s as f32));
+                self.driver.request(&HostMessage::MoveJoints { positions, timing }).map_err(link_error)?;
+                self.extras.last_error = None;
+                ok()
+            }
+            Request::Target { position, orientation, go } => {
+                let seed = last.map(|s| s.measured.iter().map(|&x| f64::from(x)).collect());
+                let preview = super::preview::solve(self.fk.as_ref(), position, orientation, seed);
+                self.extras.target = json!({
+                    "position": position, "orientation": orientation,
+                    "reachable": preview.is_ok(), "reason": preview.as_ref().err().map(|e| e.message.clone()),
+                });
+                let solution = preview?;
+                if go {
+                    self.busy_playing()?;
+                    self.ready()?;
+                    let target = CartesianTarget {
+                        position: position.map(|x| x as f32),
+                        orientation: orientation.map(|q| q.map(|x| x as f32)),
+                    };
+                    let sent =
+                        self.driver.request(&HostMessage::MoveTo { target, timing: Timing::MaxSpeed(TARGET_SPEED) });
+                    if let Err(e) = sent {
+                        let e = link_error(e);
+                        self.extras.target["reachable"] = json!(false);
+                        self.extras.target["reason"] = json!(e.message);
+                        return Err(e);
+                    }
+                    self.extras.last_error = None;
+                }
+                Ok(solution)
+            }
+            Request::Play { name, csv } => {
+                self.busy_playing()?;
+                let plan = Plan::parse(&csv, std::path::Path::new(&name), PLAY_MARGIN)
+                    .map_err(|e| ApiError::bad(format!("{e:#}")))?;
+                let messages = plan.messages(&self.driver).map_err(|e| ApiError::bad(format!("{e:#}")))?;
+                let path = plan.tool_path(&self.driver).map_err(|e| ApiError::bad(format!("{e:#}")))?;
+                if messages.is_empty() {
+                    return Err(ApiError::bad(format!("{name}: no keyframes")));
+                }
+                let status = self.driver.status().map_err(|e| ApiError::new(503, format!("{e:#}")))?;
+                if !matches!(status.state, RunState::Idle | RunState::TorqueOff) {
+                    return Err(ApiError::new(
+                        409,
+                        format!("the arm is busy ({:?}): wait, or stop it first", status.state),
+                    ));
+                }
+                self.ready()?;
+                if status.queued > 0 {
+                    // Left over from an interrupted run: not what this file says.
+                    self.driver.request(&HostMessage::Stop).map_err(link_error)?;
+                }
+                let seconds = plan.seconds();
+                let answer = json!({"keyframes": messages.len(), "seconds": seconds, "path": path});
+                self.playing = Some(Playing {
+                    name,
+                    plan_seconds: seconds,
+                    messages,
+                    plan,
+                    pushed: 0,
+                    started: false,
+                    done: false,
+                    error: None,
+                    play_time: 0.0,
+                });
+                self.extras.last_error = None;
+                self.feed();
+                Ok(answer)
+            }
+        }
+    }
+
+    /// Torque on if it is off; an emergency stop is left to the person.
+    fn ready(&mut self) -> Result<(), ApiError> {
+        self.driver.ready_to_move().map(drop).map_err(|e| ApiError::new(409, format!("{e:#}")))
+    }
+
+    /// Pushes keyframes while the firmware has free slots, and starts playing once the queue is
+    /// full or the file is all queued.
+    fn feed(&mut self) {
+        let Some(p) = self.playing.as_mut().filter(|p| !p.done) else { return };
+        while p.pushed < p.messages.len() && (p.pushed == 0 || self.driver.free_slots() > 0) {
+            let (line, message) = &p.messages[p.pushed];
+            match self.driver.push(message) {
+                Ok(FirmwareMessage::Ack { .. }) => p.pushed += 1,
+                Ok(other) => {
+                    return fail(p, &mut self.driver, format!("{}: unexpected reply {other:?}", p.plan.at(*line)))
+                }
+                Err(e) => return fail(p, &mut self.driver, format!("{}: {e}", p.plan.at(*line))),
+            }
+        }
+        if !p.started {
+            match self.driver.request(&HostMessage::Start) {
+                Ok(_) => p.started = true,
+                Err(e) => fail(p, &mut self.driver, format!("start: {e}")),
+            }
+        }
+    }
+
+    /// Follows a playing file by the status: restarts after an underrun, ends when all is played.
+    fn follow_play(&mut self, status: &Status) {
+        let Some(p) = self.playing.as_mut().filter(|p| !p.done && p.started) else { return };
+        p.play_time = status.play_time.max(p.play_time);
+        match status.state {
+            RunState::Idle if p.pushed == p.messages.len() && status.queued == 0 => p.done = true,
+            RunState::Idle if status.queued > 0 => {
+                // The player ran dry and went to hold: go on.
+                if let Err(e) = self.driver.request(&HostMessage::Start) {
+                    fail(p, &mut self.driver, format!("restart: {e}"));
+                }
+            }
+            RunState::TorqueOff | RunState::EStopped => {
+                p.done = true;
+                p.error =
+                    Some(format!("the arm stopped ({:?}) after {} keyframes were pushed", status.state, p.pushed));
+            }
+            _ if f64::from(p.play_time) > p.plan_seconds + PLAY_MARGIN => {
+                fail(p, &mut self.driver, format!("still {:?} {PLAY_MARGIN} s after the last keyframe", status.state))
+            }
+            _ => {}
+        }
+        if let Some(e) = p.error.clone().filter(|_| p.done) {
+            self.extras.last_error = Some(format!("{}: {e}", p.name));
+        }
+    }
+}
+
+/// Ends a file with an error, stopping the arm.
+fn fail(p: &mut Playing, driver: &mut Driver, why: String) {
+    let stopped = driver.request(&HostMessage::Stop).is_ok();
+    p.done = true;
+    p.error = Some(format!("{why}; {}", if stopped { "stopped the arm" } else { "could not stop the arm" }));
+}
