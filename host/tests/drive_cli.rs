@@ -175,6 +175,21 @@ fn plays_a_file_with_the_gripper_longer_than_the_queue() {
     assert_eq!(v["pushed"], 60, "{v}");
 }
 
+/// A file longer than the queue whose first keyframe is at time 0 but far from where the arm
+/// rests: the firmware shifts the queued keyframes to reach it within the limits, and the ones
+/// pushed after them alike, so none is refused as "not later than the previous".
+#[test]
+fn plays_a_long_file_that_starts_away_from_the_arm() {
+    let mut csv = String::from("t,q1,q2,q3,q4,q5\n");
+    for i in 0..=40 {
+        csv.push_str(&format!("{},{:.4},0,0,0,0\n", 0.1 * f64::from(i), 0.8 * (1.0 - 0.02 * f64::from(i))));
+    }
+    let file = TempFile::new("far-start", &csv);
+    let v = armctl(&["--sim", "--json", "play", file.path()]).json();
+    assert_eq!(v["pushed"], 41, "{v}");
+    assert!(v["end_error"].as_f64().unwrap() < 0.01, "{v}");
+}
+
 #[test]
 fn plays_a_cartesian_keyframe_file() {
     let points: Vec<[f64; 3]> = (0..6).map(|i| fk(&[0.1 * f64::from(i), -0.3, 0.4, 0.2, 0.0])).collect();

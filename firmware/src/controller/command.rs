@@ -345,10 +345,11 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         }
         self.player.push(keyframe).map_err(refusal)?;
         self.queue_tail = keyframe.position;
+        let play_time = self.play_time();
         if let (Some(pct), Some(g)) = (gripper, self.gripper.as_mut()) {
             // The gripper's track starts where the gripper is: at time 0 for a new trajectory,
             // at the playback time when keyframes append to a playing one.
-            let anchor = if fresh || g.track_empty() { Some(if fresh { 0.0 } else { self.play.time }) } else { None };
+            let anchor = if fresh || g.track_empty() { Some(if fresh { 0.0 } else { play_time }) } else { None };
             g.push(keyframe.time, pct, anchor);
         }
         self.counters.keyframes = self.counters.keyframes.wrapping_add(1);

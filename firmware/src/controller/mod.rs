@@ -377,9 +377,11 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         self.player.queued()
     }
 
-    /// The playback clock: seconds since the trajectory started.
+    /// The playback clock in the sender's timeline: seconds since the trajectory started, less
+    /// the time late keyframes shifted it by ([`kinematics::trajectory::Player::shift`]). A
+    /// keyframe pushed with this time is due now.
     pub fn play_time(&self) -> f32 {
-        self.play.time
+        self.play.time - self.player.shift()
     }
 
     /// The playback clock at `now_us`, between ticks: the time since the last tick added at the
@@ -389,7 +391,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
     pub fn play_time_at(&self, now_us: u64) -> f32 {
         let period = self.config.period_us;
         let since = self.last_tick_us.map_or(0, |t| now_us.saturating_sub(t).min(u64::from(period)) as u32);
-        self.play.time + since as f32 * 1e-6 * self.play.rate
+        self.play_time() + since as f32 * 1e-6 * self.play.rate
     }
 
     /// Room left in the keyframe queue: the joints' and, with a gripper, its track's, whichever

@@ -61,7 +61,8 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             let (desired, velocity) = self.desired(dt, &mut report);
             self.setpoint = limit_step(&self.setpoint, &desired, &velocity, &self.limits, dt);
             self.after_step();
-            let playing = (self.mode == Mode::Playing).then_some(self.play.time);
+            // The gripper's track is in the sender's timeline, as the joints' keyframes are.
+            let playing = (self.mode == Mode::Playing).then_some(self.play_time());
             // The gripper's ramp starts a tick after its torque comes on: the goal written with
             // the torque a moment ago is where it stands, and a full step at once would be a
             // period's motion in a fraction of one. (The joints start from rest, limited by

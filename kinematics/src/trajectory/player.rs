@@ -26,7 +26,11 @@
 //! * **Late keyframes.** When the player starts a segment at time `now` (resuming from rest or a
 //!   brake) and the next keyframe's time is not after `now`, every queued keyframe is shifted later
 //!   so that this segment keeps its planned duration (the gap to the keyframe before it) but at
-//!   least the smoothstep time the position change needs within the limits.
+//!   least the smoothstep time the position change needs within the limits. Keyframes pushed
+//!   later are shifted by the same total ([`Player::shift`]), so a stream longer than the queue
+//!   keeps its spacing: its times stay those of the sender's timeline, which runs `shift` behind
+//!   the player's clock. [`Player::stop`], [`Player::replace`] and [`Player::reset`] start a new
+//!   timeline (no shift).
 //!
 //! The player enforces the limits only on what it generates (braking, chosen velocities); the
 //! keyframes and their timing are the sender's responsibility (see [`super::time_scale`]).
@@ -160,6 +164,8 @@ pub struct Player<T: Real, const J: usize, const Q: usize> {
     tail: Option<T>,
     /// Time of the last keyframe reached or started from (the reference for late keyframes).
     reached: Option<T>,
+    /// How far late keyframes have shifted the sender's timeline onto the player's clock.
+    shift: T,
     underruns: u32,
 }
 
@@ -181,6 +187,7 @@ impl<T: Real, const J: usize, const Q: usize> Player<T, J, Q> {
             request: Request::None,
             tail: None,
             reached: None,
+            shift: T::zero(),
             underruns: 0,
         }
     }
@@ -200,6 +207,7 @@ impl<T: Real, const J: usize, const Q: usize> Player<T, J, Q> {
         self.request = Request::None;
         self.tail = None;
         self.reached = None;
+        self.shift = T::zero();
         self.underruns = 0;
         Ok(())
     }
@@ -224,11 +232,20 @@ impl<T: Real, const J: usize, const Q: usize> Player<T, J, Q> {
         self.underruns
     }
 
-    /// Appends a keyframe. Its time must be later than every keyframe accepted before.
-    pub fn push(&mut self, keyframe: PlayerKeyframe<T, J>) -> Result<(), PushError> {
+    /// How far the sender's timeline runs behind the player's clock: the total by which late
+    /// keyframes were shifted since the timeline began. A keyframe pushed at time `t` plays at
+    /// `t + shift`; the sender's time at the player's `now` is `now - shift`.
+    pub fn shift(&self) -> T {
+        self.shift
+    }
+
+    /// Appends a keyframe, at its time plus [`Player::shift`]. Its time must be later than every
+    /// keyframe accepted before.
+    pub fn push(&mut self, mut keyframe: PlayerKeyframe<T, J>) -> Result<(), PushError> {
         if !keyframe.finite() {
             return Err(PushError::NonFinite);
         }
+        keyframe.time += self.shift;
         if self.tail.is_some_and(|tail| keyframe.time <= tail) {
             return Err(PushError::TimeNotIncreasing);
         }
@@ -260,6 +277,7 @@ impl<T: Real, const J: usize, const Q: usize> Player<T, J, Q> {
         if let Some(last) = keyframes.last() {
             self.tail = Some(last.time);
         }
+        self.shift = T::zero();
         self.request = Request::Replace;
         Ok(())
     }
@@ -270,6 +288,7 @@ impl<T: Real, const J: usize, const Q: usize> Player<T, J, Q> {
     pub fn stop(&mut self) {
         self.queue.clear();
         self.tail = None;
+        self.shift = T::zero();
         self.request = Request::Stop;
     }
 
@@ -386,6 +405,7 @@ impl<T: Real, const J: usize, const Q: usize> Player<T, J, Q> {
                 k.time += shift;
             }
             self.tail = self.tail.map(|t| t + shift);
+            self.shift += shift;
         }
         let Some(next) = self.queue.pop_front() else {
             return;

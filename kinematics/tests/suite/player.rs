@@ -248,6 +248,53 @@ fn late_keyframes_are_shifted_not_jumped_to() {
     assert_eq!(player.tick(t).sample.position, Vector3::repeat(0.3));
 }
 
+/// A stream longer than the queue whose first keyframe is late (far from where the player
+/// rests, at time 0): the queued keyframes are shifted, and so are the ones pushed after them, so
+/// the stream keeps its spacing and none is refused as not later than the last.
+#[test]
+fn keyframes_pushed_after_a_shift_are_shifted_alike() {
+    let mut player = Player::<f64, 3, 4>::new(Vector3::zeros(), limits()).unwrap();
+    let stream: Vec<_> = (0..12).map(|i| key(0.1 * f64::from(i), [0.8, 0.01 * f64::from(i), 0.0])).collect();
+    for k in &stream[..4] {
+        player.push(*k).unwrap();
+    }
+    player.tick(0.0);
+    let shift = player.shift();
+    // The first keyframe is 0.8 rad away: a rest-to-rest move needs sqrt(6 * 0.8 / AMAX) at least.
+    assert!(shift >= (6.0 * 0.8 / AMAX).sqrt() - 1e-9, "shift {shift}");
+    let mut next = 4;
+    let mut t = 0.0;
+    while t < 4.0 {
+        while next < stream.len() && player.free_slots() > 0 {
+            player.push(stream[next]).unwrap();
+            next += 1;
+        }
+        player.tick(t);
+        t += DT;
+    }
+    assert_eq!(next, stream.len());
+    // Each keyframe is passed at its time plus the shift.
+    let mut again = Player::<f64, 3, 4>::new(Vector3::zeros(), limits()).unwrap();
+    for k in &stream[..4] {
+        again.push(*k).unwrap();
+    }
+    let mut next = 4;
+    for i in 0..=400 {
+        let t = f64::from(i) * DT;
+        while next < stream.len() && again.free_slots() > 0 {
+            again.push(stream[next]).unwrap();
+            next += 1;
+        }
+        let sample = again.tick(t).sample;
+        if let Some(k) = stream[1..].iter().find(|k| ((k.time + shift) - t).abs() < DT / 2.0) {
+            assert!((sample.position - k.position).norm() < 1e-4, "at {t}: {:?} vs {:?}", sample.position, k.position);
+        }
+    }
+    // A stop starts a new timeline.
+    player.stop();
+    assert_eq!(player.shift(), 0.0);
+}
+
 #[test]
 fn queue_full_and_bad_keyframes_change_nothing() {
     let mut player = Player::<f64, 3, 2>::new(Vector3::zeros(), limits()).unwrap();
