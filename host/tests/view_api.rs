@@ -1,0 +1,305 @@
+//! `armctl view`'s JSON API against the simulated arm, without a browser: the chain, the status,
+//! joint moves, the IK preview and "go", stop, torque, playing a file, the websocket's rate, the
+//! URDF meshes, and every kind of bad input refused with a 4xx and the arm left where it was.
+//! (The page itself is tested in a real browser by view_browser.rs.)
+
+mod support;
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::{json, Value};
+
+/// A running `armctl view` and its address.
+struct View {
+    child: Child,
+    host: String,
+    stderr: std::thread::JoinHandle<String>,
+}
+
+impl View {
+    fn start(extra: &[&str]) -> Self {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_armctl"))
+            .args(["view", "--listen", "127.0.0.1:0"])
+            .args(extra)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("armctl view starts");
+        let mut stderr = child.stderr.take().expect("stderr");
+        let stderr = std::thread::spawn(move || {
+            let mut text = String::new();
+            let _ = stderr.read_to_string(&mut text);
+            text
+        });
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().expect("stdout")).read_line(&mut line).expect("the first line");
+        let host = line
+            .trim()
+            .strip_prefix("http://")
+            .and_then(|rest| rest.strip_suffix('/'))
+            .unwrap_or_else(|| panic!("the first line is not the page's URL: {line:?}"))
+            .to_string();
+        let view = Self { child, host, stderr };
+        view.wait_for(|s| s["seq"].as_u64().is_some(), "a first status", 5.0);
+        view
+    }
+
+    /// One request; returns the status code and the JSON body.
+    fn call(&self, method: &str, path: &str, body: &str) -> (u16, Value) {
+        let mut stream = TcpStream::connect(&self.host).expect("connects");
+        stream.set_read_timeout(Some(Duration::from_secs(15))).unwrap();
+        write!(
+            stream,
+            "{method} {path} HTTP/1.1\r\nHost: {}\r\nContent-Type: application/json\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{body}",
+            self.host,
+            body.len()
+        )
+        .unwrap();
+        let mut response = Vec::new();
+        stream.read_to_end(&mut response).expect("a response");
+        let text = String::from_utf8_lossy(&response).into_owned();
+        let (head, body) = text.split_once("\r\n\r\n").unwrap_or_else(|| panic!("no header end in {text:?}"));
+        let code =
+            head.split(' ').nth(1).and_then(|c| c.parse().ok()).unwrap_or_else(|| panic!("status line {head:?}"));
+        let value = serde_json::from_str(body).unwrap_or(Value::String(body.to_string()));
+        (code, value)
+    }
+
+    fn post(&self, endpoint: &str, body: Value) -> (u16, Value) {
+        self.call("POST", &format!("/api/{endpoint}"), &body.to_string())
+    }
+
+    fn status(&self) -> Value {
+        let (code, body) = self.call("GET", "/api/status", "");
+        assert_eq!(code, 200, "{body}");
+        body
+    }
+
+    /// Polls the status until `done` holds; panics after `seconds`.
+    fn wait_for(&self, done: impl Fn(&Value) -> bool, what: &str, seconds: f64) -> Value {
+        let started = Instant::now();
+        loop {
+            let (code, status) = self.call("GET", "/api/status", "");
+            if code == 200 && done(&status) {
+                return status;
+            }
+            assert!(started.elapsed().as_secs_f64() < seconds, "no {what} within {seconds} s; last status {status}");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// Ctrl-C; returns the exit code and stderr.
+    fn stop(mut self) -> (i32, String) {
+        // SAFETY-free: `kill` is a plain process, as a person's Ctrl-C is a signal.
+        let _ = Command::new("kill").args(["-INT", &self.child.id().to_string()]).status();
+        let code = self.child.wait().expect("armctl view exits").code().unwrap_or(-1);
+        (code, self.stderr.join().unwrap_or_default())
+    }
+}
+
+fn numbers(v: &Value) -> Vec<f64> {
+    v.as_array().expect("an array").iter().map(|x| x.as_f64().expect("a number")).collect()
+}
+
+fn distance(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>().sqrt()
+}
+
+fn at_rest(s: &Value) -> bool {
+    s["state"] == "Idle" && distance(&numbers(&s["measured"]), &numbers(&s["setpoints"])) < 2e-3
+}
+
+#[test]
+fn drives_the_simulated_arm_through_the_api_and_refuses_bad_input() {
+    let view = View::start(&[]);
+    let (code, arm) = view.call("GET", "/api/arm", "");
+    assert_eq!(code, 200);
+    assert_eq!(arm["name"], "so101");
+    assert_eq!(arm["dof"], 5);
+    assert_eq!(arm["joints"].as_array().unwrap().len(), 5);
+    assert_eq!(arm["orientation"], false);
+    assert!(arm["gripper"].is_object());
+    let status = view.status();
+    assert_eq!(status["frames"].as_array().unwrap().len(), 6, "five joint frames and the tool's");
+    assert_eq!(numbers(&status["frames"][5]["p"]), numbers(&status["tool"]));
+
+    // Joints: the arm goes there (torque switched on).
+    let q = [0.4, -0.3, 0.5, 0.2, -0.6];
+    assert_eq!(view.post("joints", json!({"q": q})), (200, json!({"ok": true})));
+    let there = view.wait_for(|s| at_rest(s) && distance(&numbers(&s["measured"]), &q) < 2e-3, "joint move", 10.0);
+    assert_eq!(there["torque"], true);
+
+    // Bad input: 4xx with the reason, and nothing moves.
+    let setpoints = numbers(&there["setpoints"]);
+    let bad: &[(&str, &str, u16, &str)] = &[
+        ("joints", "{\"q\": [0.1,", 400, "bad JSON"),
+        ("joints", "{\"q\": [NaN, 0, 0, 0, 0]}", 400, "bad JSON"),
+        ("joints", "{\"q\": [\"0.1\", 0, 0, 0, 0]}", 400, "expected a number"),
+        ("joints", "{\"q\": [0.1, 0.2]}", 400, "2 joint values, but the arm so101 has 5"),
+        ("joints", "{\"q\": [3.0, 0, 0, 0, 0]}", 400, "outside its limits"),
+        ("joints", "{\"q\": [0, 0, 0, 0, 0], \"speed\": -1}", 400, "speed"),
+        ("target", "{\"position\": [0.2, 0.0]}", 400, "expected 3 numbers"),
+        ("target", "{\"position\": [2.0, 0.0, 0.1], \"go\": true}", 422, "unreachable"),
+        ("target", "{\"position\": [0.2, 0, 0.1], \"orientation\": [1, 0, 0, 0]}", 400, "too few to choose"),
+        ("torque", "{\"on\": \"off\"}", 400, "expected true or false"),
+        ("gripper", "{\"percent\": 140}", 400, "within 0"),
+        ("play", "{\"csv\": \"t,q1,q2,q3,q4,q5\\n0,0,0,0,0,0\\n1,0,0,zero,0,0\\n\"}", 400, "line 3"),
+        ("play", "{\"csv\": \"t,q1\\n0,0\\n1,0.1\\n\"}", 400, "1 joint values, but the arm so101 has 5"),
+        ("fly", "{}", 404, "no endpoint"),
+    ];
+    for (endpoint, body, code, words) in bad {
+        let (got, answer) = view.call("POST", &format!("/api/{endpoint}"), body);
+        let error = answer["error"].as_str().unwrap_or_else(|| panic!("{endpoint} {body}: no error in {answer}"));
+        assert_eq!(got, *code, "{endpoint} {body}: {error}");
+        assert!(error.contains(words), "{endpoint} {body}: {error:?} does not say {words:?}");
+        assert!(!error.contains('\n'), "one line: {error:?}");
+    }
+    let (got, _) = view.call("GET", "/api/nothing", "");
+    assert_eq!(got, 405);
+    std::thread::sleep(Duration::from_millis(200));
+    let after = view.status();
+    assert_eq!(numbers(&after["setpoints"]), setpoints, "a refused request moved the arm");
+    assert_eq!(after["state"], "Idle");
+
+    // The IK preview: a point the arm reaches (its tool at other joints), then "go".
+    let goal = [0.25, 0.08, 0.12];
+    let (code, preview) = view.post("target", json!({"position": goal}));
+    assert_eq!(code, 200, "{preview}");
+    assert_eq!(preview["reachable"], true);
+    assert!(preview["position_error_mm"].as_f64().unwrap() < 0.5);
+    let drawn = numbers(&preview["frames"][5]["p"]);
+    assert!(distance(&drawn, &goal) < 5e-4, "the preview's tool {drawn:?} is not at {goal:?}");
+    assert_eq!(numbers(&view.status()["setpoints"]), setpoints, "a preview moved the arm");
+    let (code, _) = view.post("target", json!({"position": goal, "go": true}));
+    assert_eq!(code, 200);
+    let reached = view.wait_for(|s| at_rest(s) && distance(&numbers(&s["tool"]), &goal) < 1e-3, "the target", 10.0);
+    assert_eq!(reached["target"]["reachable"], true);
+
+    // A file plays; stop stops it halfway.
+    let rows: String =
+        (0..=40).map(|i| format!("{},{:.4},0,0,0,0\n", i as f64 * 0.1, 0.8 * (i as f64 * 0.1).sin())).collect();
+    let csv = format!("t,q1,q2,q3,q4,q5\n{rows}");
+    let (code, planned) = view.post("play", json!({"name": "wave.csv", "csv": csv}));
+    assert_eq!(code, 200, "{planned}");
+    assert_eq!(planned["keyframes"], 41);
+    assert_eq!(planned["path"].as_array().unwrap().len(), 41);
+    let (code, busy) = view.post("joints", json!({"q": q}));
+    assert_eq!(code, 409, "{busy}");
+    view.wait_for(|s| s["play"]["play_time"].as_f64().unwrap_or(0.0) > 0.5, "playing", 5.0);
+    assert_eq!(view.post("stop", json!({})).0, 200);
+    let stopped = view.wait_for(|s| s["state"] == "Idle", "a stop", 3.0);
+    assert!(
+        stopped["play"]["done"] == true && stopped["play"]["play_time"].as_f64().unwrap() < 3.0,
+        "{}",
+        stopped["play"]
+    );
+
+    // The whole file plays to its end.
+    let (code, _) = view.post("play", json!({"name": "wave.csv", "csv": csv}));
+    assert_eq!(code, 200);
+    let played = view.wait_for(|s| s["play"]["done"] == true, "the end of the file", 15.0);
+    assert!(played["play"]["error"].is_null(), "{}", played["play"]);
+    assert!(played["play"]["play_time"].as_f64().unwrap() >= 3.9);
+
+    // Torque off and on.
+    assert_eq!(view.post("torque", json!({"on": false})).0, 200);
+    view.wait_for(|s| s["state"] == "TorqueOff" && s["torque"] == false, "torque off", 3.0);
+    assert_eq!(view.post("torque", json!({"on": true})).0, 200);
+    view.wait_for(|s| s["torque"] == true, "torque on", 3.0);
+
+    // The websocket carries telemetry at the control rate (100 Hz; at least 50 counted here,
+    // where the machine is shared).
+    let (mut socket, _) = tungstenite::connect(format!("ws://{}/api/ws", view.host)).expect("websocket");
+    let started = Instant::now();
+    let mut seqs = Vec::new();
+    while started.elapsed() < Duration::from_secs(1) {
+        if let tungstenite::Message::Text(text) = socket.read().expect("a message") {
+            let t: Value = serde_json::from_str(&text).expect("JSON telemetry");
+            seqs.push(t["seq"].as_u64().unwrap());
+        }
+    }
+    assert!(seqs.windows(2).all(|w| w[1] > w[0]), "telemetry out of order");
+    assert!(seqs.len() >= 50, "{} messages in one second", seqs.len());
+    drop(socket);
+
+    let (code, stderr) = view.stop();
+    assert_eq!(code, 0, "{stderr}");
+    assert!(stderr.contains("safety monitor:") && stderr.contains(" 0 violations"), "{stderr}");
+    assert!(stderr.contains("stopped: the arm holds"), "{stderr}");
+}
+
+#[test]
+fn draws_a_urdfs_meshes_and_says_which_are_missing() {
+    // A five-joint URDF shaped like the SO-101 preset's joints (revolute about z), with an STL
+    // for the base and one for the third link, and one mesh that is not there.
+    let dir = std::env::temp_dir().join(format!("armctl-view-urdf-{}", std::process::id()));
+    std::fs::create_dir_all(dir.join("meshes")).unwrap();
+    // A binary STL of one triangle: 80-byte header, count, normal, 3 vertices, attribute.
+    let mut stl = vec![0u8; 80];
+    stl.extend(1u32.to_le_bytes());
+    for v in [0.0f32, 0.0, 1.0, 0.0, 0.0, 0.0, 0.01, 0.0, 0.0, 0.0, 0.01, 0.0] {
+        stl.extend(v.to_le_bytes());
+    }
+    stl.extend([0, 0]);
+    std::fs::write(dir.join("meshes/base.stl"), &stl).unwrap();
+    std::fs::write(dir.join("meshes/upper.stl"), &stl).unwrap();
+    let visual = |file: &str| {
+        format!("<visual><origin xyz=\"0 0 0.01\"/><geometry><mesh filename=\"{file}\"/></geometry></visual>")
+    };
+    let mut urdf = format!("<robot name=\"five\"><link name=\"l0\">{}</link>", visual("meshes/base.stl"));
+    for i in 1..=5 {
+        let inside = match i {
+            3 => visual("meshes/upper.stl"),
+            5 => visual("meshes/gone.stl"),
+            _ => String::new(),
+        };
+        urdf += &format!(
+            "<link name=\"l{i}\">{inside}</link><joint name=\"j{i}\" type=\"revolute\"><parent link=\"l{}\"/><child link=\"l{i}\"/>\
+             <origin xyz=\"0 0 0.05\"/><axis xyz=\"0 0 1\"/><limit lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"1\"/></joint>",
+            i - 1
+        );
+    }
+    urdf += "</robot>";
+    let file = dir.join("five.urdf");
+    std::fs::write(&file, urdf).unwrap();
+
+    let view = View::start(&["--urdf", file.to_str().unwrap()]);
+    let (code, arm) = view.call("GET", "/api/arm", "");
+    assert_eq!(code, 200);
+    let meshes = arm["meshes"].as_array().unwrap();
+    assert_eq!(meshes.len(), 2, "{arm}");
+    assert_eq!((meshes[0]["frame"].as_u64(), meshes[1]["frame"].as_u64()), (Some(0), Some(3)));
+    assert_eq!(numbers(&meshes[1]["p"]), [0.0, 0.0, 0.01]);
+    let mut stream = TcpStream::connect(&view.host).unwrap();
+    write!(stream, "GET {} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n", meshes[1]["url"].as_str().unwrap())
+        .unwrap();
+    let mut response = Vec::new();
+    stream.read_to_end(&mut response).unwrap();
+    assert!(response.ends_with(&stl), "the mesh's bytes are served as they are");
+    let (code, stderr) = view.stop();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert_eq!(code, 0, "{stderr}");
+    assert!(stderr.contains("warning: --urdf") && stderr.contains("gone.stl"), "{stderr}");
+}
+
+#[test]
+fn refuses_bad_options_before_opening_anything() {
+    for (args, words) in [
+        (&["view", "--listen", "localhost"][..], "--listen localhost: expected ADDR:PORT"),
+        (&["view", "--arm", "nonsense"][..], "unknown arm"),
+        (&["view", "--object-mm", "20"][..], "--object-mm"),
+        (
+            &["view", "--urdf", "/nonexistent/arm.urdf", "--listen", "127.0.0.1:0"][..],
+            "cannot read /nonexistent/arm.urdf",
+        ),
+    ] {
+        let run = support::armctl(args);
+        assert_eq!(run.code, 1, "{args:?}: {}", run.stderr);
+        assert!(run.stdout.is_empty(), "{args:?} printed a URL: {}", run.stdout);
+        assert!(run.stderr.contains(words), "{args:?}: {}", run.stderr);
+    }
+}
