@@ -253,6 +253,40 @@ fn a_keyframe_trajectory_is_followed_closely_and_pause_resumes() {
     assert!(max_abs(&(r.present() - at(1.0))) < 0.003);
 }
 
+/// A stop while one joint moves and the others stand at values f32 cannot hold exactly: every
+/// joint comes to rest, the brake ends and the arm holds. (The brake once followed the setpoint's
+/// measured velocity, and a standing joint that crept by one f32 step per tick never read below
+/// that step's velocity: the arm stayed "stopping" for good.)
+#[test]
+fn a_stop_mid_trajectory_always_ends_holding() {
+    let start = SVector::<f32, J>::from([0.0, 0.3774, -0.3482, -0.1657, -0.0015]);
+    let at = |t: f32| {
+        let mut q = start;
+        q[0] = 0.8 * (core::f32::consts::TAU * (t - 0.5) / 7.5).sin();
+        q
+    };
+    for stop_after in (40..=130).step_by(3) {
+        let mut r = armed();
+        r.command(Command::MoveJoints { q: start.into(), duration: 1.0 }).unwrap();
+        r.run_until(300, |_, rep| rep.mode == Mode::Holding);
+        for k in 0..30 {
+            let t = 0.5 + 0.1 * k as f32;
+            r.command(Command::PushKeyframe { keyframe: PlayerKeyframe::new(t, at(t)), gripper: None }).unwrap();
+        }
+        r.command(Command::Start).unwrap();
+        r.run(stop_after);
+        r.command(Command::Stop).unwrap();
+        let ticks = r.run_until(200, |_, rep| rep.mode == Mode::Holding);
+        assert_eq!(
+            r.ctl.mode(),
+            Mode::Holding,
+            "stopped after {stop_after} ticks: still {:?} {ticks} ticks later",
+            r.ctl.mode()
+        );
+        assert_eq!(r.ctl.setpoint().velocity, SVector::<f32, J>::zeros());
+    }
+}
+
 #[test]
 fn a_silent_host_stops_the_arm_within_the_limits() {
     let mut r = armed();

@@ -142,6 +142,11 @@ pub struct Controller<const N: usize, const Q: usize> {
     tool: Option<ToolGoal>,
     /// Per-joint deceleration of the brake in progress (rad/s²).
     brake: SVector<f32, N>,
+    /// The brake's own velocity profile (rad/s), falling by `brake` each tick to exactly zero.
+    /// Not the setpoint's velocity: that is measured from positions one f32 step apart, so a
+    /// joint creeping by one rounding step per tick would never read below it, and a brake
+    /// driven by it would never end.
+    braking: SVector<f32, N>,
     last_host_us: u64,
     last_tick_us: Option<u64>,
     counters: Counters,
@@ -215,6 +220,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             play: PlayClock::STOPPED,
             tool: None,
             brake: zero,
+            braking: zero,
             last_host_us: 0,
             last_tick_us: None,
             counters: Counters::default(),
@@ -284,6 +290,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         self.play = PlayClock::STOPPED;
         self.tool = None;
         self.brake = SVector::zeros();
+        self.braking = SVector::zeros();
         self.last_host_us = 0;
         self.last_tick_us = None;
         self.counters = Counters::default();
@@ -458,7 +465,11 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
     /// a constant rate within its limit and all stop together.
     fn begin_stop(&mut self) {
         let t = self.limits.stopping_time(&self.setpoint.velocity);
-        self.brake = if t > 0.0 && t.is_finite() { self.setpoint.velocity / t } else { SVector::zeros() };
+        (self.brake, self.braking) = if t > 0.0 && t.is_finite() {
+            (self.setpoint.velocity / t, self.setpoint.velocity)
+        } else {
+            (SVector::zeros(), SVector::zeros())
+        };
         self.mode = Mode::Stopping;
         self.tool = None;
         self.stop_gripper();

@@ -378,11 +378,12 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
                 let mut desired = self.setpoint.position;
                 let mut velocity = SVector::zeros();
                 for j in 0..N {
-                    let v = self.setpoint.velocity[j];
+                    let v = self.braking[j];
                     let dv = libm::fabsf(self.brake[j]) * dt;
                     velocity[j] = if v > 0.0 { (v - dv).max(0.0) } else { (v + dv).min(0.0) };
                     desired[j] += velocity[j] * dt;
                 }
+                self.braking = velocity;
                 (desired, velocity)
             }
         }
