@@ -14,7 +14,7 @@ use firmware::link::message::{CartesianTarget, FirmwareMessage, HostMessage, Run
 use serde_json::{json, Value};
 
 use super::api::{ApiError, Request};
-use super::telemetry::{self, Extras, Latest, RateMeter};
+use super::telemetry::{self, Extras, LastSecond, Latest};
 use crate::arm::dof::DynArm;
 use crate::arm::ArmSpec;
 use crate::drive::connection::Target;
@@ -95,7 +95,8 @@ impl ArmLoop {
                 let capacity = driver.queue_capacity();
                 let _ = opened.send((said, Ok((driver.arm().clone(), capacity))));
                 let extras = Extras { queue_capacity: capacity, ..Extras::default() };
-                let state = LoopState { driver, fk, latest, extras, playing: None, seq: 0, rate: RateMeter::default() };
+                let state =
+                    LoopState { driver, fk, latest, extras, playing: None, seq: 0, rate: LastSecond::default() };
                 state.run(&inbox, &quit)
             })?
         };
@@ -142,7 +143,7 @@ struct LoopState {
     extras: Extras,
     playing: Option<Playing>,
     seq: u64,
-    rate: RateMeter,
+    rate: LastSecond,
 }
 
 /// A link error as an API error: a refusal is the firmware's word (422), anything else means the
@@ -198,11 +199,11 @@ impl LoopState {
 
     fn publish(&mut self, status: &Status) {
         self.seq += 1;
-        let rate = self.rate.tick();
+        let window = self.rate.push(status.timing.max_us);
         if let Some(p) = &self.playing {
             self.extras.play = p.json();
         }
-        match telemetry::telemetry(self.fk.as_ref(), self.seq, status, &self.extras, rate) {
+        match telemetry::telemetry(self.fk.as_ref(), self.seq, status, &self.extras, window) {
             Ok(t) => self.latest.publish(self.seq, t.to_string()),
             Err(e) => self.extras.last_error = Some(format!("telemetry: {e:#}")),
         }

@@ -59,10 +59,10 @@ pub struct ViewArgs {
     /// Draw this URDF's visual meshes (STL) over the chain; its moving joints must be the arm's.
     #[arg(long, value_name = "FILE.urdf")]
     pub urdf: Option<PathBuf>,
-    /// The link the --urdf chain ends at, where the URDF has several (the SO-101's:
+    /// The link the --urdf chain ends at, where the URDF has several leaves (the SO-101's:
     /// gripper_frame_link).
     #[arg(long, value_name = "LINK", requires = "urdf")]
-    pub urdf_tip: Option<String>,
+    pub tip: Option<String>,
 }
 
 /// Runs `armctl view` until Ctrl-C; returns the exit code.
@@ -92,7 +92,7 @@ pub fn run(link: &LinkArgs, args: ViewArgs, out: &mut dyn Write, err: &mut dyn W
     let latest = Arc::new(Latest::default());
     let (arm_loop, spec, queue_capacity) = ArmLoop::spawn(target, arm, latest.clone(), err)?;
     let (meshes, missing) = match &args.urdf {
-        Some(file) => meshes::load(file, args.urdf_tip.as_deref(), &spec)?,
+        Some(file) => meshes::load(file, args.tip.as_deref(), &spec)?,
         None => (Vec::new(), Vec::new()),
     };
     for line in &missing {

@@ -42,7 +42,14 @@ pub struct Extras {
 }
 
 /// The telemetry object of one status (see the README's API section).
-pub fn telemetry(arm: &dyn DynArm, seq: u64, status: &Status, extras: &Extras, rate_hz: f64) -> anyhow::Result<Value> {
+pub fn telemetry(
+    arm: &dyn DynArm,
+    seq: u64,
+    status: &Status,
+    extras: &Extras,
+    window: (f64, u32),
+) -> anyhow::Result<Value> {
+    let (rate_hz, max_us) = window;
     let measured: Vec<f64> = status.measured.iter().map(|&x| f64::from(x)).collect();
     let setpoints: Vec<f64> = status.setpoints.iter().map(|&x| f64::from(x)).collect();
     let frames = frames(arm, &measured)?;
@@ -60,7 +67,7 @@ pub fn telemetry(arm: &dyn DynArm, seq: u64, status: &Status, extras: &Extras, r
         "tool": [tool.x, tool.y, tool.z],
         "tool_setpoint": [tool_setpoint.x, tool_setpoint.y, tool_setpoint.z],
         "tool_error_mm": (tool - tool_setpoint).norm() * 1e3,
-        "loop": {"mean_us": status.timing.mean_us, "max_us": status.timing.max_us, "overruns": status.timing.overruns},
+        "loop": {"mean_us": status.timing.mean_us, "max_us": max_us, "overruns": status.timing.overruns},
         "bus_errors": {"timeouts": e.bus_timeouts, "errors": e.bus_errors, "total": e.bus_timeouts + e.bus_errors},
         "errors": e,
         "lost_servos": status.lost_servos,
@@ -105,25 +112,28 @@ impl Latest {
     }
 }
 
-/// Polls per second over the last second.
-pub struct RateMeter {
-    stamps: std::collections::VecDeque<Instant>,
+/// The last second of polls: how many (the telemetry rate) and the longest control tick they
+/// reported. The firmware's own maximum covers only the time since the previous status, about
+/// one tick, while its mean is since start: over a second, the maximum means what it says.
+pub struct LastSecond {
+    polls: std::collections::VecDeque<(Instant, u32)>,
 }
 
-impl Default for RateMeter {
+impl Default for LastSecond {
     fn default() -> Self {
-        Self { stamps: std::collections::VecDeque::with_capacity(256) }
+        Self { polls: std::collections::VecDeque::with_capacity(256) }
     }
 }
 
-impl RateMeter {
-    /// Counts one poll now; returns the rate over the last second.
-    pub fn tick(&mut self) -> f64 {
+impl LastSecond {
+    /// Counts a poll now that reported `max_us`; returns the polls and the longest tick over the
+    /// last second.
+    pub fn push(&mut self, max_us: u32) -> (f64, u32) {
         let now = Instant::now();
-        self.stamps.push_back(now);
-        while self.stamps.front().is_some_and(|t| now.duration_since(*t) > Duration::from_secs(1)) {
-            self.stamps.pop_front();
+        self.polls.push_back((now, max_us));
+        while self.polls.front().is_some_and(|(t, _)| now.duration_since(*t) > Duration::from_secs(1)) {
+            self.polls.pop_front();
         }
-        self.stamps.len() as f64
+        (self.polls.len() as f64, self.polls.iter().map(|(_, m)| *m).max().unwrap_or(0))
     }
 }

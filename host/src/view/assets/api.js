@@ -1,0 +1,70 @@
+// Talking to the `armctl view` server (see SPEC.md: every error is {"error": "..."}).
+
+const listeners = [];
+
+/** Called with (message) for every failed request, so the page can show it in #error. */
+export function onRequestError(fn) { listeners.push(fn); }
+
+function report(message) { for (const fn of listeners) fn(message); }
+
+/**
+ * POST a JSON body. Resolves to {ok, status, body}; never throws, because every caller
+ * wants to show the failure in words where it happened rather than lose it in the console.
+ * `quiet` keeps a failure out of #error (the caller shows it itself).
+ */
+export async function post(path, body, { quiet = false } = {}) {
+  let res;
+  try {
+    res = await fetch(path, {
+      method: 'POST',
+      headers: { 'content-type': 'application/json' },
+      body: JSON.stringify(body),
+    });
+  } catch (e) {
+    const error = `cannot reach the server (${path}): ${e.message}`;
+    if (!quiet) report(error);
+    return { ok: false, status: 0, body: { error } };
+  }
+  let data = null;
+  const text = await res.text();
+  try { data = text ? JSON.parse(text) : {}; } catch { data = { error: text.trim() || res.statusText }; }
+  if (!res.ok) {
+    if (!data || typeof data.error !== 'string') data = { ...(data || {}), error: `${path}: HTTP ${res.status} ${res.statusText}` };
+    if (!quiet) report(data.error);
+  }
+  return { ok: res.ok, status: res.status, body: data };
+}
+
+export async function getJSON(path) {
+  const res = await fetch(path);
+  const text = await res.text();
+  let data;
+  try { data = JSON.parse(text); } catch { throw new Error(`${path}: not JSON (HTTP ${res.status})`); }
+  if (!res.ok) throw new Error(data.error || `${path}: HTTP ${res.status}`);
+  return data;
+}
+
+/**
+ * Keeps one websocket to /api/ws open, reconnecting every second after a close.
+ * onMessage gets each parsed telemetry object; onState(true|false) reports the link.
+ */
+export function connectTelemetry({ onMessage, onState }) {
+  let ws = null;
+  const open = () => {
+    const url = `${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/api/ws`;
+    ws = new WebSocket(url);
+    ws.onmessage = (ev) => {
+      let t;
+      try { t = JSON.parse(ev.data); } catch { return; }
+      onMessage(t);
+    };
+    ws.onclose = () => {
+      onState(false);
+      setTimeout(open, 1000);
+    };
+    // An error is always followed by close, which does the retry.
+    ws.onerror = () => {};
+  };
+  open();
+  return { close: () => { if (ws) { ws.onclose = null; ws.close(); } } };
+}

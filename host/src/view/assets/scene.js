@@ -1,0 +1,366 @@
+// The 3D view: the arm drawn from its telemetry frames, the IK preview, the target gizmo,
+// the planned path of a played file and the arm's meshes. Z is up, units are metres.
+import * as THREE from 'three';
+import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+import { TransformControls } from 'three/addons/controls/TransformControls.js';
+import { STLLoader } from 'three/addons/loaders/STLLoader.js';
+
+const Y = new THREE.Vector3(0, 1, 0);
+const _a = new THREE.Vector3();
+const _d = new THREE.Vector3();
+
+/** The API's quaternions are [w, x, y, z]; three.js takes (x, y, z, w). */
+export function setQuat(out, q) { return out.set(q[1], q[2], q[3], q[0]); }
+export function getQuat(q) { return [q.w, q.x, q.y, q.z]; }
+
+// One geometry per shape, scaled per use, so a chain costs no geometry per update.
+const unitCylinder = new THREE.CylinderGeometry(1, 1, 1, 20);
+const unitCone = new THREE.ConeGeometry(1, 1, 20);
+const unitSphere = new THREE.SphereGeometry(1, 24, 16);
+
+/** Stretches a unit cylinder (along +Y) from a to b with the given radius. */
+function placeSegment(mesh, a, b, radius) {
+  _d.subVectors(b, a);
+  const len = _d.length();
+  mesh.visible = len > 1e-6;
+  if (!mesh.visible) return;
+  mesh.position.addVectors(a, b).multiplyScalar(0.5);
+  mesh.quaternion.setFromUnitVectors(Y, _d.divideScalar(len));
+  mesh.scale.set(radius, len, radius);
+}
+
+/** An arrow along +Y of a group: a shaft and a cone, `length` long. */
+function makeArrow(material, length, radius) {
+  const g = new THREE.Group();
+  const shaft = new THREE.Mesh(unitCylinder, material);
+  shaft.scale.set(radius, length * 0.75, radius);
+  shaft.position.y = length * 0.375;
+  const tip = new THREE.Mesh(unitCone, material);
+  tip.scale.set(radius * 2.4, length * 0.25, radius * 2.4);
+  tip.position.y = length * 0.875;
+  g.add(shaft, tip);
+  return g;
+}
+
+/** Red, green and blue arrows along the group's X, Y and Z. */
+function makeTriad(length, radius, opacity = 1) {
+  const g = new THREE.Group();
+  const dirs = [[0xe53935, new THREE.Vector3(1, 0, 0)], [0x43a047, new THREE.Vector3(0, 1, 0)], [0x1e88e5, new THREE.Vector3(0, 0, 1)]];
+  for (const [color, dir] of dirs) {
+    const m = new THREE.MeshStandardMaterial({ color, roughness: 0.6, transparent: opacity < 1, opacity });
+    const a = makeArrow(m, length, radius);
+    a.quaternion.setFromUnitVectors(Y, dir);
+    g.add(a);
+  }
+  return g;
+}
+
+/**
+ * A kinematic chain drawn from dof+1 frames (joint 1..dof, then the tool):
+ * links from the base origin through every frame origin, each joint's axis, a tool triad.
+ */
+class Chain {
+  constructor(arm, size, { colors, opacity = 1, linkColor = 0x59636e, axes = true }) {
+    this.arm = arm;
+    this.size = size;
+    this.group = new THREE.Group();
+    const transparent = opacity < 1;
+    const mat = (color) => new THREE.MeshStandardMaterial({
+      color, roughness: 0.55, metalness: 0.1, transparent, opacity, depthWrite: !transparent,
+    });
+    this.linkMaterial = mat(linkColor);
+    this.points = [new THREE.Vector3()];
+    this.links = [];
+    for (let i = 0; i <= arm.dof; i++) {
+      this.points.push(new THREE.Vector3());
+      const m = new THREE.Mesh(unitCylinder, this.linkMaterial);
+      this.links.push(m);
+      this.group.add(m);
+    }
+    // Each joint: a drum around its axis (revolute) and an arrow showing the axis' sign.
+    this.joints = [];
+    arm.joints.forEach((j, i) => {
+      const g = new THREE.Group();
+      const axis = new THREE.Vector3(...(j.axis || [0, 0, 1]));
+      if (axis.lengthSq() < 1e-12) axis.set(0, 0, 1);
+      axis.normalize();
+      const align = new THREE.Quaternion().setFromUnitVectors(Y, axis);
+      const color = colors[i % colors.length];
+      const inner = new THREE.Group();
+      inner.quaternion.copy(align);
+      if (axes) {
+        if (j.kind !== 'prismatic') {
+          const drum = new THREE.Mesh(unitCylinder, mat(color));
+          drum.scale.set(size.link * 1.7, size.link * 3.2, size.link * 1.7);
+          inner.add(drum);
+        }
+        const arrow = makeArrow(mat(j.kind === 'prismatic' ? color : 0x2b2f33), size.link * 6, size.link * 0.3);
+        inner.add(arrow);
+      } else {
+        const ball = new THREE.Mesh(unitSphere, mat(color));
+        ball.scale.setScalar(size.link * 1.3);
+        inner.add(ball);
+      }
+      g.add(inner);
+      this.joints.push(g);
+      this.group.add(g);
+    });
+    this.tool = makeTriad(size.triad, size.link * 0.3, opacity);
+    this.group.add(this.tool);
+    this.frameQuats = [];
+  }
+
+  setColor(color) { this.linkMaterial.color.set(color); }
+
+  /** frames: [{p, q}] dof+1 of them, as in telemetry. */
+  update(frames) {
+    const n = Math.min(frames.length, this.arm.dof + 1);
+    for (let i = 0; i < n; i++) this.points[i + 1].fromArray(frames[i].p);
+    for (let i = 0; i < this.links.length; i++) {
+      if (i < n) placeSegment(this.links[i], this.points[i], this.points[i + 1], this.size.linkRadius);
+      else this.links[i].visible = false;
+    }
+    for (let i = 0; i < this.joints.length; i++) {
+      const g = this.joints[i];
+      g.visible = i < n;
+      if (!g.visible) continue;
+      g.position.fromArray(frames[i].p);
+      setQuat(g.quaternion, frames[i].q);
+    }
+    this.tool.visible = n === this.arm.dof + 1;
+    if (this.tool.visible) {
+      this.tool.position.fromArray(frames[n - 1].p);
+      setQuat(this.tool.quaternion, frames[n - 1].q);
+    }
+  }
+}
+
+export class ArmScene {
+  /**
+   * canvas: the <canvas>; arm: GET /api/arm; colors: one CSS colour per joint;
+   * onTargetChange(): the gizmo moved (called on every change);
+   * onTargetRelease(): the user let go of the gizmo; onError(text).
+   */
+  constructor(canvas, arm, { colors, onTargetChange, onTargetRelease, onError }) {
+    this.canvas = canvas;
+    this.arm = arm;
+    this.dirty = true;
+    const reach = arm.reach > 0 ? arm.reach : 0.5;
+    // With meshes the links shrink to a skeleton inside them.
+    const meshes = (arm.meshes || []).length > 0;
+    this.size = { link: reach * 0.022, linkRadius: reach * (meshes ? 0.008 : 0.022), triad: reach * 0.14 };
+
+    const renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
+    renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
+    this.renderer = renderer;
+
+    const scene = new THREE.Scene();
+    scene.background = new THREE.Color(0xdfe2e6);
+    this.scene = scene;
+    scene.add(new THREE.HemisphereLight(0xffffff, 0x9aa0a6, 2.2));
+    const sun = new THREE.DirectionalLight(0xffffff, 1.6);
+    sun.position.set(reach * 2, -reach * 3, reach * 5);
+    scene.add(sun);
+
+    // GridHelper lies in XZ; rotated into the arm's XY floor. 0.1 m cells, at least 1 m across.
+    const half = Math.max(0.5, Math.ceil(reach * 1.25 * 10) / 10);
+    const grid = new THREE.GridHelper(2 * half, Math.round(20 * half), 0x8a9099, 0xc2c7cd);
+    grid.rotation.x = Math.PI / 2;
+    scene.add(grid);
+    const worldAxes = new THREE.AxesHelper(reach * 0.25);
+    worldAxes.position.z = 0.0005;
+    scene.add(worldAxes);
+
+    const camera = new THREE.PerspectiveCamera(45, 1, reach * 0.01, reach * 100);
+    camera.up.set(0, 0, 1);
+    camera.position.set(reach * 1.1, -reach * 1.4, reach * 0.9);
+    this.camera = camera;
+    const orbit = new OrbitControls(camera, canvas);
+    orbit.target.set(reach * 0.25, 0, reach * 0.2);
+    orbit.enableDamping = false;
+    orbit.update();
+    orbit.addEventListener('change', () => { this.dirty = true; });
+    this.orbit = orbit;
+
+    // The base: a flat disc, so the chain visibly stands on something.
+    const base = new THREE.Mesh(unitCylinder, new THREE.MeshStandardMaterial({ color: 0x3d4650, roughness: 0.7 }));
+    base.quaternion.setFromUnitVectors(Y, new THREE.Vector3(0, 0, 1));
+    base.scale.set(this.size.link * 3.5, this.size.link * 0.8, this.size.link * 3.5);
+    base.position.z = this.size.link * 0.4;
+    scene.add(base);
+
+    this.chain = new Chain(arm, this.size, { colors });
+    scene.add(this.chain.group);
+    this.chain.group.visible = false;
+
+    this.preview = new Chain(arm, this.size, { colors, opacity: 0.35, linkColor: 0x1f6feb, axes: false });
+    this.preview.group.visible = false;
+    scene.add(this.preview.group);
+
+    // Where the setpoints put the tool: a faint ball (the server sends the setpoints' tool only).
+    this.setpointGhost = new THREE.Mesh(unitSphere, new THREE.MeshBasicMaterial({
+      color: 0x7b1fa2, transparent: true, opacity: 0.35, depthWrite: false,
+    }));
+    this.setpointGhost.scale.setScalar(this.size.link * 1.2);
+    this.setpointGhost.visible = false;
+    scene.add(this.setpointGhost);
+
+    // Frame groups for the meshes: 0 is the base, k is telemetry frames[k-1].
+    this.meshFrames = [];
+    for (let k = 0; k <= arm.dof; k++) {
+      const g = new THREE.Group();
+      g.visible = k === 0;
+      this.meshFrames.push(g);
+      scene.add(g);
+    }
+    this.loadMeshes(arm.meshes || [], onError);
+
+    // The target the user drags; its gizmo is TransformControls.
+    this.target = new THREE.Group();
+    this.targetMaterial = new THREE.MeshStandardMaterial({ color: 0xf57c00, roughness: 0.4, emissive: 0x331a00 });
+    const ball = new THREE.Mesh(unitSphere, this.targetMaterial);
+    ball.scale.setScalar(this.size.link * 1.6);
+    this.target.add(ball);
+    if (arm.orientation) this.target.add(makeTriad(this.size.triad * 0.8, this.size.link * 0.25, 0.8));
+    this.target.visible = false;
+    scene.add(this.target);
+
+    const gizmo = new TransformControls(camera, canvas);
+    gizmo.setSize(0.75);
+    gizmo.attach(this.target);
+    gizmo.enabled = false;
+    gizmo.addEventListener('dragging-changed', (e) => {
+      orbit.enabled = !e.value;
+      if (!e.value) onTargetRelease();
+    });
+    gizmo.addEventListener('objectChange', () => { this.dirty = true; onTargetChange(); });
+    gizmo.addEventListener('change', () => { this.dirty = true; });
+    this.gizmo = gizmo;
+    this.gizmoHelper = gizmo.getHelper();
+    this.gizmoHelper.visible = false;
+    scene.add(this.gizmoHelper);
+
+    this.path = null;
+
+    const resize = () => {
+      const w = canvas.clientWidth, h = canvas.clientHeight;
+      if (w === 0 || h === 0) return;
+      renderer.setSize(w, h, false);
+      camera.aspect = w / h;
+      camera.updateProjectionMatrix();
+      this.dirty = true;
+    };
+    new ResizeObserver(resize).observe(canvas);
+    resize();
+  }
+
+  loadMeshes(meshes, onError) {
+    if (meshes.length === 0) return;
+    const loader = new STLLoader();
+    const material = new THREE.MeshStandardMaterial({ color: 0xf2f2ee, roughness: 0.65, metalness: 0.05 });
+    for (const m of meshes) {
+      const frame = this.meshFrames[m.frame];
+      if (!frame) { onError(`mesh ${m.url}: frame ${m.frame} is not in 0..${this.arm.dof}`); continue; }
+      loader.load(m.url, (geometry) => {
+        if (!geometry.hasAttribute('normal')) geometry.computeVertexNormals();
+        const mesh = new THREE.Mesh(geometry, material);
+        if (m.p) mesh.position.fromArray(m.p);
+        if (m.q) setQuat(mesh.quaternion, m.q);
+        if (m.scale) mesh.scale.fromArray(m.scale);
+        frame.add(mesh);
+        this.dirty = true;
+      }, undefined, (err) => onError(`cannot load the mesh ${m.url}: ${err && err.message ? err.message : err}`));
+    }
+  }
+
+  setFrames(frames) {
+    this.chain.group.visible = true;
+    this.chain.update(frames);
+    for (let k = 1; k < this.meshFrames.length; k++) {
+      const f = frames[k - 1];
+      const g = this.meshFrames[k];
+      g.visible = !!f;
+      if (!f) continue;
+      g.position.fromArray(f.p);
+      setQuat(g.quaternion, f.q);
+    }
+    this.dirty = true;
+  }
+
+  setToolSetpoint(p) {
+    this.setpointGhost.visible = !!p;
+    if (p) this.setpointGhost.position.fromArray(p);
+    this.dirty = true;
+  }
+
+  /** frames null hides the preview; reachable colours it blue, else red. */
+  setPreview(frames, reachable) {
+    this.preview.group.visible = !!frames;
+    if (frames) {
+      this.preview.update(frames);
+      this.preview.setColor(reachable ? 0x1f6feb : 0xd32f2f);
+    }
+    this.dirty = true;
+  }
+
+  setTargetReachable(reachable) {
+    this.targetMaterial.color.set(reachable === false ? 0xd32f2f : 0xf57c00);
+    this.targetMaterial.emissive.set(reachable === false ? 0x400000 : 0x331a00);
+    this.dirty = true;
+  }
+
+  /** Places the target (position [x,y,z], orientation [w,x,y,z] or null) and shows its gizmo. */
+  setTarget(position, orientation) {
+    this.target.position.fromArray(position);
+    if (orientation) setQuat(this.target.quaternion, orientation);
+    if (!this.target.visible) {
+      this.target.visible = true;
+      this.gizmoHelper.visible = true;
+      this.gizmo.enabled = true;
+    }
+    this.dirty = true;
+  }
+
+  targetPosition() { return this.target.position.toArray(); }
+  targetOrientation() { return getQuat(this.target.quaternion); }
+  targetShown() { return this.target.visible; }
+  dragging() { return this.gizmo.dragging; }
+
+  setGizmoMode(mode) { this.gizmo.setMode(mode); this.dirty = true; }
+
+  /** points: [[x,y,z], ...] or null. */
+  setPath(points) {
+    if (this.path) {
+      this.scene.remove(this.path);
+      this.path.geometry.dispose();
+      this.path = null;
+    }
+    if (points && points.length > 0) {
+      const geom = new THREE.BufferGeometry().setFromPoints(points.map((p) => new THREE.Vector3(...p)));
+      const group = new THREE.Group();
+      group.add(new THREE.Line(geom, new THREE.LineBasicMaterial({ color: 0x8e24aa })));
+      group.add(new THREE.Points(geom, new THREE.PointsMaterial({ color: 0x8e24aa, size: 4, sizeAttenuation: false })));
+      group.geometry = geom;
+      this.path = group;
+      this.scene.add(group);
+    }
+    this.dirty = true;
+  }
+
+  /** The target's centre in page (CSS) pixels. */
+  targetScreen() {
+    this.camera.updateMatrixWorld();
+    this.target.getWorldPosition(_a).project(this.camera);
+    const r = this.canvas.getBoundingClientRect();
+    return {
+      x: r.left + window.scrollX + (_a.x + 1) / 2 * r.width,
+      y: r.top + window.scrollY + (1 - _a.y) / 2 * r.height,
+    };
+  }
+
+  render() {
+    if (!this.dirty) return;
+    this.dirty = false;
+    this.renderer.render(this.scene, this.camera);
+  }
+}
