@@ -17,7 +17,7 @@ const ROWS: &[&[&str]] = &[
     &["places"],
     &["motion", "servo"],
     &["drive", "mocap"],
-    &["demo", "bench", "footprint", "teleop"],
+    &["demo", "bench", "footprint", "teleop", "view"],
     &["cli"],
 ];
 

@@ -288,7 +288,11 @@ fn draws_a_urdfs_meshes_and_says_which_are_missing() {
 
 #[test]
 fn refuses_bad_options_before_opening_anything() {
+    // Held for the whole test, so its port is in use.
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let taken = listener.local_addr().unwrap().to_string();
     for (args, words) in [
+        (&["view", "--listen", taken.as_str()][..], "cannot listen there"),
         (&["view", "--listen", "localhost"][..], "--listen localhost: expected ADDR:PORT"),
         (&["view", "--arm", "nonsense"][..], "unknown arm"),
         (&["view", "--object-mm", "20"][..], "--object-mm"),
@@ -301,5 +305,6 @@ fn refuses_bad_options_before_opening_anything() {
         assert_eq!(run.code, 1, "{args:?}: {}", run.stderr);
         assert!(run.stdout.is_empty(), "{args:?} printed a URL: {}", run.stdout);
         assert!(run.stderr.contains(words), "{args:?}: {}", run.stderr);
+        assert!(!run.stderr.contains("set-up:"), "{args:?} opened the servos first: {}", run.stderr);
     }
 }

@@ -241,7 +241,10 @@ mod tests {
         assert_eq!(err("joints", "[1]").message, "the body must be a JSON object, not an array");
         assert_eq!(err("joints", "{}").message, "missing field \"q\"");
         assert_eq!(err("joints", r#"{"q": [0], "speed": 0}"#).status, 400);
-        assert!(err("joints", r#"{"q": [1e999]}"#).message.starts_with("bad JSON"));
+        // Out of range for JSON's reader, or read as infinity where a crate of the workspace turns
+        // on serde_json's arbitrary precision: refused either way.
+        let huge = err("joints", r#"{"q": [1e999]}"#);
+        assert!(huge.message.starts_with("bad JSON") || huge.message.contains("not a finite number"), "{huge:?}");
         assert_eq!(err("target", r#"{"position": [0, 0]}"#).message, "position: expected 3 numbers, found 2");
         assert_eq!(err("target", r#"{"position": [99, 0, 0]}"#).status, 400);
         assert!(err("target", r#"{"position": [0.2, 0, 0.1], "orientation": [1, 1, 0, 0]}"#)

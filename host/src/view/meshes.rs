@@ -28,43 +28,67 @@ pub struct Mesh {
     pub scale: [f64; 3],
 }
 
-/// The meshes of `urdf` over `arm`, and one line for each mesh whose file was not found.
-pub fn load(urdf: &Path, tip: Option<&str>, arm: &ArmSpec) -> Result<(Vec<Mesh>, Vec<String>)> {
-    let shown = urdf.display();
-    let text = std::fs::read_to_string(urdf).with_context(|| format!("--urdf: cannot read {shown}"))?;
-    let chain = crate::arm::urdf::parse(&text, tip).with_context(|| format!("--urdf {shown}"))?;
-    if chain.dof() < arm.dof() {
-        bail!("--urdf {shown}: its chain has {} moving joints, the arm {} has {}", chain.dof(), arm.name, arm.dof());
+/// A URDF read for its meshes, before it is matched to the arm the firmware runs.
+pub struct Urdf {
+    shown: String,
+    chain: ArmSpec,
+    visuals: Vec<Visual>,
+    missing: Vec<String>,
+}
+
+impl Urdf {
+    /// Reads `file`: its chain to `tip` (or its only leaf) and its visual meshes, those whose
+    /// file is missing set apart.
+    pub fn read(file: &Path, tip: Option<&str>) -> Result<Self> {
+        let shown = file.display().to_string();
+        let text = std::fs::read_to_string(file).with_context(|| format!("--urdf: cannot read {shown}"))?;
+        let chain = crate::arm::urdf::parse(&text, tip).with_context(|| format!("--urdf {shown}"))?;
+        let base = file.parent().unwrap_or(Path::new("."));
+        let (visuals, missing) = visuals(&text, tip, base).with_context(|| format!("--urdf {shown}"))?;
+        let missing = missing.into_iter().map(|m| format!("--urdf {shown}: {m}")).collect();
+        Ok(Self { shown, chain, visuals, missing })
     }
-    for (j, (theirs, ours)) in chain.joints.iter().zip(&arm.joints).enumerate() {
-        if theirs.kind != ours.kind || !same_axis(theirs.axis, ours.axis) {
+
+    /// The meshes over `arm`, whose joints must be the URDF's first ones; and one line for each
+    /// mesh whose file was not found.
+    pub fn over(self, arm: &ArmSpec) -> Result<(Vec<Mesh>, Vec<String>)> {
+        let Self { shown, chain, visuals, missing } = self;
+        if chain.dof() < arm.dof() {
             bail!(
-                "--urdf {shown}: its joint {} ({}) is not the arm {}'s joint {} ({}): another kind or axis",
-                j + 1,
-                theirs.name,
+                "--urdf {shown}: its chain has {} moving joints, the arm {} has {}",
+                chain.dof(),
                 arm.name,
-                j + 1,
-                ours.name
+                arm.dof()
             );
         }
+        for (j, (theirs, ours)) in chain.joints.iter().zip(&arm.joints).enumerate() {
+            if theirs.kind != ours.kind || !same_axis(theirs.axis, ours.axis) {
+                bail!(
+                    "--urdf {shown}: its joint {} ({}) is not the arm {}'s joint {} ({}): another kind or axis",
+                    j + 1,
+                    theirs.name,
+                    arm.name,
+                    j + 1,
+                    ours.name
+                );
+            }
+        }
+        let meshes = visuals
+            .into_iter()
+            .map(|Visual { frame, origin, file, scale }| {
+                // Past the arm's last joint: the joints between at zero, from the arm's last frame.
+                let (frame, origin) = if frame > arm.dof() {
+                    let between =
+                        chain.joints[arm.dof()..frame].iter().fold(Pose::identity(), |p, j| p.compose(&j.origin));
+                    (arm.dof(), between.compose(&origin))
+                } else {
+                    (frame, origin)
+                };
+                Mesh { frame, origin, file, scale }
+            })
+            .collect();
+        Ok((meshes, missing))
     }
-    let base = urdf.parent().unwrap_or(Path::new("."));
-    let (found, missing) = visuals(&text, tip, base).with_context(|| format!("--urdf {shown}"))?;
-    let meshes = found
-        .into_iter()
-        .map(|Visual { frame, origin, file, scale }| {
-            // Past the arm's last joint: the joints between at zero, from the arm's last frame.
-            let (frame, origin) = if frame > arm.dof() {
-                let between = chain.joints[arm.dof()..frame].iter().fold(Pose::identity(), |p, j| p.compose(&j.origin));
-                (arm.dof(), between.compose(&origin))
-            } else {
-                (frame, origin)
-            };
-            Mesh { frame, origin, file, scale }
-        })
-        .collect();
-    let missing = missing.into_iter().map(|m| format!("--urdf {shown}: {m}")).collect();
-    Ok((meshes, missing))
 }
 
 fn same_axis(a: [f64; 3], b: [f64; 3]) -> bool {

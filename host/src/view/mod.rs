@@ -79,8 +79,11 @@ pub fn run(link: &LinkArgs, args: ViewArgs, out: &mut dyn Write, err: &mut dyn W
         .listen
         .parse()
         .with_context(|| format!("--listen {}: expected ADDR:PORT, e.g. 127.0.0.1:8765", args.listen))?;
+    let urdf = args.urdf.as_deref().map(|file| meshes::Urdf::read(file, args.tip.as_deref())).transpose()?;
     let (target, arm) = link.target()?;
     let arm = arm.map(str::to_string);
+    // The address is taken before connecting, so a port in use changes nothing on the arm.
+    let listener = ViewServer::bind(&listen.to_string())?;
     // --sim runs in real time here (see the module doc).
     let (target, simulated) = match target {
         Target::Sim(options) => {
@@ -91,8 +94,8 @@ pub fn run(link: &LinkArgs, args: ViewArgs, out: &mut dyn Write, err: &mut dyn W
     };
     let latest = Arc::new(Latest::default());
     let (arm_loop, spec, queue_capacity) = ArmLoop::spawn(target, arm, latest.clone(), err)?;
-    let (meshes, missing) = match &args.urdf {
-        Some(file) => meshes::load(file, args.tip.as_deref(), &spec)?,
+    let (meshes, missing) = match urdf {
+        Some(urdf) => urdf.over(&spec)?,
         None => (Vec::new(), Vec::new()),
     };
     for line in &missing {
@@ -100,7 +103,7 @@ pub fn run(link: &LinkArgs, args: ViewArgs, out: &mut dyn Write, err: &mut dyn W
     }
     let arm_json = meshes::arm_json(&spec, queue_capacity, &meshes)?;
     let served = Served { arm: arm_json, meshes: meshes.iter().map(|m| m.file.clone()).collect(), latest };
-    let server = ViewServer::start(&listen.to_string(), served, arm_loop.jobs())?;
+    let server = ViewServer::start(listener, served, arm_loop.jobs())?;
     writeln!(out, "{}", server.url())?;
     out.flush()?;
     if !listen.ip().is_loopback() {

@@ -42,10 +42,15 @@ pub struct ViewServer {
 }
 
 impl ViewServer {
-    /// Listens on `addr` (`127.0.0.1:0` for a free port) and starts answering.
-    pub fn start(addr: &str, served: Served, jobs: Sender<Job>) -> Result<Self> {
-        let server = Arc::new(Server::http(addr).map_err(|e| anyhow!("--listen {addr}: cannot listen there: {e}"))?);
-        let bound = server.server_addr().to_ip().ok_or_else(|| anyhow!("--listen {addr}: not an IP address"))?;
+    /// Listens on `addr` (`127.0.0.1:0` for a free port); answers nothing until [`Self::start`].
+    pub fn bind(addr: &str) -> Result<Server> {
+        Server::http(addr).map_err(|e| anyhow!("--listen {addr}: cannot listen there: {e}"))
+    }
+
+    /// Starts answering on `server`.
+    pub fn start(server: Server, served: Served, jobs: Sender<Job>) -> Result<Self> {
+        let server = Arc::new(server);
+        let bound = server.server_addr().to_ip().ok_or_else(|| anyhow!("the server's address is not an IP address"))?;
         let url = format!("http://{bound}/");
         let served = Arc::new(served);
         let workers = (0..WORKERS)
