@@ -232,6 +232,31 @@ fn drives_the_simulated_arm_through_the_api_and_refuses_bad_input() {
     assert!(stderr.contains("stopped: the arm holds"), "{stderr}");
 }
 
+/// A six-joint arm takes orientation targets: the tool goes to a pose the arm had (position
+/// within 1 mm, orientation within 1 degree).
+#[test]
+fn a_six_joint_arm_goes_to_a_pose() {
+    let arm = format!("{}/examples/arms/six-dof.toml", env!("CARGO_MANIFEST_DIR"));
+    let view = View::start(&["--arm", &arm]);
+    let (_, spec) = view.call("GET", "/api/arm", "");
+    assert_eq!((spec["dof"].as_u64(), spec["orientation"].as_bool()), (Some(6), Some(true)), "{spec}");
+    let q = [0.3, -0.4, 0.6, 0.2, -0.5, 0.4];
+    assert_eq!(view.post("joints", json!({"q": q})).0, 200);
+    let there = view.wait_for(|s| at_rest(s) && distance(&numbers(&s["measured"]), &q) < 2e-3, "joint move", 15.0);
+    let (p, o) = (numbers(&there["frames"][6]["p"]), numbers(&there["frames"][6]["q"]));
+    assert_eq!(view.post("joints", json!({"q": [0.0; 6]})).0, 200);
+    view.wait_for(|s| at_rest(s) && distance(&numbers(&s["measured"]), &[0.0; 6]) < 2e-3, "joint move", 15.0);
+    let (code, answer) = view.post("target", json!({"position": p, "orientation": o, "go": true}));
+    assert_eq!(code, 200, "{answer}");
+    let reached = view.wait_for(|s| at_rest(s) && distance(&numbers(&s["tool"]), &p) < 1e-3, "the pose", 15.0);
+    let got = numbers(&reached["frames"][6]["q"]);
+    let dot = got.iter().zip(&o).map(|(a, b)| a * b).sum::<f64>().abs().min(1.0);
+    let degrees = (2.0 * dot.acos()).to_degrees();
+    assert!(degrees < 1.0, "the tool's orientation is {degrees:.2} degrees off");
+    let (code, stderr) = view.stop();
+    assert_eq!(code, 0, "{stderr}");
+}
+
 #[test]
 fn draws_a_urdfs_meshes_and_says_which_are_missing() {
     // A five-joint URDF shaped like the SO-101 preset's joints (revolute about z), with an STL

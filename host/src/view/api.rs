@@ -102,6 +102,8 @@ fn number(v: &Value, what: &str) -> Result<f64, ApiError> {
     match v.as_f64() {
         Some(x) if x.is_finite() => Ok(x),
         Some(x) => Err(ApiError::bad(format!("{what}: {x} is not a finite number"))),
+        // A number beyond f64 (read as such where serde_json keeps numbers as text).
+        None if v.is_number() => Err(ApiError::bad(format!("{what}: {v} is not a finite number"))),
         None => Err(ApiError::bad(format!("{what}: expected a number, found {}", kind(v)))),
     }
 }
