@@ -244,8 +244,9 @@ fn a_six_joint_arm_goes_to_a_pose() {
     assert_eq!(view.post("joints", json!({"q": q})).0, 200);
     let there = view.wait_for(|s| at_rest(s) && distance(&numbers(&s["measured"]), &q) < 2e-3, "joint move", 15.0);
     let (p, o) = (numbers(&there["frames"][6]["p"]), numbers(&there["frames"][6]["q"]));
-    assert_eq!(view.post("joints", json!({"q": [0.0; 6]})).0, 200);
-    view.wait_for(|s| at_rest(s) && distance(&numbers(&s["measured"]), &[0.0; 6]) < 2e-3, "joint move", 15.0);
+    let zero = [0.0; 6];
+    assert_eq!(view.post("joints", json!({"q": zero})).0, 200);
+    view.wait_for(|s| at_rest(s) && distance(&numbers(&s["measured"]), &zero) < 2e-3, "joint move", 15.0);
     let (code, answer) = view.post("target", json!({"position": p, "orientation": o, "go": true}));
     assert_eq!(code, 200, "{answer}");
     let reached = view.wait_for(|s| at_rest(s) && distance(&numbers(&s["tool"]), &p) < 1e-3, "the pose", 15.0);
