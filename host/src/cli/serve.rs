@@ -160,13 +160,7 @@ fn finish(pc: &mut Pc, simulated: Option<&PtyServer>, err: &mut dyn Write) -> Re
     pc.shutdown()?;
     writeln!(err, "bus: {summary}")?;
     if let Some(report) = simulated.and_then(PtyServer::monitor) {
-        writeln!(
-            err,
-            "safety monitor: {} goals checked, {} violations (largest step {:.0}% of the limit)",
-            report.checked,
-            report.violation_count,
-            100.0 * report.max_step_ratio
-        )?;
+        writeln!(err, "safety monitor: {}", report.summary())?;
     }
     Ok(())
 }

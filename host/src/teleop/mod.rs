@@ -301,13 +301,7 @@ fn report(
         f.clamped_steps, f.limited_values
     )?;
     if let Some(m) = monitor {
-        writeln!(
-            out,
-            "safety monitor (simulated follower servos): {} goals checked, {} violations (largest step {:.0}% of the limit)",
-            m.checked,
-            m.violation_count,
-            100.0 * m.max_step_ratio
-        )?;
+        writeln!(out, "safety monitor (simulated follower servos): {}", m.summary())?;
     }
     if let Some(q) = &ending.rest {
         writeln!(

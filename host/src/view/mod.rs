@@ -137,13 +137,7 @@ pub fn run(link: &LinkArgs, args: ViewArgs, out: &mut dyn Write, err: &mut dyn W
     let said = arm_loop.finish().context("the arm loop")?;
     err.write_all(said.as_bytes())?;
     if let Some(report) = simulated.as_ref().and_then(crate::sim::PtyServer::monitor) {
-        writeln!(
-            err,
-            "safety monitor: {} goals checked, {} violations (largest step {:.0}% of the limit)",
-            report.checked,
-            report.violation_count,
-            100.0 * report.max_step_ratio
-        )?;
+        writeln!(err, "safety monitor: {}", report.summary())?;
     }
     if !interrupted {
         bail!("the connection to the firmware ended");

@@ -87,6 +87,18 @@ pub struct MonitorReport {
     pub servos: Vec<ServoRecord>,
 }
 
+impl MonitorReport {
+    /// One line for people: `4236 goals checked, 0 violations (largest step 48% of the limit)`.
+    pub fn summary(&self) -> String {
+        format!(
+            "{} goals checked, {} violations (largest step {:.0}% of the limit)",
+            self.checked,
+            self.violation_count,
+            100.0 * self.max_step_ratio
+        )
+    }
+}
+
 /// Per servo: what was seen of it so far.
 #[derive(Clone, Debug, Default)]
 struct Track {
