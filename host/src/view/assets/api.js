@@ -1,4 +1,5 @@
-// Talking to the `armctl view` server (see SPEC.md: every error is {"error": "..."}).
+// Talking to the `armctl view` server (its API: the README's "Seeing the arm"; every error is
+// {"error": "..."}).
 
 const listeners = [];
 
@@ -46,9 +47,9 @@ export async function getJSON(path) {
 
 /**
  * Keeps one websocket to /api/ws open, reconnecting every second after a close.
- * onMessage gets each parsed telemetry object; onState(true|false) reports the link.
+ * onMessage gets each parsed telemetry object; onClose() is called when the socket closes.
  */
-export function connectTelemetry({ onMessage, onState }) {
+export function connectTelemetry({ onMessage, onClose }) {
   let ws = null;
   const open = () => {
     const url = `${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/api/ws`;
@@ -59,7 +60,7 @@ export function connectTelemetry({ onMessage, onState }) {
       onMessage(t);
     };
     ws.onclose = () => {
-      onState(false);
+      onClose();
       setTimeout(open, 1000);
     };
     // An error is always followed by close, which does the retry.

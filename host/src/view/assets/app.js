@@ -1,5 +1,6 @@
 // The page of `armctl view`: wiring between the server (api.js), the 3D view (scene.js),
-// the chart (chart.js) and the controls in index.html. Page contract: SPEC.md.
+// the chart (chart.js) and the controls in index.html. The API it uses: the README's
+// "Seeing the arm".
 import { ArmScene } from './scene.js';
 import { Chart, JOINT_COLORS } from './chart.js';
 import { post, getJSON, connectTelemetry, onRequestError } from './api.js';
@@ -18,7 +19,7 @@ const sliders = [];        // per joint: {input, measured, setpoint, dragging, h
 let gripperDragging = false;
 let targetInitialised = false;
 
-// For the browser tests (SPEC.md): where to grab the gizmo, and where the target is.
+// For the browser tests (host/tests/view/e2e.mjs): where to grab the gizmo, and where the target is.
 window.armView = {
   targetScreen: () => (scene && scene.targetShown() ? scene.targetScreen() : null),
   target: () => (scene && scene.targetShown() ? scene.targetPosition() : null),
@@ -67,7 +68,7 @@ async function start() {
   wireTarget();
   wireButtons();
   wirePlay();
-  connectTelemetry({ onMessage: onTelemetry, onState: onLink });
+  connectTelemetry({ onMessage: onTelemetry, onClose: onDisconnect });
   requestAnimationFrame(frame);
 }
 
@@ -328,8 +329,8 @@ function buildLegend() {
   box.appendChild(key);
 }
 
-function onLink(up) {
-  if (up) return;
+// Connected again shows with the first telemetry after it (onTelemetry), not the socket's open.
+function onDisconnect() {
   connected = false;
   const c = $('connection');
   c.dataset.connected = 'false';

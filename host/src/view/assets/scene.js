@@ -10,8 +10,8 @@ const _a = new THREE.Vector3();
 const _d = new THREE.Vector3();
 
 /** The API's quaternions are [w, x, y, z]; three.js takes (x, y, z, w). */
-export function setQuat(out, q) { return out.set(q[1], q[2], q[3], q[0]); }
-export function getQuat(q) { return [q.w, q.x, q.y, q.z]; }
+function setQuat(out, q) { return out.set(q[1], q[2], q[3], q[0]); }
+function getQuat(q) { return [q.w, q.x, q.y, q.z]; }
 
 // One geometry per shape, scaled per use, so a chain costs no geometry per update.
 const unitCylinder = new THREE.CylinderGeometry(1, 1, 1, 20);
@@ -180,7 +180,6 @@ export class ArmScene {
     orbit.enableDamping = false;
     orbit.update();
     orbit.addEventListener('change', () => { this.dirty = true; });
-    this.orbit = orbit;
 
     // The base: a flat disc, so the chain visibly stands on something.
     const base = new THREE.Mesh(unitCylinder, new THREE.MeshStandardMaterial({ color: 0x3d4650, roughness: 0.7 }));
@@ -324,7 +323,6 @@ export class ArmScene {
   targetPosition() { return this.target.position.toArray(); }
   targetOrientation() { return getQuat(this.target.quaternion); }
   targetShown() { return this.target.visible; }
-  dragging() { return this.gizmo.dragging; }
 
   setGizmoMode(mode) { this.gizmo.setMode(mode); this.dirty = true; }
 
