@@ -5,113 +5,10 @@
 
 mod support;
 
-use std::io::{BufRead, BufReader, Read, Write};
-use std::net::TcpStream;
-use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use serde_json::{json, Value};
-
-/// A running `armctl view` and its address.
-struct View {
-    child: Child,
-    host: String,
-    stderr: std::thread::JoinHandle<String>,
-}
-
-impl View {
-    fn start(extra: &[&str]) -> Self {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_armctl"))
-            .args(["view", "--listen", "127.0.0.1:0"])
-            .args(extra)
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .expect("armctl view starts");
-        let mut stderr = child.stderr.take().expect("stderr");
-        let stderr = std::thread::spawn(move || {
-            let mut text = String::new();
-            let _ = stderr.read_to_string(&mut text);
-            text
-        });
-        let mut line = String::new();
-        BufReader::new(child.stdout.take().expect("stdout")).read_line(&mut line).expect("the first line");
-        let host = line
-            .trim()
-            .strip_prefix("http://")
-            .and_then(|rest| rest.strip_suffix('/'))
-            .unwrap_or_else(|| panic!("the first line is not the page's URL: {line:?}"))
-            .to_string();
-        let view = Self { child, host, stderr };
-        view.wait_for(|s| s["seq"].as_u64().is_some(), "a first status", 5.0);
-        view
-    }
-
-    /// One request; returns the status code and the JSON body.
-    fn call(&self, method: &str, path: &str, body: &str) -> (u16, Value) {
-        let mut stream = TcpStream::connect(&self.host).expect("connects");
-        stream.set_read_timeout(Some(Duration::from_secs(15))).unwrap();
-        write!(
-            stream,
-            "{method} {path} HTTP/1.1\r\nHost: {}\r\nContent-Type: application/json\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{body}",
-            self.host,
-            body.len()
-        )
-        .unwrap();
-        let mut response = Vec::new();
-        stream.read_to_end(&mut response).expect("a response");
-        let text = String::from_utf8_lossy(&response).into_owned();
-        let (head, body) = text.split_once("\r\n\r\n").unwrap_or_else(|| panic!("no header end in {text:?}"));
-        let code =
-            head.split(' ').nth(1).and_then(|c| c.parse().ok()).unwrap_or_else(|| panic!("status line {head:?}"));
-        let value = serde_json::from_str(body).unwrap_or(Value::String(body.to_string()));
-        (code, value)
-    }
-
-    fn post(&self, endpoint: &str, body: Value) -> (u16, Value) {
-        self.call("POST", &format!("/api/{endpoint}"), &body.to_string())
-    }
-
-    fn status(&self) -> Value {
-        let (code, body) = self.call("GET", "/api/status", "");
-        assert_eq!(code, 200, "{body}");
-        body
-    }
-
-    /// Polls the status until `done` holds; panics after `seconds`.
-    fn wait_for(&self, done: impl Fn(&Value) -> bool, what: &str, seconds: f64) -> Value {
-        let started = Instant::now();
-        loop {
-            let (code, status) = self.call("GET", "/api/status", "");
-            if code == 200 && done(&status) {
-                return status;
-            }
-            assert!(started.elapsed().as_secs_f64() < seconds, "no {what} within {seconds} s; last status {status}");
-            std::thread::sleep(Duration::from_millis(20));
-        }
-    }
-
-    /// Ctrl-C; returns the exit code and stderr.
-    fn stop(mut self) -> (i32, String) {
-        // SAFETY-free: `kill` is a plain process, as a person's Ctrl-C is a signal.
-        let _ = Command::new("kill").args(["-INT", &self.child.id().to_string()]).status();
-        let code = self.child.wait().expect("armctl view exits").code().unwrap_or(-1);
-        (code, self.stderr.join().unwrap_or_default())
-    }
-}
-
-fn numbers(v: &Value) -> Vec<f64> {
-    v.as_array().expect("an array").iter().map(|x| x.as_f64().expect("a number")).collect()
-}
-
-fn distance(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>().sqrt()
-}
-
-fn at_rest(s: &Value) -> bool {
-    s["state"] == "Idle" && distance(&numbers(&s["measured"]), &numbers(&s["setpoints"])) < 2e-3
-}
+use support::view::{at_rest, distance, numbers, View};
 
 #[test]
 fn drives_the_simulated_arm_through_the_api_and_refuses_bad_input() {
@@ -213,7 +110,8 @@ fn drives_the_simulated_arm_through_the_api_and_refuses_bad_input() {
 
     // The websocket carries telemetry at the control rate (100 Hz; at least 50 counted here,
     // where the machine is shared).
-    let (mut socket, _) = tungstenite::connect(format!("ws://{}/api/ws", view.host)).expect("websocket");
+    let (mut socket, _) =
+        tungstenite::connect(format!("ws://{}/api/ws?token={}", view.host, view.token)).expect("websocket");
     let started = Instant::now();
     let mut seqs = Vec::new();
     while started.elapsed() < Duration::from_secs(1) {
@@ -260,6 +158,7 @@ fn a_six_joint_arm_goes_to_a_pose() {
 
 #[test]
 fn draws_a_urdfs_meshes_and_says_which_are_missing() {
+    use std::io::{Read, Write};
     // A five-joint URDF shaped like the SO-101 preset's joints (revolute about z), with an STL
     // for the base and one for the third link, and one mesh that is not there.
     let dir = std::env::temp_dir().join(format!("armctl-view-urdf-{}", std::process::id()));
@@ -300,9 +199,15 @@ fn draws_a_urdfs_meshes_and_says_which_are_missing() {
     assert_eq!(meshes.len(), 2, "{arm}");
     assert_eq!((meshes[0]["frame"].as_u64(), meshes[1]["frame"].as_u64()), (Some(0), Some(3)));
     assert_eq!(numbers(&meshes[1]["p"]), [0.0, 0.0, 0.01]);
-    let mut stream = TcpStream::connect(&view.host).unwrap();
-    write!(stream, "GET {} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n", meshes[1]["url"].as_str().unwrap())
-        .unwrap();
+    let mut stream = std::net::TcpStream::connect(&view.host).unwrap();
+    write!(
+        stream,
+        "GET {} HTTP/1.1\r\nHost: {}\r\nAuthorization: Bearer {}\r\nConnection: close\r\n\r\n",
+        meshes[1]["url"].as_str().unwrap(),
+        view.host,
+        view.token
+    )
+    .unwrap();
     let mut response = Vec::new();
     stream.read_to_end(&mut response).unwrap();
     assert!(response.ends_with(&stl), "the mesh's bytes are served as they are");

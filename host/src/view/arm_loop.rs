@@ -1,10 +1,15 @@
 //! The arm loop: one thread owns the connection to the firmware. It polls the status once per
 //! control period, publishes it as telemetry, carries out the API's requests between polls, and
 //! streams a keyframe file as the firmware's queue frees slots. Nothing else touches the link, so
-//! the page, scripts and the stop button all go through the same queue of requests.
+//! the page, scripts and the stop button all go through the same queue of requests, where a stop
+//! goes first ([`super::jobs`]).
+//!
+//! On Ctrl-C ([`ArmLoop::begin_stop`]) it stops the arm as its first act, keeps publishing the
+//! status until the arm holds, and only then closes the link; [`ArmLoop::torque_off`] (a second
+//! Ctrl-C) switches the torque off instead of waiting.
 
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{self, Receiver, Sender};
+use std::sync::mpsc;
 use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -14,6 +19,7 @@ use firmware::link::message::{CartesianTarget, FirmwareMessage, HostMessage, Run
 use serde_json::{json, Value};
 
 use super::api::{ApiError, Request};
+use super::jobs::{Answer, JobQueue};
 use super::telemetry::{self, Extras, LastSecond, Latest};
 use crate::arm::dof::DynArm;
 use crate::arm::ArmSpec;
@@ -28,9 +34,10 @@ pub const PERIOD: Duration = Duration::from_millis(10);
 const TARGET_SPEED: f32 = 0.2;
 /// How long a file may run past its last keyframe before it counts as stuck (s).
 const PLAY_MARGIN: f64 = 30.0;
-
-/// A request with the channel its answer goes back on.
-pub type Job = (Request, Sender<Result<Value, ApiError>>);
+/// How long the arm may take to come to rest after the stop of Ctrl-C: a braking arm takes
+/// about a second; past this the loop says so and closes the link (the firmware's watchdog then
+/// brakes it).
+const EXIT_STOP_TIME: Duration = Duration::from_secs(10);
 
 /// A file being streamed to the firmware's queue.
 struct Playing {
@@ -57,8 +64,9 @@ impl Playing {
 
 /// The running loop; dropping it ends the thread after it has stopped the arm.
 pub struct ArmLoop {
-    jobs: Sender<Job>,
+    jobs: Arc<JobQueue>,
     quit: Arc<AtomicBool>,
+    torque_off: Arc<AtomicBool>,
     thread: Option<JoinHandle<Result<String>>>,
 }
 
@@ -72,11 +80,12 @@ impl ArmLoop {
         latest: Arc<Latest>,
         err: &mut dyn std::io::Write,
     ) -> Result<(Self, ArmSpec, usize)> {
-        let (jobs, inbox) = mpsc::channel::<Job>();
+        let jobs = Arc::new(JobQueue::default());
         let (opened, connected) = mpsc::channel();
         let quit = Arc::new(AtomicBool::new(false));
+        let torque_off = Arc::new(AtomicBool::new(false));
         let thread = {
-            let quit = quit.clone();
+            let (quit, torque_off, inbox) = (quit.clone(), torque_off.clone(), jobs.clone());
             std::thread::Builder::new().name("view-arm".into()).spawn(move || {
                 // What connecting says is handed back to the caller, which holds the stderr lock.
                 let mut said = Vec::new();
@@ -97,18 +106,31 @@ impl ArmLoop {
                 let extras = Extras { queue_capacity: capacity, ..Extras::default() };
                 let state =
                     LoopState { driver, fk, latest, extras, playing: None, seq: 0, rate: LastSecond::default() };
-                state.run(&inbox, &quit)
+                state.run(&inbox, &quit, &torque_off)
             })?
         };
         let (said, answer) = connected.recv().map_err(|_| anyhow::anyhow!("the arm loop ended before connecting"))?;
         err.write_all(&said)?;
         let (spec, capacity) = answer?;
-        Ok((Self { jobs, quit, thread: Some(thread) }, spec, capacity))
+        Ok((Self { jobs, quit, torque_off, thread: Some(thread) }, spec, capacity))
     }
 
-    /// A sender for requests.
-    pub fn jobs(&self) -> Sender<Job> {
+    /// The queue requests go to.
+    pub fn jobs(&self) -> Arc<JobQueue> {
         self.jobs.clone()
+    }
+
+    /// Ctrl-C: refuses new requests and stops the arm before anything else; the loop ends once
+    /// the arm holds ([`Self::is_finished`]).
+    pub fn begin_stop(&self) {
+        self.jobs.close();
+        self.quit.store(true, Ordering::SeqCst);
+    }
+
+    /// A second Ctrl-C: torque off now, rather than waiting for the arm to hold.
+    pub fn torque_off(&self) {
+        self.torque_off.store(true, Ordering::SeqCst);
+        self.begin_stop();
     }
 
     /// True once the loop has ended (the link failed for good).
@@ -119,7 +141,7 @@ impl ArmLoop {
     /// Stops the arm (decelerating within its limits), waits until it holds, ends the loop and
     /// closes the connection; returns what closing said, or the loop's error.
     pub fn finish(mut self) -> Result<String> {
-        self.quit.store(true, Ordering::SeqCst);
+        self.begin_stop();
         match self.thread.take() {
             Some(t) => t.join().unwrap_or_else(|_| Err(anyhow::anyhow!("the arm loop panicked"))),
             None => Ok(String::new()),
@@ -129,7 +151,7 @@ impl ArmLoop {
 
 impl Drop for ArmLoop {
     fn drop(&mut self) {
-        self.quit.store(true, Ordering::SeqCst);
+        self.begin_stop();
         if let Some(t) = self.thread.take() {
             let _ = t.join();
         }
@@ -161,17 +183,21 @@ fn ok() -> Result<Value, ApiError> {
 
 impl LoopState {
     /// Returns what closing the connection said (for `--bus`, the control loop's counts).
-    fn run(mut self, inbox: &Receiver<Job>, quit: &AtomicBool) -> Result<String> {
+    fn run(mut self, inbox: &JobQueue, quit: &AtomicBool, torque_off: &AtomicBool) -> Result<String> {
         let mut next = Instant::now();
         let mut last_status: Option<Status> = None;
         while !quit.load(Ordering::SeqCst) {
-            // Requests first: a stop must not wait behind a poll.
-            while let Ok((request, reply)) = inbox.try_recv() {
-                let answer = self.handle(request, last_status.as_ref());
+            // Requests first, a stop first of all (the queue's order): a stop must not wait
+            // behind a poll.
+            while let Some(job) = inbox.next() {
+                let answer: Answer = self.handle(job.request.clone(), last_status.as_ref());
                 if let Err(e) = &answer {
                     self.extras.last_error = Some(e.message.clone());
                 }
-                let _ = reply.send(answer);
+                job.answer(answer);
+                if quit.load(Ordering::SeqCst) {
+                    break;
+                }
             }
             self.feed();
             match self.driver.status() {
@@ -184,17 +210,64 @@ impl LoopState {
             }
             next += PERIOD;
             let now = Instant::now();
-            match next.checked_duration_since(now) {
-                Some(wait) => std::thread::sleep(wait),
+            if next <= now {
                 // Late (a slow request): start the next period from now rather than catch up.
-                None => next = now,
+                next = now;
             }
+            // Until the next poll, or at once when a request comes.
+            inbox.wait(next);
         }
-        // Ctrl-C: the arm decelerates within its limits and holds before the link closes.
-        let stopped = self.driver.stop();
+        let stopped = self.stop_for_exit(torque_off);
         let mut said = Vec::new();
         let closed = self.driver.close(&mut said);
-        stopped.and(closed).map(|_| String::from_utf8_lossy(&said).into_owned())
+        let said = String::from_utf8_lossy(&said).into_owned();
+        let how = stopped?;
+        closed.map(|_| format!("{said}{how}\n"))
+    }
+
+    /// Ctrl-C: stop (the arm decelerates within its limits), publishing the status until it
+    /// holds; torque off instead when `torque_off` is set. Returns what happened, in words.
+    fn stop_for_exit(&mut self, torque_off: &AtomicBool) -> Result<String> {
+        if let Some(p) = self.playing.as_mut().filter(|p| !p.done) {
+            p.done = true;
+            p.error =
+                Some(format!("stopped by Ctrl-C after {} of {} keyframes were pushed", p.pushed, p.messages.len()));
+        }
+        let asked = Instant::now();
+        let mut stop_sent = false;
+        loop {
+            if torque_off.load(Ordering::SeqCst) {
+                self.driver.request(&HostMessage::Torque { on: false })?;
+                // The last telemetry says so, for a page still connected.
+                if let Ok(status) = self.driver.status() {
+                    self.publish(&status);
+                }
+                return Ok("second signal: torque off".to_string());
+            }
+            if !stop_sent {
+                self.driver.request(&HostMessage::Stop)?;
+                stop_sent = true;
+            }
+            let status = self.driver.status()?;
+            self.publish(&status);
+            if !matches!(status.state, RunState::Moving | RunState::Stopping | RunState::Paused) {
+                let joints: Vec<String> = status.measured.iter().map(|x| format!("{x:.3}")).collect();
+                return Ok(format!(
+                    "stopped: the arm holds ({:?}, joints {}) {:.2} s after the signal",
+                    status.state,
+                    joints.join(" "),
+                    asked.elapsed().as_secs_f64()
+                ));
+            }
+            if asked.elapsed() > EXIT_STOP_TIME {
+                anyhow::bail!(
+                    "sent stop, but the arm was still {:?} after {} s",
+                    status.state,
+                    EXIT_STOP_TIME.as_secs()
+                );
+            }
+            std::thread::sleep(PERIOD);
+        }
     }
 
     fn publish(&mut self, status: &Status) {

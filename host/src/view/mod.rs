@@ -3,11 +3,15 @@
 //! preview on this PC, the move on the firmware), telemetry, keyframe files, stop and torque.
 //! Every button of the page is a request of a small JSON API that scripts can make too.
 //!
+//! - [`access`]: who may drive it (the token, `Host`, `Origin`, the content type);
 //! - [`api`]: the requests, checked before anything moves;
+//! - [`jobs`]: the requests waiting for the arm loop, a stop first;
 //! - [`arm_loop`]: the one thread that talks to the firmware;
 //! - [`preview`]: the IK preview;
 //! - [`telemetry`]: the status as the page draws it;
-//! - [`server`]: HTTP, the API's routes and the websocket;
+//! - [`http`]: one HTTP/1.1 connection, with a bound on everything a client could hold;
+//! - [`server`]: the connections, the API's routes and the websocket;
+//! - [`workers`]: the threads that serve connections;
 //! - [`assets`]: the page's files, embedded in the binary;
 //! - [`meshes`]: a URDF's visual meshes over the chain.
 //!
@@ -15,13 +19,17 @@
 //! on a pseudo-terminal, as `armctl serve --sim` does: the page shows motion as it happens, which
 //! the virtual clock of the drive commands' `--sim` would not.
 
+pub mod access;
 pub mod api;
 pub mod arm_loop;
 pub mod assets;
+pub mod http;
+pub mod jobs;
 pub mod meshes;
 pub mod preview;
 pub mod server;
 pub mod telemetry;
+pub mod workers;
 
 use std::io::Write;
 use std::net::SocketAddr;
@@ -29,6 +37,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
 
+use access::Token;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 
@@ -53,9 +62,14 @@ pub struct ViewArgs {
     #[allow(missing_docs)]
     pub link: LinkArgs,
     /// Serve the page on this address and port. The default serves this machine only; any other
-    /// address lets whoever reaches it move the arm. Port 0 picks a free one.
+    /// address lets whoever has the URL move the arm, and plain HTTP shows the token to the
+    /// network (an SSH tunnel is the safe way in from another machine). Port 0 picks a free one.
     #[arg(long, value_name = "ADDR:PORT", default_value = DEFAULT_LISTEN)]
     pub listen: String,
+    /// The API's token (at least 32 letters, digits or -._~) instead of a random one drawn for
+    /// this run. Other users of this machine can read a command line: prefer the random one.
+    #[arg(long, value_name = "TOKEN")]
+    pub token: Option<String>,
     /// Draw this URDF's visual meshes (STL) over the chain; its moving joints must be the arm's.
     #[arg(long, value_name = "FILE.urdf")]
     pub urdf: Option<PathBuf>,
@@ -79,11 +93,24 @@ pub fn run(link: &LinkArgs, args: ViewArgs, out: &mut dyn Write, err: &mut dyn W
         .listen
         .parse()
         .with_context(|| format!("--listen {}: expected ADDR:PORT, e.g. 127.0.0.1:8765", args.listen))?;
+    let token = match &args.token {
+        Some(text) => Token::given(text)?,
+        None => Token::generate()?,
+    };
     let urdf = args.urdf.as_deref().map(|file| meshes::Urdf::read(file, args.tip.as_deref())).transpose()?;
     let (target, arm) = link.target()?;
     let arm = arm.map(str::to_string);
+    if !listen.ip().is_loopback() {
+        writeln!(
+            err,
+            "warning: --listen {listen} is not this machine's loopback: anyone who has the URL can move the arm, and \
+             plain HTTP shows its token to the network; to reach the view from another machine, keep the default and \
+             use an SSH tunnel (ssh -L 8765:127.0.0.1:8765 this-machine)"
+        )?;
+        err.flush()?;
+    }
     // The address is taken before connecting, so a port in use changes nothing on the arm.
-    let listener = ViewServer::bind(&listen.to_string())?;
+    let listener = ViewServer::bind(listen)?;
     // --sim runs in real time here (see the module doc).
     let (target, simulated) = match target {
         Target::Sim(options) => {
@@ -103,19 +130,13 @@ pub fn run(link: &LinkArgs, args: ViewArgs, out: &mut dyn Write, err: &mut dyn W
     }
     let arm_json = meshes::arm_json(&spec, queue_capacity, &meshes)?;
     let served = Served { arm: arm_json, meshes: meshes.iter().map(|m| m.file.clone()).collect(), latest };
-    let server = ViewServer::start(listener, served, arm_loop.jobs())?;
+    let mut server = ViewServer::start(listener, served, arm_loop.jobs(), token)?;
     writeln!(out, "{}", server.url())?;
     out.flush()?;
-    if !listen.ip().is_loopback() {
-        writeln!(
-            err,
-            "warning: listening on {listen}: anyone who can reach this address can move the arm, and nothing asks who \
-             they are"
-        )?;
-    }
     writeln!(
         err,
-        "arm {} ({} joints{}): open {} in a browser; Ctrl-C stops the arm and exits",
+        "arm {} ({} joints{}): open {} in a browser (the token in it is what lets a page drive the arm: keep it to \
+         yourself); Ctrl-C stops the arm and exits",
         spec.name,
         spec.dof(),
         if servos_of(&spec).and_then(|s| s.gripper).is_some() { " and a gripper" } else { "" },
@@ -132,8 +153,21 @@ pub fn run(link: &LinkArgs, args: ViewArgs, out: &mut dyn Write, err: &mut dyn W
             bail!("the simulated servos stopped");
         }
     }
-    drop(server);
     let interrupted = interrupt::requested();
+    if interrupted {
+        // The arm first: stopped and holding (or limp, on a second signal) before the server
+        // closes, whatever its clients do; the server's threads never hold the arm loop.
+        writeln!(err, "stopping: the arm decelerates within its limits, then holds (Ctrl-C again: torque off)")?;
+        err.flush()?;
+        arm_loop.begin_stop();
+        while !arm_loop.is_finished() {
+            if interrupt::count() >= 2 {
+                arm_loop.torque_off();
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+    }
+    server.shutdown();
     let said = arm_loop.finish().context("the arm loop")?;
     err.write_all(said.as_bytes())?;
     if let Some(report) = simulated.as_ref().and_then(crate::sim::PtyServer::monitor) {
@@ -142,6 +176,5 @@ pub fn run(link: &LinkArgs, args: ViewArgs, out: &mut dyn Write, err: &mut dyn W
     if !interrupted {
         bail!("the connection to the firmware ended");
     }
-    writeln!(err, "stopped: the arm holds")?;
-    Ok(0)
+    Ok(if interrupt::count() >= 2 { interrupt::EXIT_CODE } else { 0 })
 }

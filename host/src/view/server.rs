@@ -1,28 +1,46 @@
-//! The HTTP side: the page's files, the JSON API and the telemetry websocket, on a few threads of
-//! a small synchronous server. Every request that moves the arm becomes a job for the arm loop;
-//! reading the status or drawing data never waits on the link.
+//! The HTTP side: the page's files, the JSON API and the telemetry websocket.
+//!
+//! One thread accepts; each connection gets a thread of its own ([`super::workers`]), bounded in number
+//! ([`MAX_CONNECTIONS`], and [`MAX_WEBSOCKETS`] once upgraded) and in time ([`super::http`]'s
+//! limits), so no client, slow or many, holds the others: a stop is read and queued on its own
+//! thread whatever else is connected, and goes ahead of every queued job ([`super::jobs`]).
+//! Every request is checked ([`super::access`]) before its body is read. Reading the status or
+//! drawing data never waits on the link.
+//!
+//! [`ViewServer::shutdown`] closes the listener and every open connection at once, so closing
+//! never waits on a client.
 
-use std::io::Read;
-use std::sync::mpsc::{self, Sender};
-use std::sync::Arc;
+use std::collections::HashMap;
+use std::net::{IpAddr, Ipv4Addr, Ipv6Addr, SocketAddr, TcpListener, TcpStream};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
 use anyhow::{anyhow, Result};
 use serde_json::Value;
-use tiny_http::{Header, Method, Request as HttpRequest, Response, Server};
 use tungstenite::protocol::Role;
 use tungstenite::{Message, WebSocket};
 
+use super::access::{self, Access, Token};
 use super::api::{self, ApiError, MAX_BODY};
-use super::arm_loop::Job;
 use super::assets;
+use super::http::{self, Answer, Head, SILENT};
+use super::jobs::JobQueue;
 use super::telemetry::Latest;
+use super::workers::Workers;
 
-/// Threads answering requests (a websocket takes a thread of its own).
-const WORKERS: usize = 4;
-/// How long a request may wait for the arm loop's answer.
-const JOB_TIMEOUT: Duration = Duration::from_secs(10);
+/// Connections being read or answered at once; one more is answered 503 and closed. Each holds
+/// a thread for at most the head and body times of [`super::http`].
+pub const MAX_CONNECTIONS: usize = 128;
+/// Websockets open at once (a person has a tab or two; each gets every status).
+pub const MAX_WEBSOCKETS: usize = 16;
+/// The largest body of every endpoint but `play`'s: a joint move of many joints is under 1 KiB.
+pub const SMALL_BODY: usize = 4 << 10;
+/// How long one websocket message may take to leave before the client is dropped.
+const WS_WRITE_TIME: Duration = Duration::from_secs(2);
+/// Stack of a connection's thread: a request is parsed there (serde_json's depth is bounded).
+const CONNECTION_STACK: usize = 256 << 10;
 
 /// What the server serves besides the page.
 pub struct Served {
@@ -34,167 +52,315 @@ pub struct Served {
     pub latest: Arc<Latest>,
 }
 
+/// What every connection's thread shares.
+struct Shared {
+    served: Served,
+    jobs: Arc<JobQueue>,
+    token: Token,
+    access: Access,
+    /// Open connections (websockets included), to close them all at shutdown.
+    open: Mutex<HashMap<u64, TcpStream>>,
+    connections: AtomicUsize,
+    websockets: AtomicUsize,
+    closing: AtomicBool,
+}
+
 /// A running server.
 pub struct ViewServer {
-    server: Arc<Server>,
+    shared: Arc<Shared>,
+    bound: SocketAddr,
     url: String,
-    workers: Vec<JoinHandle<()>>,
+    acceptor: Option<JoinHandle<()>>,
 }
 
 impl ViewServer {
-    /// Listens on `addr` (`127.0.0.1:0` for a free port); answers nothing until [`Self::start`].
-    pub fn bind(addr: &str) -> Result<Server> {
-        Server::http(addr).map_err(|e| anyhow!("--listen {addr}: cannot listen there: {e}"))
+    /// Listens on `addr` (port 0 for a free one); answers nothing until [`Self::start`].
+    pub fn bind(addr: SocketAddr) -> Result<TcpListener> {
+        TcpListener::bind(addr).map_err(|e| anyhow!("--listen {addr}: cannot listen there: {e}"))
     }
 
-    /// Starts answering on `server`.
-    pub fn start(server: Server, served: Served, jobs: Sender<Job>) -> Result<Self> {
-        let server = Arc::new(server);
-        let bound = server.server_addr().to_ip().ok_or_else(|| anyhow!("the server's address is not an IP address"))?;
-        let url = format!("http://{bound}/");
-        let served = Arc::new(served);
-        let workers = (0..WORKERS)
-            .map(|i| {
-                let (server, served, jobs) = (server.clone(), served.clone(), jobs.clone());
-                std::thread::Builder::new().name(format!("view-http-{i}")).spawn(move || {
-                    for request in server.incoming_requests() {
-                        answer(request, &served, &jobs);
-                    }
-                })
-            })
-            .collect::<std::io::Result<Vec<_>>>()?;
-        Ok(Self { server, url, workers })
+    /// Starts answering on `listener`; requests to the API must carry `token`.
+    pub fn start(listener: TcpListener, served: Served, jobs: Arc<JobQueue>, token: Token) -> Result<Self> {
+        let bound = listener.local_addr()?;
+        // The address a person types: the loopback one for a server on every address.
+        let shown = match bound.ip() {
+            IpAddr::V4(ip) if ip.is_unspecified() => SocketAddr::new(Ipv4Addr::LOCALHOST.into(), bound.port()),
+            IpAddr::V6(ip) if ip.is_unspecified() => SocketAddr::new(Ipv6Addr::LOCALHOST.into(), bound.port()),
+            _ => bound,
+        };
+        let url = format!("http://{shown}/?token={}", token.as_str());
+        let shared = Arc::new(Shared {
+            served,
+            jobs,
+            token,
+            access: Access::new(bound),
+            open: Mutex::new(HashMap::new()),
+            connections: AtomicUsize::new(0),
+            websockets: AtomicUsize::new(0),
+            closing: AtomicBool::new(false),
+        });
+        let acceptor = {
+            let shared = shared.clone();
+            std::thread::Builder::new().name("view-accept".into()).spawn(move || accept(&listener, &shared))?
+        };
+        Ok(Self { shared, bound: shown, url, acceptor: Some(acceptor) })
     }
 
-    /// The page's address.
+    /// The page's address, with the token.
     pub fn url(&self) -> &str {
         &self.url
+    }
+
+    /// Stops accepting and closes every open connection (websockets too) now; the threads of the
+    /// connections end as their sockets do. Bounded: it waits on no client.
+    pub fn shutdown(&mut self) {
+        self.shared.closing.store(true, Ordering::SeqCst);
+        // Wake the acceptor with a connection of our own; it sees `closing` and ends.
+        let _ = TcpStream::connect_timeout(&self.bound, Duration::from_millis(200));
+        if let Some(acceptor) = self.acceptor.take() {
+            let _ = acceptor.join();
+        }
+        let open = std::mem::take(&mut *self.shared.open.lock().unwrap_or_else(|e| e.into_inner()));
+        for stream in open.values() {
+            let _ = stream.shutdown(std::net::Shutdown::Both);
+        }
     }
 }
 
 impl Drop for ViewServer {
     fn drop(&mut self) {
-        self.server.unblock();
-        for _ in 1..self.workers.len() {
-            self.server.unblock();
+        self.shutdown();
+    }
+}
+
+/// Takes connections until shutdown; each gets its thread, or a 503 past [`MAX_CONNECTIONS`].
+fn accept(listener: &TcpListener, shared: &Arc<Shared>) {
+    let ids = AtomicU64::new(0);
+    // Every connection counted, and every websocket, holds a worker.
+    let workers = Workers::new(MAX_CONNECTIONS + MAX_WEBSOCKETS, CONNECTION_STACK);
+    for stream in listener.incoming() {
+        if shared.closing.load(Ordering::SeqCst) {
+            return;
         }
-        for w in self.workers.drain(..) {
-            let _ = w.join();
+        let Ok(mut stream) = stream else {
+            // Out of descriptors, or a connection reset before it was taken: go on.
+            std::thread::sleep(Duration::from_millis(5));
+            continue;
+        };
+        if shared.connections.load(Ordering::SeqCst) >= MAX_CONNECTIONS {
+            let busy = ApiError::new(503, format!("{MAX_CONNECTIONS} connections are open already: try again"));
+            let _ = stream.set_write_timeout(Some(Duration::from_millis(100)));
+            http::respond(&mut stream, &Answer::error(&busy));
+            continue;
+        }
+        let id = ids.fetch_add(1, Ordering::SeqCst);
+        let Ok(clone) = stream.try_clone() else { continue };
+        shared.open.lock().unwrap_or_else(|e| e.into_inner()).insert(id, clone);
+        shared.connections.fetch_add(1, Ordering::SeqCst);
+        let guard = Counted { shared: shared.clone(), id, counted: true };
+        // Within the caps a worker is always free; a thread that cannot be had drops the
+        // connection (and the guard lets go of it).
+        drop(workers.run(Box::new(move || connection(stream, guard))));
+    }
+}
+
+/// A connection listed open (for shutdown) and counted against [`MAX_CONNECTIONS`]; dropping it
+/// lets go of both.
+struct Counted {
+    shared: Arc<Shared>,
+    id: u64,
+    counted: bool,
+}
+
+impl Counted {
+    /// No longer counted against [`MAX_CONNECTIONS`] (a websocket has its own cap), still listed.
+    fn uncount(&mut self) {
+        if std::mem::take(&mut self.counted) {
+            self.shared.connections.fetch_sub(1, Ordering::SeqCst);
         }
     }
 }
 
-fn header(name: &str, value: &str) -> Header {
-    Header::from_bytes(name.as_bytes(), value.as_bytes()).expect("ASCII header")
+impl Drop for Counted {
+    fn drop(&mut self) {
+        self.uncount();
+        self.shared.open.lock().unwrap_or_else(|e| e.into_inner()).remove(&self.id);
+    }
 }
 
-fn json_response(status: u16, body: &Value) -> Response<std::io::Cursor<Vec<u8>>> {
-    Response::from_data(body.to_string().into_bytes())
-        .with_status_code(status)
-        .with_header(header("Content-Type", "application/json"))
-        .with_header(header("Cache-Control", "no-store"))
+/// One connection: one request, one answer (or a websocket).
+fn connection(mut stream: TcpStream, guard: Counted) {
+    let shared = guard.shared.clone();
+    let _ = stream.set_nodelay(true);
+    let local = stream.local_addr().map_or(IpAddr::V4(Ipv4Addr::LOCALHOST), |a| a.ip());
+    let (head, early) = match http::read_head(&mut stream) {
+        Ok(read) => read,
+        Err(e) if e.status == SILENT => return,
+        Err(e) => return http::respond(&mut stream, &Answer::error(&e)),
+    };
+    match route(&shared, &head, local) {
+        Route::Answer(answer) => http::respond(&mut stream, &answer),
+        Route::Post(endpoint) => {
+            let answer = post(&shared, &mut stream, &head, early, &endpoint).unwrap_or_else(|e| Answer::error(&e));
+            http::respond(&mut stream, &answer);
+        }
+        Route::Websocket(key) => websocket(stream, &shared, &key, guard),
+    }
 }
 
-fn error_response(e: &ApiError) -> Response<std::io::Cursor<Vec<u8>>> {
-    json_response(e.status, &e.body())
+/// What to do with a request whose head is in.
+enum Route {
+    Answer(Answer),
+    Post(String),
+    Websocket(String),
 }
 
-/// Answers one request; a failure to write the answer only means the client went away.
-fn answer(mut request: HttpRequest, served: &Served, jobs: &Sender<Job>) {
-    let path = request.url().split('?').next().unwrap_or("/").to_string();
-    let method = request.method().clone();
-    let response = match (&method, path.as_str()) {
-        (Method::Get, "/api/ws") => return websocket(request, served.latest.clone()),
-        (Method::Get, "/api/arm") => json_response(200, &served.arm),
-        (Method::Get, "/api/status") => {
+fn refused(status: u16, message: impl Into<String>) -> Route {
+    Route::Answer(Answer::error(&ApiError::new(status, message)))
+}
+
+/// Checks the head (see [`super::access`]) and picks what answers it.
+fn route(shared: &Shared, head: &Head, local: IpAddr) -> Route {
+    let access = &shared.access;
+    match head.header("host") {
+        Some(host) if access.host_ok(host, local) => {}
+        host => {
+            return refused(
+                403,
+                format!(
+                    "Host {:?} does not name this server: open it by its address (the URL armctl printed)",
+                    host.unwrap_or("")
+                ),
+            )
+        }
+    }
+    let (method, path) = (head.method.as_str(), head.path.as_str());
+    let Some(endpoint) = path.strip_prefix("/api/") else {
+        // The page's files: no secret in them, so no token (the page brings it to the API).
+        return match (method, path) {
+            ("GET", "/") => static_file("index.html"),
+            ("GET", p) if p.starts_with("/assets/") => static_file(&p["/assets/".len()..]),
+            _ => refused(404, format!("{method} {path}: not found")),
+        };
+    };
+    if let Some(origin) = head.header("origin").filter(|o| !access.origin_ok(o, local)) {
+        return refused(403, format!("Origin {origin:?} is not this server: another site's page cannot drive the arm"));
+    }
+    let offered = access::offered_token(head.header("authorization"), head.query.as_deref());
+    if !offered.is_some_and(|t| shared.token.matches(t)) {
+        return refused(
+            403,
+            format!(
+                "{} token: the API needs the one in the URL armctl printed (Authorization: Bearer TOKEN)",
+                if offered.is_some() { "wrong" } else { "no" }
+            ),
+        );
+    }
+    let served = &shared.served;
+    match (method, endpoint) {
+        ("GET", "ws") => match head.header("sec-websocket-key") {
+            Some(key) if head.header("upgrade").is_some_and(|u| u.eq_ignore_ascii_case("websocket")) => {
+                Route::Websocket(key.to_string())
+            }
+            _ => refused(426, "/api/ws is a websocket: connect with one"),
+        },
+        ("GET", "arm") => Route::Answer(Answer::json(200, &served.arm)),
+        ("GET", "status") => {
             let (seq, text) = served.latest.get();
             match seq {
-                0 => error_response(&ApiError::new(503, "no status from the firmware yet")),
-                _ => Response::from_data(text.as_bytes().to_vec())
-                    .with_header(header("Content-Type", "application/json"))
-                    .with_header(header("Cache-Control", "no-store")),
+                0 => refused(503, "no status from the firmware yet"),
+                _ => Route::Answer(Answer {
+                    status: 200,
+                    content_type: "application/json",
+                    body: text.as_bytes().to_vec(),
+                }),
             }
         }
-        (Method::Get, p) if p.starts_with("/api/mesh/") => mesh(&p["/api/mesh/".len()..], served),
-        (Method::Post, p) if p.starts_with("/api/") => {
-            let endpoint = p["/api/".len()..].to_string();
-            match read_body(&mut request).and_then(|body| api::parse(&endpoint, &body)).and_then(|r| run_job(r, jobs)) {
-                Ok(body) => json_response(200, &body),
-                Err(e) => error_response(&e),
-            }
-        }
-        (_, p) if p.starts_with("/api/") => {
-            error_response(&ApiError::new(405, format!("{method} {p}: not an endpoint (see the README's API list)")))
-        }
-        (Method::Get, "/") => static_file("index.html"),
-        (Method::Get, p) if p.starts_with("/assets/") => static_file(&p["/assets/".len()..]),
-        (_, p) => error_response(&ApiError::new(404, format!("{method} {p}: not found"))),
-    };
-    let _ = request.respond(response);
-}
-
-fn read_body(request: &mut HttpRequest) -> Result<Vec<u8>, ApiError> {
-    let mut body = Vec::new();
-    request
-        .as_reader()
-        .take(MAX_BODY as u64 + 1)
-        .read_to_end(&mut body)
-        .map_err(|e| ApiError::bad(format!("cannot read the body: {e}")))?;
-    Ok(body)
-}
-
-fn run_job(request: api::Request, jobs: &Sender<Job>) -> Result<Value, ApiError> {
-    let (reply, answer) = mpsc::channel();
-    jobs.send((request, reply)).map_err(|_| ApiError::new(503, "the arm loop has ended"))?;
-    answer.recv_timeout(JOB_TIMEOUT).map_err(|_| ApiError::new(503, "the arm loop did not answer in time"))?
-}
-
-fn static_file(path: &str) -> Response<std::io::Cursor<Vec<u8>>> {
-    match assets::get(path) {
-        Some((bytes, kind)) => Response::from_data(bytes.to_vec()).with_header(header("Content-Type", kind)),
-        None => error_response(&ApiError::new(404, format!("/assets/{path}: not found"))),
+        ("GET", p) if p.starts_with("mesh/") => Route::Answer(mesh(&p["mesh/".len()..], served)),
+        ("POST", endpoint) => Route::Post(endpoint.to_string()),
+        _ => refused(405, format!("{method} {path}: not an endpoint (see the README's API list)")),
     }
 }
 
-fn mesh(index: &str, served: &Served) -> Response<std::io::Cursor<Vec<u8>>> {
+/// A POST: its type and length are checked before the body is read; then it is parsed and
+/// queued for the arm loop.
+fn post(
+    shared: &Shared,
+    stream: &mut TcpStream,
+    head: &Head,
+    early: Vec<u8>,
+    endpoint: &str,
+) -> Result<Answer, ApiError> {
+    if !access::json_content_type(head.header("content-type")) {
+        return Err(ApiError::new(
+            415,
+            format!("the body must be application/json, not {:?}", head.header("content-type").unwrap_or("nothing")),
+        ));
+    }
+    let cap = if endpoint == "play" { MAX_BODY } else { SMALL_BODY };
+    let len = http::body_length(head, cap)?;
+    if head.header("expect").is_some_and(|e| e.eq_ignore_ascii_case("100-continue")) && early.len() < len {
+        http::send_continue(stream);
+    }
+    let body = http::read_body(stream, early, len)?;
+    let request = api::parse(endpoint, &body)?;
+    shared.jobs.submit(request).map(|body| Answer::json(200, &body))
+}
+
+fn static_file(path: &str) -> Route {
+    match assets::get(path) {
+        Some((bytes, kind)) => Route::Answer(Answer { status: 200, content_type: kind, body: bytes.to_vec() }),
+        None => refused(404, format!("/assets/{path}: not found")),
+    }
+}
+
+fn mesh(index: &str, served: &Served) -> Answer {
     let Some(file) = index.parse::<usize>().ok().and_then(|i| served.meshes.get(i)) else {
-        return error_response(&ApiError::new(404, format!("no mesh {index}")));
+        return Answer::error(&ApiError::new(404, format!("no mesh {index}")));
     };
     match std::fs::read(file) {
-        Ok(bytes) => Response::from_data(bytes).with_header(header("Content-Type", "model/stl")),
-        Err(e) => error_response(&ApiError::new(404, format!("mesh {}: {e}", file.display()))),
+        Ok(bytes) => Answer { status: 200, content_type: "model/stl", body: bytes },
+        Err(e) => Answer::error(&ApiError::new(404, format!("mesh {}: {e}", file.display()))),
     }
 }
 
-/// Upgrades to a websocket and sends the newest telemetry as it comes, skipping what a slow
-/// client could not take, until the client goes away.
-fn websocket(request: HttpRequest, latest: Arc<Latest>) {
-    let key = request.headers().iter().find(|h| h.field.equiv("Sec-WebSocket-Key")).map(|h| h.value.to_string());
-    let Some(key) = key else {
-        let _ = request.respond(error_response(&ApiError::bad("/api/ws is a websocket: connect with one")));
+/// A websocket counted open.
+struct WebsocketSlot<'a>(&'a Shared);
+
+impl Drop for WebsocketSlot<'_> {
+    fn drop(&mut self) {
+        self.0.websockets.fetch_sub(1, Ordering::SeqCst);
+    }
+}
+
+/// Upgrades to a websocket (within [`MAX_WEBSOCKETS`]) and sends the newest telemetry as it
+/// comes, skipping what a slow client could not take, until the client goes away, stops reading
+/// for [`WS_WRITE_TIME`], or the server shuts down.
+fn websocket(mut stream: TcpStream, shared: &Shared, key: &str, mut guard: Counted) {
+    if shared.websockets.fetch_add(1, Ordering::SeqCst) >= MAX_WEBSOCKETS {
+        shared.websockets.fetch_sub(1, Ordering::SeqCst);
+        let full = ApiError::new(503, format!("{MAX_WEBSOCKETS} websockets are open already: close a page"));
+        return http::respond(&mut stream, &Answer::error(&full));
+    }
+    let _slot = WebsocketSlot(shared);
+    guard.uncount();
+    if http::switch_to_websocket(&mut stream, key).is_err() || stream.set_write_timeout(Some(WS_WRITE_TIME)).is_err() {
         return;
-    };
-    let response = Response::empty(101)
-        .with_header(header("Upgrade", "websocket"))
-        .with_header(header("Connection", "Upgrade"))
-        .with_header(header("Sec-WebSocket-Accept", &tungstenite::handshake::derive_accept_key(key.as_bytes())));
-    let stream = request.upgrade("websocket", response);
-    let _ = std::thread::Builder::new().name("view-ws".into()).spawn(move || {
-        let mut socket = WebSocket::from_raw_socket(stream, Role::Server, None);
-        let mut seen = 0;
-        loop {
-            let message = match latest.wait_newer(seen, Duration::from_secs(1)) {
-                Some((seq, text)) => {
-                    seen = seq;
-                    Message::text(text.as_str())
-                }
-                // No telemetry (the firmware is silent): a ping finds out whether the client is
-                // still there.
-                None => Message::Ping(Vec::new().into()),
-            };
-            if socket.send(message).is_err() {
-                return;
+    }
+    let mut socket = WebSocket::from_raw_socket(stream, Role::Server, None);
+    let mut seen = 0;
+    while !shared.closing.load(Ordering::SeqCst) {
+        let message = match shared.served.latest.wait_newer(seen, Duration::from_secs(1)) {
+            Some((seq, text)) => {
+                seen = seq;
+                Message::text(text.as_str())
             }
+            // No telemetry (the firmware is silent): a ping finds out whether the client is
+            // still there.
+            None => Message::Ping(Vec::new().into()),
+        };
+        if socket.send(message).is_err() {
+            return;
         }
-    });
+    }
 }

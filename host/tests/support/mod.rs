@@ -2,6 +2,8 @@
 //! Each test crate that needs it declares `mod support;`; not every crate uses every item.
 #![allow(dead_code)]
 
+pub mod view;
+
 use serde_json::Value;
 use std::process::{Command, Stdio};
 

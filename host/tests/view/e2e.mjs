@@ -8,6 +8,9 @@
 //   c. dragging the target gizmo with "go live" brings the tool to the target;
 //   d. the stop button stops a playing keyframe file;
 //   e. the API refuses bad inputs (4xx with {"error": ...}) and nothing moves;
+//   g. only the person who started it drives it (issue 27): the token printed in the URL leaves the
+//      address bar, the API refuses requests without it, with a wrong one, from another Origin or
+//      Host, and non-JSON POSTs, and a hostile page on another origin cannot move the arm;
 //   f. cost: websocket messages per second and the server's CPU, written to cost.json;
 // then that the page threw no uncaught error and that SIGINT ends the server.
 // Exit code 1 when any step failed. The server and the browser are always ended; the whole run
@@ -18,6 +21,8 @@
 // Run by host/tests/view_browser.rs; by hand: ARMCTL=target/debug/armctl node host/tests/view/e2e.mjs
 
 import { spawn, execFileSync } from 'node:child_process';
+import { randomBytes } from 'node:crypto';
+import { createServer, request as httpRequest } from 'node:http';
 import { mkdirSync, mkdtempSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
@@ -119,6 +124,7 @@ let server = null;
 let serverExit = null; // {code, signal} once it exited
 let serverStderr = '';
 let base = null;
+let token = null; // the first line's ?token=, which every API request carries
 
 function startServer() {
   server = spawn(ARMCTL, ['view', '--sim', '--listen', '127.0.0.1:0'], { stdio: ['ignore', 'pipe', 'pipe'] });
@@ -163,11 +169,11 @@ async function stopServer(signal = 'SIGINT', ms = 5000) {
   return serverExit;
 }
 
-/// One request to the server's API from node: {status, type, text, json}.
+/// One request to the server's API from node, with the token: {status, type, text, json}.
 async function api(method, path, body, { raw } = {}) {
-  const init = { method, signal: AbortSignal.timeout(5000) };
+  const init = { method, signal: AbortSignal.timeout(5000), headers: { authorization: `Bearer ${token}` } };
   if (raw !== undefined || body !== undefined) {
-    init.headers = { 'content-type': 'application/json' };
+    init.headers['content-type'] = 'application/json';
     init.body = raw !== undefined ? raw : JSON.stringify(body);
   }
   const response = await fetch(new URL(path, base), init);
@@ -179,6 +185,50 @@ async function api(method, path, body, { raw } = {}) {
     // Left null: the callers say what they expected.
   }
   return { status: response.status, type: response.headers.get('content-type') ?? '', text, json };
+}
+
+/// One request with exactly the headers given (node:http sets Host and Origin as told, which fetch
+/// may not): {status, text, json}; with `upgrade`, a websocket handshake: {status: 101} if it
+/// was accepted (the socket is then closed).
+function rawRequest(method, path, { headers = {}, body, upgrade = false } = {}) {
+  return new Promise((resolve, reject) => {
+    const all = { ...headers };
+    if (upgrade) {
+      Object.assign(all, {
+        connection: 'Upgrade',
+        upgrade: 'websocket',
+        'sec-websocket-version': '13',
+        'sec-websocket-key': randomBytes(16).toString('base64'),
+      });
+    }
+    if (body !== undefined) all['content-length'] = Buffer.byteLength(body);
+    const req = httpRequest({
+      host: base.hostname, port: base.port, method, path, headers: all, agent: false, timeout: 5000,
+    });
+    req.on('upgrade', (response, socket) => {
+      socket.destroy();
+      resolve({ status: response.statusCode, text: '', json: null });
+    });
+    req.on('response', (response) => {
+      let text = '';
+      response.setEncoding('utf8');
+      response.on('data', (d) => {
+        text += d;
+      });
+      response.on('end', () => {
+        let json = null;
+        try {
+          json = JSON.parse(text);
+        } catch {
+          // Left null: the callers say what they expected.
+        }
+        resolve({ status: response.statusCode, text, json });
+      });
+    });
+    req.on('timeout', () => req.destroy(new Error(`${method} ${path}: no answer within 5 s`)));
+    req.on('error', reject);
+    req.end(body);
+  });
 }
 
 async function status() {
@@ -303,8 +353,11 @@ async function main() {
     url = await started.firstLine;
     note(`URL ${url}`);
     base = new URL(url);
-    check(base.protocol === 'http:' && base.hostname === '127.0.0.1' && Number(base.port) > 0,
-      `the first stdout line is not http://127.0.0.1:PORT/: ${JSON.stringify(url)}`);
+    token = base.searchParams.get('token');
+    check(base.protocol === 'http:' && base.hostname === '127.0.0.1' && Number(base.port) > 0 && base.pathname === '/',
+      `the first stdout line is not http://127.0.0.1:PORT/?token=TOKEN: ${JSON.stringify(url)}`);
+    check(token && token.length >= 32 && /^[A-Za-z0-9._~-]+$/.test(token),
+      `the URL's token is missing, shorter than 32 characters or not URL-safe: ${JSON.stringify(token)}`);
   });
   if (!base) return;
 
@@ -395,6 +448,16 @@ async function main() {
     check(image.width >= 200 && image.height >= 150, `the canvas is only ${image.width}x${image.height}`);
     check(share >= 0.01 && s.colours >= 4,
       `the canvas looks blank: ${(100 * share).toFixed(2)} % of pixels differ from the background, ${s.colours} colours`);
+  });
+
+  await step('the token is out of the address bar once the page loaded, and the page still works', async () => {
+    const shown = page.url();
+    note(`address bar: ${shown}`);
+    check(!shown.includes(token) && !new URL(shown).searchParams.has('token'),
+      `page.url() still has the token: ${shown}`);
+    check(new URL(shown).origin === base.origin && new URL(shown).pathname === '/', `page.url() is ${shown}`);
+    check(await page.locator('#connection[data-connected="true"]').count() === 1,
+      'the page lost its websocket once the token left the address bar');
   });
 
   // b. -----------------------------------------------------------------------------------------
@@ -644,6 +707,125 @@ async function main() {
     });
   }
 
+  // g. -----------------------------------------------------------------------------------------
+  const rest = async () => until(5000, 'the arm was not at rest', async () => {
+    const s = await status();
+    return s.state === 'Idle' ? s : { done: false, state: s.state };
+  }, { every: 100 });
+  // Joints well away from where the arm stands, within the limits: toward the middle of each range.
+  const awayFrom = (q) => q.map((x, j) => {
+    const { lower, upper } = arm.joints[j];
+    const towards = x < (lower + upper) / 2 ? 1 : -1;
+    return Number((x + towards * Math.min(0.5, (upper - lower) / 3)).toFixed(4));
+  });
+  const wrongToken = token.slice(0, -1) + (token.endsWith('0') ? '1' : '0');
+  const own = `${base.protocol}//${base.host}`;
+  const refusals = [
+    ['GET /api/status without the token', 'GET', '/api/status', {}, 403],
+    ['GET /api/status with a wrong token (the last character)', 'GET', '/api/status', { authorization: `Bearer ${wrongToken}` }, 403],
+    ['GET /api/status with the token in the query, wrong', 'GET', `/api/status?token=${wrongToken}`, {}, 403],
+    ['GET /api/status with the token and Origin: http://evil.example', 'GET', '/api/status',
+      { authorization: `Bearer ${token}`, origin: 'http://evil.example' }, 403],
+    ['GET /api/status with the token and Host: evil.example:PORT', 'GET', '/api/status',
+      { authorization: `Bearer ${token}`, host: `evil.example:${base.port}` }, 403],
+    ['POST /api/joints with the token and Content-Type: text/plain', 'POST', '/api/joints',
+      { authorization: `Bearer ${token}`, 'content-type': 'text/plain' }, 415],
+    ['a websocket to /api/ws without the token', 'WS', '/api/ws', {}, 403],
+    ['a websocket to /api/ws with a wrong token', 'WS', `/api/ws?token=${wrongToken}`, {}, 403],
+    // The same with what is right, so that the refusals above are the token's, Origin's or Host's.
+    ['(control) GET /api/status with the token and Origin: http://127.0.0.1:PORT', 'GET', '/api/status',
+      { authorization: `Bearer ${token}`, origin: own, host: base.host }, 200],
+    ['(control) a websocket to /api/ws?token=TOKEN', 'WS', `/api/ws?token=${token}`, { origin: own }, 101],
+  ];
+  for (const [what, method, path, headers, expected] of refusals) {
+    const verb = expected >= 400 ? `is refused ${expected}` : `is accepted ${expected}`;
+    await step(`access: ${what} ${verb}`, async () => {
+      const before = await rest();
+      const body = method === 'POST' ? JSON.stringify({ q: awayFrom(before.setpoints) }) : undefined;
+      const r = await rawRequest(method === 'WS' ? 'GET' : method, path, { headers, body, upgrade: method === 'WS' });
+      note(`${method} ${path.replace(token, 'TOKEN').replace(wrongToken, 'WRONG')} -> ${r.status} ${r.text.slice(0, 160)}`);
+      check(r.status === expected, `answered ${r.status}, expected ${expected}: ${r.text.slice(0, 200)}`);
+      if (expected >= 400) {
+        check(r.json && typeof r.json.error === 'string' && r.json.error.length > 0,
+          `the body is not {"error": "..."}: ${r.text.slice(0, 200)}`);
+      }
+      if (method === 'POST') {
+        await sleep(300);
+        const after = await status();
+        check(maxAbsDiff(after.setpoints, before.setpoints) < 1e-6,
+          `the setpoints changed: ${fmt(before.setpoints)} -> ${fmt(after.setpoints)}`);
+      }
+    });
+  }
+
+  await step('a hostile page on another origin cannot drive the arm (no-cors POSTs, websocket)', async () => {
+    const before = await rest();
+    check(before.torque === true, `the torque was off before the attack: ${JSON.stringify(before.torque)}`);
+    const q = awayFrom(before.setpoints);
+    const csv = `${['t', ...arm.joints.map((_, j) => `q${j + 1}`)].join(',')}\n0.5,${q.join(',')}\n1.0,${q.join(',')}\n`;
+    const attack = { view: base.origin, q, csv };
+    // What a malicious site does: "simple" requests, which a browser sends without asking (no
+    // preflight), and a websocket, which is not bound by the same-origin policy.
+    const html = `<!doctype html><title>hostile</title><script>
+const { view, q, csv } = ${JSON.stringify(attack)};
+window.__attack = (async () => {
+  const results = {};
+  const send = async (name, path, body) => {
+    try {
+      const r = await fetch(view + path, { method: 'POST', mode: 'no-cors',
+        headers: { 'Content-Type': 'text/plain' }, body: JSON.stringify(body) });
+      results[name] = 'sent, answered (' + r.type + ')';
+    } catch (e) {
+      results[name] = 'failed: ' + e.message;
+    }
+  };
+  await send('joints', '/api/joints', { q });
+  await send('torque', '/api/torque', { on: false });
+  await send('play', '/api/play', { name: 'evil.csv', csv });
+  results.websocket = await new Promise((resolve) => {
+    const ws = new WebSocket(view.replace(/^http/, 'ws') + '/api/ws');
+    ws.onopen = () => { ws.close(); resolve('opened'); };
+    ws.onerror = () => resolve('failed to open');
+    setTimeout(() => resolve('neither opened nor failed within 3 s'), 3000);
+  });
+  return results;
+})();
+</script>`;
+    const hostile = createServer((req, res) => {
+      res.writeHead(req.url === '/' ? 200 : 404, { 'content-type': 'text/html; charset=utf-8' });
+      res.end(req.url === '/' ? html : 'not found');
+    });
+    await new Promise((resolve, reject) => {
+      hostile.once('error', reject);
+      hostile.listen(0, '127.0.0.1', resolve);
+    });
+    const evilPage = await page.context().newPage();
+    try {
+      const evil = `http://127.0.0.1:${hostile.address().port}/`;
+      check(new URL(evil).origin !== base.origin, 'the hostile page has the same origin as the view');
+      const response = await evilPage.goto(evil, { waitUntil: 'load', timeout: 15_000 });
+      check(response && response.status() === 200, `the hostile page answered ${response?.status()}`);
+      const results = await evilPage.evaluate(() => window.__attack);
+      note(`hostile page ${evil} tried POST /api/joints ${JSON.stringify({ q })}, /api/torque {"on":false}, ` +
+        `/api/play, a websocket: ${JSON.stringify(results)}`);
+      check(results.websocket === 'failed to open', `the hostile page's websocket: ${results.websocket}`);
+      const t0 = Date.now();
+      while (Date.now() - t0 < 500) {
+        const s = await status();
+        check(maxAbsDiff(s.setpoints, before.setpoints) < 1e-3,
+          `the arm moved: setpoints ${fmt(before.setpoints)} -> ${fmt(s.setpoints)}`);
+        check(s.torque === true, 'the torque went off');
+        check(s.state === 'Idle', `the state became ${s.state} (play ${JSON.stringify(s.play)})`);
+        await sleep(100);
+      }
+      note(`over 0.5 s after the attack: setpoints ${fmt((await status()).setpoints)}, torque on, Idle`);
+    } finally {
+      await evilPage.close().catch(() => {});
+      hostile.closeAllConnections?.();
+      await new Promise((resolve) => hostile.close(resolve));
+    }
+  });
+
   // f. -----------------------------------------------------------------------------------------
   await step('cost: websocket messages per second and the server\'s CPU, page open (cost.json)', async () => {
     check(await page.locator('#connection[data-connected="true"]').count() === 1, 'the page is not connected');
@@ -666,7 +848,7 @@ async function main() {
       const wall = Number(process.hrtime.bigint() - t0) / 1e9;
       return { value, wall, percent: (100 * (cpuTicks() - ticks0)) / ticksPerSecond / wall };
     };
-    const wsUrl = new URL('/api/ws', base).href.replace(/^http/, 'ws');
+    const wsUrl = new URL(`/api/ws?token=${encodeURIComponent(token)}`, base).href.replace(/^http/, 'ws');
     await page.evaluate((u) => new Promise((resolve, reject) => {
       const ws = new WebSocket(u);
       window.__cost = { ws, counting: false, count: 0, bytes: 0, bad: 0, first: null, last: null, rate: null };

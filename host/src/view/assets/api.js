@@ -3,6 +3,27 @@
 
 const listeners = [];
 
+/**
+ * The token armctl printed in the page's URL (?token=...): the server answers the API only to
+ * requests that carry it, so that no other site's page can drive the arm from this browser. It
+ * is kept for this tab (a reload finds it) and taken out of the address bar, so that it is not
+ * in a screenshot, the history or a copied link.
+ */
+const token = (() => {
+  const params = new URLSearchParams(location.search);
+  const given = params.get('token');
+  if (given) {
+    sessionStorage.setItem('armctl-view-token', given);
+    params.delete('token');
+    const rest = params.toString();
+    history.replaceState(null, '', location.pathname + (rest ? `?${rest}` : '') + location.hash);
+  }
+  return given || sessionStorage.getItem('armctl-view-token') || '';
+})();
+
+/** The header every API request carries (for fetch and three.js loaders). */
+export function authHeaders() { return { authorization: `Bearer ${token}` }; }
+
 /** Called with (message) for every failed request, so the page can show it in #error. */
 export function onRequestError(fn) { listeners.push(fn); }
 
@@ -18,7 +39,7 @@ export async function post(path, body, { quiet = false } = {}) {
   try {
     res = await fetch(path, {
       method: 'POST',
-      headers: { 'content-type': 'application/json' },
+      headers: { 'content-type': 'application/json', ...authHeaders() },
       body: JSON.stringify(body),
     });
   } catch (e) {
@@ -37,7 +58,7 @@ export async function post(path, body, { quiet = false } = {}) {
 }
 
 export async function getJSON(path) {
-  const res = await fetch(path);
+  const res = await fetch(path, { headers: authHeaders() });
   const text = await res.text();
   let data;
   try { data = JSON.parse(text); } catch { throw new Error(`${path}: not JSON (HTTP ${res.status})`); }
@@ -52,7 +73,8 @@ export async function getJSON(path) {
 export function connectTelemetry({ onMessage, onClose }) {
   let ws = null;
   const open = () => {
-    const url = `${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/api/ws`;
+    // A browser cannot set a header on a websocket: the token goes in the query.
+    const url = `${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/api/ws?token=${encodeURIComponent(token)}`;
     ws = new WebSocket(url);
     ws.onmessage = (ev) => {
       let t;

@@ -4,6 +4,7 @@ import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 import { TransformControls } from 'three/addons/controls/TransformControls.js';
 import { STLLoader } from 'three/addons/loaders/STLLoader.js';
+import { authHeaders } from './api.js';
 
 const Y = new THREE.Vector3(0, 1, 0);
 const _a = new THREE.Vector3();
@@ -255,7 +256,7 @@ export class ArmScene {
 
   loadMeshes(meshes, onError) {
     if (meshes.length === 0) return;
-    const loader = new STLLoader();
+    const loader = new STLLoader().setRequestHeader(authHeaders());
     const material = new THREE.MeshStandardMaterial({ color: 0xf2f2ee, roughness: 0.65, metalness: 0.05 });
     for (const m of meshes) {
       const frame = this.meshFrames[m.frame];
