@@ -7,7 +7,8 @@
 //!   does;
 //! - [`places`]: where the firmware core runs on this PC (SIL, QEMU);
 //! - [`link`] and [`sim`]: the host link and its transports, the servo-bus simulator;
-//! - [`arm`], [`args`] and [`plot`]: arm descriptions, typed values, PNG drawing.
+//! - [`arm`], [`args`], [`plot`] and [`pty_owner`]: arm descriptions, typed values, PNG drawing,
+//!   pseudo-terminals kept to their owner.
 #![warn(missing_docs)]
 
 pub mod args;
@@ -24,6 +25,7 @@ pub mod mocap;
 pub mod motion;
 pub mod places;
 pub mod plot;
+pub mod pty_owner;
 pub mod servo;
 pub mod sim;
 pub mod teleop;

@@ -224,7 +224,24 @@ fn serve(args: &[&str]) -> (Child, String, std::thread::JoinHandle<String>) {
     let mut first = String::new();
     BufReader::new(child.stdout.take().unwrap()).read_line(&mut first).unwrap();
     assert!(first.starts_with("/dev/"), "first stdout line should be the pty path, got {first:?}");
-    (child, first.trim().to_string(), errors)
+    let path = first.trim().to_string();
+    if let Err(e) = std::panic::catch_unwind(|| assert_private(&path)) {
+        let _ = child.kill();
+        let _ = child.wait();
+        std::panic::resume_unwind(e);
+    }
+    (child, path, errors)
+}
+
+/// Asserts that the pty at `path` is its owner's alone, as `armctl::pty_owner` leaves every pty
+/// armctl opens: mode 0600, owned by this user (the owner of /proc/self, proc(5)). Where devpts
+/// gives new ptys 0620 (a desktop's mount), only armctl's own chmod makes this hold.
+fn assert_private(path: &str) {
+    use std::os::unix::fs::MetadataExt;
+    let pty = std::fs::metadata(path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let me = std::fs::metadata("/proc/self").unwrap().uid();
+    let (mode, owner) = (pty.mode() & 0o7777, pty.uid());
+    assert!(mode == 0o600 && owner == me, "{path}: mode {mode:04o}, owner {owner}; expected 0600 and {me}");
 }
 
 fn signal(child: &Child, name: &str) {

@@ -5,6 +5,9 @@
 //! Two threads forward bytes, one each way, between the pty's master end and the core's link
 //! channel; the core's control loop never waits on them. The slave end is held open here too, so
 //! a client closing the path does not hang up the master end for the next one.
+//!
+//! The pty is its owner's alone (mode 0600, [`crate::pty_owner`]) from before its path is printed:
+//! the programs that drive the arm through it run as the user who started `armctl serve`.
 
 use std::io::{ErrorKind, Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -30,10 +33,13 @@ pub struct PtyLink {
 }
 
 impl PtyLink {
-    /// Opens a pty pair and forwards `link` over it.
+    /// Opens a pty pair, makes it its owner's alone ([`crate::pty_owner::make_private`]) and
+    /// forwards `link` over it.
     pub fn spawn(link: ChannelLink) -> Result<Self> {
         let (master, slave) = TTYPort::pair().context("cannot open a pseudo-terminal")?;
         let path = slave.name().context("the pseudo-terminal has no path")?;
+        // It takes commands for the arm: its owner's alone before anyone learns its path.
+        crate::pty_owner::make_private(&path)?;
         let mut reader = master;
         reader.set_timeout(POLL).context("cannot set the pseudo-terminal's timeout")?;
         let mut writer = reader.try_clone_native().context("cannot share the pseudo-terminal between threads")?;

@@ -5,7 +5,8 @@
 //! started (so the servos move at their real speed) and writes the replies back at once: a pty
 //! has no baud rate, so wire time and return delays are not waited out in real time (the virtual
 //! clock of [`super::port`] is where timing is checked). The thread keeps the slave end open
-//! too, so a client closing and reopening the path does not hang up the master end.
+//! too, so a client closing and reopening the path does not hang up the master end. The pty is
+//! its owner's alone (mode 0600, [`crate::pty_owner`]) before [`PtyServer::spawn`] returns.
 //!
 //! Two options make it more like a servo bus behind a USB serial adapter, for a firmware core run
 //! on the PC against the real clock: [`SimConfig::burst`] holds the replies until the adapter's
@@ -160,13 +161,16 @@ pub struct PtyServer {
 }
 
 impl PtyServer {
-    /// Opens a pty pair and serves the bus of `config` on it. A `burst` of zero is refused.
+    /// Opens a pty pair, makes it its owner's alone ([`crate::pty_owner::make_private`]) and
+    /// serves the bus of `config` on it. A `burst` of zero is refused.
     pub fn spawn(config: SimConfig) -> std::io::Result<PtyServer> {
         if config.burst.is_some_and(|b| b.is_zero()) {
             return Err(std::io::Error::new(std::io::ErrorKind::InvalidInput, "the burst period must be positive"));
         }
         let (mut master, slave) = TTYPort::pair().map_err(std::io::Error::from)?;
         let path = slave.name().ok_or_else(|| std::io::Error::other("the pty has no path"))?;
+        // The servos take commands through it: its owner's alone before anyone learns its path.
+        crate::pty_owner::make_private(&path).map_err(|e| std::io::Error::other(format!("{e:#}")))?;
         master.set_timeout(IDLE_READ).map_err(std::io::Error::from)?;
         let stop = Arc::new(AtomicBool::new(false));
         let new_faults = Arc::new(Mutex::new(None));
@@ -238,7 +242,7 @@ impl PtyServer {
         }
     }
 
-    /// The slave end's path (e.g. `/dev/pts/5`) for other programs to open.
+    /// The slave end's path (e.g. `/dev/pts/5`, mode 0600) for other programs of its owner to open.
     pub fn path(&self) -> &str {
         &self.path
     }
