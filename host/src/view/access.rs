@@ -211,6 +211,29 @@ mod tests {
         assert!(given.host_ok("192.0.2.7:9000", LOOPBACK));
     }
 
+    proptest::proptest! {
+        /// Any Host or Origin: a clear yes or no, and yes only for this server's names and port.
+        #[test]
+        fn random_hosts_are_judged_without_panic(host in "\\PC{0,40}", port in proptest::prelude::any::<u16>()) {
+            let access = Access::new("127.0.0.1:8765".parse().unwrap());
+            if access.host_ok(&host, LOOPBACK) {
+                proptest::prop_assert!(host.ends_with(":8765"), "{host}");
+            }
+            let candidate = format!("{host}:{port}");
+            if access.host_ok(&candidate, LOOPBACK) {
+                proptest::prop_assert_eq!(port, 8765);
+            }
+            let _ = access.origin_ok(&host, LOOPBACK);
+        }
+
+        /// A token matches itself and nothing else.
+        #[test]
+        fn a_token_matches_only_itself(offered in "[0-9a-f]{0,60}") {
+            let token = Token::generate().unwrap();
+            proptest::prop_assert_eq!(token.matches(&offered), offered == token.as_str());
+        }
+    }
+
     #[test]
     fn origin_is_the_servers_own() {
         let access = Access::new("127.0.0.1:8765".parse().unwrap());

@@ -288,4 +288,47 @@ mod tests {
         let (bad, _) = parse_head(b"POST /api/play HTTP/1.1\r\nContent-Length: -1\r\n\r\n").unwrap();
         assert_eq!(body_length(&bad, 10).unwrap_err().status, 400);
     }
+
+    mod random {
+        use super::*;
+        use proptest::prelude::*;
+
+        proptest! {
+            /// Any bytes: an error or a head within the limits, never a panic.
+            #[test]
+            fn any_bytes_are_a_head_within_the_limits_or_refused(bytes in proptest::collection::vec(any::<u8>(), 0..600)) {
+                let mut input = bytes;
+                input.extend_from_slice(b"\r\n\r\n");
+                if let Ok((head, _)) = parse_head(&input) {
+                    prop_assert!(head.headers.len() <= MAX_HEADERS);
+                    for name in SINGLE {
+                        prop_assert!(head.headers.iter().filter(|(n, _)| n == name).count() <= 1);
+                    }
+                    let _ = body_length(&head, 4096);
+                }
+            }
+
+            /// A head as a client writes it reads back as written, the body's first bytes kept.
+            #[test]
+            fn a_written_head_reads_back(
+                method in prop::sample::select(vec!["GET", "POST", "OPTIONS", "PUT"]),
+                path in "/[a-z/]{0,20}",
+                query in proptest::option::of("[a-z0-9=&]{1,20}"),
+                headers in proptest::collection::vec(("X-[A-Za-z]{1,8}", "[ -~&&[^ ]]{0,30}"), 0..MAX_HEADERS),
+                body in "[a-z]{0,10}",
+            ) {
+                let target = match &query { Some(q) => format!("{path}?{q}"), None => path.clone() };
+                let lines: String = headers.iter().map(|(n, v)| format!("{n}: {v}\r\n")).collect();
+                let text = format!("{method} {target} HTTP/1.1\r\n{lines}\r\n{body}");
+                let (head, rest) = parse_head(text.as_bytes()).unwrap();
+                prop_assert_eq!(&head.method, method);
+                prop_assert_eq!(&head.path, &path);
+                prop_assert_eq!(&head.query, &query);
+                let expected: Vec<(String, String)> =
+                    headers.iter().map(|(n, v)| (n.to_ascii_lowercase(), v.trim().to_string())).collect();
+                prop_assert_eq!(&head.headers, &expected);
+                prop_assert_eq!(rest, body.as_bytes());
+            }
+        }
+    }
 }
