@@ -1,8 +1,10 @@
 //! `armctl view` in a real browser: runs host/tests/view/e2e.mjs (node, playwright-core and
 //! Debian's headless Chromium), which starts `armctl view --sim`, loads its page and checks the
 //! 3D view, a joint slider, dragging the target gizmo, stopping a playing file, the API's refusals
-//! of bad input, and measures the cost (websocket messages per second, server CPU). Screenshots
-//! and cost.json go to target/view-e2e/ (CI keeps target/).
+//! of bad input, the token (out of the address bar; requests without it, or from a foreign Origin
+//! or Host, refused; a hostile page on another origin in the same browser moves nothing), and
+//! measures the cost (websocket messages per second, server CPU). Screenshots and cost.json go to
+//! target/view-e2e/ (CI keeps target/).
 //!
 //! Skips with a message where node, Chromium or the npm packages are missing (`npm ci --prefix
 //! host/tests/view`; `apt-get install chromium`), and fails instead when the `CI` variable is set:

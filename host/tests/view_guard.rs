@@ -443,7 +443,8 @@ fn a_flood_of_requests_does_not_disturb_the_control_loop() {
 }
 
 /// Ctrl-C while slow clients hold connections and a file plays: the arm is at rest and the
-/// process has exited within 2 s. A second Ctrl-C switches the torque off.
+/// process has exited within 2 s. SIGTERM counts as Ctrl-C, and a second signal switches the
+/// torque off.
 #[test]
 fn ctrl_c_stops_the_arm_first_then_exits_whatever_is_connected() {
     let _one = serial();
@@ -487,14 +488,14 @@ fn ctrl_c_stops_the_arm_first_then_exits_whatever_is_connected() {
         t.join().unwrap();
     }
 
-    // Twice: torque off, exit 130.
+    // SIGTERM, then Ctrl-C while the arm brakes: torque off, exit 130.
     let view = View::start(&[]);
     let (code, body) = view.post("play", json!({"name": "wave.csv", "csv": wave(10.0, 1.0)}));
     assert_eq!(code, 200, "{body}");
     view.wait_for(|s| s["play"]["play_time"].as_f64().unwrap_or(0.0) > 1.0, "playing", 5.0);
     // The second 5 ms after the first, while the arm brakes.
     let pid = view.child.id().to_string();
-    let _ = std::process::Command::new("sh").args(["-c", "kill -INT $0; sleep 0.005; kill -INT $0", &pid]).status();
+    let _ = std::process::Command::new("sh").args(["-c", "kill -TERM $0; sleep 0.005; kill -INT $0", &pid]).status();
     let (code, stderr) = view.exit_within(Duration::from_secs(10));
     assert_eq!(code, Some(130), "{stderr}");
     assert!(stderr.contains("second signal: torque off"), "{stderr}");

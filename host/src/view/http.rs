@@ -224,6 +224,11 @@ const COMMON: &str = "Cache-Control: no-store\r\nX-Content-Type-Options: nosniff
 /// Writes `answer` and closes the sending side, within [`WRITE_TIME`]. A failure means the client
 /// went away or does not read; there is no one to tell.
 pub fn respond(stream: &mut TcpStream, answer: &Answer) {
+    respond_within(stream, answer, WRITE_TIME);
+}
+
+/// [`respond`] within `limit`.
+pub fn respond_within(stream: &mut TcpStream, answer: &Answer, limit: Duration) {
     let head = format!(
         "HTTP/1.1 {} {}\r\nContent-Type: {}\r\nContent-Length: {}\r\n{COMMON}Connection: close\r\n\r\n",
         answer.status,
@@ -231,7 +236,7 @@ pub fn respond(stream: &mut TcpStream, answer: &Answer) {
         answer.content_type,
         answer.body.len()
     );
-    let _ = stream.set_write_timeout(Some(WRITE_TIME));
+    let _ = stream.set_write_timeout(Some(limit));
     let _ = stream.write_all(head.as_bytes()).and_then(|_| stream.write_all(&answer.body)).and_then(|_| stream.flush());
     let _ = stream.shutdown(std::net::Shutdown::Write);
 }

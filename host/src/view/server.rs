@@ -149,8 +149,8 @@ fn accept(listener: &TcpListener, shared: &Arc<Shared>) {
         };
         if shared.connections.load(Ordering::SeqCst) >= MAX_CONNECTIONS {
             let busy = ApiError::new(503, format!("{MAX_CONNECTIONS} connections are open already: try again"));
-            let _ = stream.set_write_timeout(Some(Duration::from_millis(100)));
-            http::respond(&mut stream, &Answer::error(&busy));
+            // On the acceptor's own thread: briefly, whatever the client does.
+            http::respond_within(&mut stream, &Answer::error(&busy), Duration::from_millis(100));
             continue;
         }
         let id = ids.fetch_add(1, Ordering::SeqCst);
