@@ -304,6 +304,37 @@ fn one_served_arm_keeps_its_state_across_five_commands() {
     assert!(errors.contains("safety monitor:") && errors.contains(" 0 violations"), "{errors}");
 }
 
+/// A Cartesian move whose straight line runs into the joint limits (one the random moves of
+/// controller_sil.rs found stalled before) arrives by joints for the rest of the way, and says so;
+/// a move whose line is clear says `line`.
+#[test]
+fn a_move_whose_line_is_blocked_arrives_by_joints_and_says_so() {
+    let _one = one_at_a_time();
+    let (mut child, pty, errors) = serve(&["--sim", "--arm", "so101"]);
+    let port = |args: &[&str]| {
+        let mut all = vec!["--port", pty.as_str()];
+        all.extend_from_slice(args);
+        armctl(&all)
+    };
+    let (start, end) = ([0.619, 0.712, 0.457, 1.201, -1.828], [-0.576, 1.521, 1.086, -0.089, 1.206]);
+    port(&["joints", "--q", &join(&start), "--json"]).json("joints");
+    let goal = tool_at("so101", &end);
+    let blocked = port(&["move", "--to", &join(&goal), "--speed", "0.2", "--timeout", "20", "--json"]).json("move");
+    assert_eq!(blocked["path"], "line, then joints", "{blocked}");
+    assert!(blocked["error_mm"].as_f64().unwrap() < 1.0, "{blocked}");
+    // Back: that line is blocked too, and the text says so.
+    let words = port(&["move", "--to", &join(&tool_at("so101", &start)), "--speed", "0.2", "--timeout", "20"]);
+    words.ok("move back");
+    assert!(words.stdout.contains("the straight line ran into the joint limits"), "{}", words.stdout);
+    let clear = tool_at("so101", &[0.5, 0.712, 0.457, 1.201, -1.5]);
+    let line = port(&["move", "--to", &join(&clear), "--speed", "0.2", "--json"]).json("move");
+    assert_eq!(line["path"], "line", "{line}");
+    signal(&child, "TERM");
+    assert_eq!(exit_code(&mut child), 0);
+    let errors = errors.join().unwrap();
+    assert!(errors.contains(" 0 violations"), "{errors}");
+}
+
 /// Ctrl-C while the served arm moves: it decelerates within its limits and holds, exit 0; a second
 /// signal, while it still brakes, switches the torque off.
 #[test]

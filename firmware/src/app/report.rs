@@ -103,6 +103,7 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
         errors.underruns = c.underruns();
         errors.watchdog_trips = counters.watchdog_trips;
         errors.ik_failures = counters.ik_failures;
+        errors.line_fallbacks = counters.line_fallbacks;
         let state = match c.mode() {
             Mode::Idle => RunState::TorqueOff,
             // Holding a goal the setpoint has not reached yet (the limits made it lag): moving.

@@ -282,7 +282,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         Ok(())
     }
 
-    fn move_joints(&mut self, q: SVector<f32, N>, duration: f32) -> Result<(), Refusal> {
+    pub(super) fn move_joints(&mut self, q: SVector<f32, N>, duration: f32) -> Result<(), Refusal> {
         self.check_joints(&q)?;
         if !duration.is_finite() {
             return Err(Refusal::NotFinite);
@@ -404,14 +404,15 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             return Err(Refusal::BadParameter);
         }
         self.ready()?;
-        // Refuse what IK cannot reach from here, with restarts, before anything moves.
-        self.solve_reachable(target, self.setpoint.position)?;
+        // Refuse what IK cannot reach from here, with restarts, before anything moves; the
+        // solution is where the arm goes by joints if the line turns out to be blocked.
+        let solution = self.solve_reachable(target, self.setpoint.position)?;
         let start = self.tool_position(&self.setpoint.position);
         let distance = (target.position() - start).norm();
         let speed = if is_speed { value } else { (distance / value).max(1e-6) };
         self.reset_player();
         self.tracker = Tracker::new(self.setpoint.position, self.config.ik_iterations_per_tick);
-        self.tool = Some(ToolGoal { target, via: start, speed });
+        self.tool = Some(ToolGoal { target, via: start, speed, solution, best: f32::INFINITY, stalled: 0.0 });
         self.mode = Mode::Tracking;
         Ok(())
     }

@@ -52,6 +52,9 @@ pub struct Counters {
     pub bus_errors: u32,
     /// Tracking ticks whose IK did not converge within the per-tick budget.
     pub ik_failures: u32,
+    /// Cartesian moves whose straight line ran into the joint limits, finished by a joint-space
+    /// move to the solution found before moving.
+    pub line_fallbacks: u32,
     /// Times the watchdog stopped the arm.
     pub watchdog_trips: u32,
     /// Commands refused.

@@ -103,10 +103,16 @@ impl PlayClock {
 
 /// A Cartesian goal and the point moving toward it at the requested speed, which IK follows.
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct ToolGoal {
+struct ToolGoal<const N: usize> {
     target: Target<f32>,
     via: Vector3<f32>,
     speed: f32,
+    /// The joints that reach the target, found before moving: where a joint-space move goes
+    /// when the straight line cannot be followed (it runs into the joint limits).
+    solution: SVector<f32, N>,
+    /// The least the tool has had left to go so far (m), and the time since that last shrank (s).
+    best: f32,
+    stalled: f32,
 }
 
 /// The control loop of an arm of `N` joints with a keyframe queue of `Q` keyframes.
@@ -139,7 +145,7 @@ pub struct Controller<const N: usize, const Q: usize> {
     /// Joints whose position has been read at least once (bit per joint).
     seen: u32,
     play: PlayClock,
-    tool: Option<ToolGoal>,
+    tool: Option<ToolGoal<N>>,
     /// Per-joint deceleration of the brake in progress (rad/s²).
     brake: SVector<f32, N>,
     /// The brake's own velocity profile (rad/s), falling by `brake` each tick to exactly zero.

@@ -10,6 +10,14 @@ use kinematics::Pose;
 use super::health::{Fault, TickReport};
 use super::limiter::{limit_step, Setpoint};
 use super::{Controller, Mode};
+
+/// How long a Cartesian move may make no progress before it goes the rest of the way by joints
+/// (s): a few ticks of IK that cannot follow the point are normal at a singularity's edge.
+const STALL_TIME: f32 = 0.3;
+/// The progress that counts within [`STALL_TIME`] (m), or half the line's pace over it if slower.
+const STALL_PROGRESS: f32 = 1e-4;
+/// Metres of progress a radian of orientation error counts as.
+const STALL_LEVER: f32 = 0.1;
 use crate::bus::cycle::ServoGroup;
 use crate::bus::master::{Clock, Master};
 
@@ -370,6 +378,25 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
                 self.last_ik = Some(super::IkSummary::of(&solution));
                 if solution.status != IkStatus::Converged {
                     self.counters.ik_failures = self.counters.ik_failures.saturating_add(1);
+                }
+                // Progress: while IK follows the point it converges; when it does not, what is
+                // left to go must still shrink, or the line runs into the joint limits.
+                let left =
+                    (distance - step).max(0.0) + solution.position_error + STALL_LEVER * solution.orientation_error;
+                let needed = (goal.speed * STALL_TIME * 0.5).min(STALL_PROGRESS);
+                if solution.status == IkStatus::Converged || left < goal.best - needed {
+                    (goal.best, goal.stalled) = (left, 0.0);
+                } else {
+                    goal.stalled += dt;
+                }
+                self.tool = Some(goal);
+                if goal.stalled > STALL_TIME {
+                    // The rest of the way by joints, to the solution found before moving, at the
+                    // line's pace (or as fast as the limits allow, if that is slower).
+                    self.counters.line_fallbacks = self.counters.line_fallbacks.saturating_add(1);
+                    if self.move_joints(goal.solution, left / goal.speed).is_ok() {
+                        return (self.setpoint.position, SVector::zeros());
+                    }
                 }
                 (self.tracker.q, SVector::zeros())
             }

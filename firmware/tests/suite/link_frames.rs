@@ -102,6 +102,7 @@ fn status(n: usize) -> Status {
             underruns: 0,
             watchdog_trips: u32::MAX,
             ik_failures: u32::MAX,
+            line_fallbacks: u32::MAX,
         },
         lost_servos: u32::MAX,
         gripper: Some(GripperStatus { opening: 41.5, goal: 0.0, load: -35.2, holding: true }),

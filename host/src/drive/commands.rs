@@ -183,9 +183,14 @@ pub fn run(driver: &mut Driver, request: Request, json: bool, out: &mut dyn Writ
             let error_mm = 1e3 * (0..3).map(|i| (reached[i] - goal[i]).powi(2)).sum::<f64>().sqrt();
             let angle_deg = target.orientation.map(|q| angle(&q.map(f64::from), &pose.quaternion_wxyz()).to_degrees());
             let took = f64::from(status.time - start.time);
+            // The firmware follows the straight line, and finishes by joints where the line runs
+            // into the joint limits (it counts each time it does).
+            let blocked = status.errors.line_fallbacks > start.errors.line_fallbacks;
+            let path = if blocked { "line, then joints" } else { "line" };
             if json {
                 let v = json!({
                     "command": "move",
+                    "path": path,
                     "target": goal,
                     "quaternion_wxyz": target.orientation,
                     "reached": reached,
@@ -197,9 +202,14 @@ pub fn run(driver: &mut Driver, request: Request, json: bool, out: &mut dyn Writ
                 writeln!(out, "{v}")?;
             } else {
                 let angle = angle_deg.map(|a| format!(", orientation error {a:.2} deg")).unwrap_or_default();
+                let how = if blocked {
+                    "; the straight line ran into the joint limits, so the arm went the rest of the way by joints"
+                } else {
+                    ""
+                };
                 writeln!(
                     out,
-                    "move: target {shown} m, reached {} m, error {error_mm:.2} mm{angle}, took {took:.2} s",
+                    "move: target {shown} m, reached {} m, error {error_mm:.2} mm{angle}, took {took:.2} s{how}",
                     fmt3(&reached)
                 )?;
             }
