@@ -106,6 +106,7 @@ fn tool_error(arm: &ArmSpec, q: &[f32], target: [f32; 3]) -> f64 {
 
 fn move_to(c: &mut Client, arm: &ArmSpec, target: [f32; 3]) {
     c.request(&HostMessage::MoveTo {
+        path: firmware::link::message::MovePath::Auto,
         target: CartesianTarget { position: target, orientation: None },
         timing: Timing::MaxSpeed(0.2),
     })

@@ -92,6 +92,7 @@ fn so101_moves_its_tool_to_a_target_within_a_millimetre() {
     let target = [0.2f32, 0.05, 0.15];
     let reply = c
         .request(&HostMessage::MoveTo {
+            path: firmware::link::message::MovePath::Auto,
             target: CartesianTarget { position: target, orientation: None },
             timing: Timing::MaxSpeed(0.1),
         })
@@ -260,6 +261,7 @@ fn bad_requests_get_a_reason_and_change_nothing() {
     };
     // NaN in a target (the client refuses it before sending; the firmware refuses it too).
     let nan = HostMessage::MoveTo {
+        path: firmware::link::message::MovePath::Auto,
         target: CartesianTarget { position: [f32::NAN, 0.1, 0.1], orientation: None },
         timing: Timing::MaxSpeed(0.1),
     };
@@ -267,6 +269,7 @@ fn bad_requests_get_a_reason_and_change_nothing() {
     assert!(matches!(send(&mut c, 200, &nan), NakReason::BadValue(_)));
     // Unreachable: 2 m away.
     let far = HostMessage::MoveTo {
+        path: firmware::link::message::MovePath::Auto,
         target: CartesianTarget { position: [2.0, 0.0, 0.1], orientation: None },
         timing: Timing::MaxSpeed(0.1),
     };
@@ -313,6 +316,7 @@ fn open_manipulator_x_on_dynamixel_reaches_cartesian_targets_and_keyframes() {
     let arm = ArmSpec::load("open-manipulator-x", None).unwrap();
     for target in [[0.2f32, 0.0, 0.1], [0.15, 0.1, 0.15], [0.18, -0.08, 0.05]] {
         c.request(&HostMessage::MoveTo {
+            path: firmware::link::message::MovePath::Auto,
             target: CartesianTarget { position: target, orientation: None },
             timing: Timing::Duration(1.5),
         })
@@ -473,6 +477,7 @@ max_acceleration = 6.0
     assert!((s.measured[2] - 100.0 * std::f32::consts::TAU / 4096.0).abs() < 1e-3, "{:?}", s.measured);
     let target = [0.18f32, 0.06, 0.08];
     c.request(&HostMessage::MoveTo {
+        path: firmware::link::message::MovePath::Auto,
         target: CartesianTarget { position: target, orientation: None },
         timing: Timing::MaxSpeed(0.1),
     })

@@ -171,7 +171,13 @@ fn move_tool_reaches_a_reachable_point_within_a_millimetre() {
     let chain = builtin::arm().unwrap();
     let goal = chain.tool_pose(&SVector::from([0.4, -0.7, 0.9, 0.5, 0.0])).translation;
     let from = chain.tool_pose(r.ctl.measured()).translation;
-    r.command(Command::MoveTool { position: goal.into(), orientation: None, pace: Pace::Speed(0.1) }).unwrap();
+    r.command(Command::MoveTool {
+        path: firmware::controller::ToolPath::Auto,
+        position: goal.into(),
+        orientation: None,
+        pace: Pace::Speed(0.1),
+    })
+    .unwrap();
     assert_eq!(r.ctl.mode(), Mode::Tracking);
     let mut ik_ticks = 0;
     let ticks = r.run_until(500, |r, rep| {
@@ -376,13 +382,22 @@ fn nan_out_of_range_and_unreachable_commands_are_refused_and_change_nothing() {
         r.command(Command::MoveJoints { q: [0.0, 0.0, 3.0, 0.0, 0.0], duration: 1.0 }),
         Err(Refusal::OutOfRange { joint: 2 })
     );
-    let tool = |position, pace| Command::MoveTool { position, orientation: None, pace };
+    let tool = |position, pace| Command::MoveTool {
+        path: firmware::controller::ToolPath::Auto,
+        position,
+        orientation: None,
+        pace,
+    };
     assert_eq!(r.command(tool([f32::NAN, 0.0, 0.1], Pace::Speed(0.1))), Err(Refusal::NotFinite));
     assert_eq!(r.command(tool([0.2, 0.0, 0.1], Pace::Speed(0.0))), Err(Refusal::BadParameter));
     let far = r.command(tool([1.0, 0.0, 0.2], Pace::Duration(1.0)));
     assert!(matches!(far, Err(Refusal::Unreachable { position_error }) if position_error > 0.3), "{far:?}");
-    let zero_quaternion =
-        Command::MoveTool { position: [0.2, 0.0, 0.1], orientation: Some([0.0; 4]), pace: Pace::Speed(0.1) };
+    let zero_quaternion = Command::MoveTool {
+        path: firmware::controller::ToolPath::Auto,
+        position: [0.2, 0.0, 0.1],
+        orientation: Some([0.0; 4]),
+        pace: Pace::Speed(0.1),
+    };
     assert_eq!(r.command(zero_quaternion), Err(Refusal::BadParameter));
     let bad_key = PlayerKeyframe::new(1.0, SVector::from(nan));
     assert_eq!(r.command(Command::PushKeyframe { keyframe: bad_key, gripper: None }), Err(Refusal::NotFinite));
@@ -594,7 +609,12 @@ fn random_reachable_moves(moves: usize, fraction: f32, seed: u64) -> (usize, usi
         r.run_until(2000, |_, rep| rep.mode == Mode::Holding);
         let goal = chain.tool_pose(&SVector::from(end)).translation;
         let fallbacks_before = r.ctl.counters().line_fallbacks;
-        match r.command(Command::MoveTool { position: goal.into(), orientation: None, pace: Pace::Speed(0.2) }) {
+        match r.command(Command::MoveTool {
+            path: firmware::controller::ToolPath::Auto,
+            position: goal.into(),
+            orientation: None,
+            pace: Pace::Speed(0.2),
+        }) {
             Err(_) => refused += 1,
             Ok(()) => {
                 // Up to 20 s of controller time (the old limit of `armctl move` was 60 s of wall
@@ -654,4 +674,35 @@ fn random_reachable_moves_arrive() {
         println!("  {s}");
     }
     assert!(stalled.is_empty());
+}
+
+/// One move whose straight line runs into the joint limits (move 1 of the random ones), by each
+/// path: auto finishes by joints, line stops where the line is blocked (holding, short of the
+/// target, nothing counted as finished by joints), joint goes by joints from the start.
+#[test]
+fn a_blocked_line_by_each_path() {
+    use firmware::controller::ToolPath;
+    let chain = builtin::arm().unwrap();
+    let (start, end) = ([0.619, 0.712, 0.457, 1.201, -1.828], [-0.576, 1.521, 1.086, -0.089, 1.206]);
+    let goal = chain.tool_pose(&SVector::from(end)).translation;
+    for path in [ToolPath::Auto, ToolPath::Line, ToolPath::Joint] {
+        let mut r = armed();
+        r.command(Command::MoveJoints { q: start, duration: 0.0 }).unwrap();
+        r.run_until(2000, |_, rep| rep.mode == Mode::Holding);
+        r.command(Command::MoveTool { path, position: goal.into(), orientation: None, pace: Pace::Speed(0.2) })
+            .unwrap();
+        let first = r.ctl.mode();
+        r.run_until(2000, |r, rep| rep.mode == Mode::Holding && r.ctl.setpoint().velocity.iter().all(|v| *v == 0.0));
+        let short = (chain.tool_pose(&r.ctl.setpoint().position).translation - goal).norm();
+        let fallbacks = r.ctl.counters().line_fallbacks;
+        println!(
+            "{path:?}: first {first:?}, {:.1} mm short by the setpoint, {fallbacks} finished by joints",
+            short * 1e3
+        );
+        match path {
+            ToolPath::Auto => assert!(short < 1e-3 && fallbacks == 1 && first == Mode::Tracking),
+            ToolPath::Line => assert!(short > 0.01 && fallbacks == 0 && first == Mode::Tracking),
+            ToolPath::Joint => assert!(short < 1e-3 && fallbacks == 0 && first == Mode::Playing),
+        }
+    }
 }

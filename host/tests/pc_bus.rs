@@ -306,7 +306,8 @@ fn one_served_arm_keeps_its_state_across_five_commands() {
 
 /// A Cartesian move whose straight line runs into the joint limits (one the random moves of
 /// controller_sil.rs found stalled before) arrives by joints for the rest of the way, and says so;
-/// a move whose line is clear says `line`.
+/// a move whose line is clear says `line`; `--path line` stops at the block and says why in one
+/// line; `--path joint` goes by joints.
 #[test]
 fn a_move_whose_line_is_blocked_arrives_by_joints_and_says_so() {
     let _one = one_at_a_time();
@@ -329,6 +330,15 @@ fn a_move_whose_line_is_blocked_arrives_by_joints_and_says_so() {
     let clear = tool_at("so101", &[0.5, 0.712, 0.457, 1.201, -1.5]);
     let line = port(&["move", "--to", &join(&clear), "--speed", "0.2", "--json"]).json("move");
     assert_eq!(line["path"], "line", "{line}");
+    // --path line: stops where the line is blocked, and says where and why.
+    port(&["joints", "--q", &join(&start), "--json"]).json("joints");
+    let refused = port(&["move", "--to", &join(&goal), "--speed", "0.2", "--path", "line", "--timeout", "20"]);
+    refused.fails(&["ran into the joint limits", "mm short", "at its", "limit", "--path auto"]);
+    // --path joint: by joints from the start.
+    let joint = port(&["move", "--to", &join(&goal), "--speed", "0.2", "--path", "joint", "--timeout", "20", "--json"])
+        .json("move --path joint");
+    assert_eq!(joint["path"], "joint", "{joint}");
+    assert!(joint["error_mm"].as_f64().unwrap() < 1.0, "{joint}");
     signal(&child, "TERM");
     assert_eq!(exit_code(&mut child), 0);
     let errors = errors.join().unwrap();

@@ -7,9 +7,9 @@ use kinematics::trajectory::PlayerKeyframe;
 use super::report::{free_slots, LinkCounts};
 use super::Core;
 use crate::bus::master::BusConfig;
-use crate::controller::{minimum_period_us, Command, Pace, Refusal};
+use crate::controller::{minimum_period_us, Command, Pace, Refusal, ToolPath};
 use crate::link::message::{
-    EStopMode, Field, FirmwareMessage, HostMessage, Info, Joints, NakReason, Problem, Timing, ValueError,
+    EStopMode, Field, FirmwareMessage, HostMessage, Info, Joints, MovePath, NakReason, Problem, Timing, ValueError,
     PROTOCOL_VERSION,
 };
 
@@ -219,12 +219,17 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
         let command = match message {
             HostMessage::Torque { on: true } => Command::TorqueOn,
             HostMessage::Torque { on: false } => Command::TorqueOff,
-            HostMessage::MoveTo { target, timing } => Command::MoveTool {
+            HostMessage::MoveTo { target, timing, path } => Command::MoveTool {
                 position: target.position,
                 orientation: target.orientation,
                 pace: match *timing {
                     Timing::Duration(d) => Pace::Duration(d),
                     Timing::MaxSpeed(v) => Pace::Speed(v),
+                },
+                path: match path {
+                    MovePath::Auto => ToolPath::Auto,
+                    MovePath::Line => ToolPath::Line,
+                    MovePath::Joint => ToolPath::Joint,
                 },
             },
             HostMessage::MoveJoints { positions, timing } => {

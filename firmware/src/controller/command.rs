@@ -17,6 +17,18 @@ pub enum Pace {
     Speed(f32),
 }
 
+/// Which way the tool goes to a Cartesian goal.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ToolPath {
+    /// The straight line; where it runs into the joint limits, the rest of the way by joints.
+    #[default]
+    Auto,
+    /// The straight line only: where it runs into the joint limits, stop there.
+    Line,
+    /// By joints, to the solution found before moving.
+    Joint,
+}
+
 /// A command from the host.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Command<const N: usize> {
@@ -42,6 +54,8 @@ pub enum Command<const N: usize> {
         orientation: Option<[f32; 4]>,
         /// How fast.
         pace: Pace,
+        /// Which way.
+        path: ToolPath,
     },
     /// Queue a keyframe. Its time is seconds on the playback clock, which starts at 0 when a
     /// trajectory starts from rest ([`Command::Start`]); while playing, keyframes append.
@@ -208,7 +222,9 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
                 Ok(())
             }
             Command::MoveJoints { q, duration } => self.move_joints(SVector::from(q), duration),
-            Command::MoveTool { position, orientation, pace } => self.move_tool(position, orientation, pace),
+            Command::MoveTool { position, orientation, pace, path } => {
+                self.move_tool(position, orientation, pace, path)
+            }
             Command::PushKeyframe { keyframe, gripper } => self.push_keyframe(keyframe, gripper),
             Command::PushToolKeyframe { time, position, orientation, gripper } => {
                 self.push_tool_keyframe(time, position, orientation, gripper)
@@ -391,7 +407,13 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         self.chain.forward(q).tool.translation
     }
 
-    fn move_tool(&mut self, position: [f32; 3], orientation: Option<[f32; 4]>, pace: Pace) -> Result<(), Refusal> {
+    fn move_tool(
+        &mut self,
+        position: [f32; 3],
+        orientation: Option<[f32; 4]>,
+        pace: Pace,
+        path: ToolPath,
+    ) -> Result<(), Refusal> {
         let target = Self::tool_target(position, orientation)?;
         let (value, is_speed) = match pace {
             Pace::Duration(d) => (d, false),
@@ -410,9 +432,13 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         let start = self.tool_position(&self.setpoint.position);
         let distance = (target.position() - start).norm();
         let speed = if is_speed { value } else { (distance / value).max(1e-6) };
+        if path == ToolPath::Joint {
+            // At the line's pace, or as fast as the limits allow if that is slower.
+            return self.move_joints(solution, distance / speed);
+        }
         self.reset_player();
         self.tracker = Tracker::new(self.setpoint.position, self.config.ik_iterations_per_tick);
-        self.tool = Some(ToolGoal { target, via: start, speed, solution, best: f32::INFINITY, stalled: 0.0 });
+        self.tool = Some(ToolGoal { target, via: start, speed, solution, best: f32::INFINITY, stalled: 0.0, path });
         self.mode = Mode::Tracking;
         Ok(())
     }

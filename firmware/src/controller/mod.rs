@@ -26,7 +26,7 @@ mod health;
 pub mod limiter;
 mod tick;
 
-pub use command::{Command, Pace, Refusal};
+pub use command::{Command, Pace, Refusal, ToolPath};
 pub use config::{joint_limits, minimum_period_us, Config, ConfigError};
 pub use gripper::{GripperConfig, GripperState};
 pub use health::{Counters, Fault, ServoHealth, TickReport};
@@ -113,6 +113,8 @@ struct ToolGoal<const N: usize> {
     /// The least the tool has had left to go so far (m), and the time since that last shrank (s).
     best: f32,
     stalled: f32,
+    /// What to do when the line is blocked: finish by joints ([`ToolPath::Auto`]) or stop.
+    path: ToolPath,
 }
 
 /// The control loop of an arm of `N` joints with a keyframe queue of `Q` keyframes.

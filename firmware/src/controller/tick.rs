@@ -9,7 +9,7 @@ use kinematics::Pose;
 
 use super::health::{Fault, TickReport};
 use super::limiter::{limit_step, Setpoint};
-use super::{Controller, Mode};
+use super::{Controller, Mode, ToolPath};
 
 /// How long a Cartesian move may make no progress before it goes the rest of the way by joints
 /// (s): a few ticks of IK that cannot follow the point are normal at a singularity's edge.
@@ -391,6 +391,11 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
                 }
                 self.tool = Some(goal);
                 if goal.stalled > STALL_TIME {
+                    if goal.path == ToolPath::Line {
+                        // The line only: stop where it is blocked (the host says why).
+                        self.begin_stop();
+                        return (self.setpoint.position, SVector::zeros());
+                    }
                     // The rest of the way by joints, to the solution found before moving, at the
                     // line's pace (or as fast as the limits allow, if that is slower).
                     self.counters.line_fallbacks = self.counters.line_fallbacks.saturating_add(1);

@@ -17,7 +17,7 @@ use heapless::{String, Vec};
 use serde::{Deserialize, Serialize};
 
 /// The protocol version carried by the handshake; bumped on any change to the wire format.
-pub const PROTOCOL_VERSION: u16 = 4;
+pub const PROTOCOL_VERSION: u16 = 5;
 /// The most joints a message carries.
 pub const MAX_JOINTS: usize = 8;
 /// The longest arm name, in bytes of UTF-8.
@@ -49,6 +49,18 @@ pub enum Timing {
     /// As fast as the limits allow, the tool (or, for joint moves, every joint) no faster than this
     /// (m/s for the tool, rad/s or m/s for joints; > 0).
     MaxSpeed(f32),
+}
+
+/// Which way the tool goes to a Cartesian target (protocol version 5).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum MovePath {
+    /// The straight line; where it runs into the joint limits, the rest of the way by joints.
+    #[default]
+    Auto,
+    /// The straight line only: where it runs into the joint limits, the arm stops there.
+    Line,
+    /// By joints, to the solution found before moving.
+    Joint,
 }
 
 /// A Cartesian target of the tool in the base frame.
@@ -223,6 +235,8 @@ pub enum HostMessage {
         target: CartesianTarget,
         /// How long.
         timing: Timing,
+        /// Which way (protocol version 5).
+        path: MovePath,
     },
     /// Moves to joint values.
     MoveJoints {
@@ -703,7 +717,7 @@ impl HostMessage {
                 check(Field::JointIndex, usize::from(*index) < MAX_JOINTS, Problem::OutOfRange)?;
                 joint.validate()
             }
-            Self::MoveTo { target, timing } => {
+            Self::MoveTo { target, timing, .. } => {
                 target.validate()?;
                 timing.validate()
             }

@@ -148,8 +148,12 @@ fn host_messages() -> std::vec::Vec<HostMessage> {
         HostMessage::ConfigureCommit,
         HostMessage::UseBuiltinArm,
         HostMessage::Torque { on: true },
-        HostMessage::MoveTo { target, timing: Timing::Duration(2.0) },
-        HostMessage::MoveTo { target: CartesianTarget { orientation: None, ..target }, timing: Timing::MaxSpeed(0.1) },
+        HostMessage::MoveTo { path: firmware::link::message::MovePath::Auto, target, timing: Timing::Duration(2.0) },
+        HostMessage::MoveTo {
+            path: firmware::link::message::MovePath::Auto,
+            target: CartesianTarget { orientation: None, ..target },
+            timing: Timing::MaxSpeed(0.1),
+        },
         HostMessage::MoveJoints { positions: joints(MAX_JOINTS, -1.0), timing: Timing::MaxSpeed(1.0) },
         HostMessage::PushKeyframe(JointKeyframe {
             time: 1.25,
@@ -334,6 +338,7 @@ fn unknown_kind_and_unknown_message_rejected() {
 #[test]
 fn validate_refuses_bad_values_with_the_field() {
     let target = |p: [f32; 3], q: Option<[f32; 4]>| HostMessage::MoveTo {
+        path: firmware::link::message::MovePath::Auto,
         target: CartesianTarget { position: p, orientation: q },
         timing: Timing::Duration(1.0),
     };
@@ -505,6 +510,7 @@ fn session_naks_bad_input_and_changes_nothing() {
     let mut applied = vec![];
     let nak = |seq, kind, reason| (seq, kind, FirmwareMessage::Nak { reason });
     let nan = HostMessage::MoveTo {
+        path: firmware::link::message::MovePath::Auto,
         target: CartesianTarget { position: [f32::NAN, 0.0, 0.0], orientation: None },
         timing: Timing::Duration(1.0),
     };

@@ -114,6 +114,7 @@ fn reach_targets(
         trace.extend(c.transport().take_trace());
         let first_tick = trace.len();
         let message = HostMessage::MoveTo {
+            path: firmware::link::message::MovePath::Auto,
             target: CartesianTarget { position: target, orientation: None },
             timing: Timing::MaxSpeed(scenario.speed),
         };

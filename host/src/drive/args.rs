@@ -256,6 +256,18 @@ pub enum OnOff {
     Off,
 }
 
+/// `move --path`: which way the tool goes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, ValueEnum)]
+pub enum PathArg {
+    /// The straight line; where it runs into the joint limits, the rest of the way by joints.
+    #[default]
+    Auto,
+    /// The straight line only: where it runs into the joint limits, stop there and say why.
+    Line,
+    /// By joints, to the joint values IK found for the target.
+    Joint,
+}
+
 /// `armctl move`.
 #[derive(Args, Debug)]
 pub struct MoveArgs {
@@ -274,6 +286,10 @@ pub struct MoveArgs {
     /// Arrive after this many seconds (joint limits permitting).
     #[arg(long, allow_hyphen_values = true)]
     pub duration: Option<f64>,
+    /// Which way: the straight line, finished by joints where it runs into the joint limits
+    /// (auto); the line only (line); or by joints (joint).
+    #[arg(long, value_enum, default_value_t = PathArg::Auto)]
+    pub path: PathArg,
     /// Give up waiting (and stop the arm) after this many seconds of controller time.
     #[arg(long, default_value_t = 60.0)]
     pub timeout: f64,

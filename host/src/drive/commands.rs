@@ -5,11 +5,12 @@ use std::io::Write;
 
 use anyhow::{anyhow, bail, Result};
 use firmware::link::message::{
-    CartesianTarget, HostMessage, RunState, Status, Timing, MAX_REACH, MAX_SPEED, MAX_TIME, QUATERNION_TOLERANCE,
+    CartesianTarget, HostMessage, MovePath, RunState, Status, Timing, MAX_REACH, MAX_SPEED, MAX_TIME,
+    QUATERNION_TOLERANCE,
 };
 use serde_json::json;
 
-use super::args::{DriveCommand, JointsArgs, MoveArgs, OnOff};
+use super::args::{DriveCommand, JointsArgs, MoveArgs, OnOff, PathArg};
 use super::gripper::GripperRequest;
 use super::interrupt;
 use super::play::{self, Plan};
@@ -27,6 +28,8 @@ pub enum Request {
         target: CartesianTarget,
         /// How fast.
         timing: Timing,
+        /// Which way.
+        path: MovePath,
         /// Controller seconds to wait.
         timeout: f64,
     },
@@ -103,9 +106,15 @@ fn parse_move(args: &MoveArgs) -> Result<Request> {
         )?),
     };
     positive(args.timeout, f64::from(MAX_TIME), "--timeout", "s")?;
+    let path = match args.path {
+        PathArg::Auto => MovePath::Auto,
+        PathArg::Line => MovePath::Line,
+        PathArg::Joint => MovePath::Joint,
+    };
     Ok(Request::Move {
         target: CartesianTarget { position: position.map(|x| x as f32), orientation },
         timing,
+        path,
         timeout: args.timeout,
     })
 }
@@ -164,10 +173,10 @@ pub fn run(driver: &mut Driver, request: Request, json: bool, out: &mut dyn Writ
             }
             Ok(0)
         }
-        Request::Move { target, timing, timeout } => {
+        Request::Move { target, timing, path, timeout } => {
             let (start, switched) = driver.ready_to_move()?;
             interrupt::catch();
-            let message = HostMessage::MoveTo { target, timing };
+            let message = HostMessage::MoveTo { target, timing, path };
             let shown = fmt3(&target.position.map(f64::from));
             if let Err(e) = driver.request(&message) {
                 bail!("move to {shown} m: {e}; nothing moved{}", driver.undo_torque(switched));
@@ -184,9 +193,20 @@ pub fn run(driver: &mut Driver, request: Request, json: bool, out: &mut dyn Writ
             let angle_deg = target.orientation.map(|q| angle(&q.map(f64::from), &pose.quaternion_wxyz()).to_degrees());
             let took = f64::from(status.time - start.time);
             // The firmware follows the straight line, and finishes by joints where the line runs
-            // into the joint limits (it counts each time it does).
+            // into the joint limits (it counts each time it does); with --path line it stops there.
             let blocked = status.errors.line_fallbacks > start.errors.line_fallbacks;
-            let path = if blocked { "line, then joints" } else { "line" };
+            if path == MovePath::Line && error_mm > 1.0 {
+                bail!(
+                    "move to {shown} m: the straight line ran into the joint limits: stopped {error_mm:.1} mm short{}; \
+                     --path auto finishes such a move by joints",
+                    at_limits(driver.arm(), &status.measured)
+                );
+            }
+            let path = match path {
+                MovePath::Joint => "joint",
+                _ if blocked => "line, then joints",
+                _ => "line",
+            };
             if json {
                 let v = json!({
                     "command": "move",
@@ -308,4 +328,32 @@ fn print_status(driver: &Driver, s: &Status, json: bool, out: &mut dyn Write) ->
         e.link_corrupt, e.link_oversized, e.naks, e.bus_timeouts, e.bus_errors, e.underruns
     )?;
     Ok(())
+}
+
+/// The joints within 0.02 rad (or m) of a limit at `q`, in words (", joint 2 (shoulder_lift) at its
+/// upper limit 1.745"), or nothing.
+fn at_limits(arm: &crate::arm::ArmSpec, q: &[f32]) -> String {
+    const NEAR: f64 = 0.02;
+    let words: Vec<String> = arm
+        .joints
+        .iter()
+        .zip(q)
+        .enumerate()
+        .filter(|(_, (spec, _))| spec.kind != kinematics::JointKind::Continuous)
+        .filter_map(|(j, (spec, &x))| {
+            let x = f64::from(x);
+            let (which, limit) = if x - spec.lower < NEAR {
+                ("lower", spec.lower)
+            } else if spec.upper - x < NEAR {
+                ("upper", spec.upper)
+            } else {
+                return None;
+            };
+            Some(format!("joint {} ({}) at its {which} limit {limit:.3}", j + 1, spec.name))
+        })
+        .collect();
+    match words.is_empty() {
+        true => String::new(),
+        false => format!(", {}", words.join(", ")),
+    }
 }

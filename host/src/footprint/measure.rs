@@ -47,6 +47,7 @@ pub fn measure(elf: &Path) -> Result<MeasuredStack> {
     let c = &mut link.client;
     request_when_ready(c, &HostMessage::Torque { on: true }, NOT_READY_WAITS).context("torque on")?;
     c.request(&HostMessage::MoveTo {
+        path: firmware::link::message::MovePath::Auto,
         target: CartesianTarget { position: [0.2, 0.05, 0.15], orientation: None },
         timing: Timing::MaxSpeed(0.2),
     })?;

@@ -341,8 +341,11 @@ impl LoopState {
                         position: position.map(|x| x as f32),
                         orientation: orientation.map(|q| q.map(|x| x as f32)),
                     };
-                    let sent =
-                        self.driver.request(&HostMessage::MoveTo { target, timing: Timing::MaxSpeed(TARGET_SPEED) });
+                    let sent = self.driver.request(&HostMessage::MoveTo {
+                        path: firmware::link::message::MovePath::Auto,
+                        target,
+                        timing: Timing::MaxSpeed(TARGET_SPEED),
+                    });
                     if let Err(e) = sent {
                         let e = link_error(e);
                         self.extras.target["reachable"] = json!(false);
