@@ -305,9 +305,9 @@ fn one_served_arm_keeps_its_state_across_five_commands() {
 }
 
 /// A Cartesian move whose straight line runs into the joint limits (one the random moves of
-/// controller_sil.rs found stalled before) arrives by joints for the rest of the way, and says so;
-/// a move whose line is clear says `line`; `--path line` stops at the block and says why in one
-/// line; `--path joint` goes by joints.
+/// controller_sil.rs found stalled before): the host's check of the line finds it blocked, so it
+/// goes by joints and says so; a move whose line is clear says `line`; `--path line` is refused
+/// before anything moves, saying where and why, in one line; `--path joint` goes by joints.
 #[test]
 fn a_move_whose_line_is_blocked_arrives_by_joints_and_says_so() {
     let _one = one_at_a_time();
@@ -320,20 +320,29 @@ fn a_move_whose_line_is_blocked_arrives_by_joints_and_says_so() {
     let (start, end) = ([0.619, 0.712, 0.457, 1.201, -1.828], [-0.576, 1.521, 1.086, -0.089, 1.206]);
     port(&["joints", "--q", &join(&start), "--json"]).json("joints");
     let goal = tool_at("so101", &end);
+    // The host checks the line first, as the firmware will track it: blocked, so by joints.
     let blocked = port(&["move", "--to", &join(&goal), "--speed", "0.2", "--timeout", "20", "--json"]).json("move");
-    assert_eq!(blocked["path"], "line, then joints", "{blocked}");
+    assert_eq!(blocked["path"], "joint", "{blocked}");
+    assert!(blocked["line_blocked_mm"].as_f64().is_some(), "{blocked}");
     assert!(blocked["error_mm"].as_f64().unwrap() < 1.0, "{blocked}");
-    // Back: that line is blocked too, and the text says so.
+    // Back: that line is blocked too, and the text says where.
     let words = port(&["move", "--to", &join(&tool_at("so101", &start)), "--speed", "0.2", "--timeout", "20"]);
     words.ok("move back");
-    assert!(words.stdout.contains("the straight line ran into the joint limits"), "{}", words.stdout);
+    assert!(
+        words.stdout.contains("the straight line is blocked") && words.stdout.contains("by joints"),
+        "{}",
+        words.stdout
+    );
     let clear = tool_at("so101", &[0.5, 0.712, 0.457, 1.201, -1.5]);
     let line = port(&["move", "--to", &join(&clear), "--speed", "0.2", "--json"]).json("move");
     assert_eq!(line["path"], "line", "{line}");
-    // --path line: stops where the line is blocked, and says where and why.
+    // --path line: refused before anything moves, saying where the line is blocked and why.
     port(&["joints", "--q", &join(&start), "--json"]).json("joints");
+    let before = port(&["status", "--json"]).json("status");
     let refused = port(&["move", "--to", &join(&goal), "--speed", "0.2", "--path", "line", "--timeout", "20"]);
-    refused.fails(&["ran into the joint limits", "mm short", "at its", "limit", "--path auto"]);
+    refused.fails(&["the straight line is blocked", "mm along", "at its", "limit", "nothing moved", "--path auto"]);
+    let after = port(&["status", "--json"]).json("status");
+    assert_eq!(after["setpoints"], before["setpoints"], "--path line moved the arm");
     // --path joint: by joints from the start.
     let joint = port(&["move", "--to", &join(&goal), "--speed", "0.2", "--path", "joint", "--timeout", "20", "--json"])
         .json("move --path joint");

@@ -9,11 +9,11 @@
 //! (position only, f32 as on the firmware) from one point to the next without a jump.
 
 use anyhow::{bail, Result};
-use kinematics::ik::IkStatus;
 use kinematics::SplitMix64;
 
-use crate::arm::dof::{DynArm, IkRequest, Scalar, SolverName};
+use crate::arm::dof::DynArm;
 use crate::arm::servos::GripperSpec;
+use crate::motion::line::Line;
 
 /// One arm's demo.
 pub struct Scenario {
@@ -46,13 +46,10 @@ const MOVE_SPEED: f32 = 0.15;
 const PATH_SPEED: f32 = 0.1;
 /// The object's width unless the jaws are too narrow for it (mm).
 const OBJECT_MM: f64 = 30.0;
-/// Points checked by IK along each straight line, ends included.
+/// Points checked by IK along each straight line, ends included ([`Line::follow`]).
 const LINE_POINTS: usize = 8;
 /// Pick and place pairs whose path is checked by IK at most.
 const MAX_PAIRS: usize = 200;
-/// The largest change of any joint between two neighbouring points of a line (rad): more is a
-/// jump to another branch of the IK, which the firmware's tracking would not follow smoothly.
-const MAX_JOINT_STEP: f64 = 0.5;
 
 fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
     (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>().sqrt()
@@ -60,10 +57,6 @@ fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
 
 fn horizontal(p: [f64; 3]) -> f64 {
     p[0].hypot(p[1])
-}
-
-fn lerp(a: [f64; 3], b: [f64; 3], u: f64) -> [f64; 3] {
-    [0, 1, 2].map(|i| a[i] + u * (b[i] - a[i]))
 }
 
 /// The arm's workspace as the demo draws from it.
@@ -101,25 +94,7 @@ impl<'a> Workspace<'a> {
     /// The joint values at `to` when the tool follows the straight line there from `from`, where
     /// the joints are `q`; `None` unless every point of it solves, near the last.
     fn follow(&self, q: &[f64], from: [f64; 3], to: [f64; 3]) -> Option<Vec<f64>> {
-        let mut q = q.to_vec();
-        for k in 1..LINE_POINTS {
-            let target = lerp(from, to, k as f64 / (LINE_POINTS - 1) as f64);
-            let request = IkRequest {
-                position: target,
-                quaternion_wxyz: None,
-                seed: Some(q.clone()),
-                solver: SolverName::Dls,
-                config: Default::default(),
-                scalar: Scalar::F32,
-            };
-            let outcome = self.arm.solve(&request).ok()?;
-            let step = outcome.q.iter().zip(&q).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
-            if outcome.status != IkStatus::Converged || step > MAX_JOINT_STEP {
-                return None;
-            }
-            q = outcome.q;
-        }
-        Some(q)
+        Line { from, to, orientation: None }.follow(self.arm, q, LINE_POINTS).ok()?.ok()
     }
 
     /// Follows every line of `path` from `q`; the joints at its end, or `None`.

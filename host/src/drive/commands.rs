@@ -16,6 +16,7 @@ use super::interrupt;
 use super::play::{self, Plan};
 use super::session::{check_joints, fmt3, fmt_list, Driver, Waited};
 use crate::args::numbers as parse;
+use crate::motion::line::{Blocked, Line};
 
 /// The tool speed of `move` without --speed or --duration (m/s): slow enough to watch.
 pub const DEFAULT_TOOL_SPEED: f64 = 0.1;
@@ -175,9 +176,29 @@ pub fn run(driver: &mut Driver, request: Request, json: bool, out: &mut dyn Writ
         }
         Request::Move { target, timing, path, timeout } => {
             let (start, switched) = driver.ready_to_move()?;
+            let shown = fmt3(&target.position.map(f64::from));
+            // The line first, as the firmware will track it: blocked, --path line refuses before
+            // anything moves, and auto goes by joints from the start.
+            let blocked_ahead = match path {
+                MovePath::Joint => None,
+                _ => match check_line(driver, &start, &target) {
+                    Ok(checked) => checked.err(),
+                    Err(e) => bail!("move to {shown} m: {e:#}; nothing moved{}", driver.undo_torque(switched)),
+                },
+            };
+            if let (MovePath::Line, Some(b)) = (path, &blocked_ahead) {
+                bail!(
+                    "move to {shown} m: the straight line is blocked {:.0} mm along its {:.0} mm{}; nothing moved{}; \
+                     --path auto or joint goes there by joints",
+                    b.along * 1e3,
+                    b.length * 1e3,
+                    at_limits(driver.arm(), &b.q.iter().map(|&x| x as f32).collect::<Vec<_>>()),
+                    driver.undo_torque(switched)
+                );
+            }
+            let path = if blocked_ahead.is_some() { MovePath::Joint } else { path };
             interrupt::catch();
             let message = HostMessage::MoveTo { target, timing, path };
-            let shown = fmt3(&target.position.map(f64::from));
             if let Err(e) = driver.request(&message) {
                 bail!("move to {shown} m: {e}; nothing moved{}", driver.undo_torque(switched));
             }
@@ -207,10 +228,19 @@ pub fn run(driver: &mut Driver, request: Request, json: bool, out: &mut dyn Writ
                 _ if blocked => "line, then joints",
                 _ => "line",
             };
+            let ahead = blocked_ahead.as_ref().map(|b| {
+                format!(
+                    "; the straight line is blocked {:.0} mm along its {:.0} mm{}, so the arm went by joints",
+                    b.along * 1e3,
+                    b.length * 1e3,
+                    at_limits(driver.arm(), &b.q.iter().map(|&x| x as f32).collect::<Vec<_>>())
+                )
+            });
             if json {
                 let v = json!({
                     "command": "move",
                     "path": path,
+                    "line_blocked_mm": blocked_ahead.as_ref().map(|b| b.along * 1e3),
                     "target": goal,
                     "quaternion_wxyz": target.orientation,
                     "reached": reached,
@@ -222,10 +252,12 @@ pub fn run(driver: &mut Driver, request: Request, json: bool, out: &mut dyn Writ
                 writeln!(out, "{v}")?;
             } else {
                 let angle = angle_deg.map(|a| format!(", orientation error {a:.2} deg")).unwrap_or_default();
-                let how = if blocked {
-                    "; the straight line ran into the joint limits, so the arm went the rest of the way by joints"
-                } else {
-                    ""
+                let how = match (&ahead, blocked) {
+                    (Some(ahead), _) => ahead.as_str(),
+                    (None, true) => {
+                        "; the straight line ran into the joint limits, so the arm went the rest of the way by joints"
+                    }
+                    (None, false) => "",
                 };
                 writeln!(
                     out,
@@ -328,6 +360,18 @@ fn print_status(driver: &Driver, s: &Status, json: bool, out: &mut dyn Write) ->
         e.link_corrupt, e.link_oversized, e.naks, e.bus_timeouts, e.bus_errors, e.underruns
     )?;
     Ok(())
+}
+
+/// The straight line from the tool (at the joints of `start`) to `target`, checked by IK as the
+/// firmware will track it ([`Line::follow`]).
+fn check_line(driver: &Driver, start: &Status, target: &CartesianTarget) -> Result<Result<Vec<f64>, Blocked>> {
+    let q: Vec<f64> = start.measured.iter().map(|&x| f64::from(x)).collect();
+    let line = Line {
+        from: driver.tool_position(&start.measured)?,
+        to: target.position.map(f64::from),
+        orientation: target.orientation.map(|o| o.map(f64::from)),
+    };
+    line.follow(driver.model(), &q, line.points())
 }
 
 /// The joints within 0.02 rad (or m) of a limit at `q`, in words (", joint 2 (shoulder_lift) at its

@@ -53,6 +53,11 @@ impl Driver {
         self.conn.close(err)
     }
 
+    /// The host's kinematics of the arm the firmware runs (forward kinematics, IK).
+    pub fn model(&self) -> &dyn DynArm {
+        self.fk.as_ref()
+    }
+
     /// The arm the firmware runs.
     pub fn arm(&self) -> &ArmSpec {
         &self.conn.arm

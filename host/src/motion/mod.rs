@@ -1,7 +1,9 @@
-//! Keyframe sources and joint trajectories: joint and Cartesian keyframe files, and
-//! `armctl trajectory sample` (interpolation, limits, sampling, its plot).
+//! Keyframe sources and joint trajectories: joint and Cartesian keyframe files, straight lines of
+//! the tool checked by IK ([`line`]), and `armctl trajectory sample` (interpolation, limits,
+//! sampling, its plot).
 
 pub mod cartesian_file;
+pub mod line;
 pub mod sample;
 pub mod trajectory;
 pub mod trajectory_plot;

@@ -1,0 +1,109 @@
+//! A straight line of the tool, checked by IK before the arm moves along it: points along the
+//! line solved in turn, each seeded by the last, as the firmware's tracking follows a moving point,
+//! with the firmware's method and scalar (damped least squares in f32). A point that does not
+//! solve, or a jump of a joint between two points (another branch of the IK, which tracking would
+//! not follow smoothly), blocks the line there. Used by the demo's planner and by `armctl move`.
+
+use crate::arm::dof::{DynArm, IkRequest, Scalar, SolverName};
+use kinematics::ik::IkStatus;
+
+/// The largest change of any joint between two neighbouring points of a line (rad or m).
+pub const MAX_JOINT_STEP: f64 = 0.5;
+/// Spacing of the points `armctl move` checks (m): a joint limit met between two points further
+/// apart could be missed.
+const SPACING: f64 = 0.005;
+
+/// A straight line of the tool.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Line {
+    /// Where it starts (m).
+    pub from: [f64; 3],
+    /// Where it ends (m).
+    pub to: [f64; 3],
+    /// The tool's orientation all along it, w first; `None` leaves it free.
+    pub orientation: Option<[f64; 4]>,
+}
+
+/// Where a line is blocked.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Blocked {
+    /// How far along the line the last point that solved is (m).
+    pub along: f64,
+    /// The line's length (m).
+    pub length: f64,
+    /// The joints at that point: where tracking would stand.
+    pub q: Vec<f64>,
+}
+
+impl Line {
+    /// Its length (m).
+    pub fn length(&self) -> f64 {
+        (0..3).map(|i| (self.to[i] - self.from[i]).powi(2)).sum::<f64>().sqrt()
+    }
+
+    /// The points `armctl move` checks: one every 5 mm, at least 8, at most 400.
+    pub fn points(&self) -> usize {
+        ((self.length() / SPACING).ceil() as usize + 1).clamp(8, 400)
+    }
+
+    fn at(&self, u: f64) -> [f64; 3] {
+        [0, 1, 2].map(|i| self.from[i] + u * (self.to[i] - self.from[i]))
+    }
+
+    /// Follows the line from joints `q` (the tool at `from`) through `points` points, ends
+    /// included; the joints at its end, or where it is blocked. An error is a request the solver
+    /// cannot take at all (an orientation for an arm too short of joints to choose one).
+    pub fn follow(&self, arm: &dyn DynArm, q: &[f64], points: usize) -> anyhow::Result<Result<Vec<f64>, Blocked>> {
+        let mut q = q.to_vec();
+        let mut last = 0.0;
+        for k in 1..points {
+            let u = k as f64 / (points - 1) as f64;
+            let request = IkRequest {
+                position: self.at(u),
+                quaternion_wxyz: self.orientation,
+                seed: Some(q.clone()),
+                solver: SolverName::Dls,
+                config: Default::default(),
+                scalar: Scalar::F32,
+            };
+            let outcome = arm.solve(&request)?;
+            let step = outcome.q.iter().zip(&q).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+            if outcome.status != IkStatus::Converged || step > MAX_JOINT_STEP {
+                return Ok(Err(Blocked { along: last * self.length(), length: self.length(), q }));
+            }
+            q = outcome.q;
+            last = u;
+        }
+        Ok(Ok(q))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::arm::dof::build;
+    use crate::arm::ArmSpec;
+
+    fn tool(arm: &dyn DynArm, q: &[f64]) -> [f64; 3] {
+        arm.tool_pose(q).unwrap().translation.into()
+    }
+
+    #[test]
+    fn a_clear_line_ends_at_its_end_and_a_blocked_one_says_where() {
+        let arm = build(ArmSpec::load("so101", None).unwrap()).unwrap();
+        let arm = arm.as_ref();
+        // Both ways clear: near the middle of the ranges.
+        let (a, b) = ([0.1, -0.2, 0.3, 0.2, 0.0], [0.3, 0.1, 0.1, 0.4, 0.0]);
+        let line = Line { from: tool(arm, &a), to: tool(arm, &b), orientation: None };
+        let end = line.follow(arm, &a, line.points()).unwrap().unwrap();
+        let reached = tool(arm, &end);
+        let error = (0..3).map(|i| (reached[i] - line.to[i]).powi(2)).sum::<f64>().sqrt();
+        assert!(error < 1e-4, "{error} m from the end");
+        // Blocked: a move the firmware's tracking stalled on (controller_sil.rs).
+        let (a, b) = ([0.619, 0.712, 0.457, 1.201, -1.828], [-0.576, 1.521, 1.086, -0.089, 1.206]);
+        let line = Line { from: tool(arm, &a), to: tool(arm, &b), orientation: None };
+        let blocked = line.follow(arm, &a, line.points()).unwrap().unwrap_err();
+        assert!(blocked.along < blocked.length && (blocked.length - line.length()).abs() < 1e-12, "{blocked:?}");
+        assert_eq!(blocked.q.len(), 5);
+    }
+}
