@@ -244,6 +244,13 @@ fn assert_private(path: &str) {
     assert!(mode == 0o600 && owner == me, "{path}: mode {mode:04o}, owner {owner}; expected 0600 and {me}");
 }
 
+/// `armctl --port PTY ARGS`.
+fn on_port(pty: &str, args: &[&str]) -> Run {
+    let mut all = vec!["--port", pty];
+    all.extend_from_slice(args);
+    armctl(&all)
+}
+
 fn signal(child: &Child, name: &str) {
     let ok = Command::new("kill").args([format!("-{name}"), child.id().to_string()]).status().unwrap().success();
     assert!(ok, "kill -{name}");
@@ -271,11 +278,7 @@ fn exit_code(child: &mut Child) -> i32 {
 fn one_served_arm_keeps_its_state_across_five_commands() {
     let _one = one_at_a_time();
     let (mut child, pty, errors) = serve(&["--sim", "--arm", "so101"]);
-    let port = |args: &[&str]| {
-        let mut all = vec!["--port", pty.as_str()];
-        all.extend_from_slice(args);
-        armctl(&all)
-    };
+    let port = |args: &[&str]| on_port(&pty, args);
     let q = ARMS[0].2;
     let on = port(&["torque", "on", "--json"]).json("1 torque on");
     assert_eq!(on["state"], "Idle");
@@ -312,11 +315,7 @@ fn one_served_arm_keeps_its_state_across_five_commands() {
 fn a_move_whose_line_is_blocked_arrives_by_joints_and_says_so() {
     let _one = one_at_a_time();
     let (mut child, pty, errors) = serve(&["--sim", "--arm", "so101"]);
-    let port = |args: &[&str]| {
-        let mut all = vec!["--port", pty.as_str()];
-        all.extend_from_slice(args);
-        armctl(&all)
-    };
+    let port = |args: &[&str]| on_port(&pty, args);
     let (start, end) = ([0.619, 0.712, 0.457, 1.201, -1.828], [-0.576, 1.521, 1.086, -0.089, 1.206]);
     port(&["joints", "--q", &join(&start), "--json"]).json("joints");
     let goal = tool_at("so101", &end);
@@ -361,11 +360,7 @@ fn signals_stop_the_served_arm_then_switch_its_torque_off() {
     let _one = one_at_a_time();
     for second in [false, true] {
         let (mut child, pty, errors) = serve(&["--sim"]);
-        let port = |args: &[&str]| {
-            let mut all = vec!["--port", pty.as_str()];
-            all.extend_from_slice(args);
-            armctl(&all)
-        };
+        let port = |args: &[&str]| on_port(&pty, args);
         port(&["torque", "on"]).ok("torque on");
         // A move at full speed (2 rad/s; braking from it takes 0.25 s at 8 rad/s²) that the signal
         // interrupts: `joints` waits for it, so it runs in the background.

@@ -398,8 +398,8 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
                     }
                     // The rest of the way by joints, to the solution found before moving, at the
                     // line's pace (or as fast as the limits allow, if that is slower).
-                    self.counters.line_fallbacks = self.counters.line_fallbacks.saturating_add(1);
                     if self.move_joints(goal.solution, left / goal.speed).is_ok() {
+                        self.counters.line_fallbacks = self.counters.line_fallbacks.saturating_add(1);
                         return (self.setpoint.position, SVector::zeros());
                     }
                 }

@@ -188,11 +188,8 @@ pub fn run(driver: &mut Driver, request: Request, json: bool, out: &mut dyn Writ
             };
             if let (MovePath::Line, Some(b)) = (path, &blocked_ahead) {
                 bail!(
-                    "move to {shown} m: the straight line is blocked {:.0} mm along its {:.0} mm{}; nothing moved{}; \
-                     --path auto or joint goes there by joints",
-                    b.along * 1e3,
-                    b.length * 1e3,
-                    at_limits(driver.arm(), &b.q.iter().map(|&x| x as f32).collect::<Vec<_>>()),
+                    "move to {shown} m: {}; nothing moved{}; --path auto or joint goes there by joints",
+                    where_blocked(driver.arm(), b),
                     driver.undo_torque(switched)
                 );
             }
@@ -220,7 +217,7 @@ pub fn run(driver: &mut Driver, request: Request, json: bool, out: &mut dyn Writ
                 bail!(
                     "move to {shown} m: the straight line ran into the joint limits: stopped {error_mm:.1} mm short{}; \
                      --path auto finishes such a move by joints",
-                    at_limits(driver.arm(), &status.measured)
+                    at_limits(driver.arm(), status.measured.iter().map(|&x| f64::from(x)))
                 );
             }
             let path = match path {
@@ -228,14 +225,9 @@ pub fn run(driver: &mut Driver, request: Request, json: bool, out: &mut dyn Writ
                 _ if blocked => "line, then joints",
                 _ => "line",
             };
-            let ahead = blocked_ahead.as_ref().map(|b| {
-                format!(
-                    "; the straight line is blocked {:.0} mm along its {:.0} mm{}, so the arm went by joints",
-                    b.along * 1e3,
-                    b.length * 1e3,
-                    at_limits(driver.arm(), &b.q.iter().map(|&x| x as f32).collect::<Vec<_>>())
-                )
-            });
+            let ahead = blocked_ahead
+                .as_ref()
+                .map(|b| format!("; {}, so the arm went by joints", where_blocked(driver.arm(), b)));
             if json {
                 let v = json!({
                     "command": "move",
@@ -374,9 +366,20 @@ fn check_line(driver: &Driver, start: &Status, target: &CartesianTarget) -> Resu
     line.follow(driver.model(), &q, line.points())
 }
 
+/// Where the host's check found the line blocked, in words ("the straight line is blocked 75 mm
+/// along its 145 mm, joint 1 (shoulder_pan) at its upper limit 1.920").
+fn where_blocked(arm: &crate::arm::ArmSpec, b: &Blocked) -> String {
+    format!(
+        "the straight line is blocked {:.0} mm along its {:.0} mm{}",
+        b.along * 1e3,
+        b.length * 1e3,
+        at_limits(arm, b.q.iter().copied())
+    )
+}
+
 /// The joints within 0.02 rad (or m) of a limit at `q`, in words (", joint 2 (shoulder_lift) at its
 /// upper limit 1.745"), or nothing.
-fn at_limits(arm: &crate::arm::ArmSpec, q: &[f32]) -> String {
+fn at_limits(arm: &crate::arm::ArmSpec, q: impl IntoIterator<Item = f64>) -> String {
     const NEAR: f64 = 0.02;
     let words: Vec<String> = arm
         .joints
@@ -384,8 +387,7 @@ fn at_limits(arm: &crate::arm::ArmSpec, q: &[f32]) -> String {
         .zip(q)
         .enumerate()
         .filter(|(_, (spec, _))| spec.kind != kinematics::JointKind::Continuous)
-        .filter_map(|(j, (spec, &x))| {
-            let x = f64::from(x);
+        .filter_map(|(j, (spec, x))| {
             let (which, limit) = if x - spec.lower < NEAR {
                 ("lower", spec.lower)
             } else if spec.upper - x < NEAR {

@@ -190,11 +190,12 @@ impl LoopState {
             // Requests first, a stop first of all (the queue's order): a stop must not wait
             // behind a poll.
             while let Some(job) = inbox.next() {
-                let answer: Answer = self.handle(job.request.clone(), last_status.as_ref());
+                let (request, reply) = job.split();
+                let answer: Answer = self.handle(request, last_status.as_ref());
                 if let Err(e) = &answer {
                     self.extras.last_error = Some(e.message.clone());
                 }
-                job.answer(answer);
+                reply.send(answer);
                 if quit.load(Ordering::SeqCst) {
                     break;
                 }

@@ -49,6 +49,22 @@ impl Job {
     pub fn answer(self, answer: Answer) {
         let _ = self.reply.send(answer);
     }
+
+    /// The request, and where its answer goes: the request is moved out, not copied (a file to
+    /// play is megabytes).
+    pub fn split(self) -> (Request, Reply) {
+        (self.request, Reply(self.reply))
+    }
+}
+
+/// Where a job's answer goes.
+pub struct Reply(Sender<Answer>);
+
+impl Reply {
+    /// Sends the answer (the caller may have gone: then nobody hears it).
+    pub fn send(self, answer: Answer) {
+        let _ = self.0.send(answer);
+    }
 }
 
 /// Whether a request goes ahead of the others.
@@ -82,7 +98,7 @@ impl JobQueue {
         {
             let mut q = self.lock();
             if q.closed {
-                return Err(ApiError::new(503, "the view is closing: the arm is being stopped"));
+                return Err(closed());
             }
             let (queue, capacity) = match urgent(&request) {
                 true => (&mut q.urgent, URGENT_CAPACITY),

@@ -15,7 +15,8 @@ pub struct View {
     pub host: String,
     /// The token of the printed URL.
     pub token: String,
-    stderr: std::thread::JoinHandle<String>,
+    /// Reads stderr to its end; taken once the process has exited.
+    stderr: Option<std::thread::JoinHandle<String>>,
 }
 
 impl View {
@@ -43,7 +44,7 @@ impl View {
             .strip_prefix("http://")
             .and_then(|rest| rest.split_once("/?token="))
             .unwrap_or_else(|| panic!("the first line is not the page's URL with its token: {line:?}"));
-        let view = Self { child, host: host.to_string(), token: token.to_string(), stderr };
+        let view = Self { child, host: host.to_string(), token: token.to_string(), stderr: Some(stderr) };
         view.wait_for(|s| s["seq"].as_u64().is_some(), "a first status", 5.0);
         view
     }
@@ -107,8 +108,7 @@ impl View {
     }
 
     fn take_stderr(&mut self) -> String {
-        let reader = std::mem::replace(&mut self.stderr, std::thread::spawn(String::new));
-        reader.join().unwrap_or_default()
+        self.stderr.take().and_then(|reader| reader.join().ok()).unwrap_or_default()
     }
 
     /// Waits for the process to exit by itself (after [`Self::interrupt`]) for up to `limit`;
