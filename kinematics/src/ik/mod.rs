@@ -3,6 +3,7 @@
 //! joint vectors, keeps the closest pose found, and decides the status by forward kinematics on the
 //! joint values it returns (so "converged" is never claimed for values that do not reach).
 
+pub mod analytic;
 mod ccd;
 mod dls;
 mod gradient;
