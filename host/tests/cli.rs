@@ -187,6 +187,44 @@ fn ik_reaches_a_pose_from_fk() {
     assert!(angle(&reached_quaternion, &quaternion) <= 1e-5 + 1e-9, "{reached_quaternion:?} vs {quaternion:?}");
 }
 
+/// `--solver auto` (the default) answers by the closed form where the geometry has one, and says
+/// so; `--all-solutions` lists every solution, each checked here by FK from outside; an arm
+/// without a closed form, or a target its shape does not answer, is a one-line error.
+#[test]
+fn ik_closed_form_and_every_solution() {
+    let (position, quaternion) = fk("ur5e", &UR5E_Q);
+    let (target, quat) = (join(&position), join(&quaternion));
+    let v = armctl(&["ik", "--arm", "ur5e", "--target", &target, "--quat", &quat]).json();
+    assert_eq!(v["solver"], "analytic", "{v}");
+    assert_eq!(v["status"], "converged", "{v}");
+    let v = armctl(&["ik", "--arm", "ur5e", "--target", &target, "--quat", &quat, "--solver", "numeric"]).json();
+    assert_eq!(v["solver"], "dls", "{v}");
+
+    let v = armctl(&["ik", "--arm", "ur5e", "--target", &target, "--quat", &quat, "--all-solutions"]).json();
+    assert_eq!(v["shape"], "three_parallel", "{v}");
+    let solutions = v["solutions"].as_array().unwrap();
+    assert_eq!(solutions.len(), 8, "{v}");
+    let mut own = false;
+    for s in solutions {
+        let q = numbers(&s["q"]);
+        let (reached, reached_quaternion) = fk("ur5e", &q);
+        if s["exact"] == true {
+            assert!(distance(&reached, &position) <= 1e-9 && angle(&reached_quaternion, &quaternion) <= 1e-7, "{s}");
+        }
+        own |= q.iter().zip(&UR5E_Q).all(|(a, b)| (a - b).abs() < 1e-6);
+    }
+    assert!(own, "the joints posed from are not among {v}");
+
+    let (position, _) = fk("iiwa14", &[0.1, 0.5, -0.2, -1.0, 0.3, 0.8, 0.0]);
+    assert_fails(
+        &["ik", "--arm", "iiwa14", "--target", &join(&position), "--solver", "analytic"],
+        &["iiwa14 has no closed form"],
+    );
+    assert_fails(&["ik", "--arm", "iiwa14", "--target", &join(&position), "--all-solutions"], &["no closed form"]);
+    assert_fails(&["ik", "--arm", "ur5e", "--target", "0.3,0.2,0.4", "--solver", "analytic"], &["needs a full pose"]);
+    assert_fails(&["ik", "--arm", "ur5e", "--target", "0.3,0.2,0.4", "--all-solutions"], &["needs a full pose"]);
+}
+
 #[test]
 fn ik_position_only_has_no_orientation_error() {
     let q = [0.2, -0.4, 0.6, 0.3, -0.5];
@@ -217,7 +255,7 @@ fn ik_in_f32() {
 #[test]
 fn ik_runs_every_solver() {
     let (position, quaternion) = fk("ur5e", &UR5E_Q);
-    for solver in ["dls", "newton", "transpose", "ccd", "gradient", "regularised"] {
+    for solver in ["auto", "analytic", "numeric", "dls", "newton", "transpose", "ccd", "gradient", "regularised"] {
         let run = armctl(&[
             "ik",
             "--arm",
@@ -469,11 +507,16 @@ fn bench_ik_without_k() {
     let run = armctl(&["bench", "ik", "--arm", "ur5e", "--n", "50", "--no-k"]);
     let v = run.json();
     let solvers = v["solvers"].as_array().unwrap();
-    assert_eq!(solvers.len(), 1, "{v}");
-    assert_eq!(solvers[0]["targets"], 50);
-    assert!(solvers[0]["success_percent"].as_f64().unwrap() >= 98.0, "{v}");
-    assert_eq!(solvers[0]["false_claims"], 0);
-    assert_eq!(run.stderr.lines().count(), 1, "{}", run.stderr);
+    // The numerical solver, then auto (the UR5e has a closed form: three parallel axes).
+    assert_eq!(solvers.len(), 2, "{v}");
+    assert_eq!(solvers[0]["solver"], "armctl dls (numeric)");
+    assert_eq!(solvers[1]["solver"], "armctl auto (closed form: three_parallel)");
+    for s in solvers {
+        assert_eq!(s["targets"], 50);
+        assert!(s["success_percent"].as_f64().unwrap() >= 98.0, "{v}");
+        assert_eq!(s["false_claims"], 0);
+    }
+    assert_eq!(run.stderr.lines().count(), 2, "{}", run.stderr);
 }
 
 /// With the `compare-k` feature (on under `cargo test --workspace`), k's solver runs beside ours;
@@ -489,12 +532,12 @@ fn bench_ik_with_k() {
     assert_eq!(solvers[0]["false_claims"], 0, "{v}");
     assert!(solvers[0]["success_percent"].as_f64().unwrap() >= 95.0, "{v}");
     if cfg!(feature = "compare-k") {
-        assert_eq!(solvers.len(), 2, "{v}");
-        assert!(solvers[1]["solver"].as_str().unwrap().starts_with('k'), "{v}");
-        assert_eq!(run.stderr.lines().count(), 2, "{}", run.stderr);
+        assert_eq!(solvers.len(), 3, "{v}");
+        assert!(solvers[2]["solver"].as_str().unwrap().starts_with('k'), "{v}");
+        assert_eq!(run.stderr.lines().count(), 3, "{}", run.stderr);
     } else {
-        assert_eq!(solvers.len(), 1, "{v}");
-        assert_eq!(run.stderr.lines().count(), 2, "{}", run.stderr);
+        assert_eq!(solvers.len(), 2, "{v}");
+        assert_eq!(run.stderr.lines().count(), 3, "{}", run.stderr);
         assert!(
             run.stderr.contains("note: k's solver is not beside ours") && run.stderr.contains("--features compare-k")
         );

@@ -11,6 +11,7 @@
 
 use super::ArmSpec;
 use anyhow::{anyhow, bail, Result};
+use kinematics::ik::analytic::{ClosedForm, Shape, Singularity};
 use kinematics::ik::{
     CyclicCoordinateDescent, DampedLeastSquares, GradientDescent, IkConfig, IkProblem, IkStatus, JacobianTranspose,
     PseudoinverseNewton, Regularised, Target,
@@ -57,7 +58,13 @@ pub const QUATERNION_NORM_TOLERANCE: f64 = 1e-3;
 /// The IK methods by name.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum SolverName {
-    /// Damped least squares with adaptive damping (Levenberg-Marquardt), the default.
+    /// The closed form where the arm's geometry has one and it gives a solution within the limits
+    /// that reaches, else damped least squares (the default).
+    Auto,
+    /// The closed form only (an error for an arm without one; f64 only).
+    Analytic,
+    /// Damped least squares with adaptive damping (Levenberg-Marquardt), the numerical solver.
+    #[value(alias = "numeric")]
     Dls,
     /// Newton steps with the pseudoinverse.
     Newton,
@@ -105,6 +112,28 @@ pub struct IkOutcome {
     pub orientation_error: f64,
     /// Time spent in the solver alone.
     pub solve_time: Duration,
+    /// The method that answered: "analytic", or the numerical method's name.
+    pub method: &'static str,
+}
+
+/// One closed-form solution in host terms (see [`DynArm::all_solutions`]).
+#[derive(Clone, Debug)]
+pub struct ClosedFormAnswer {
+    /// Joint values, fitted into the limits nearest the seed where possible.
+    pub q: Vec<f64>,
+    /// Every value within its joint's limits.
+    pub within_limits: bool,
+    /// The shape's equations have it (false: the least-squares answer of a branch that cannot
+    /// reach).
+    pub exact: bool,
+    /// FK at `q` reaches the target within the tolerances.
+    pub reaches: bool,
+    /// Tool position error at `q` (m).
+    pub position_error: f64,
+    /// Tool orientation error at `q` (rad).
+    pub orientation_error: f64,
+    /// The singularity it sits at, if any.
+    pub singular: Option<Singularity>,
 }
 
 /// An arm of any joint count, for the host's commands. Shared between threads: `ik --batch`
@@ -125,8 +154,14 @@ pub trait DynArm: Send + Sync {
     /// True if `q` is within every joint's limits.
     fn admits(&self, q: &[f64]) -> bool;
     /// Solves an IK request. Errors only for a request that cannot be posed (seed length, zero
-    /// quaternion); everything else is in the outcome's status.
+    /// quaternion, the closed form asked of an arm without one); everything else is in the
+    /// outcome's status.
     fn solve(&self, request: &IkRequest) -> Result<IkOutcome>;
+    /// The closed form's shape, if the arm's geometry has one.
+    fn closed_form_shape(&self) -> Option<Shape>;
+    /// Every closed-form solution of the request's target (f64), with the time they took. Errors
+    /// for an arm without a closed form, or a target it does not answer.
+    fn all_solutions(&self, request: &IkRequest) -> Result<(Vec<ClosedFormAnswer>, Duration)>;
 }
 
 /// A chain in one scalar, solving host requests; boxed so that the f32 chain, and its solvers,
@@ -137,13 +172,15 @@ trait SolveIn<const N: usize>: Send + Sync {
 
 impl<T: Real, const N: usize> SolveIn<N> for Chain<T, N> {
     fn solve(&self, request: &IkRequest, seed: SVector<f64, N>) -> Result<IkOutcome> {
-        solve_in(self, request, seed)
+        solve_in(self, None, request, seed)
     }
 }
 
 struct Arm<const N: usize> {
     spec: ArmSpec,
     f64: Chain<f64, N>,
+    /// The f64 chain's closed form, if its geometry has one.
+    closed: Option<ClosedForm<f64, N>>,
     /// `None` above [`F32_MAX_JOINTS`].
     f32: Option<Box<dyn SolveIn<N>>>,
 }
@@ -192,8 +229,20 @@ impl<const N: usize> DynArm for Arm<N> {
             Some(s) => self.vector(s)?,
             None => self.f64.middle(),
         };
+        if request.solver == SolverName::Analytic {
+            if self.closed.is_none() {
+                bail!(
+                    "arm {} has no closed form (it needs six joints with a spherical wrist or three parallel \
+                     axes, or a base yaw and three parallel pitch axes); use --solver numeric or auto",
+                    self.spec.name
+                );
+            }
+            if request.scalar == Scalar::F32 {
+                bail!("the closed form runs in f64 (use --scalar f64)");
+            }
+        }
         match request.scalar {
-            Scalar::F64 => solve_in(&self.f64, request, seed),
+            Scalar::F64 => solve_in(&self.f64, self.closed.as_ref(), request, seed),
             Scalar::F32 => match &self.f32 {
                 Some(chain) => chain.solve(request, seed),
                 None => bail!(
@@ -204,13 +253,44 @@ impl<const N: usize> DynArm for Arm<N> {
             },
         }
     }
+
+    fn closed_form_shape(&self) -> Option<Shape> {
+        self.closed.as_ref().map(|c| c.shape())
+    }
+
+    fn all_solutions(&self, request: &IkRequest) -> Result<(Vec<ClosedFormAnswer>, Duration)> {
+        let Some(closed) = &self.closed else {
+            bail!("arm {} has no closed form, so no list of every solution", self.spec.name);
+        };
+        let seed = match &request.seed {
+            Some(s) => self.vector(s)?,
+            None => self.f64.middle(),
+        };
+        let problem = problem_in::<f64, N>(request, seed)?;
+        if !closed.answers(&problem.target) {
+            bail!("the {} closed form needs a full pose (--quat)", closed.shape().as_str());
+        }
+        let started = Instant::now();
+        let all = closed.solutions(&self.f64, &problem);
+        let took = started.elapsed();
+        let answers = all
+            .iter()
+            .map(|s| ClosedFormAnswer {
+                q: s.q.iter().copied().collect(),
+                within_limits: s.within_limits,
+                exact: s.exact,
+                reaches: s.reaches,
+                position_error: s.position_error,
+                orientation_error: s.orientation_error,
+                singular: s.singular,
+            })
+            .collect();
+        Ok((answers, took))
+    }
 }
 
-fn solve_in<T: Real, const N: usize>(
-    chain: &Chain<T, N>,
-    request: &IkRequest,
-    seed: SVector<f64, N>,
-) -> Result<IkOutcome> {
+/// The request as the kinematics crate's problem, in `T`.
+fn problem_in<T: Real, const N: usize>(request: &IkRequest, seed: SVector<f64, N>) -> Result<IkProblem<T, N>> {
     let position = request.position.map(T::of);
     let target = match request.quaternion_wxyz {
         None => Target::Position(position.into()),
@@ -233,9 +313,41 @@ fn solve_in<T: Real, const N: usize>(
         max_restarts: c.max_restarts,
         rng_seed: c.rng_seed,
     };
-    let problem = IkProblem { target, seed: seed.map(T::of), config };
+    Ok(IkProblem { target, seed: seed.map(T::of), config })
+}
+
+fn solve_in<T: Real, const N: usize>(
+    chain: &Chain<T, N>,
+    closed: Option<&ClosedForm<T, N>>,
+    request: &IkRequest,
+    seed: SVector<f64, N>,
+) -> Result<IkOutcome> {
+    let problem = problem_in(request, seed)?;
     let started = Instant::now();
+    let mut method = match request.solver {
+        SolverName::Auto | SolverName::Dls => "dls",
+        SolverName::Analytic => "analytic",
+        SolverName::Newton => "newton",
+        SolverName::Transpose => "transpose",
+        SolverName::Ccd => "ccd",
+        SolverName::Gradient => "gradient",
+        SolverName::Regularised => "regularised",
+    };
     let solution = match request.solver {
+        SolverName::Auto => {
+            let (solution, analytic) = chain.solve_auto(closed, &problem);
+            if analytic {
+                method = "analytic";
+            }
+            solution
+        }
+        SolverName::Analytic => {
+            let Some(closed) = closed else { bail!("this arm has no closed form") };
+            if !closed.answers(&problem.target) {
+                bail!("the {} closed form needs a full pose (a quaternion)", closed.shape().as_str());
+            }
+            chain.solve_closed_form(closed, &problem)
+        }
         SolverName::Dls => chain.solve_with(&DampedLeastSquares, &problem),
         SolverName::Newton => chain.solve_with(&PseudoinverseNewton, &problem),
         SolverName::Transpose => chain.solve_with(&JacobianTranspose, &problem),
@@ -252,18 +364,21 @@ fn solve_in<T: Real, const N: usize>(
         position_error: solution.position_error.to_f64(),
         orientation_error: solution.orientation_error.to_f64(),
         solve_time,
+        method,
     })
 }
 
 fn build_n<const N: usize>(spec: ArmSpec) -> Result<Box<dyn DynArm>> {
     let f64 = spec.chain::<f64, N>()?;
-    Ok(Box::new(Arm { spec, f64, f32: None }))
+    let closed = ClosedForm::of(&f64);
+    Ok(Box::new(Arm { spec, f64, closed, f32: None }))
 }
 
 fn build_with_f32_n<const N: usize>(spec: ArmSpec) -> Result<Box<dyn DynArm>> {
     let f64 = spec.chain::<f64, N>()?;
     let f32: Box<dyn SolveIn<N>> = Box::new(spec.chain::<f32, N>()?);
-    Ok(Box::new(Arm { spec, f64, f32: Some(f32) }))
+    let closed = ClosedForm::of(&f64);
+    Ok(Box::new(Arm { spec, f64, closed, f32: Some(f32) }))
 }
 
 fn planar_n<const N: usize>() -> Result<ArmSpec> {

@@ -160,23 +160,30 @@ pub fn run(arm: &dyn DynArm, protocol: &Protocol) -> Result<Report> {
         ..IkConfig::default()
     };
 
-    let mut ours = Tally::new("armctl dls", protocol.n);
-    for target in &targets {
-        let request = IkRequest {
-            position: target.translation.into(),
-            quaternion_wxyz: Some(target.quaternion_wxyz()),
-            seed: None,
-            solver: SolverName::Dls,
-            config,
-            scalar: protocol.scalar,
-        };
-        let outcome = arm.solve(&request)?;
-        let claimed = outcome.status == kinematics::ik::IkStatus::Converged;
-        ours.add(outcome.solve_time, reaches(arm, &outcome.q, target, tolerances), claimed);
+    // The numerical solver, then the closed form where the geometry has one (auto: with the
+    // numerical solver behind it), on the same targets. The closed form runs in f64 only.
+    let mut methods = vec![(SolverName::Dls, "armctl dls (numeric)".to_string())];
+    if let (Some(shape), Scalar::F64) = (arm.closed_form_shape(), protocol.scalar) {
+        methods.push((SolverName::Auto, format!("armctl auto (closed form: {})", shape.as_str())));
     }
-    // Only the k comparison pushes to it.
-    #[cfg_attr(not(feature = "compare-k"), allow(unused_mut))]
-    let mut solvers = vec![ours.figures()];
+    let mut solvers = Vec::new();
+    for (solver, name) in methods {
+        let mut tally = Tally::new(&name, protocol.n);
+        for target in &targets {
+            let request = IkRequest {
+                position: target.translation.into(),
+                quaternion_wxyz: Some(target.quaternion_wxyz()),
+                seed: None,
+                solver,
+                config,
+                scalar: protocol.scalar,
+            };
+            let outcome = arm.solve(&request)?;
+            let claimed = outcome.status == kinematics::ik::IkStatus::Converged;
+            tally.add(outcome.solve_time, reaches(arm, &outcome.q, target, tolerances), claimed);
+        }
+        solvers.push(tally.figures());
+    }
 
     #[cfg(feature = "compare-k")]
     if protocol.with_k {

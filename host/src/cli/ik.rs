@@ -32,9 +32,14 @@ pub(crate) struct IkArgs {
     /// JSON-lines file of targets (`-` for standard input); one result line each on stdout.
     #[arg(long)]
     batch: Option<String>,
-    /// Method.
-    #[arg(long, value_enum, default_value = "dls")]
+    /// Method: auto (the closed form where the arm's geometry has one, else dls), analytic,
+    /// numeric (= dls) or another numerical method.
+    #[arg(long, value_enum, default_value = "auto")]
     solver: SolverName,
+    /// Print every closed-form solution of the target (one target; arms with a closed form),
+    /// each with whether it is within the limits and reaches, instead of the one nearest the seed.
+    #[arg(long, conflicts_with = "batch")]
+    all_solutions: bool,
     /// Scalar the solver runs in.
     #[arg(long, value_enum, default_value = "f64")]
     scalar: Scalar,
@@ -85,6 +90,8 @@ struct Printed<'a> {
     #[serde(skip_serializing_if = "Option::is_none")]
     reason: Option<String>,
     restarts: u32,
+    /// The method that answered ("analytic", "dls", ...).
+    solver: &'static str,
     status: &'static str,
 }
 
@@ -102,6 +109,7 @@ fn printed(outcome: &IkOutcome, position_only: bool, line: Option<usize>) -> Pri
         q: &outcome.q,
         reason: refused,
         restarts: outcome.restarts,
+        solver: outcome.method,
         status: outcome.status.as_str(),
     }
 }
@@ -133,6 +141,9 @@ pub(crate) fn run(args: &IkArgs, out: &mut dyn Write, err: &mut dyn Write) -> Re
         let position = parse::fixed::<3>(args.target.as_deref().unwrap_or_default(), "--target")?;
         let quat = args.quat.as_deref().map(|q| parse::fixed::<4>(q, "--quat")).transpose()?;
         let seed = args.seed.as_deref().map(|s| parse::numbers(s, "--seed")).transpose()?;
+        if args.all_solutions {
+            return all_solutions(&*arm, &request(position, quat, seed), out);
+        }
         let outcome = arm.solve(&request(position, quat, seed))?;
         print_json(out, &printed(&outcome, quat.is_none(), None))?;
         if let Some(complaint) = refusal(&outcome, args.scalar) {
@@ -217,6 +228,35 @@ pub(crate) fn run(args: &IkArgs, out: &mut dyn Write, err: &mut dyn Write) -> Re
         100.0 * solved as f64 / total.max(1) as f64
     )?;
     Ok(if rejected > 0 { 1 } else { 0 })
+}
+
+/// `ik --all-solutions`: every closed-form solution, and the time they took together.
+fn all_solutions(arm: &dyn DynArm, request: &IkRequest, out: &mut dyn Write) -> Result<i32> {
+    let (solutions, took) = arm.all_solutions(request)?;
+    let listed: Vec<_> = solutions
+        .iter()
+        .map(|s| {
+            json!({
+                "q": s.q,
+                "within_limits": s.within_limits,
+                "exact": s.exact,
+                "reaches": s.reaches,
+                "position_error": s.position_error,
+                "orientation_error": s.orientation_error,
+                "singular": s.singular.map(|s| s.as_str()),
+            })
+        })
+        .collect();
+    print_json(
+        out,
+        &json!({
+            "shape": arm.closed_form_shape().map(|s| s.as_str()),
+            "solutions": listed,
+            "reaching_within_limits": solutions.iter().filter(|s| s.within_limits && s.reaches).count(),
+            "solve_time_us": took.as_secs_f64() * 1e6,
+        }),
+    )?;
+    Ok(0)
 }
 
 /// What became of one line of an `ik --batch` file, in the solver's thread.

@@ -13,10 +13,10 @@ use serde_json::json;
 use super::args::{DriveCommand, JointsArgs, MoveArgs, OnOff, PathArg};
 use super::gripper::GripperRequest;
 use super::interrupt;
+use super::path::{at_limits, decide, where_blocked};
 use super::play::{self, Plan};
 use super::session::{check_joints, fmt3, fmt_list, Driver, Waited};
 use crate::args::numbers as parse;
-use crate::motion::line::{Blocked, Line};
 
 /// The tool speed of `move` without --speed or --duration (m/s): slow enough to watch.
 pub const DEFAULT_TOOL_SPEED: f64 = 0.1;
@@ -179,12 +179,9 @@ pub fn run(driver: &mut Driver, request: Request, json: bool, out: &mut dyn Writ
             let shown = fmt3(&target.position.map(f64::from));
             // The line first, as the firmware will track it: blocked, --path line refuses before
             // anything moves, and auto goes by joints from the start.
-            let blocked_ahead = match path {
-                MovePath::Joint => None,
-                _ => match check_line(driver, &start, &target) {
-                    Ok(checked) => checked.err(),
-                    Err(e) => bail!("move to {shown} m: {e:#}; nothing moved{}", driver.undo_torque(switched)),
-                },
+            let (sent, blocked_ahead) = match decide(driver, &start, &target, path) {
+                Ok(decided) => decided,
+                Err(e) => bail!("move to {shown} m: {e:#}; nothing moved{}", driver.undo_torque(switched)),
             };
             if let (MovePath::Line, Some(b)) = (path, &blocked_ahead) {
                 bail!(
@@ -193,7 +190,7 @@ pub fn run(driver: &mut Driver, request: Request, json: bool, out: &mut dyn Writ
                     driver.undo_torque(switched)
                 );
             }
-            let path = if blocked_ahead.is_some() { MovePath::Joint } else { path };
+            let path = sent;
             interrupt::catch();
             let message = HostMessage::MoveTo { target, timing, path };
             if let Err(e) = driver.request(&message) {
@@ -352,54 +349,4 @@ fn print_status(driver: &Driver, s: &Status, json: bool, out: &mut dyn Write) ->
         e.link_corrupt, e.link_oversized, e.naks, e.bus_timeouts, e.bus_errors, e.underruns
     )?;
     Ok(())
-}
-
-/// The straight line from the tool (at the joints of `start`) to `target`, checked by IK as the
-/// firmware will track it ([`Line::follow`]).
-fn check_line(driver: &Driver, start: &Status, target: &CartesianTarget) -> Result<Result<Vec<f64>, Blocked>> {
-    let q: Vec<f64> = start.measured.iter().map(|&x| f64::from(x)).collect();
-    let line = Line {
-        from: driver.tool_position(&start.measured)?,
-        to: target.position.map(f64::from),
-        orientation: target.orientation.map(|o| o.map(f64::from)),
-    };
-    line.follow(driver.model(), &q, line.points())
-}
-
-/// Where the host's check found the line blocked, in words ("the straight line is blocked 75 mm
-/// along its 145 mm, joint 1 (shoulder_pan) at its upper limit 1.920").
-fn where_blocked(arm: &crate::arm::ArmSpec, b: &Blocked) -> String {
-    format!(
-        "the straight line is blocked {:.0} mm along its {:.0} mm{}",
-        b.along * 1e3,
-        b.length * 1e3,
-        at_limits(arm, b.q.iter().copied())
-    )
-}
-
-/// The joints within 0.02 rad (or m) of a limit at `q`, in words (", joint 2 (shoulder_lift) at its
-/// upper limit 1.745"), or nothing.
-fn at_limits(arm: &crate::arm::ArmSpec, q: impl IntoIterator<Item = f64>) -> String {
-    const NEAR: f64 = 0.02;
-    let words: Vec<String> = arm
-        .joints
-        .iter()
-        .zip(q)
-        .enumerate()
-        .filter(|(_, (spec, _))| spec.kind != kinematics::JointKind::Continuous)
-        .filter_map(|(j, (spec, x))| {
-            let (which, limit) = if x - spec.lower < NEAR {
-                ("lower", spec.lower)
-            } else if spec.upper - x < NEAR {
-                ("upper", spec.upper)
-            } else {
-                return None;
-            };
-            Some(format!("joint {} ({}) at its {which} limit {limit:.3}", j + 1, spec.name))
-        })
-        .collect();
-    match words.is_empty() {
-        true => String::new(),
-        false => format!(", {}", words.join(", ")),
-    }
 }

@@ -14,6 +14,7 @@ mod commands;
 pub mod connection;
 mod gripper;
 pub(crate) mod interrupt;
+pub(crate) mod path;
 pub mod play;
 mod progress;
 pub mod session;

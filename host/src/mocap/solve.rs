@@ -6,8 +6,10 @@ use anyhow::Result;
 use kinematics::ik::{IkConfig, IkStatus};
 use kinematics::nalgebra::{UnitQuaternion, Vector3};
 
-/// A damped-least-squares request in f64 for `position` (and `orientation`): warm-started from
-/// `seed` without restarts, or from the middle of the limits with restarts when `seed` is `None`.
+/// An f64 request for `position` (and `orientation`): the closed form's solution nearest `seed`
+/// where the arm's geometry has one (the SO-101 by position and pitch, a six-joint arm by pose),
+/// else damped least squares, warm-started from `seed` without restarts, or from the middle of
+/// the limits with restarts when `seed` is `None`.
 pub fn request(position: Vector3<f64>, orientation: Option<&UnitQuaternion<f64>>, seed: Option<Vec<f64>>) -> IkRequest {
     let warm = seed.is_some();
     let config = IkConfig {
@@ -25,7 +27,7 @@ pub fn request(position: Vector3<f64>, orientation: Option<&UnitQuaternion<f64>>
         position: position.into(),
         quaternion_wxyz: orientation.map(|q| [q.w, q.i, q.j, q.k]),
         seed,
-        solver: SolverName::Dls,
+        solver: SolverName::Auto,
         config,
         scalar: Scalar::F64,
     }

@@ -15,7 +15,9 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use anyhow::Result;
-use firmware::link::message::{CartesianTarget, FirmwareMessage, HostMessage, RunState, Status, Timing, MAX_SPEED};
+use firmware::link::message::{
+    CartesianTarget, FirmwareMessage, HostMessage, MovePath, RunState, Status, Timing, MAX_SPEED,
+};
 use serde_json::{json, Value};
 
 use super::api::{ApiError, Request};
@@ -24,6 +26,7 @@ use super::telemetry::{self, Extras, LastSecond, Latest};
 use crate::arm::dof::DynArm;
 use crate::arm::ArmSpec;
 use crate::drive::connection::Target;
+use crate::drive::path;
 use crate::drive::play::Plan;
 use crate::drive::session::{check_joints, Driver};
 use crate::link::client::LinkError;
@@ -334,7 +337,7 @@ impl LoopState {
                     "position": position, "orientation": orientation,
                     "reachable": preview.is_ok(), "reason": preview.as_ref().err().map(|e| e.message.clone()),
                 });
-                let solution = preview?;
+                let mut solution = preview?;
                 if go {
                     self.busy_playing()?;
                     self.ready()?;
@@ -342,8 +345,21 @@ impl LoopState {
                         position: position.map(|x| x as f32),
                         orientation: orientation.map(|q| q.map(|x| x as f32)),
                     };
+                    // As `armctl move` decides: the straight line checked first, and a blocked one
+                    // gone by joints from the start, saying so, rather than tracked into a limit.
+                    let start = self.driver.status().map_err(|e| ApiError::new(503, format!("{e:#}")))?;
+                    let (path, blocked) = path::decide(&self.driver, &start, &target, MovePath::Auto)
+                        .map_err(|e| ApiError::bad(format!("{e:#}")))?;
+                    let how = match &blocked {
+                        Some(b) => format!("{}, so the arm goes by joints", path::where_blocked(self.driver.arm(), b)),
+                        None => "the straight line".to_string(),
+                    };
+                    self.extras.target["path"] = json!(if blocked.is_some() { "joint" } else { "line" });
+                    self.extras.target["how"] = json!(how);
+                    solution["path"] = json!(if blocked.is_some() { "joint" } else { "line" });
+                    solution["how"] = json!(how);
                     let sent = self.driver.request(&HostMessage::MoveTo {
-                        path: firmware::link::message::MovePath::Auto,
+                        path,
                         target,
                         timing: Timing::MaxSpeed(TARGET_SPEED),
                     });

@@ -60,7 +60,8 @@ impl<T: Real, const N: usize> Axes<T, N> {
         for (n, &i) in indices.iter().enumerate() {
             let (h, p) = (self.h.get(i)?, self.p.get(i)?);
             for &j in indices.get(..n)? {
-                if self.parallel(i, j).is_some() && distance_to_line(p, &self.h[j], &self.p[j]) > T::of(MEET_TOLERANCE) {
+                if self.parallel(i, j).is_some() && distance_to_line(p, &self.h[j], &self.p[j]) > T::of(MEET_TOLERANCE)
+                {
                     return None;
                 }
             }

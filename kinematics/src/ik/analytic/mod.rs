@@ -51,6 +51,11 @@ impl Shape {
             Shape::YawPitch => "yaw_pitch",
         }
     }
+
+    /// True if the shape answers a position target too (not only a full pose).
+    pub fn answers_position(&self) -> bool {
+        *self == Shape::YawPitch
+    }
 }
 
 /// Where a solution sits at a singularity, leaving an angle free (filled from the seed) or two
@@ -88,17 +93,36 @@ pub struct Candidates<T: Real> {
 
 impl<T: Real> Candidates<T> {
     fn new() -> Self {
-        Self { q: [[T::zero(); 6]; MAX_SOLUTIONS], exact: [false; MAX_SOLUTIONS], singular: [None; MAX_SOLUTIONS], len: 0 }
+        Self {
+            q: [[T::zero(); 6]; MAX_SOLUTIONS],
+            exact: [false; MAX_SOLUTIONS],
+            singular: [None; MAX_SOLUTIONS],
+            len: 0,
+        }
     }
 
     fn push(&mut self, q: [T; 6], exact: bool, singular: Option<Singularity>) {
-        if let (Some(slot), Some(e), Some(s)) = (self.q.get_mut(self.len), self.exact.get_mut(self.len), self.singular.get_mut(self.len)) {
+        if let (Some(slot), Some(e), Some(s)) =
+            (self.q.get_mut(self.len), self.exact.get_mut(self.len), self.singular.get_mut(self.len))
+        {
             (*slot, *e, *s) = (q, exact, singular);
             self.len += 1;
         }
     }
 
-    fn iter(&self) -> impl Iterator<Item = (&[T; 6], bool, Option<Singularity>)> {
+    /// The number of solutions.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// True if there are none.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Each solution's six slots (a shorter chain's first N), whether it is exact, and its
+    /// singularity.
+    pub fn iter(&self) -> impl Iterator<Item = (&[T; 6], bool, Option<Singularity>)> {
         self.q.iter().zip(self.exact).zip(self.singular).take(self.len).map(|((q, e), s)| (q, e, s))
     }
 }
@@ -167,7 +191,31 @@ impl<T: Real, const N: usize> ClosedForm<T, N> {
     /// True if the closed form answers this kind of target: a six-joint shape needs the full
     /// pose; the yaw-pitch shape takes a position too.
     pub fn answers(&self, target: &Target<T>) -> bool {
-        matches!((target, &self.solver), (Target::Pose(_), _) | (Target::Position(_), Solver::YawPitch(_)))
+        matches!(target, Target::Pose(_)) || self.shape().answers_position()
+    }
+
+    /// The shape's own solutions of `problem`, before they are fitted into the limits or checked:
+    /// exact for the idealised shape (or least squares, and marked so). Empty for a target this
+    /// shape does not answer or an invalid problem.
+    pub fn candidates(&self, chain: &Chain<T, N>, problem: &IkProblem<T, N>) -> Candidates<T> {
+        let mut raw = Candidates::new();
+        if problem.validate().is_err() || !self.answers(&problem.target) {
+            return raw;
+        }
+        let seed: [T; 6] = core::array::from_fn(|i| problem.seed.get(i).copied().unwrap_or_else(T::zero));
+        match (&self.solver, &problem.target) {
+            (Solver::SphericalWrist(s), Target::Pose(pose)) => s.solve(pose, &seed, &mut raw),
+            (Solver::ThreeParallel(s), Target::Pose(pose)) => s.solve(pose, &seed, &mut raw),
+            (Solver::YawPitch(s), target) => {
+                let cost = |q: &[T; 6]| {
+                    let (fitted, within) = fit(chain, q, &problem.seed);
+                    within.then(|| distance_from(chain, &fitted, &problem.seed))
+                };
+                s.solve(target, &seed, &cost, &mut raw);
+            }
+            _ => {}
+        }
+        raw
     }
 
     /// Every solution of `problem` (its seed fills angles a singular pose leaves free), fitted into
@@ -175,47 +223,54 @@ impl<T: Real, const N: usize> ClosedForm<T, N> {
     /// shape does not answer or an invalid problem.
     pub fn solutions(&self, chain: &Chain<T, N>, problem: &IkProblem<T, N>) -> Solutions<T, N> {
         let mut all = Solutions::new();
-        if problem.validate().is_err() || !self.answers(&problem.target) {
-            return all;
-        }
-        let seed: [T; 6] = core::array::from_fn(|i| problem.seed.get(i).copied().unwrap_or_else(T::zero));
-        let mut raw = Candidates::new();
-        match (&self.solver, &problem.target) {
-            (Solver::SphericalWrist(s), Target::Pose(pose)) => s.solve(pose, &seed, &mut raw),
-            (Solver::ThreeParallel(s), Target::Pose(pose)) => s.solve(pose, &seed, &mut raw),
-            (Solver::YawPitch(s), target) => {
-                let admits = |q: &[T; 6]| fit(chain, q, &problem.seed).1;
-                s.solve(target, &seed, &admits, &mut raw);
-            }
-            _ => {}
-        }
+        let raw = self.candidates(chain, problem);
         let residual = Residual::new(problem.target, &problem.config);
         for (q, exact, singular) in raw.iter() {
-            let (mut q, mut within_limits) = fit(chain, q, &problem.seed);
-            let mut error = residual.error(&chain.tool_pose(&q));
-            let mut polish_iterations = 0;
-            // An exact answer of the idealised shape that misses on the chain itself: the chain
-            // only nearly has the shape, and the answer is a few iterations from its own.
-            if exact && within_limits && !residual.converged(&error) {
-                let polished = DampedLeastSquares.polish(chain, &residual, q, POLISH_ITERATIONS);
-                polish_iterations = polished.iterations;
-                if polished.error.cost < error.cost {
-                    (q, error) = (polished.q, polished.error);
-                    within_limits = chain.admits(&q);
-                }
-            }
-            let _ = all.push(ClosedFormSolution {
-                q,
-                within_limits,
-                exact,
-                reaches: residual.converged(&error),
-                position_error: error.position,
-                orientation_error: error.orientation,
-                singular,
-                polish_iterations,
-            });
+            let (q, within_limits) = fit(chain, q, &problem.seed);
+            let _ = all.push(checked(chain, &residual, q, within_limits, exact, singular));
         }
         all
+    }
+}
+
+/// The squared joint-space distance of `q` from `seed` (continuous joints by the shorter way).
+fn distance_from<T: Real, const N: usize>(chain: &Chain<T, N>, q: &SVector<T, N>, seed: &SVector<T, N>) -> T {
+    q.iter().zip(seed.iter()).zip(chain.joints()).fold(T::zero(), |sum, ((a, b), j)| {
+        let d = if j.kind == JointKind::Continuous { wrap_angle(*a - *b) } else { *a - *b };
+        sum + d * d
+    })
+}
+
+/// A fitted solution checked by forward kinematics on the chain, and polished where an exact
+/// answer of the idealised shape misses on the chain itself (the chain only nearly has the shape,
+/// and the answer is a few iterations from its own).
+fn checked<T: Real, const N: usize>(
+    chain: &Chain<T, N>,
+    residual: &Residual<T>,
+    mut q: SVector<T, N>,
+    mut within_limits: bool,
+    exact: bool,
+    singular: Option<Singularity>,
+) -> ClosedFormSolution<T, N> {
+    let mut error = residual.error(&chain.tool_pose(&q));
+    let mut polish_iterations = 0;
+    if exact && within_limits && !residual.converged(&error) {
+        let polished = DampedLeastSquares.polish(chain, residual, q, POLISH_ITERATIONS);
+        polish_iterations = polished.iterations;
+        if polished.error.cost < error.cost {
+            (q, error) = (polished.q, polished.error);
+            within_limits = chain.admits(&q);
+        }
+    }
+    ClosedFormSolution {
+        q,
+        within_limits,
+        exact,
+        reaches: residual.converged(&error),
+        position_error: error.position,
+        orientation_error: error.orientation,
+        singular,
+        polish_iterations,
     }
 }
 
@@ -237,7 +292,13 @@ fn fit<T: Real, const N: usize>(chain: &Chain<T, N>, q: &[T; 6], seed: &SVector<
         let mut best: Option<T> = None;
         for turns in [0.0, 1.0, -1.0, 2.0, -2.0] {
             let v = base + T::of(turns) * T::two_pi();
-            let v = if v < lower && v > lower - slack { lower } else if v > upper && v < upper + slack { upper } else { v };
+            let v = if v < lower && v > lower - slack {
+                lower
+            } else if v > upper && v < upper + slack {
+                upper
+            } else {
+                v
+            };
             if v >= lower && v <= upper && best.is_none_or(|b| (v - near).abs() < (b - near).abs()) {
                 best = Some(v);
             }
@@ -252,37 +313,92 @@ fn fit<T: Real, const N: usize>(chain: &Chain<T, N>, q: &[T; 6], seed: &SVector<
 
 impl<T: Real, const N: usize> Chain<T, N> {
     /// The closed form's solution nearest the seed that is within the limits and reaches the
-    /// target, or `None` (no such solution, a target the shape does not answer, an invalid
-    /// problem).
-    pub fn solve_closed_form(&self, closed: &ClosedForm<T, N>, problem: &IkProblem<T, N>) -> Option<IkSolution<T, N>> {
-        let distance = |q: &SVector<T, N>| {
-            q.iter().zip(problem.seed.iter()).zip(self.joints()).fold(T::zero(), |sum, ((a, b), j)| {
-                let d = if j.kind == JointKind::Continuous { wrap_angle(*a - *b) } else { *a - *b };
-                sum + d * d
+    /// target ([`IkStatus::Converged`]). Where none does: the candidate within the limits that
+    /// comes closest (else the closest of all, fitted as near the limits as whole turns allow),
+    /// as [`IkStatus::BestEffort`] with its errors; the seed if the shape gave none (a target it
+    /// does not answer). An invalid problem is refused as by [`Chain::solve`].
+    pub fn solve_closed_form(&self, closed: &ClosedForm<T, N>, problem: &IkProblem<T, N>) -> IkSolution<T, N> {
+        if let Err(reason) = problem.validate() {
+            return IkSolution {
+                q: problem.seed,
+                status: IkStatus::InvalidInput(reason),
+                iterations: 0,
+                restarts: 0,
+                position_error: T::zero(),
+                orientation_error: T::zero(),
+            };
+        }
+        let distance = |q: &SVector<T, N>| distance_from(self, q, &problem.seed);
+        // The exact candidates within the limits, nearest the seed first, are checked by FK one
+        // by one until one reaches: usually the first, so one FK instead of eight.
+        let residual = Residual::new(problem.target, &problem.config);
+        let raw = closed.candidates(self, problem);
+        let mut order: heapless::Vec<(T, SVector<T, N>, Option<Singularity>), MAX_SOLUTIONS> = heapless::Vec::new();
+        for (q, exact, singular) in raw.iter() {
+            let (q, within) = fit(self, q, &problem.seed);
+            if exact && within {
+                let _ = order.push((distance(&q), q, singular));
+            }
+        }
+        order.sort_unstable_by(|a, b| a.0.partial_cmp(&b.0).unwrap_or(core::cmp::Ordering::Equal));
+        for (_, q, singular) in &order {
+            let s = checked(self, &residual, *q, true, true, *singular);
+            if s.within_limits && s.reaches {
+                return IkSolution {
+                    q: s.q,
+                    status: IkStatus::Converged,
+                    iterations: s.polish_iterations,
+                    restarts: 0,
+                    position_error: s.position_error,
+                    orientation_error: s.orientation_error,
+                };
+            }
+        }
+        let all = closed.solutions(self, problem);
+        let weight = problem.config.orientation_weight;
+        let miss = |s: &ClosedFormSolution<T, N>| s.position_error + weight * s.orientation_error;
+        let nearest = |keep: &dyn Fn(&ClosedFormSolution<T, N>) -> bool,
+                       key: &dyn Fn(&ClosedFormSolution<T, N>) -> T| {
+            all.iter().filter(|s| keep(s)).fold(None, |best: Option<&ClosedFormSolution<T, N>>, s| match best {
+                Some(b) if key(b) <= key(s) => Some(b),
+                _ => Some(s),
             })
         };
-        let best = closed
-            .solutions(self, problem)
-            .into_iter()
-            .filter(|s| s.within_limits && s.reaches)
-            .min_by(|a, b| distance(&a.q).partial_cmp(&distance(&b.q)).unwrap_or(core::cmp::Ordering::Equal))?;
-        Some(IkSolution {
-            q: best.q,
-            status: IkStatus::Converged,
-            iterations: best.polish_iterations,
-            restarts: 0,
-            position_error: best.position_error,
-            orientation_error: best.orientation_error,
-        })
+        // None reaches: the closest within the limits, else the closest of all.
+        let chosen = nearest(&|s| s.within_limits, &miss).or_else(|| nearest(&|_| true, &miss));
+        match chosen {
+            Some(s) => IkSolution {
+                q: s.q,
+                status: IkStatus::BestEffort,
+                iterations: s.polish_iterations,
+                restarts: 0,
+                position_error: s.position_error,
+                orientation_error: s.orientation_error,
+            },
+            None => {
+                let error = Residual::new(problem.target, &problem.config).error(&self.tool_pose(&problem.seed));
+                IkSolution {
+                    q: problem.seed,
+                    status: IkStatus::BestEffort,
+                    iterations: 0,
+                    restarts: 0,
+                    position_error: error.position,
+                    orientation_error: error.orientation,
+                }
+            }
+        }
     }
 
     /// The closed form where `closed` gives a solution within the limits that reaches, else the
     /// numerical solver ([`Chain::solve`]). The second value is true if the closed form answered.
     pub fn solve_auto(&self, closed: Option<&ClosedForm<T, N>>, problem: &IkProblem<T, N>) -> (IkSolution<T, N>, bool) {
-        match closed.and_then(|c| self.solve_closed_form(c, problem)) {
-            Some(solution) => (solution, true),
-            None => (self.solve(problem), false),
+        if let Some(closed) = closed.filter(|c| c.answers(&problem.target)) {
+            let solution = self.solve_closed_form(closed, problem);
+            if solution.status == IkStatus::Converged {
+                return (solution, true);
+            }
         }
+        (self.solve(problem), false)
     }
 }
 

@@ -21,7 +21,10 @@ fn the_shape_is_read_from_the_geometry() {
     assert_eq!(shape(ClosedForm::of(&presets::ur5e::<f64>().unwrap()).map(|c| c.shape())), Some("three_parallel"));
     assert_eq!(shape(ClosedForm::of(&presets::puma560::<f64>().unwrap()).map(|c| c.shape())), Some("spherical_wrist"));
     assert_eq!(shape(ClosedForm::of(&presets::so101::<f64>().unwrap()).map(|c| c.shape())), Some("yaw_pitch"));
-    assert_eq!(shape(ClosedForm::of(&presets::open_manipulator_x::<f64>().unwrap()).map(|c| c.shape())), Some("yaw_pitch"));
+    assert_eq!(
+        shape(ClosedForm::of(&presets::open_manipulator_x::<f64>().unwrap()).map(|c| c.shape())),
+        Some("yaw_pitch")
+    );
     assert!(ClosedForm::of(&presets::iiwa14::<f64>().unwrap()).is_none());
     assert!(ClosedForm::of(&presets::planar::<f64, 3>().unwrap()).is_none());
     assert!(ClosedForm::of(&presets::planar::<f64, 6>().unwrap()).is_none());
@@ -42,7 +45,8 @@ fn six_joint_arm_solves_every_pose(chain: Chain<f64, 6>) {
         let mut found = false;
         for s in &all {
             let at = chain.tool_pose(&s.q);
-            let (dp, dr) = ((at.translation - pose.translation).norm(), rotation_error(&pose.rotation, &at.rotation).norm());
+            let (dp, dr) =
+                ((at.translation - pose.translation).norm(), rotation_error(&pose.rotation, &at.rotation).norm());
             // Every exact solution reaches; a least-squares one (a branch that cannot reach this
             // pose) is marked so and never claims to.
             if s.exact {
@@ -55,7 +59,8 @@ fn six_joint_arm_solves_every_pose(chain: Chain<f64, 6>) {
             found |= angle_gap(&s.q, &q) < 1e-7;
         }
         assert!(found, "{q:?} not among {all:?}");
-        let own = chain.solve_closed_form(&closed, &problem(Target::Pose(pose), q)).unwrap();
+        let own = chain.solve_closed_form(&closed, &problem(Target::Pose(pose), q));
+        assert_eq!(own.status, IkStatus::Converged);
         assert!((own.q - q).amax() < 1e-7, "{:?} {q:?}", own.q);
     }
     // A generic pose of these arms has 8 solutions (some outside the limits).
@@ -107,7 +112,8 @@ fn yaw_pitch_arm<const N: usize>(chain: Chain<f64, N>) {
         for s in all.iter().filter(|s| s.reaches) {
             assert!(s.position_error < 1e-5 && s.orientation_error < 1e-5);
         }
-        let by_position = chain.solve_closed_form(&closed, &problem(Target::Position(pose.translation), q)).unwrap();
+        let by_position = chain.solve_closed_form(&closed, &problem(Target::Position(pose.translation), q));
+        assert_eq!(by_position.status, IkStatus::Converged);
         assert!(angle_gap(&by_position.q, &q) < 1e-6, "{:?} {q:?}", by_position.q);
     }
 }
@@ -135,10 +141,11 @@ fn a_position_target_finds_a_pitch_wherever_the_numerical_solver_converges() {
         let target = Target::Position(chain.tool_pose(&chain.random_configuration(&mut rng)).translation);
         let p = problem(target, chain.middle());
         let closed_form = chain.solve_closed_form(&closed, &p);
-        if let Some(s) = closed_form {
-            assert!(s.position_error <= 1e-5 && chain.admits(&s.q));
+        let reached = closed_form.status == IkStatus::Converged;
+        if reached {
+            assert!(closed_form.position_error <= 1e-5 && chain.admits(&closed_form.q));
         }
-        match (chain.solve(&p).status == IkStatus::Converged, closed_form.is_some()) {
+        match (chain.solve(&p).status == IkStatus::Converged, reached) {
             (true, false) => numeric_only += 1,
             (true, true) => both += 1,
             _ => {}
@@ -155,7 +162,10 @@ fn singular_targets_are_reported() {
     let closed = ClosedForm::of(&ur).unwrap();
     let stretched = SVector::from([0.3, -1.0, 0.0, 0.4, 1.0, 0.2]);
     let all = closed.solutions(&ur, &problem(Target::Pose(ur.tool_pose(&stretched)), stretched));
-    assert!(all.iter().any(|s| s.singular == Some(Singularity::Elbow) && s.reaches && angle_gap(&s.q, &stretched) < 1e-6), "{all:?}");
+    assert!(
+        all.iter().any(|s| s.singular == Some(Singularity::Elbow) && s.reaches && angle_gap(&s.q, &stretched) < 1e-6),
+        "{all:?}"
+    );
     let lined_up = SVector::from([0.3, -1.0, 1.2, 0.4, 0.0, 0.2]);
     let all = closed.solutions(&ur, &problem(Target::Pose(ur.tool_pose(&lined_up)), lined_up));
     let wrist: Vec<_> = all.iter().filter(|s| s.singular == Some(Singularity::Wrist)).collect();
@@ -166,7 +176,10 @@ fn singular_targets_are_reported() {
     let closed = ClosedForm::of(&puma).unwrap();
     let q = SVector::from([0.3, -0.5, 0.4, 0.7, 0.0, -0.2]);
     let all = closed.solutions(&puma, &problem(Target::Pose(puma.tool_pose(&q)), q));
-    assert!(all.iter().any(|s| s.singular == Some(Singularity::Wrist) && s.reaches && (s.q[3] - 0.7).abs() < 1e-12), "{all:?}");
+    assert!(
+        all.iter().any(|s| s.singular == Some(Singularity::Wrist) && s.reaches && (s.q[3] - 0.7).abs() < 1e-12),
+        "{all:?}"
+    );
 
     // The PUMA's wrist centre can never be on the first axis (the shoulder's 0.15 m offset): such
     // a target is reported as a shoulder singularity that reaches nothing, and nothing is NaN.
@@ -175,13 +188,16 @@ fn singular_targets_are_reported() {
     let all = closed.solutions(&puma, &problem(Target::Pose(pose), q));
     assert!(!all.is_empty() && all.iter().all(|s| !s.reaches && s.q.iter().all(|v| v.is_finite())), "{all:?}");
     assert!(all.iter().all(|s| s.singular == Some(Singularity::Shoulder)));
-    assert!(puma.solve_closed_form(&closed, &problem(Target::Pose(pose), q)).is_none());
+    let miss = puma.solve_closed_form(&closed, &problem(Target::Pose(pose), q));
+    assert_eq!(miss.status, IkStatus::BestEffort);
+    assert!(miss.position_error > 0.1, "{miss:?}");
 
     // Out of reach entirely: no solution reaches; solve_auto falls back to the numerical solver.
     let far = Target::Position(Vector3::new(3.0, 0.0, 0.0));
     let so101 = presets::so101::<f64>().unwrap();
     let closed = ClosedForm::of(&so101).unwrap();
-    assert!(so101.solve_closed_form(&closed, &problem(far, so101.middle())).is_none());
+    let miss = so101.solve_closed_form(&closed, &problem(far, so101.middle()));
+    assert!(miss.status == IkStatus::BestEffort && miss.position_error > 2.0, "{miss:?}");
     let (fallback, closed_form) = so101.solve_auto(Some(&closed), &problem(far, so101.middle()));
     assert!(!closed_form && fallback.status != IkStatus::Converged);
 }
@@ -194,6 +210,7 @@ fn bad_input_gives_no_solutions() {
     pose.translation.x = f64::NAN;
     assert!(closed.solutions(&chain, &problem(Target::Pose(pose), chain.middle())).is_empty());
     // A six-joint shape needs the full pose: a position target goes to the numerical solver.
-    assert!(closed.solutions(&chain, &problem(Target::Position(Vector3::new(0.3, 0.2, 0.4)), chain.middle())).is_empty());
+    assert!(closed
+        .solutions(&chain, &problem(Target::Position(Vector3::new(0.3, 0.2, 0.4)), chain.middle()))
+        .is_empty());
 }
-

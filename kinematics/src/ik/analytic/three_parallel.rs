@@ -5,9 +5,9 @@
 //! Up to 8 solutions.
 
 use super::geometry::{across, mean_direction, Axes};
-use super::subproblems::{free_tolerance, sp1, sp3, sp4, Angles};
+use super::subproblems::{free_tolerance, rotate, sp1, sp3, sp4, Angles};
 use super::{Candidates, Singularity};
-use crate::{axis_angle_matrix, Pose, Real};
+use crate::{Pose, Real};
 use nalgebra::Vector3;
 
 /// The shape's constants, from the chain's axes.
@@ -48,7 +48,7 @@ impl<T: Real> TwoLink<T> {
         let t3s = sp3(&self.h, &self.p34, &(-self.p23), d.norm());
         let mut pairs = [(T::zero(), T::zero()); 2];
         for (pair, &t3) in pairs.iter_mut().zip(t3s.as_slice()) {
-            let arm = self.p23 + axis_angle_matrix(&self.h, t3) * self.p34;
+            let arm = self.p23 + rotate(&self.h, t3, &self.p34);
             *pair = (sp1(&self.h, &arm, d), t3);
         }
         (pairs, t3s)
@@ -91,21 +91,24 @@ impl<T: Real> ThreeParallel<T> {
     pub fn solve(&self, target: &Pose<T>, seed: &[T; 6], out: &mut Candidates<T>) {
         let r = target.rotation * self.tool.rotation.transpose();
         let reach = target.translation - self.p1 - r * self.tool.translation;
+        let r_h6 = r * self.h6;
         let q1s = sp4(&self.h, &self.h1, &reach, self.along);
         for &t1 in q1s.as_slice() {
             let q1 = if q1s.free { seed[0] } else { -t1 };
-            let r1 = axis_angle_matrix(&self.h1, q1);
-            let q5s = sp4(&self.h, &self.h5, &self.h6, self.h.dot(&(r1.transpose() * r * self.h6)));
+            // Vectors only, turned by Rodrigues' formula: R1^T x is rotate(h1, -q1, x).
+            let q5s = sp4(&self.h, &self.h5, &self.h6, self.h.dot(&rotate(&self.h1, -q1, &r_h6)));
+            let to = r.transpose() * rotate(&self.h1, q1, &self.h);
+            let reach_1 = rotate(&self.h1, -q1, &reach);
             for &q5 in q5s.as_slice() {
-                let r5 = axis_angle_matrix(&self.h5, q5);
-                let from = r5.transpose() * self.h;
+                let from = rotate(&self.h5, -q5, &self.h);
                 // Axis 6 along the parallel axes: only q6 plus their sum is defined; q6 keeps the
                 // seed's value.
                 let wrist = (from - self.h6 * self.h6.dot(&from)).norm() <= free_tolerance::<T>();
-                let q6 = if wrist { seed[5] } else { -sp1(&self.h6, &from, &(r.transpose() * r1 * self.h)) };
-                let m = r1.transpose() * r * axis_angle_matrix(&self.h6, q6).transpose() * r5.transpose();
-                let theta = sp1(&self.h, &self.across_h, &(m * self.across_h));
-                let d = r1.transpose() * reach - self.p12 - axis_angle_matrix(&self.h, theta) * self.p45;
+                let q6 = if wrist { seed[5] } else { -sp1(&self.h6, &from, &to) };
+                // rot(h, theta) = R1^T r R6^T R5^T, read off one vector across h.
+                let turned = rotate(&self.h6, -q6, &rotate(&self.h5, -q5, &self.across_h));
+                let theta = sp1(&self.h, &self.across_h, &rotate(&self.h1, -q1, &(r * turned)));
+                let d = reach_1 - self.p12 - rotate(&self.h, theta, &self.p45);
                 let (pairs, t3s) = self.elbow.solve(&d);
                 let singular = if q1s.free {
                     Some(Singularity::Shoulder)

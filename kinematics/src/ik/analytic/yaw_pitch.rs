@@ -2,9 +2,8 @@
 //! optionally a wrist roll last: the SO-100/SO-101, Koch and OpenManipulator-X. Four or five
 //! joints cannot reach every pose, so the target is the tool's position plus its pitch (the sum
 //! of the three pitch angles): from a pose target's orientation, or, for a position target, the
-//! seed's pitch (and the seed's roll), widened step by step until the position is reachable
-//! within the limits. Up to 4 solutions: the arm facing the target or turned over the top, each
-//! elbow up or down.
+//! pitch whose solution lies nearest the seed (with the seed's roll). Up to 4 solutions: the arm
+//! facing the target or turned over the top, each elbow up or down.
 
 use super::geometry::{across, mean_direction, Axes};
 use super::subproblems::{sp1, sp4};
@@ -14,10 +13,17 @@ use crate::ik::Target;
 use crate::{axis_angle_matrix, Pose, Real};
 use nalgebra::{Matrix3, Vector3};
 
-/// A position target's pitch is searched this far either side of the seed's, in steps of
-/// [`PITCH_STEP`] (radians), nearest first.
+/// A position target's first reachable pitch is searched this far either side of the seed's, in
+/// steps of [`PITCH_STEP`] (radians), nearest first.
 const PITCH_STEPS: u32 = 90;
 const PITCH_STEP: f64 = core::f64::consts::PI / 90.0;
+
+/// From there, the pitch nearest the seed is searched this far either side (radians): a scan in
+/// `COARSE_STEPS` steps each way, then golden-section steps around the best (its two neighbours'
+/// interval shrinks to 0.618^16 of itself, 4e-5 rad).
+const PITCH_WINDOW: f64 = 0.35;
+const COARSE_STEPS: u32 = 8;
+const GOLDEN_STEPS: u32 = 16;
 
 /// The shape's constants, from the chain's axes.
 #[derive(Clone, Copy, Debug)]
@@ -70,10 +76,16 @@ impl<T: Real> YawPitch<T> {
         })
     }
 
-    /// Every solution for `target`. `admits` tells whether a joint vector fits the limits: a
-    /// position target's pitch widens from the seed's until one does.
-    pub fn solve(&self, target: &Target<T>, seed: &[T; 6], admits: &dyn Fn(&[T; 6]) -> bool, out: &mut Candidates<T>) {
-        let [s2, s3, s4] = self.signs;
+    /// Every solution for `target`. `cost` gives a joint vector's distance from the seed, or
+    /// `None` if it is outside the limits: a position target's pitch is the one whose solution is
+    /// nearest the seed (see [`YawPitch::pitch_nearest_the_seed`]).
+    pub fn solve(
+        &self,
+        target: &Target<T>,
+        seed: &[T; 6],
+        cost: &dyn Fn(&[T; 6]) -> Option<T>,
+        out: &mut Candidates<T>,
+    ) {
         match target {
             Target::Pose(pose) => {
                 // All the joints together turn the tool's offset from the last axis to
@@ -83,31 +95,87 @@ impl<T: Real> YawPitch<T> {
                 let reach = pose.translation - self.p1 - r * self.tool.translation;
                 self.solve_at(&reach, &self.p45, seed, out, |r1| {
                     // The roll from the orientation: rot(h5, -q5) h = r^T R1 h.
-                    let q5 = if self.joints == 5 { -sp1(&self.h5, &self.h, &(r.transpose() * r1 * self.h)) } else { T::zero() };
+                    let q5 = if self.joints == 5 {
+                        -sp1(&self.h5, &self.h, &(r.transpose() * r1 * self.h))
+                    } else {
+                        T::zero()
+                    };
                     let m = r1.transpose() * r * self.roll(q5).transpose();
                     (sp1(&self.h, &self.across_h, &(m * self.across_h)), q5)
                 });
             }
             Target::Position(p) => {
-                let pitch = s2 * seed[1] + s3 * seed[2] + s4 * seed[3];
                 let roll = if self.joints == 5 { seed[4] } else { T::zero() };
                 let tail = self.p45 + self.roll(roll) * self.tool.translation;
                 let reach = p - self.p1;
-                for step in 0..=2 * PITCH_STEPS {
-                    // 0, +1, -1, +2, -2, ... steps from the seed's pitch.
-                    let k = T::of(f64::from(step.div_ceil(2)) * PITCH_STEP);
-                    let theta = if step % 2 == 1 { pitch + k } else { pitch - k };
-                    let mut found = Candidates::new();
-                    self.solve_at(&reach, &tail, seed, &mut found, |_| (theta, roll));
-                    if found.iter().any(|(q, exact, _)| exact && admits(q)) {
-                        for (q, exact, singular) in found.iter() {
-                            out.push(*q, exact, singular);
-                        }
-                        return;
-                    }
+                let at = |theta: T, out: &mut Candidates<T>| self.solve_at(&reach, &tail, seed, out, |_| (theta, roll));
+                if let Some(theta) = self.pitch_nearest_the_seed(seed, &at, cost) {
+                    at(theta, out);
                 }
             }
         }
+    }
+
+    /// For a position target, the pitch is free: the one whose best solution (exact, within the
+    /// limits) lies nearest the seed, so that a tool moved a little moves the joints a little (a
+    /// stream of targets, retargeted motion, never flips the arm). From the seed's own pitch, or
+    /// the nearest reachable one found by widening in steps either side, a scan over
+    /// [`PITCH_WINDOW`] either side and a golden-section search around its best find the minimum. `None` if no pitch within half a turn
+    /// reaches within the limits.
+    fn pitch_nearest_the_seed(
+        &self,
+        seed: &[T; 6],
+        at: &dyn Fn(T, &mut Candidates<T>),
+        cost: &dyn Fn(&[T; 6]) -> Option<T>,
+    ) -> Option<T> {
+        let [s2, s3, s4] = self.signs;
+        let pitch = s2 * seed[1] + s3 * seed[2] + s4 * seed[3];
+        let best = |theta: T| {
+            let mut found = Candidates::new();
+            at(theta, &mut found);
+            found
+                .iter()
+                .filter(|(_, exact, _)| *exact)
+                .filter_map(|(q, _, _)| cost(q))
+                .fold(None, |b: Option<T>, c| Some(b.map_or(c, |b| b.min(c))))
+        };
+        let start = (0..=2 * PITCH_STEPS).find_map(|step| {
+            // 0, +1, -1, +2, -2, ... steps from the seed's pitch.
+            let k = T::of(f64::from(step.div_ceil(2)) * PITCH_STEP);
+            let theta = if step % 2 == 1 { pitch + k } else { pitch - k };
+            best(theta).map(|_| theta)
+        })?;
+        let f = |theta: T| best(theta).unwrap_or_else(|| T::of(f64::MAX));
+        // A coarse scan first: near a joint limit the seed's own branch can reach over a window
+        // narrower than a golden-section search's first probes, which would then settle on
+        // another branch's minimum.
+        let step = T::of(PITCH_WINDOW / f64::from(COARSE_STEPS));
+        let (mut centre, mut lowest) = (start, f(start));
+        for k in 1..=COARSE_STEPS {
+            for theta in [start + step * T::of(f64::from(k)), start - step * T::of(f64::from(k))] {
+                let value = f(theta);
+                if value < lowest {
+                    (centre, lowest) = (theta, value);
+                }
+            }
+        }
+        let (mut a, mut b) = (centre - step, centre + step);
+        let ratio = T::of(0.618_033_988_749_894_8);
+        let (mut c, mut d) = (b - (b - a) * ratio, a + (b - a) * ratio);
+        let (mut fc, mut fd) = (f(c), f(d));
+        for _ in 0..GOLDEN_STEPS {
+            if fc < fd {
+                (b, d, fd) = (d, c, fc);
+                c = b - (b - a) * ratio;
+                fc = f(c);
+            } else {
+                (a, c, fc) = (c, d, fd);
+                d = a + (b - a) * ratio;
+                fd = f(d);
+            }
+        }
+        let middle = (a + b) * T::of(0.5);
+        Some(if f(middle) < lowest { middle } else { centre })
     }
 
     fn roll(&self, q5: T) -> Matrix3<T> {
