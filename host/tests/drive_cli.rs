@@ -269,9 +269,13 @@ fn bad_keyframe_files_name_the_line() {
         needles.push(file.path());
         assert_fails(&["--sim", "play", file.path()], &needles);
     }
-    // Unreachable Cartesian keyframes are refused at their push, before anything moves.
-    let file = TempFile::new("far", "t,x,y,z\n0.5,0.2,0,0.1\n1,5,0,0\n");
-    assert_fails(&["--sim", "play", file.path()], &["line 3", "unreachable", "nothing moved"]);
+    // Unreachable Cartesian keyframes are found on the host before anything is sent, all of
+    // them at once, each with how far the closest pose is.
+    let file = TempFile::new("far", "t,x,y,z\n0.5,0.2,0,0.1\n1,5,0,0\n2,0.2,0.05,0.1\n3,0,0,3\n");
+    assert_fails(
+        &["--sim", "play", file.path()],
+        &["2 of 4 Cartesian keyframes are unreachable", "line 3 (the closest pose is", "line 5", "nothing moved"],
+    );
     assert_fails(&["--sim", "play", "/does/not/exist.csv"], &["/does/not/exist.csv"]);
 }
 

@@ -71,10 +71,27 @@ fn drives_the_simulated_arm_through_the_api_and_refuses_bad_input() {
     let drawn = numbers(&preview["frames"][5]["p"]);
     assert!(distance(&drawn, &goal) < 5e-4, "the preview's tool {drawn:?} is not at {goal:?}");
     assert_eq!(numbers(&view.status()["setpoints"]), setpoints, "a preview moved the arm");
-    let (code, _) = view.post("target", json!({"position": goal, "go": true}));
+    let (code, went) = view.post("target", json!({"position": goal, "go": true}));
     assert_eq!(code, 200);
+    assert_eq!(went["path"], "line", "{went}");
     let reached = view.wait_for(|s| at_rest(s) && distance(&numbers(&s["tool"]), &goal) < 1e-3, "the target", 10.0);
     assert_eq!(reached["target"]["reachable"], true);
+
+    // A target whose straight line runs into the joint limits (the pair of pc_bus.rs): checked
+    // on the host first, as `armctl move` does, it goes by joints, says so, and arrives.
+    let start = [0.619, 0.712, 0.457, 1.201, -1.828];
+    assert_eq!(view.post("joints", json!({"q": start})).0, 200);
+    view.wait_for(|s| at_rest(s) && distance(&numbers(&s["measured"]), &start) < 2e-3, "the start", 10.0);
+    let so101 = kinematics::presets::so101::<f64>().unwrap();
+    let end = kinematics::nalgebra::SVector::from([-0.576, 1.521, 1.086, -0.089, 1.206]);
+    let far: [f64; 3] = so101.tool_pose(&end).translation.into();
+    let (code, went) = view.post("target", json!({"position": far, "go": true}));
+    assert_eq!(code, 200, "{went}");
+    assert_eq!(went["path"], "joint", "{went}");
+    let how = went["how"].as_str().unwrap();
+    assert!(how.contains("the straight line is blocked") && how.contains("by joints"), "{how}");
+    let arrived = view.wait_for(|s| at_rest(s) && distance(&numbers(&s["tool"]), &far) < 1e-3, "the far target", 20.0);
+    assert_eq!(arrived["target"]["path"], "joint");
 
     // A file plays; stop stops it halfway.
     let rows: String =

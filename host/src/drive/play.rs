@@ -156,7 +156,9 @@ impl Plan {
                     Ok((k.lines[i], HostMessage::PushKeyframe(keyframe)))
                 })
                 .collect(),
-            Frames::Cartesian(k) => Ok((0..k.times.len())
+            Frames::Cartesian(k) => {
+                crate::motion::reach::check(driver.model(), k, &|line| self.at(line))?;
+                Ok((0..k.times.len())
                 .map(|i| {
                     let target = CartesianTarget {
                         position: k.positions[i].map(|x| x as f32),
@@ -165,7 +167,8 @@ impl Plan {
                     let keyframe = CartesianKeyframe { time: k.times[i] as f32, target, gripper: gripper(i) };
                     (k.lines[i], HostMessage::PushCartesianKeyframe(keyframe))
                 })
-                .collect()),
+                .collect())
+            }
         }
     }
 }

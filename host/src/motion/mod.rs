@@ -1,9 +1,10 @@
 //! Keyframe sources and joint trajectories: joint and Cartesian keyframe files, straight lines of
-//! the tool checked by IK ([`line`]), and `armctl trajectory sample` (interpolation, limits,
+//! the tool checked by IK ([`line`]), Cartesian keyframes checked by IK ([`reach`]), and `armctl trajectory sample` (interpolation, limits,
 //! sampling, its plot).
 
 pub mod cartesian_file;
 pub mod line;
+pub mod reach;
 pub mod sample;
 pub mod trajectory;
 pub mod trajectory_plot;

@@ -1,0 +1,62 @@
+//! Every keyframe of a Cartesian file solved on the host before anything is sent, by the closed
+//! form where the arm's geometry has one (the numerical solver elsewhere), each seeded from the
+//! one before: the firmware solves each again at its push and refuses one it cannot reach, but it
+//! stops at the first. Here the user hears of all of them at once, with how far each is.
+
+use anyhow::{bail, Result};
+use kinematics::ik::{IkConfig, IkStatus};
+
+use super::CartesianKeyframes;
+use crate::arm::dof::{DynArm, IkRequest, Scalar, SolverName};
+
+/// At most this many unreachable keyframes are named in the message; the rest are counted.
+const NAMED: usize = 5;
+
+/// Fails, naming the file lines, if any keyframe is out of reach; `at(line)` says where a line is.
+pub fn check(arm: &dyn DynArm, k: &CartesianKeyframes, at: &dyn Fn(usize) -> String) -> Result<()> {
+    // The firmware's tolerances (it solves in f32), so that a keyframe passed here is one the
+    // firmware also accepts.
+    let (position_tolerance, orientation_tolerance) = Scalar::F32.default_tolerances();
+    let config = IkConfig { position_tolerance, orientation_tolerance, ..IkConfig::default() };
+    let mut seed: Option<Vec<f64>> = None;
+    let mut missed = Vec::new();
+    for (i, position) in k.positions.iter().enumerate() {
+        let request = IkRequest {
+            position: *position,
+            quaternion_wxyz: k.orientations.as_ref().map(|o| o[i]),
+            seed: seed.clone(),
+            solver: SolverName::Auto,
+            config,
+            scalar: Scalar::F64,
+        };
+        let outcome = arm.solve(&request)?;
+        if outcome.status == IkStatus::Converged {
+            seed = Some(outcome.q);
+        } else {
+            let angle = match k.orientations {
+                Some(_) => format!(" and {:.1} degrees", outcome.orientation_error.to_degrees()),
+                None => String::new(),
+            };
+            missed.push(format!(
+                "{} (the closest pose is {:.1} mm{angle} away)",
+                at(k.lines[i]),
+                outcome.position_error * 1e3
+            ));
+        }
+    }
+    if missed.is_empty() {
+        return Ok(());
+    }
+    let more = match missed.len().saturating_sub(NAMED) {
+        0 => String::new(),
+        n => format!(", and {n} more"),
+    };
+    let named: Vec<&str> = missed.iter().take(NAMED).map(String::as_str).collect();
+    bail!(
+        "{} of {} Cartesian keyframes are unreachable for the arm {}: {}{more}; nothing was sent, nothing moved",
+        missed.len(),
+        k.positions.len(),
+        arm.spec().name,
+        named.join("; ")
+    )
+}
