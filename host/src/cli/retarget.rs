@@ -216,6 +216,7 @@ pub fn run(global: &LinkArgs, args: RetargetArgs, out: &mut dyn Write, err: &mut
             "oriented": r.oriented,
             "velocity_limited_steps": r.velocity_limited,
             "reconfigurations": r.reconfigured.iter().filter(|c| **c).count(),
+            "jumps": r.jumps,
             "tracking_mm": tracking,
             "out": args.out.as_ref().map(|p| p.display().to_string()),
             "plot": args.plot.as_ref().map(|p| p.display().to_string()),

@@ -26,7 +26,7 @@ use super::densify::{densify, Added, Track, MAX_JOINT_STEP};
 use super::hand::{self, HandSample};
 use super::rest::{self, Rest, RestReading};
 use super::skeleton::RootOffset;
-use super::solve::{request, toward};
+use super::solve::{branch_changed, nearest, request, toward};
 use super::timing::{time_keyframes, Limits, Timing};
 use super::workspace::{self, Workspace};
 use crate::arm::dof::DynArm;
@@ -135,6 +135,9 @@ pub struct Retargeted {
     /// may change its configuration (elbow or wrist flipped, the base swung round) on the way
     /// there, and its tool leaves the straight line between the two targets meanwhile.
     pub reconfigured: Vec<bool>,
+    /// Steps between two sampled keyframes (before [`densify`]) in which some joint moves more
+    /// than [`super::solve::BRANCH_CHANGE`]: the arm changing its configuration, whichever solve gave it.
+    pub jumps: usize,
     /// The share of the sampled keyframes (before [`densify`] added any) whose target IK reached.
     pub inside_workspace: f64,
     /// The share of the sampled keyframes whose pose (position and the hand's turn) IK reached;
@@ -304,13 +307,19 @@ pub fn retarget(bvh: &Bvh, arm: &dyn DynArm, options: &Options) -> Result<Retarg
         let mut solved = arm.solve(&request(*target, None, previous.clone()))?;
         if let (false, Some(prev)) = (solved.status == IkStatus::Converged, &previous) {
             // Stuck (often at the stretched-out singularity the last unreachable target left the
-            // arm in): solve afresh with restarts, else go as far as the line allows.
-            let fresh = arm.solve(&request(*target, None, None))?;
-            if fresh.status == IkStatus::Converged {
-                solved = fresh;
-                fresh_start = true;
+            // arm in): the closed form nearest the last keyframe, else afresh with restarts, else
+            // as far as the line allows.
+            if let Some(q) = nearest(arm, *target, None, prev)? {
+                fresh_start = branch_changed(prev, &q);
+                (solved.q, solved.status) = (q, IkStatus::Converged);
             } else {
-                solved.q = toward(arm, prev, target)?;
+                let fresh = arm.solve(&request(*target, None, None))?;
+                if fresh.status == IkStatus::Converged {
+                    solved = fresh;
+                    fresh_start = true;
+                } else {
+                    solved.q = toward(arm, prev, target)?;
+                }
             }
         }
         if k == 0 {
@@ -320,12 +329,18 @@ pub fn retarget(bvh: &Bvh, arm: &dyn DynArm, options: &Options) -> Result<Retarg
         if with_orientation {
             let goal = orientation_target(&samples[k].orientation, &samples[0].orientation, &tool_first);
             let seed = previous.clone().unwrap_or_else(|| solved.q.clone());
-            let mut posed = arm.solve(&request(*target, Some(&goal), Some(seed)))?;
+            let mut posed = arm.solve(&request(*target, Some(&goal), Some(seed.clone())))?;
             let mut posed_fresh = false;
             if posed.status != IkStatus::Converged && k > 0 {
-                // As for the position: afresh, with restarts, before settling for position only.
-                posed = arm.solve(&request(*target, Some(&goal), None))?;
-                posed_fresh = true;
+                // As for the position: the closed form nearest, else afresh with restarts, before
+                // settling for position only.
+                if let Some(q) = nearest(arm, *target, Some(&goal), &seed)? {
+                    posed_fresh = branch_changed(&seed, &q);
+                    (posed.q, posed.status) = (q, IkStatus::Converged);
+                } else {
+                    posed = arm.solve(&request(*target, Some(&goal), None))?;
+                    posed_fresh = true;
+                }
             }
             if posed.status == IkStatus::Converged {
                 oriented += 1;
@@ -340,6 +355,7 @@ pub fn retarget(bvh: &Bvh, arm: &dyn DynArm, options: &Options) -> Result<Retarg
     }
 
     let inside_workspace = reachable.iter().filter(|r| **r).count() as f64 / count as f64;
+    let jumps = q.windows(2).filter(|w| branch_changed(&w[0], &w[1])).count();
     let track = Track { q, targets, reachable, reconfigured, steps: vec![1.0 / rate; count - 1] };
     let (track, added) = densify(arm, track, with_orientation, max_keyframes)?;
     match added {
@@ -407,6 +423,7 @@ pub fn retarget(bvh: &Bvh, arm: &dyn DynArm, options: &Options) -> Result<Retarg
         tool,
         reachable,
         reconfigured,
+        jumps,
         inside_workspace,
         oriented: with_orientation.then_some(oriented as f64 / count as f64),
         velocity_limited: timed.limited,
