@@ -223,6 +223,10 @@ fn ik_closed_form_and_every_solution() {
     assert_fails(&["ik", "--arm", "iiwa14", "--target", &join(&position), "--all-solutions"], &["no closed form"]);
     assert_fails(&["ik", "--arm", "ur5e", "--target", "0.3,0.2,0.4", "--solver", "analytic"], &["needs a full pose"]);
     assert_fails(&["ik", "--arm", "ur5e", "--target", "0.3,0.2,0.4", "--all-solutions"], &["needs a full pose"]);
+    assert_fails(
+        &["ik", "--arm", "ur5e", "--target", &target, "--quat", &quat, "--all-solutions", "--scalar", "f32"],
+        &["runs in f64"],
+    );
 }
 
 #[test]

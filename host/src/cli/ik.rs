@@ -142,6 +142,9 @@ pub(crate) fn run(args: &IkArgs, out: &mut dyn Write, err: &mut dyn Write) -> Re
         let quat = args.quat.as_deref().map(|q| parse::fixed::<4>(q, "--quat")).transpose()?;
         let seed = args.seed.as_deref().map(|s| parse::numbers(s, "--seed")).transpose()?;
         if args.all_solutions {
+            if args.scalar == Scalar::F32 {
+                bail!("--all-solutions: the closed form runs in f64 (leave out --scalar f32)");
+            }
             return all_solutions(&*arm, &request(position, quat, seed), out);
         }
         let outcome = arm.solve(&request(position, quat, seed))?;
