@@ -311,6 +311,28 @@ fn one_served_arm_keeps_its_state_across_five_commands() {
 /// controller_sil.rs found stalled before): the host's check of the line finds it blocked, so it
 /// goes by joints and says so; a move whose line is clear says `line`; `--path line` is refused
 /// before anything moves, saying where and why, in one line; `--path joint` goes by joints.
+/// A reachable target the firmware's own IK misses from where the arm is (found by
+/// host/scripts/random_moves.py: the firmware refuses it as unreachable from this start every
+/// time, while the closed form has two solutions within the limits): `move` solves it on the host
+/// and goes there by joints, and says so.
+#[test]
+fn a_target_the_firmware_misses_is_reached_by_the_hosts_solution() {
+    let _one = one_at_a_time();
+    let (mut child, pty, errors) = serve(&["--sim", "--arm", "so101"]);
+    let port = |args: &[&str]| on_port(&pty, args);
+    let start = [1.26971, 0.326671, 1.382003, 1.155796, -1.784273];
+    let goal = tool_at("so101", &[0.176832, -1.243207, -1.401943, -1.273808, 1.889245]);
+    port(&["joints", "--q", &join(&start), "--json"]).json("joints");
+    let moved = port(&["move", "--to", &join(&goal), "--speed", "0.2", "--timeout", "20", "--json"]).json("move");
+    assert_eq!(moved["path"], "joint", "{moved}");
+    assert_eq!(moved["solved_on_host"], true, "{moved}");
+    assert!(moved["error_mm"].as_f64().unwrap() < 1.0, "{moved}");
+    signal(&child, "TERM");
+    assert_eq!(exit_code(&mut child), 0);
+    let errors = errors.join().unwrap();
+    assert!(errors.contains(" 0 violations"), "{errors}");
+}
+
 #[test]
 fn a_move_whose_line_is_blocked_arrives_by_joints_and_says_so() {
     let _one = one_at_a_time();

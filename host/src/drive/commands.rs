@@ -5,7 +5,7 @@ use std::io::Write;
 
 use anyhow::{anyhow, bail, Result};
 use firmware::link::message::{
-    CartesianTarget, HostMessage, MovePath, RunState, Status, Timing, MAX_REACH, MAX_SPEED, MAX_TIME,
+    CartesianTarget, HostMessage, MovePath, NakReason, RunState, Status, Timing, MAX_REACH, MAX_SPEED, MAX_TIME,
     QUATERNION_TOLERANCE,
 };
 use serde_json::json;
@@ -13,10 +13,11 @@ use serde_json::json;
 use super::args::{DriveCommand, JointsArgs, MoveArgs, OnOff, PathArg};
 use super::gripper::GripperRequest;
 use super::interrupt;
-use super::path::{at_limits, decide, where_blocked};
+use super::path::{at_limits, decide, host_solution, where_blocked};
 use super::play::{self, Plan};
 use super::session::{check_joints, fmt3, fmt_list, Driver, Waited};
 use crate::args::numbers as parse;
+use crate::link::client::LinkError;
 
 /// The tool speed of `move` without --speed or --duration (m/s): slow enough to watch.
 pub const DEFAULT_TOOL_SPEED: f64 = 0.1;
@@ -190,11 +191,35 @@ pub fn run(driver: &mut Driver, request: Request, json: bool, out: &mut dyn Writ
                     driver.undo_torque(switched)
                 );
             }
-            let path = sent;
+            let mut path = sent;
             interrupt::catch();
             let message = HostMessage::MoveTo { target, timing, path };
-            if let Err(e) = driver.request(&message) {
-                bail!("move to {shown} m: {e}; nothing moved{}", driver.undo_torque(switched));
+            let mut by_host = false;
+            match driver.request(&message) {
+                Ok(_) => {}
+                // The firmware's IK (f32, a budget sized for its loop) can miss a solution that
+                // exists: the host's (the closed form, else DLS with restarts, in f64) is tried
+                // before the target is called unreachable, and the arm goes there by joints.
+                Err(LinkError::Nak(NakReason::Unreachable)) if path != MovePath::Line => {
+                    let Some(q) = host_solution(driver, &start, &target)? else {
+                        bail!(
+                            "move to {shown} m: the firmware refused the request: {}, and the host's IK finds no \
+                             solution either; nothing moved{}",
+                            NakReason::Unreachable,
+                            driver.undo_torque(switched)
+                        );
+                    };
+                    let positions = check_joints(driver, &q, "the host's solution")?;
+                    let timing = match timing {
+                        Timing::Duration(d) => Timing::Duration(d),
+                        Timing::MaxSpeed(_) => Timing::MaxSpeed(MAX_SPEED),
+                    };
+                    if let Err(e) = driver.request(&HostMessage::MoveJoints { positions, timing }) {
+                        bail!("move to {shown} m: {e}; nothing moved{}", driver.undo_torque(switched));
+                    }
+                    (path, by_host) = (MovePath::Joint, true);
+                }
+                Err(e) => bail!("move to {shown} m: {e}; nothing moved{}", driver.undo_torque(switched)),
             }
             Driver::note_torque(switched, err)?;
             let status = match driver.wait_until_rest(timeout)? {
@@ -224,12 +249,19 @@ pub fn run(driver: &mut Driver, request: Request, json: bool, out: &mut dyn Writ
             };
             let ahead = blocked_ahead
                 .as_ref()
-                .map(|b| format!("; {}, so the arm went by joints", where_blocked(driver.arm(), b)));
+                .map(|b| format!("; {}, so the arm went by joints", where_blocked(driver.arm(), b)))
+                .or_else(|| {
+                    by_host.then(|| {
+                        "; the firmware's IK found no solution from here, so the arm went by joints to the host's"
+                            .to_string()
+                    })
+                });
             if json {
                 let v = json!({
                     "command": "move",
                     "path": path,
                     "line_blocked_mm": blocked_ahead.as_ref().map(|b| b.along * 1e3),
+                    "solved_on_host": by_host,
                     "target": goal,
                     "quaternion_wxyz": target.orientation,
                     "reached": reached,

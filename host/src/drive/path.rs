@@ -5,8 +5,10 @@
 
 use anyhow::Result;
 use firmware::link::message::{CartesianTarget, MovePath, Status};
+use kinematics::ik::{IkConfig, IkStatus};
 
 use super::session::Driver;
+use crate::arm::dof::{IkRequest, Scalar, SolverName};
 use crate::motion::line::{Blocked, Line};
 
 /// The path to send for a move asked to go by `asked`, and where the line is blocked if it is:
@@ -24,6 +26,23 @@ pub(crate) fn decide(
         Ok(_) => Ok((asked, None)),
         Err(blocked) => Ok((MovePath::Joint, Some(blocked))),
     }
+}
+
+/// The joints that put the tool on `target`, solved on the host from where the arm is (the
+/// closed form nearest the joints where the arm has one, else damped least squares with
+/// restarts, in f64 at the firmware's tolerances), or `None` if it finds none within the limits.
+pub(crate) fn host_solution(driver: &Driver, start: &Status, target: &CartesianTarget) -> Result<Option<Vec<f64>>> {
+    let (position_tolerance, orientation_tolerance) = Scalar::F32.default_tolerances();
+    let request = IkRequest {
+        position: target.position.map(f64::from),
+        quaternion_wxyz: target.orientation.map(|o| o.map(f64::from)),
+        seed: Some(start.measured.iter().map(|&x| f64::from(x)).collect()),
+        solver: SolverName::Auto,
+        config: IkConfig { position_tolerance, orientation_tolerance, ..IkConfig::default() },
+        scalar: Scalar::F64,
+    };
+    let solved = driver.model().solve(&request)?;
+    Ok((solved.status == IkStatus::Converged).then_some(solved.q))
 }
 
 /// The straight line from the tool (at the joints of `start`) to `target`, checked by IK as the
