@@ -79,14 +79,7 @@ impl<T: Real, const N: usize> Chain<T, N> {
     /// Solves with any [`IkMethod`], with the shared validation, restarts and final check.
     pub fn solve_with<M: IkMethod<T, N>>(&self, method: &M, problem: &IkProblem<T, N>) -> IkSolution<T, N> {
         if let Err(reason) = problem.validate() {
-            return IkSolution {
-                q: problem.seed,
-                status: IkStatus::InvalidInput(reason),
-                iterations: 0,
-                restarts: 0,
-                position_error: T::zero(),
-                orientation_error: T::zero(),
-            };
+            return IkSolution::refused(problem.seed, reason);
         }
         let config = &problem.config;
         let residual = Residual::new(problem.target, config);

@@ -147,6 +147,21 @@ pub struct IkSolution<T: Real, const N: usize> {
     pub orientation_error: T,
 }
 
+impl<T: Real, const N: usize> IkSolution<T, N> {
+    /// The answer to a problem refused without solving: the seed, unchanged.
+    #[inline]
+    pub(crate) fn refused(seed: SVector<T, N>, reason: InvalidInput) -> Self {
+        Self {
+            q: seed,
+            status: IkStatus::InvalidInput(reason),
+            iterations: 0,
+            restarts: 0,
+            position_error: T::zero(),
+            orientation_error: T::zero(),
+        }
+    }
+}
+
 impl<T: Real, const N: usize> IkProblem<T, N> {
     pub(crate) fn validate(&self) -> Result<(), InvalidInput> {
         if !self.target.is_finite() {

@@ -319,14 +319,7 @@ impl<T: Real, const N: usize> Chain<T, N> {
     /// does not answer). An invalid problem is refused as by [`Chain::solve`].
     pub fn solve_closed_form(&self, closed: &ClosedForm<T, N>, problem: &IkProblem<T, N>) -> IkSolution<T, N> {
         if let Err(reason) = problem.validate() {
-            return IkSolution {
-                q: problem.seed,
-                status: IkStatus::InvalidInput(reason),
-                iterations: 0,
-                restarts: 0,
-                position_error: T::zero(),
-                orientation_error: T::zero(),
-            };
+            return IkSolution::refused(problem.seed, reason);
         }
         let distance = |q: &SVector<T, N>| distance_from(self, q, &problem.seed);
         // The exact candidates within the limits, nearest the seed first, are checked by FK one
