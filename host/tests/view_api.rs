@@ -93,6 +93,19 @@ fn drives_the_simulated_arm_through_the_api_and_refuses_bad_input() {
     let arrived = view.wait_for(|s| at_rest(s) && distance(&numbers(&s["tool"]), &far) < 1e-3, "the far target", 20.0);
     assert_eq!(arrived["target"]["path"], "joint");
 
+    // A target the firmware's own IK misses from this start (pc_bus.rs has the same pair): the
+    // host's solution takes the arm there by joints, and the answer says so.
+    let start = [1.26971, 0.326671, 1.382003, 1.155796, -1.784273];
+    assert_eq!(view.post("joints", json!({"q": start})).0, 200);
+    view.wait_for(|s| at_rest(s) && distance(&numbers(&s["measured"]), &start) < 2e-3, "the second start", 10.0);
+    let end = kinematics::nalgebra::SVector::from([0.176832, -1.243207, -1.401943, -1.273808, 1.889245]);
+    let missed: [f64; 3] = so101.tool_pose(&end).translation.into();
+    let (code, went) = view.post("target", json!({"position": missed, "go": true}));
+    assert_eq!(code, 200, "{went}");
+    assert_eq!(went["path"], "joint", "{went}");
+    assert!(went["how"].as_str().unwrap().contains("the host's"), "{went}");
+    view.wait_for(|s| at_rest(s) && distance(&numbers(&s["tool"]), &missed) < 1e-3, "the missed target", 20.0);
+
     // A file plays; stop stops it halfway.
     let rows: String =
         (0..=40).map(|i| format!("{},{:.4},0,0,0,0\n", i as f64 * 0.1, 0.8 * (i as f64 * 0.1).sin())).collect();

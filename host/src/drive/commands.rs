@@ -13,7 +13,7 @@ use serde_json::json;
 use super::args::{DriveCommand, JointsArgs, MoveArgs, OnOff, PathArg};
 use super::gripper::GripperRequest;
 use super::interrupt;
-use super::path::{at_limits, decide, host_solution, where_blocked};
+use super::path::{at_limits, decide, send, where_blocked, SOLVED_ON_HOST};
 use super::play::{self, Plan};
 use super::session::{check_joints, fmt3, fmt_list, Driver, Waited};
 use crate::args::numbers as parse;
@@ -193,33 +193,21 @@ pub fn run(driver: &mut Driver, request: Request, json: bool, out: &mut dyn Writ
             }
             let mut path = sent;
             interrupt::catch();
-            let message = HostMessage::MoveTo { target, timing, path };
-            let mut by_host = false;
-            match driver.request(&message) {
-                Ok(_) => {}
-                // The firmware's IK (f32, a budget sized for its loop) can miss a solution that
-                // exists: the host's (the closed form, else DLS with restarts, in f64) is tried
-                // before the target is called unreachable, and the arm goes there by joints.
-                Err(LinkError::Nak(NakReason::Unreachable)) if path != MovePath::Line => {
-                    let Some(q) = host_solution(driver, &start, &target)? else {
-                        bail!(
-                            "move to {shown} m: the firmware refused the request: {}, and the host's IK finds no \
-                             solution either; nothing moved{}",
-                            NakReason::Unreachable,
-                            driver.undo_torque(switched)
-                        );
+            let by_host = match send(driver, &start, target, timing, path) {
+                Ok(Ok(by_host)) => by_host,
+                Ok(Err(e)) => {
+                    let either = match (&e, path) {
+                        (LinkError::Nak(NakReason::Unreachable), MovePath::Auto | MovePath::Joint) => {
+                            ", and the host's IK finds no solution either"
+                        }
+                        _ => "",
                     };
-                    let positions = check_joints(driver, &q, "the host's solution")?;
-                    let timing = match timing {
-                        Timing::Duration(d) => Timing::Duration(d),
-                        Timing::MaxSpeed(_) => Timing::MaxSpeed(MAX_SPEED),
-                    };
-                    if let Err(e) = driver.request(&HostMessage::MoveJoints { positions, timing }) {
-                        bail!("move to {shown} m: {e}; nothing moved{}", driver.undo_torque(switched));
-                    }
-                    (path, by_host) = (MovePath::Joint, true);
+                    bail!("move to {shown} m: {e}{either}; nothing moved{}", driver.undo_torque(switched))
                 }
-                Err(e) => bail!("move to {shown} m: {e}; nothing moved{}", driver.undo_torque(switched)),
+                Err(e) => bail!("move to {shown} m: {e:#}; nothing moved{}", driver.undo_torque(switched)),
+            };
+            if by_host {
+                path = MovePath::Joint;
             }
             Driver::note_torque(switched, err)?;
             let status = match driver.wait_until_rest(timeout)? {
@@ -250,12 +238,7 @@ pub fn run(driver: &mut Driver, request: Request, json: bool, out: &mut dyn Writ
             let ahead = blocked_ahead
                 .as_ref()
                 .map(|b| format!("; {}, so the arm went by joints", where_blocked(driver.arm(), b)))
-                .or_else(|| {
-                    by_host.then(|| {
-                        "; the firmware's IK found no solution from here, so the arm went by joints to the host's"
-                            .to_string()
-                    })
-                });
+                .or_else(|| by_host.then(|| format!("; {SOLVED_ON_HOST}")));
             if json {
                 let v = json!({
                     "command": "move",

@@ -4,11 +4,12 @@
 //! target of `armctl view` decide alike.
 
 use anyhow::Result;
-use firmware::link::message::{CartesianTarget, MovePath, Status};
+use firmware::link::message::{CartesianTarget, HostMessage, MovePath, NakReason, Status, Timing, MAX_SPEED};
 use kinematics::ik::{IkConfig, IkStatus};
 
-use super::session::Driver;
+use super::session::{check_joints, Driver};
 use crate::arm::dof::{IkRequest, Scalar, SolverName};
+use crate::link::client::LinkError;
 use crate::motion::line::{Blocked, Line};
 
 /// The path to send for a move asked to go by `asked`, and where the line is blocked if it is:
@@ -27,6 +28,41 @@ pub(crate) fn decide(
         Err(blocked) => Ok((MovePath::Joint, Some(blocked))),
     }
 }
+
+/// Sends the move to `target` by `path` (as [`decide`] chose it). The firmware's IK (f32, a budget
+/// sized for its loop) can miss a solution that exists: where it refuses the target as unreachable
+/// (but for `Line`, which asks for the firmware's tracking), the host's solution is tried, and the
+/// arm goes there by a joint move. `Ok(Ok(true))` if the host's solution was sent, `Ok(Err(_))`
+/// with the firmware's refusal if not even the host finds one, `Err` for a host-side failure.
+pub(crate) fn send(
+    driver: &mut Driver,
+    start: &Status,
+    target: CartesianTarget,
+    timing: Timing,
+    path: MovePath,
+) -> Result<Result<bool, LinkError>> {
+    match driver.request(&HostMessage::MoveTo { target, timing, path }) {
+        Ok(_) => Ok(Ok(false)),
+        Err(LinkError::Nak(NakReason::Unreachable)) if path != MovePath::Line => {
+            let Some(q) = host_solution(driver, start, &target)? else {
+                return Ok(Err(LinkError::Nak(NakReason::Unreachable)));
+            };
+            let positions = check_joints(driver, &q, "the host's solution")?;
+            // A tool speed means nothing to a joint move: as fast as the limits allow, as
+            // `armctl joints` goes by default; a duration is kept.
+            let timing = match timing {
+                Timing::MaxSpeed(_) => Timing::MaxSpeed(MAX_SPEED),
+                other => other,
+            };
+            Ok(driver.request(&HostMessage::MoveJoints { positions, timing }).map(|_| true))
+        }
+        Err(e) => Ok(Err(e)),
+    }
+}
+
+/// Said where the host's solution was sent: why the arm went by joints.
+pub(crate) const SOLVED_ON_HOST: &str =
+    "the firmware's IK found no solution from here, so the arm went by joints to the host's";
 
 /// The joints that put the tool on `target`, solved on the host from where the arm is (the
 /// closed form nearest the joints where the arm has one, else damped least squares with

@@ -358,16 +358,22 @@ impl LoopState {
                     self.extras.target["how"] = json!(how);
                     solution["path"] = json!(if blocked.is_some() { "joint" } else { "line" });
                     solution["how"] = json!(how);
-                    let sent = self.driver.request(&HostMessage::MoveTo {
-                        path,
-                        target,
-                        timing: Timing::MaxSpeed(TARGET_SPEED),
-                    });
-                    if let Err(e) = sent {
-                        let e = link_error(e);
-                        self.extras.target["reachable"] = json!(false);
-                        self.extras.target["reason"] = json!(e.message);
-                        return Err(e);
+                    let sent = path::send(&mut self.driver, &start, target, Timing::MaxSpeed(TARGET_SPEED), path)
+                        .map_err(|e| ApiError::bad(format!("{e:#}")))?;
+                    match sent {
+                        Ok(false) => {}
+                        Ok(true) => {
+                            self.extras.target["path"] = json!("joint");
+                            self.extras.target["how"] = json!(path::SOLVED_ON_HOST);
+                            solution["path"] = json!("joint");
+                            solution["how"] = json!(path::SOLVED_ON_HOST);
+                        }
+                        Err(e) => {
+                            let e = link_error(e);
+                            self.extras.target["reachable"] = json!(false);
+                            self.extras.target["reason"] = json!(e.message);
+                            return Err(e);
+                        }
                     }
                     self.extras.last_error = None;
                 }
