@@ -163,6 +163,36 @@ fn bus_with_a_lerobot_calibration_drives_the_servos_to_lerobots_ticks() {
     assert_eq!(code, 1, "{err}");
     assert!(err.lines().last().unwrap().contains("refused"), "{err}");
     assert_eq!(goals("4"), before, "nothing moved");
+    // The gripper's servo is checked as the joints' are (issue 29): a file whose gripper entry the
+    // servo does not hold (a replaced or reset gripper servo) is refused when connecting, naming
+    // it; once written, accepted.
+    let regripped = dir.join("regripped.json");
+    std::fs::write(
+        &regripped,
+        SO101.replace(
+            "\"id\": 6, \"drive_mode\": 0, \"homing_offset\": 1160",
+            "\"id\": 6, \"drive_mode\": 0, \"homing_offset\": 1100",
+        ),
+    )
+    .unwrap();
+    let regripped = regripped.to_str().unwrap();
+    let with = |file: &str| armctl(&["--bus", port, "--protocol", "sts", "--calibration", file, "status"]);
+    let (code, _, err) = with(regripped);
+    assert_eq!(code, 1, "{err}");
+    let last = err.lines().last().unwrap();
+    assert!(
+        last.contains("servo 6 (gripper) does not hold the calibration: its homing offset is 1160")
+            && last.contains("says 1100"),
+        "{err}"
+    );
+    // The calibration registers are EEPROM, written with the torque off (the moves above left it on).
+    let (code, _, err) = armctl(&["servo", "torque", "--port", port, "--protocol", "sts", "--id", "all", "off"]);
+    assert_eq!(code, 0, "{err}");
+    let (code, _, err) =
+        armctl(&["servo", "calibration", "write", "--port", port, "--protocol", "sts", "--file", regripped]);
+    assert_eq!(code, 0, "{err}");
+    let (code, out, err) = with(regripped);
+    assert_eq!(code, 0, "{out}{err}");
     let missing = dir.join("five.json");
     std::fs::write(&missing, SO101.replace("\"id\": 3,", "\"id\": 7,")).unwrap();
     let (code, _, err) =

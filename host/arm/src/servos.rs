@@ -27,6 +27,10 @@ pub struct ServoSetup {
     pub calibration: Option<Vec<MotorCalibration>>,
     /// The gripper, an actuator outside the kinematic chain on the same bus (`None`: no gripper).
     pub gripper: Option<GripperSpec>,
+    /// The LeRobot calibration of the gripper's servo, where the calibration has one: its range
+    /// is in `gripper`; the whole entry is kept so that connecting checks the servo holds it, as
+    /// it checks the joints' (LeRobot's `is_calibrated` compares every motor).
+    pub gripper_calibration: Option<MotorCalibration>,
     /// The bus's baud rate (the arm file's `baud`, by default [`DEFAULT_BAUD`]): a board switches
     /// its servo bus to it when the arm is sent.
     pub baud: u32,
@@ -122,6 +126,7 @@ impl ServoSetup {
             max_acceleration: 8.0,
             calibration: None,
             gripper: Some(gripper),
+            gripper_calibration: None,
             baud: DEFAULT_BAUD,
         })
     }
@@ -184,6 +189,7 @@ impl ServoSetup {
         if let Some(g) = self.gripper.as_mut() {
             if let Some((_, m)) = calibration.by_id(g.id) {
                 *g = g.calibrated(m);
+                self.gripper_calibration = Some(*m);
             }
         }
         Ok(())

@@ -359,6 +359,7 @@ fn servos(at: &str, text: &str, entry: &ServosEntry, joints: &[JointSpec]) -> Re
         max_acceleration: entry.max_acceleration,
         calibration,
         gripper: None,
+        gripper_calibration: None,
         baud,
     })
 }

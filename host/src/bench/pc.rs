@@ -57,6 +57,7 @@ fn arm(args: &PcBenchArgs) -> Result<ArmSpec> {
         baud: armctl_arm::servos::DEFAULT_BAUD,
         calibration: None,
         gripper: None,
+        gripper_calibration: None,
     });
     Ok(spec)
 }

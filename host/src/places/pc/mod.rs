@@ -336,14 +336,19 @@ fn check_calibration(
             ),
         ),
     };
-    for (j, (&id, m)) in servos.ids.iter().zip(calibration).enumerate() {
+    // The joints', then the gripper's where the calibration has it: a replaced or reset gripper
+    // servo would otherwise be driven with the wrong mapping.
+    let joints =
+        servos.ids.iter().zip(calibration).enumerate().map(|(j, (&id, m))| (id, format!("joint {}", j + 1), m));
+    let gripper =
+        servos.gripper.zip(servos.gripper_calibration.as_ref()).map(|(g, m)| (g.id, "gripper".to_string(), m));
+    for (id, what, m) in joints.chain(gripper) {
         for register in registers(model) {
             let held = read_item(master, model, id, register.item)?;
             let want = m.value(&register);
             if held != want {
                 bail!(
-                    "servo {id} (joint {}) does not hold the calibration: its {} is {held}, {source} says {want}; {fix}",
-                    j + 1,
+                    "servo {id} ({what}) does not hold the calibration: its {} is {held}, {source} says {want}; {fix}",
                     register.field,
                 );
             }
