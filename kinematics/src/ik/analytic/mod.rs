@@ -222,15 +222,38 @@ impl<T: Real, const N: usize> ClosedForm<T, N> {
     /// the limits nearest the seed and checked by forward kinematics. Empty for a target this
     /// shape does not answer or an invalid problem.
     pub fn solutions(&self, chain: &Chain<T, N>, problem: &IkProblem<T, N>) -> Solutions<T, N> {
-        let mut all = Solutions::new();
-        let raw = self.candidates(chain, problem);
         let residual = Residual::new(problem.target, &problem.config);
-        for (q, exact, singular) in raw.iter() {
-            let (q, within_limits) = fit(chain, q, &problem.seed);
-            let _ = all.push(checked(chain, &residual, q, within_limits, exact, singular));
-        }
-        all
+        checked_all(chain, &residual, &problem.seed, &self.candidates(chain, problem))
     }
+}
+
+impl<T: Real, const N: usize> ClosedFormSolution<T, N> {
+    /// This solution as the answer to the problem, with `status`.
+    fn answer(&self, status: IkStatus) -> IkSolution<T, N> {
+        IkSolution {
+            q: self.q,
+            status,
+            iterations: self.polish_iterations,
+            restarts: 0,
+            position_error: self.position_error,
+            orientation_error: self.orientation_error,
+        }
+    }
+}
+
+/// Every candidate of `raw` fitted into the limits nearest `seed` and [`checked`].
+fn checked_all<T: Real, const N: usize>(
+    chain: &Chain<T, N>,
+    residual: &Residual<T>,
+    seed: &SVector<T, N>,
+    raw: &Candidates<T>,
+) -> Solutions<T, N> {
+    let mut all = Solutions::new();
+    for (q, exact, singular) in raw.iter() {
+        let (q, within_limits) = fit(chain, q, seed);
+        let _ = all.push(checked(chain, residual, q, within_limits, exact, singular));
+    }
+    all
 }
 
 /// The squared joint-space distance of `q` from `seed` (continuous joints by the shorter way).
@@ -321,33 +344,14 @@ impl<T: Real, const N: usize> Chain<T, N> {
         if let Err(reason) = problem.validate() {
             return IkSolution::refused(problem.seed, reason);
         }
-        let distance = |q: &SVector<T, N>| distance_from(self, q, &problem.seed);
-        // The exact candidates within the limits, nearest the seed first, are checked by FK one
-        // by one until one reaches: usually the first, so one FK instead of eight.
         let residual = Residual::new(problem.target, &problem.config);
+        // The candidates once (a position target's pitch search is most of their cost), for the
+        // reaching answer and, failing it, the closest miss.
         let raw = closed.candidates(self, problem);
-        let mut order: heapless::Vec<(T, SVector<T, N>, Option<Singularity>), MAX_SOLUTIONS> = heapless::Vec::new();
-        for (q, exact, singular) in raw.iter() {
-            let (q, within) = fit(self, q, &problem.seed);
-            if exact && within {
-                let _ = order.push((distance(&q), q, singular));
-            }
+        if let Some(solution) = self.nearest_reaching(&raw, &residual, &problem.seed) {
+            return solution;
         }
-        order.sort_unstable_by(|a, b| a.0.partial_cmp(&b.0).unwrap_or(core::cmp::Ordering::Equal));
-        for (_, q, singular) in &order {
-            let s = checked(self, &residual, *q, true, true, *singular);
-            if s.within_limits && s.reaches {
-                return IkSolution {
-                    q: s.q,
-                    status: IkStatus::Converged,
-                    iterations: s.polish_iterations,
-                    restarts: 0,
-                    position_error: s.position_error,
-                    orientation_error: s.orientation_error,
-                };
-            }
-        }
-        let all = closed.solutions(self, problem);
+        let all = checked_all(self, &residual, &problem.seed, &raw);
         let weight = problem.config.orientation_weight;
         let miss = |s: &ClosedFormSolution<T, N>| s.position_error + weight * s.orientation_error;
         let nearest = |keep: &dyn Fn(&ClosedFormSolution<T, N>) -> bool,
@@ -358,18 +362,10 @@ impl<T: Real, const N: usize> Chain<T, N> {
             })
         };
         // None reaches: the closest within the limits, else the closest of all.
-        let chosen = nearest(&|s| s.within_limits, &miss).or_else(|| nearest(&|_| true, &miss));
-        match chosen {
-            Some(s) => IkSolution {
-                q: s.q,
-                status: IkStatus::BestEffort,
-                iterations: s.polish_iterations,
-                restarts: 0,
-                position_error: s.position_error,
-                orientation_error: s.orientation_error,
-            },
+        match nearest(&|s| s.within_limits, &miss).or_else(|| nearest(&|_| true, &miss)) {
+            Some(s) => s.answer(IkStatus::BestEffort),
             None => {
-                let error = Residual::new(problem.target, &problem.config).error(&self.tool_pose(&problem.seed));
+                let error = residual.error(&self.tool_pose(&problem.seed));
                 IkSolution {
                     q: problem.seed,
                     status: IkStatus::BestEffort,
@@ -386,12 +382,38 @@ impl<T: Real, const N: usize> Chain<T, N> {
     /// numerical solver ([`Chain::solve`]). The second value is true if the closed form answered.
     pub fn solve_auto(&self, closed: Option<&ClosedForm<T, N>>, problem: &IkProblem<T, N>) -> (IkSolution<T, N>, bool) {
         if let Some(closed) = closed.filter(|c| c.answers(&problem.target)) {
-            let solution = self.solve_closed_form(closed, problem);
-            if solution.status == IkStatus::Converged {
+            // Only a reaching answer is wanted here: a miss goes to the numerical solver, so the
+            // closed form's closest miss is not worked out. (An invalid problem has no
+            // candidates, and `solve` refuses it.)
+            let residual = Residual::new(problem.target, &problem.config);
+            if let Some(solution) = self.nearest_reaching(&closed.candidates(self, problem), &residual, &problem.seed) {
                 return (solution, true);
             }
         }
         (self.solve(problem), false)
+    }
+
+    /// Of the exact candidates within the limits, nearest `seed` first, the first that reaches by
+    /// FK: usually the first, so one FK instead of eight.
+    fn nearest_reaching(
+        &self,
+        raw: &Candidates<T>,
+        residual: &Residual<T>,
+        seed: &SVector<T, N>,
+    ) -> Option<IkSolution<T, N>> {
+        let mut order: heapless::Vec<(T, SVector<T, N>, Option<Singularity>), MAX_SOLUTIONS> = heapless::Vec::new();
+        for (q, exact, singular) in raw.iter() {
+            let (q, within) = fit(self, q, seed);
+            if exact && within {
+                let _ = order.push((distance_from(self, &q, seed), q, singular));
+            }
+        }
+        order.sort_unstable_by(|a, b| a.0.partial_cmp(&b.0).unwrap_or(core::cmp::Ordering::Equal));
+        order
+            .iter()
+            .map(|(_, q, singular)| checked(self, residual, *q, true, true, *singular))
+            .find(|s| s.within_limits && s.reaches)
+            .map(|s| s.answer(IkStatus::Converged))
     }
 }
 
