@@ -271,6 +271,16 @@ fn exit_code(child: &mut Child) -> i32 {
     }
 }
 
+/// Ends `armctl serve` with SIGTERM: it exits 0 and its safety monitor counted no violation.
+/// Returns what it wrote on stderr.
+fn end_serve(child: &mut Child, errors: std::thread::JoinHandle<String>) -> String {
+    signal(child, "TERM");
+    assert_eq!(exit_code(child), 0);
+    let errors = errors.join().unwrap();
+    assert!(errors.contains("safety monitor:") && errors.contains(" 0 violations"), "{errors}");
+    errors
+}
+
 /// One `serve --sim` session driven by five consecutive `--port` commands: one arm whose state
 /// (torque, position, the controller's clock and counters) carries from command to command, and
 /// whose keyframe queue plays in the served core. SIGTERM then stops it, holding, with exit 0.
@@ -300,11 +310,8 @@ fn one_served_arm_keeps_its_state_across_five_commands() {
         after["errors"]["naks"].as_u64() >= before["errors"]["naks"].as_u64(),
         "the counters carried over: {before} then {after}"
     );
-    signal(&child, "TERM");
-    assert_eq!(exit_code(&mut child), 0);
-    let errors = errors.join().unwrap();
+    let errors = end_serve(&mut child, errors);
     assert!(errors.contains("holding"), "{errors}");
-    assert!(errors.contains("safety monitor:") && errors.contains(" 0 violations"), "{errors}");
 }
 
 /// A Cartesian move whose straight line runs into the joint limits (one the random moves of
@@ -327,10 +334,7 @@ fn a_target_the_firmware_misses_is_reached_by_the_hosts_solution() {
     assert_eq!(moved["path"], "joint", "{moved}");
     assert_eq!(moved["solved_on_host"], true, "{moved}");
     assert!(moved["error_mm"].as_f64().unwrap() < 1.0, "{moved}");
-    signal(&child, "TERM");
-    assert_eq!(exit_code(&mut child), 0);
-    let errors = errors.join().unwrap();
-    assert!(errors.contains(" 0 violations"), "{errors}");
+    end_serve(&mut child, errors);
 }
 
 #[test]
@@ -369,10 +373,7 @@ fn a_move_whose_line_is_blocked_arrives_by_joints_and_says_so() {
         .json("move --path joint");
     assert_eq!(joint["path"], "joint", "{joint}");
     assert!(joint["error_mm"].as_f64().unwrap() < 1.0, "{joint}");
-    signal(&child, "TERM");
-    assert_eq!(exit_code(&mut child), 0);
-    let errors = errors.join().unwrap();
-    assert!(errors.contains(" 0 violations"), "{errors}");
+    end_serve(&mut child, errors);
 }
 
 /// Ctrl-C while the served arm moves: it decelerates within its limits and holds, exit 0; a second
@@ -555,9 +556,6 @@ fn serve_sim_takes_an_arm_file() {
     let target = [p.x, p.y, p.z];
     let (mut child, pty, errors) = serve(&["--sim", "--arm", &arm]);
     let moved = armctl(&["--port", &pty, "--arm", &arm, "move", "--to", &join(&target), "--json"]).json("move");
-    signal(&child, "TERM");
-    assert_eq!(exit_code(&mut child), 0);
     assert!(largest_difference(&numbers(&moved["reached"]), &target) < 1e-3, "{moved}");
-    let errors = errors.join().unwrap();
-    assert!(errors.contains("safety monitor:") && errors.contains(" 0 violations"), "{errors}");
+    end_serve(&mut child, errors);
 }

@@ -159,6 +159,11 @@ pub trait DynArm: Send + Sync {
     fn solve(&self, request: &IkRequest) -> Result<IkOutcome>;
     /// The closed form's shape, if the arm's geometry has one.
     fn closed_form_shape(&self) -> Option<Shape>;
+    /// True if the arm's closed form answers a target with (`oriented`) or without an orientation:
+    /// every shape takes a pose, the yaw-pitch shape a position too.
+    fn closed_form_answers(&self, oriented: bool) -> bool {
+        self.closed_form_shape().is_some_and(|shape| oriented || shape.answers_position())
+    }
     /// Every closed-form solution of the request's target (f64), with the time they took. Errors
     /// for an arm without a closed form, or a target it does not answer.
     fn all_solutions(&self, request: &IkRequest) -> Result<(Vec<ClosedFormAnswer>, Duration)>;

@@ -5,12 +5,12 @@
 
 use anyhow::Result;
 use firmware::link::message::{CartesianTarget, HostMessage, MovePath, NakReason, Status, Timing, MAX_SPEED};
-use kinematics::ik::{IkConfig, IkStatus};
+use kinematics::ik::IkStatus;
 
 use super::session::{check_joints, Driver};
-use crate::arm::dof::{IkRequest, Scalar, SolverName};
 use crate::link::client::LinkError;
 use crate::motion::line::{Blocked, Line};
+use crate::motion::reach;
 
 /// The path to send for a move asked to go by `asked`, and where the line is blocked if it is:
 /// a blocked line goes by joints (for `Line` too: the caller refuses it instead, with the reason).
@@ -64,20 +64,12 @@ pub(crate) fn send(
 pub(crate) const SOLVED_ON_HOST: &str =
     "the firmware's IK found no solution from here, so the arm went by joints to the host's";
 
-/// The joints that put the tool on `target`, solved on the host from where the arm is (the
-/// closed form nearest the joints where the arm has one, else damped least squares with
-/// restarts, in f64 at the firmware's tolerances), or `None` if it finds none within the limits.
+/// The joints that put the tool on `target`, solved on the host from where the arm is
+/// ([`reach::solve`]), or `None` if it finds none within the limits.
 pub(crate) fn host_solution(driver: &Driver, start: &Status, target: &CartesianTarget) -> Result<Option<Vec<f64>>> {
-    let (position_tolerance, orientation_tolerance) = Scalar::F32.default_tolerances();
-    let request = IkRequest {
-        position: target.position.map(f64::from),
-        quaternion_wxyz: target.orientation.map(|o| o.map(f64::from)),
-        seed: Some(start.measured.iter().map(|&x| f64::from(x)).collect()),
-        solver: SolverName::Auto,
-        config: IkConfig { position_tolerance, orientation_tolerance, ..IkConfig::default() },
-        scalar: Scalar::F64,
-    };
-    let solved = driver.model().solve(&request)?;
+    let seed = start.measured.iter().map(|&x| f64::from(x)).collect();
+    let position = target.position.map(f64::from);
+    let solved = reach::solve(driver.model(), position, target.orientation.map(|o| o.map(f64::from)), Some(seed))?;
     Ok((solved.status == IkStatus::Converged).then_some(solved.q))
 }
 

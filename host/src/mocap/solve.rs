@@ -42,8 +42,7 @@ pub fn nearest(
     orientation: Option<&UnitQuaternion<f64>>,
     seed: &[f64],
 ) -> Result<Option<Vec<f64>>> {
-    let shape_answers = arm.closed_form_shape().is_some_and(|s| orientation.is_some() || s.answers_position());
-    if !shape_answers {
+    if !arm.closed_form_answers(orientation.is_some()) {
         return Ok(None);
     }
     let request =

@@ -7,29 +7,38 @@ use anyhow::{bail, Result};
 use kinematics::ik::{IkConfig, IkStatus};
 
 use super::CartesianKeyframes;
-use crate::arm::dof::{DynArm, IkRequest, Scalar, SolverName};
+use crate::arm::dof::{DynArm, IkOutcome, IkRequest, Scalar, SolverName};
 
 /// At most this many unreachable keyframes are named in the message; the rest are counted.
 const NAMED: usize = 5;
 
+/// A tool target solved on the host as the firmware would accept it: the closed form nearest
+/// `seed` where the arm has one, else damped least squares with restarts, in f64 at the
+/// firmware's tolerances (it solves in f32), so that a target reached here is one the firmware
+/// accepts too. `seed` `None` is the middle of the limits.
+pub fn solve(
+    arm: &dyn DynArm,
+    position: [f64; 3],
+    quaternion_wxyz: Option<[f64; 4]>,
+    seed: Option<Vec<f64>>,
+) -> Result<IkOutcome> {
+    let (position_tolerance, orientation_tolerance) = Scalar::F32.default_tolerances();
+    arm.solve(&IkRequest {
+        position,
+        quaternion_wxyz,
+        seed,
+        solver: SolverName::Auto,
+        config: IkConfig { position_tolerance, orientation_tolerance, ..IkConfig::default() },
+        scalar: Scalar::F64,
+    })
+}
+
 /// Fails, naming the file lines, if any keyframe is out of reach; `at(line)` says where a line is.
 pub fn check(arm: &dyn DynArm, k: &CartesianKeyframes, at: &dyn Fn(usize) -> String) -> Result<()> {
-    // The firmware's tolerances (it solves in f32), so that a keyframe passed here is one the
-    // firmware also accepts.
-    let (position_tolerance, orientation_tolerance) = Scalar::F32.default_tolerances();
-    let config = IkConfig { position_tolerance, orientation_tolerance, ..IkConfig::default() };
     let mut seed: Option<Vec<f64>> = None;
     let mut missed = Vec::new();
     for (i, position) in k.positions.iter().enumerate() {
-        let request = IkRequest {
-            position: *position,
-            quaternion_wxyz: k.orientations.as_ref().map(|o| o[i]),
-            seed: seed.clone(),
-            solver: SolverName::Auto,
-            config,
-            scalar: Scalar::F64,
-        };
-        let outcome = arm.solve(&request)?;
+        let outcome = solve(arm, *position, k.orientations.as_ref().map(|o| o[i]), seed.clone())?;
         if outcome.status == IkStatus::Converged {
             seed = Some(outcome.q);
         } else {

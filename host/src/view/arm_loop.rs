@@ -180,6 +180,12 @@ fn link_error(e: LinkError) -> ApiError {
     }
 }
 
+/// Says in `value` which path a Cartesian move took (`line` or `joint`) and why.
+fn describe(value: &mut Value, taken: &str, how: &str) {
+    value["path"] = json!(taken);
+    value["how"] = json!(how);
+}
+
 fn ok() -> Result<Value, ApiError> {
     Ok(json!({"ok": true}))
 }
@@ -350,23 +356,21 @@ impl LoopState {
                     let start = self.driver.status().map_err(|e| ApiError::new(503, format!("{e:#}")))?;
                     let (path, blocked) = path::decide(&self.driver, &start, &target, MovePath::Auto)
                         .map_err(|e| ApiError::bad(format!("{e:#}")))?;
-                    let how = match &blocked {
-                        Some(b) => format!("{}, so the arm goes by joints", path::where_blocked(self.driver.arm(), b)),
-                        None => "the straight line".to_string(),
+                    let (taken, how) = match &blocked {
+                        Some(b) => (
+                            "joint",
+                            format!("{}, so the arm goes by joints", path::where_blocked(self.driver.arm(), b)),
+                        ),
+                        None => ("line", "the straight line".to_string()),
                     };
-                    self.extras.target["path"] = json!(if blocked.is_some() { "joint" } else { "line" });
-                    self.extras.target["how"] = json!(how);
-                    solution["path"] = json!(if blocked.is_some() { "joint" } else { "line" });
-                    solution["how"] = json!(how);
+                    describe(&mut self.extras.target, taken, &how);
                     let sent = path::send(&mut self.driver, &start, target, Timing::MaxSpeed(TARGET_SPEED), path)
                         .map_err(|e| ApiError::bad(format!("{e:#}")))?;
                     match sent {
-                        Ok(false) => {}
+                        Ok(false) => describe(&mut solution, taken, &how),
                         Ok(true) => {
-                            self.extras.target["path"] = json!("joint");
-                            self.extras.target["how"] = json!(path::SOLVED_ON_HOST);
-                            solution["path"] = json!("joint");
-                            solution["how"] = json!(path::SOLVED_ON_HOST);
+                            describe(&mut self.extras.target, "joint", path::SOLVED_ON_HOST);
+                            describe(&mut solution, "joint", path::SOLVED_ON_HOST);
                         }
                         Err(e) => {
                             let e = link_error(e);

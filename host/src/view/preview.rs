@@ -25,7 +25,7 @@ pub fn solve(
             arm.spec().dof()
         )));
     }
-    let closed_form = arm.closed_form_shape().is_some_and(|shape| orientation.is_some() || shape.answers_position());
+    let closed_form = arm.closed_form_answers(orientation.is_some());
     let request = IkRequest {
         position,
         quaternion_wxyz: orientation,
