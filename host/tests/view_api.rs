@@ -128,6 +128,8 @@ fn drives_the_simulated_arm_through_the_api_and_refuses_bad_input() {
     // The whole file plays to its end.
     let (code, _) = view.post("play", json!({"name": "wave.csv", "csv": csv}));
     assert_eq!(code, 200);
+    // The telemetry can still carry the stopped play for a tick: this one's start first.
+    view.wait_for(|s| s["play"]["done"] == false, "the file to start", 5.0);
     let played = view.wait_for(|s| s["play"]["done"] == true, "the end of the file", 15.0);
     assert!(played["play"]["error"].is_null(), "{}", played["play"]);
     assert!(played["play"]["play_time"].as_f64().unwrap() >= 3.9);
