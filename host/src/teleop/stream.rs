@@ -20,7 +20,9 @@ use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Result};
-use firmware::link::message::{FirmwareMessage, HostMessage, JointKeyframe, Joints, NakReason, RunState};
+use firmware::link::message::{
+    CartesianKeyframe, CartesianTarget, FirmwareMessage, HostMessage, JointKeyframe, Joints, NakReason, RunState,
+};
 
 use super::leader::Reading;
 use super::record::Recorder;
@@ -192,12 +194,16 @@ const RETIME_STEP: f64 = 0.01;
 /// Retimed pushes of one keyframe before the session gives up (a shift of a second).
 const MAX_RETIMES: u32 = 100;
 
-/// Pushes `keyframe` (retimed after an underrun); returns the time it was queued at.
-fn push(driver: &mut Driver, mut keyframe: JointKeyframe, last_time: f64, figures: &mut Figures) -> Result<f64> {
-    let mut time = f64::from(keyframe.time);
+/// Pushes the keyframe `at(time)` (retimed after an underrun); returns the time it was queued at.
+fn push(
+    driver: &mut Driver,
+    mut time: f64,
+    at: &dyn Fn(f32) -> HostMessage,
+    last_time: f64,
+    figures: &mut Figures,
+) -> Result<f64> {
     for _ in 0..MAX_RETIMES {
-        keyframe.time = time as f32;
-        match driver.push(&HostMessage::PushKeyframe(keyframe.clone())) {
+        match driver.push(&at(time as f32)) {
             Ok(FirmwareMessage::Ack { .. }) => return Ok(time),
             Ok(other) => bail!("the follower answered {other:?} to a keyframe"),
             Err(LinkError::Nak(NakReason::KeyframeTime)) => {
@@ -210,6 +216,243 @@ fn push(driver: &mut Driver, mut keyframe: JointKeyframe, last_time: f64, figure
     bail!("the follower's queue kept refusing keyframes up to {time:.3} s (the previous at {last_time:.3} s)")
 }
 
+/// A keyframe as it was sent.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sent {
+    /// Its time on the follower's playback clock, s (since the stream began, across restarts).
+    pub time: f64,
+    /// The joints sent (after the range and step clamps); empty for a pose.
+    pub joints: Vec<f64>,
+    /// The gripper opening sent, percent.
+    pub gripper: Option<f64>,
+}
+
+/// A stream of keyframes to the follower's player, each due `lead` after the reading it carries,
+/// pushed one at a time as the readings come: by [`run`]'s fixed-rate loop (`armctl teleop`), or by
+/// whoever has the next reading (a LeRobot policy's actions, through the Python package).
+pub struct Streamer {
+    settings: Settings,
+    figures: Figures,
+    clock: PlayClock,
+    playing: bool,
+    /// The last keyframe's joints (before the first: the follower's setpoint).
+    previous: Vec<f64>,
+    last_time: f64,
+    /// Recent readings with their host times, for the tracking figure.
+    history: VecDeque<(f64, Vec<f64>)>,
+    /// Statuses still to ask for every keyframe (after a start, while the clock's offset settles).
+    statuses_left: u32,
+    /// Keyframes since the last status.
+    since_status: u32,
+    /// The recording's time at the current playback's zero.
+    recorded: f64,
+    underruns_before: u32,
+    started: Instant,
+}
+
+impl Streamer {
+    /// Makes the follower ready: idle (else an error, nothing sent), torque on, its queue empty.
+    pub fn begin(driver: &mut Driver, settings: Settings) -> Result<Self> {
+        let status = driver.status()?;
+        if !matches!(status.state, RunState::Idle | RunState::TorqueOff) {
+            bail!("the follower is busy ({:?}): wait, or `stop` it first; nothing was sent", status.state);
+        }
+        let (status, _) = driver.ready_to_move()?;
+        if status.queued > 0 {
+            driver.request(&HostMessage::Stop)?;
+        }
+        let started = Instant::now();
+        Ok(Self {
+            settings,
+            figures: Figures::default(),
+            clock: PlayClock::new(started),
+            playing: false,
+            previous: status.setpoints.iter().map(|&x| f64::from(x)).collect(),
+            last_time: 0.0,
+            history: VecDeque::new(),
+            statuses_left: 0,
+            since_status: 0,
+            recorded: 0.0,
+            underruns_before: status.errors.underruns,
+            started,
+        })
+    }
+
+    /// The settings it streams with.
+    pub fn settings(&self) -> &Settings {
+        &self.settings
+    }
+
+    /// What it measured so far.
+    pub fn figures(&self) -> &Figures {
+        &self.figures
+    }
+
+    /// The last joints sent (before the first: the follower's setpoint).
+    pub fn last_joints(&self) -> &[f64] {
+        &self.previous
+    }
+
+    /// Counts a reading that could not be taken (the figures' `read_failures`).
+    pub fn missed_reading(&mut self) {
+        self.figures.read_failures += 1;
+    }
+
+    /// The playback time a reading made at `read_at` is due at: one lead later, never before the
+    /// previous keyframe.
+    fn due(&self, read_at: Instant) -> f64 {
+        (self.clock.at(read_at) + self.settings.lead.as_secs_f64()).max(self.last_time + 1e-3)
+    }
+
+    /// Sends `reading`, made at `read_at`, as a joint keyframe: clamped into the follower's range
+    /// and to one step from the last keyframe, with the velocity that reaches it. Returns what was
+    /// sent.
+    pub fn send(&mut self, driver: &mut Driver, reading: &Reading, read_at: Instant) -> Result<Sent> {
+        if reading.joints.len() != self.previous.len() {
+            bail!("{} joint values, but the follower has {} joints", reading.joints.len(), self.previous.len());
+        }
+        if let Some(bad) = reading.joints.iter().chain(&reading.gripper).find(|x| !x.is_finite()) {
+            bail!("a reading holds {bad}: nothing was sent");
+        }
+        let time = self.due(read_at);
+        let period = self.settings.period.as_secs_f64();
+        let dt = if self.playing { time - self.last_time } else { time.max(period) };
+        let (q, v) = shape(reading, &self.previous, dt, &self.settings, &mut self.figures);
+        let gripper = reading.gripper.filter(|_| self.settings.gripper).map(|g| g.clamp(0.0, 100.0) as f32);
+        let (positions, velocities) = (joints(&q)?, joints(&v)?);
+        let at = |time: f32| {
+            HostMessage::PushKeyframe(JointKeyframe {
+                time,
+                positions: positions.clone(),
+                velocities: Some(velocities.clone()),
+                gripper,
+            })
+        };
+        let time = self.pushed(driver, time, &at, read_at, Some(&q))?;
+        self.previous = q.clone();
+        Ok(Sent { time: self.recorded_time(time), joints: q, gripper: gripper.map(f64::from) })
+    }
+
+    /// Sends the tool pose `target`, read at `read_at`, as a Cartesian keyframe: the follower's
+    /// firmware solves it (warm started, within the joint limits) as its player reaches it.
+    pub fn send_pose(
+        &mut self,
+        driver: &mut Driver,
+        target: CartesianTarget,
+        gripper: Option<f64>,
+        read_at: Instant,
+    ) -> Result<Sent> {
+        let values = target.position.iter().chain(target.orientation.iter().flatten());
+        if let Some(bad) = values.map(|&x| f64::from(x)).chain(gripper).find(|x| !x.is_finite()) {
+            bail!("a pose holds {bad}: nothing was sent");
+        }
+        let time = self.due(read_at);
+        let gripper = gripper.filter(|_| self.settings.gripper).map(|g| g.clamp(0.0, 100.0) as f32);
+        let at = |time: f32| HostMessage::PushCartesianKeyframe(CartesianKeyframe { time, target, gripper });
+        let time = self.pushed(driver, time, &at, read_at, None)?;
+        Ok(Sent { time: self.recorded_time(time), joints: Vec::new(), gripper: gripper.map(f64::from) })
+    }
+
+    fn recorded_time(&self, time: f64) -> f64 {
+        self.recorded + time
+    }
+
+    /// Pushes a keyframe due at `time`, starts the playback with the first, keeps the figures and,
+    /// now and then, asks for a status (the playback clock, the tracking, a follower that ran out
+    /// of keyframes). Returns the time it was queued at.
+    fn pushed(
+        &mut self,
+        driver: &mut Driver,
+        time: f64,
+        at: &dyn Fn(f32) -> HostMessage,
+        read_at: Instant,
+        joints: Option<&[f64]>,
+    ) -> Result<f64> {
+        let time = push(driver, time, at, self.last_time, &mut self.figures)?;
+        let queued_at = Instant::now();
+        if !self.playing {
+            // The first keyframe starts the playback clock at zero; statuses tell where it stands.
+            driver.request(&HostMessage::Start)?;
+            self.playing = true;
+            self.clock = PlayClock::new(Instant::now());
+            self.statuses_left = 20;
+        }
+        let due = self.clock.instant_of(time);
+        self.figures.queued_ms.push(queued_at.duration_since(read_at).as_secs_f64() * 1e3);
+        self.figures.goal_ms.push(due.max(queued_at).saturating_duration_since(read_at).as_secs_f64() * 1e3);
+        // The player heads for a keyframe from the one before it, so it needs this one queued by
+        // the time the previous one is due; otherwise it runs out (an underrun) and brakes.
+        if self.last_time > 0.0 && queued_at > self.clock.instant_of(self.last_time) {
+            self.figures.late_keyframes += 1;
+        }
+        self.figures.keyframes += 1;
+        if let Some(q) = joints {
+            self.history.push_back((self.clock.host(read_at), q.to_vec()));
+            while self.history.len() > 400 {
+                self.history.pop_front();
+            }
+        }
+        self.last_time = time;
+        self.since_status += 1;
+        // Statuses: every keyframe after a start (the clock's offset settles), then sparser.
+        if self.statuses_left > 0 || self.since_status >= self.settings.status_every.max(1) {
+            self.statuses_left = self.statuses_left.saturating_sub(1);
+            self.since_status = 0;
+            self.look(driver)?;
+        }
+        Ok(time)
+    }
+
+    /// Asks for a status: where the playback clock stands, how well the setpoint tracks, and
+    /// whether the player ran out of keyframes and holds (the next keyframe then starts anew).
+    fn look(&mut self, driver: &mut Driver) -> Result<()> {
+        let sent = Instant::now();
+        let status = driver.status()?;
+        match status.state {
+            RunState::Moving => self.clock.observe(status.play_time, sent, Instant::now()),
+            RunState::Idle => {
+                self.figures.restarts += 1;
+                self.playing = false;
+                self.recorded += self.last_time + self.settings.period.as_secs_f64();
+                self.last_time = 0.0;
+                self.previous = status.setpoints.iter().map(|&x| f64::from(x)).collect();
+                self.clock = PlayClock::new(Instant::now());
+                return Ok(());
+            }
+            other => bail!("the follower left playback ({other:?}): nothing more was sent"),
+        }
+        // The setpoint now is what the reading one lead ago asked for (the host's time of the status).
+        let then = self.clock.host(sent) - self.settings.lead.as_secs_f64();
+        if let Some((_, q_then)) = self.history.iter().rev().find(|(t, _)| *t <= then) {
+            let error = status.setpoints.iter().zip(q_then).map(|(s, q)| (f64::from(*s) - q).abs()).fold(0.0, f64::max);
+            self.figures.tracking.push(error);
+        }
+        Ok(())
+    }
+
+    /// Ends the stream: a last keyframe at rest on the last joints sent, so that the player ends
+    /// there without braking (after joint keyframes). Returns the figures and that keyframe.
+    pub fn finish(mut self, driver: &mut Driver) -> Result<(Figures, Option<Sent>)> {
+        self.figures.seconds = self.started.elapsed().as_secs_f64();
+        let mut last = None;
+        if self.playing && !self.history.is_empty() {
+            let period = self.settings.period.as_secs_f64();
+            let time = self.clock.at(Instant::now()).max(self.last_time) + self.settings.lead.as_secs_f64().max(period);
+            let keyframe = JointKeyframe {
+                time: time as f32,
+                positions: joints(&self.previous)?,
+                velocities: Some(joints(&vec![0.0; self.previous.len()])?),
+                gripper: None,
+            };
+            driver.push(&HostMessage::PushKeyframe(keyframe))?;
+            last = Some(Sent { time: self.recorded_time(time), joints: self.previous.clone(), gripper: None });
+        }
+        let status = driver.status()?;
+        self.figures.underruns = status.errors.underruns.wrapping_sub(self.underruns_before);
+        Ok((self.figures, last))
+    }
+}
+
 /// Runs the loop until `done` says so; the follower is then brought to rest on the last reading.
 /// `read` reads the leader.
 pub fn run(
@@ -219,38 +462,16 @@ pub fn run(
     mut recorder: Option<&mut Recorder>,
     done: &mut dyn FnMut(Duration) -> bool,
 ) -> Result<Figures> {
-    let mut figures = Figures::default();
-    let status = driver.status()?;
-    if !matches!(status.state, RunState::Idle | RunState::TorqueOff) {
-        bail!("the follower is busy ({:?}): wait, or `stop` it first; nothing was sent", status.state);
-    }
-    let (status, _) = driver.ready_to_move()?;
-    if status.queued > 0 {
-        driver.request(&HostMessage::Stop)?;
-    }
-    let underruns_before = status.errors.underruns;
-    let period = settings.period.as_secs_f64();
-    let lead = settings.lead.as_secs_f64();
-    let mut previous: Vec<f64> = status.setpoints.iter().map(|&x| f64::from(x)).collect();
-    let mut last_time = 0.0f64;
-    // Recent readings with their host times, for the tracking figure.
-    let mut history: VecDeque<(f64, Vec<f64>)> = VecDeque::new();
-
+    let mut stream = Streamer::begin(driver, settings.clone())?;
     let started = Instant::now();
-    let mut clock = PlayClock::new(started);
-    let mut playing = false;
     let mut slot = started;
-    let mut iteration: u64 = 0;
     let mut failures = 0u32;
-    // Statuses still to ask for every period; the recording's time at the current playback's zero.
-    let mut statuses_left = 0u32;
-    let mut recorded = 0.0f64;
     loop {
         let now = Instant::now();
         if now < slot {
             std::thread::sleep(slot - now);
         } else if now > slot + settings.period {
-            figures.late_iterations += 1;
+            stream.figures.late_iterations += 1;
             slot = now;
         }
         slot += settings.period;
@@ -264,7 +485,7 @@ pub fn run(
                 r
             }
             Err(e) => {
-                figures.read_failures += 1;
+                stream.missed_reading();
                 failures += 1;
                 if failures >= MAX_READ_FAILURES {
                     let _ = driver.stop();
@@ -273,89 +494,15 @@ pub fn run(
                 continue;
             }
         };
-        // Due one lead after the reading, and never before the previous keyframe.
-        let time = (clock.at(read_at) + lead).max(last_time + 1e-3);
-        let dt = if playing { time - last_time } else { time.max(period) };
-        let (q, v) = shape(&reading, &previous, dt, settings, &mut figures);
-        let gripper = reading.gripper.filter(|_| settings.gripper).map(|g| g as f32);
-        let keyframe =
-            JointKeyframe { time: time as f32, positions: joints(&q)?, velocities: Some(joints(&v)?), gripper };
-        let time = push(driver, keyframe, last_time, &mut figures)?;
-        let queued_at = Instant::now();
-        if !playing {
-            // The first keyframe starts the playback clock at zero; statuses tell where it stands.
-            driver.request(&HostMessage::Start)?;
-            playing = true;
-            clock = PlayClock::new(Instant::now());
-            statuses_left = 20;
-        }
-        let due = clock.instant_of(time);
-        let queued_ms = queued_at.duration_since(read_at).as_secs_f64() * 1e3;
-        figures.queued_ms.push(queued_ms);
-        figures.goal_ms.push(due.max(queued_at).saturating_duration_since(read_at).as_secs_f64() * 1e3);
-        // The player heads for a keyframe from the one before it, so it needs this one queued by
-        // the time the previous one is due; otherwise it runs out (an underrun) and brakes.
-        if playing && last_time > 0.0 && queued_at > clock.instant_of(last_time) {
-            figures.late_keyframes += 1;
-        }
+        let sent = stream.send(driver, &reading, read_at)?;
         if let Some(r) = recorder.as_deref_mut() {
-            r.row(recorded + time, &q, gripper.map(f64::from))?;
-        }
-        figures.keyframes += 1;
-        history.push_back((clock.host(read_at), q.clone()));
-        while history.len() > 400 {
-            history.pop_front();
-        }
-        previous = q;
-        last_time = time;
-        // Statuses: every period after a start (the clock's offset settles), then sparser.
-        if statuses_left > 0 || iteration.is_multiple_of(u64::from(settings.status_every.max(1))) {
-            statuses_left = statuses_left.saturating_sub(1);
-            let sent = Instant::now();
-            let status = driver.status()?;
-            match status.state {
-                RunState::Moving => clock.observe(status.play_time, sent, Instant::now()),
-                // The player ran out of keyframes (they came too late), braked and holds: the
-                // next keyframe starts a new playback from where it stands.
-                RunState::Idle => {
-                    figures.restarts += 1;
-                    playing = false;
-                    recorded += last_time + period;
-                    last_time = 0.0;
-                    previous = status.setpoints.iter().map(|&x| f64::from(x)).collect();
-                    clock = PlayClock::new(Instant::now());
-                    iteration += 1;
-                    continue;
-                }
-                other => bail!("the follower left playback ({other:?}): nothing more was sent"),
-            }
-            // The setpoint now is what the leader read one lead ago (the host's time of the status).
-            let then = clock.host(sent) - lead;
-            if let Some((_, q_then)) = history.iter().rev().find(|(t, _)| *t <= then) {
-                let error =
-                    status.setpoints.iter().zip(q_then).map(|(s, q)| (f64::from(*s) - q).abs()).fold(0.0, f64::max);
-                figures.tracking.push(error);
-            }
-        }
-        iteration += 1;
-    }
-    figures.seconds = started.elapsed().as_secs_f64();
-    // A last keyframe at rest where the leader was, so the player ends there without braking.
-    if playing {
-        let time = clock.at(Instant::now()).max(last_time) + lead.max(period);
-        let keyframe = JointKeyframe {
-            time: time as f32,
-            positions: joints(&previous)?,
-            velocities: Some(joints(&vec![0.0; previous.len()])?),
-            gripper: None,
-        };
-        driver.push(&HostMessage::PushKeyframe(keyframe))?;
-        if let Some(r) = recorder {
-            r.row(recorded + time, &previous, None)?;
+            r.row(sent.time, &sent.joints, sent.gripper)?;
         }
     }
-    let status = driver.status()?;
-    figures.underruns = status.errors.underruns.wrapping_sub(underruns_before);
+    let (figures, last) = stream.finish(driver)?;
+    if let (Some(r), Some(last)) = (recorder, last) {
+        r.row(last.time, &last.joints, None)?;
+    }
     Ok(figures)
 }
 
