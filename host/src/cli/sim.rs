@@ -11,11 +11,14 @@ use firmware::bus::table::Model;
 use firmware::bus::{dxl2, feetech, Protocol};
 
 use crate::args::bus::{model_for, ModelArg, ProtocolArg};
+use crate::arm::servos::{servos_of, ServoSetup};
 use crate::arm::ArmSpec;
+use crate::drive::args::calibrated;
+use crate::drive::interrupt;
 #[cfg(feature = "board-tools")]
 use crate::places::qemu::{self, Qemu, QemuConfig};
 use crate::sim::monitor::MAX_VIOLATIONS;
-use crate::sim::{limits_of, Faults, PtyServer, SimConfig};
+use crate::sim::{limits_of, Faults, PtyServer, Recorder, ServeOptions, SimConfig};
 
 /// Arguments of `armctl sim`: a subcommand, or `--qemu`.
 #[derive(Args, Debug)]
@@ -137,6 +140,20 @@ pub struct SimServosArgs {
     /// and the servo's load rises (as in `armctl --sim --object-mm`).
     #[arg(long, value_name = "W", requires = "arm", allow_negative_numbers = true)]
     pub object_mm: Option<f64>,
+    /// Judge the goals by --arm as calibrated by this LeRobot calibration file (each joint's
+    /// servo found by its id; the gripper's range too, when the file has it, which also places
+    /// --object-mm's object) instead of by the nominal mapping. The servos' control tables are
+    /// left as they are: their homing offsets are what `armctl calibrate` or LeRobot write there.
+    #[arg(long, value_name = "FILE", requires = "arm")]
+    pub calibration: Option<PathBuf>,
+    /// Record the servos' positions to FILE (CSV, created or emptied before the pty's path is
+    /// printed): a row every 2 ms of real time since the start, header `t,pos_<id>...,goal_<id>...`,
+    /// t in seconds, each horn's position in ticks (2 decimals, the frame of its goal and present
+    /// position) and its goal, the servos in bus order (--ids, or --arm's and its gripper's).
+    /// Flushed at least every 0.5 s and when it stops (Ctrl-C, SIGTERM), so that a reader can
+    /// stop it with either.
+    #[arg(long, value_name = "FILE")]
+    pub record: Option<PathBuf>,
 }
 
 /// `--start`: (id, ticks) pairs, each id served, each position on the encoder's turn.
@@ -174,11 +191,21 @@ fn burst(ms: Option<f64>) -> Result<Option<Duration>> {
     }
 }
 
-/// The goal limits of `--arm`, whose servos must all be served.
-fn limits(arm: Option<&str>, ids: &[u8]) -> Result<Option<Vec<crate::sim::GoalLimit>>> {
-    let Some(name) = arm else { return Ok(None) };
+/// `--arm`, calibrated by `--calibration` when it is given (its mapping only: what the monitor
+/// judges goals by, and where an `--object-mm` meets the gripper's jaws).
+fn arm_spec(args: &SimServosArgs) -> Result<Option<ArmSpec>> {
+    let Some(name) = args.arm.as_deref() else { return Ok(None) };
     let arm = ArmSpec::load(name, None).with_context(|| format!("--arm {name}"))?;
-    let limits = limits_of(&arm)?;
+    match args.calibration.as_deref() {
+        None => Ok(Some(arm)),
+        Some(file) => calibrated(arm, Some(file)).context("--calibration").map(Some),
+    }
+}
+
+/// The goal limits of `arm`, whose servos must all be served.
+fn limits(arm: Option<&ArmSpec>, ids: &[u8]) -> Result<Option<Vec<crate::sim::GoalLimit>>> {
+    let Some(arm) = arm else { return Ok(None) };
+    let limits = limits_of(arm)?;
     let missing: Vec<String> = limits.iter().filter(|l| !ids.contains(&l.id)).map(|l| l.id.to_string()).collect();
     if !missing.is_empty() {
         bail!("arm {} has servo id(s) {} that --ids does not serve", arm.name, missing.join(","));
@@ -186,19 +213,9 @@ fn limits(arm: Option<&str>, ids: &[u8]) -> Result<Option<Vec<crate::sim::GoalLi
     Ok(Some(limits))
 }
 
-/// The servos of `--arm`, when it names an arm that has some.
-fn arm_servos(arm: Option<&str>) -> Result<Option<crate::arm::servos::ServoSetup>> {
-    let Some(name) = arm else { return Ok(None) };
-    let spec = ArmSpec::load(name, None).with_context(|| format!("--arm {name}"))?;
-    Ok(crate::arm::servos::servos_of(&spec))
-}
-
 /// `--object-mm`: the gripper servo and the object between its jaws, checked.
 /// (`--arm`'s servos, its gripper's among them, are all served: [`limits`] checks that.)
-fn object(
-    args: &SimServosArgs,
-    servos: Option<&crate::arm::servos::ServoSetup>,
-) -> Result<Option<(u8, crate::sim::Jaw)>> {
+fn object(args: &SimServosArgs, servos: Option<&ServoSetup>) -> Result<Option<(u8, crate::sim::Jaw)>> {
     let Some(mm) = args.object_mm else { return Ok(None) };
     let name = args.arm.as_deref().unwrap_or_default();
     let gripper = servos
@@ -209,7 +226,14 @@ fn object(
 
 /// Checks the arguments and builds the bus description.
 pub fn config(args: &SimServosArgs) -> Result<SimConfig> {
-    let arm = arm_servos(args.arm.as_deref())?;
+    Ok(prepare(args)?.0)
+}
+
+/// Checks the arguments; builds the bus description and what the servos start with (the horns of
+/// `--start`, the object of `--object-mm`; the recording is opened apart, once all is checked).
+fn prepare(args: &SimServosArgs) -> Result<(SimConfig, ServeOptions)> {
+    let spec = arm_spec(args)?;
+    let arm = spec.as_ref().and_then(servos_of);
     let protocol = match (args.protocol, &arm) {
         (Some(p), _) => Protocol::from(p),
         (None, Some(servos)) => servos.model.protocol,
@@ -238,11 +262,10 @@ pub fn config(args: &SimServosArgs) -> Result<SimConfig> {
     }
     let faults = args.faults.faults()?;
     let burst = burst(args.burst_ms)?;
-    let limits = limits(args.arm.as_deref(), &ids)?;
-    // Checked here, applied once the server runs.
-    start_positions(args.start.as_deref(), &ids, model)?;
-    object(args, arm.as_ref())?;
-    Ok(SimConfig {
+    let limits = limits(spec.as_ref(), &ids)?;
+    let place = start_positions(args.start.as_deref(), &ids, model)?;
+    let objects = object(args, arm.as_ref())?.into_iter().collect();
+    let config = SimConfig {
         protocol,
         model,
         ids,
@@ -252,7 +275,8 @@ pub fn config(args: &SimServosArgs) -> Result<SimConfig> {
         fixed_baud: args.fixed_baud,
         burst,
         limits,
-    })
+    };
+    Ok((config, ServeOptions { place, objects, record: None }))
 }
 
 /// Runs a `sim` command. Bad arguments are one `error:` line on `err` and exit code 2.
@@ -334,7 +358,7 @@ fn run_servos(args: SimServosArgs, out: &mut dyn Write, err: &mut dyn Write) -> 
         writeln!(err, "error: --pty is required (the simulated bus is served on a pseudo-terminal)")?;
         return Ok(2);
     }
-    let config = match config(&args) {
+    let (config, mut options) = match prepare(&args) {
         Ok(c) => c,
         Err(e) => {
             // One line, even for an arm file whose parser's message spans several.
@@ -343,15 +367,17 @@ fn run_servos(args: SimServosArgs, out: &mut dyn Write, err: &mut dyn Write) -> 
             return Ok(2);
         }
     };
-    let server = PtyServer::spawn(config.clone()).context("cannot open a pseudo-terminal")?;
-    // Before the path is printed, so before any program can open it.
-    for (id, ticks) in start_positions(args.start.as_deref(), &config.ids, config.model)? {
-        server.place(id, ticks);
+    // Created before anything is served, so before any program can open the pty.
+    if let Some(file) = &args.record {
+        match Recorder::create(file, &config.ids) {
+            Ok(recorder) => options.record = Some(recorder),
+            Err(e) => {
+                writeln!(err, "error: --record {}: {e}", file.display())?;
+                return Ok(2);
+            }
+        }
     }
-    let servos = arm_servos(args.arm.as_deref())?;
-    if let Some((id, jaw)) = object(&args, servos.as_ref())? {
-        server.put_object(id, Some(jaw));
-    }
+    let server = PtyServer::spawn_with(config.clone(), options).context("cannot open a pseudo-terminal")?;
     writeln!(out, "{}", server.path())?;
     out.flush()?;
     let ids: Vec<String> = config.ids.iter().map(u8::to_string).collect();
@@ -362,8 +388,14 @@ fn run_servos(args: SimServosArgs, out: &mut dyn Write, err: &mut dyn Write) -> 
     if let Some(arm) = &args.arm {
         extras.push_str(&format!(", goals checked against the limits of {arm}"));
     }
+    if let Some(file) = &args.calibration {
+        extras.push_str(&format!(" as calibrated by {}", file.display()));
+    }
     if let Some(mm) = args.object_mm {
         extras.push_str(&format!(", a {mm} mm object between the gripper's jaws"));
+    }
+    if let Some(file) = &args.record {
+        extras.push_str(&format!(", positions recorded to {} every 2 ms", file.display()));
     }
     writeln!(
         err,
@@ -376,12 +408,20 @@ fn run_servos(args: SimServosArgs, out: &mut dyn Write, err: &mut dyn Write) -> 
         server.path()
     )?;
     err.flush()?;
-    // Serve until interrupted (SIGINT's default action ends the process) or the server fails;
-    // with a monitor, print what it finds as it finds it; take the hand's commands from stdin.
+    // Serve until interrupted (Ctrl-C or SIGTERM: the server then stops, which flushes the
+    // recording; where the signal cannot be caught its default action ends the process, and the
+    // recording keeps what its last flush wrote) or until the server fails; with a monitor, print
+    // what it finds as it finds it; take the hand's commands from stdin.
+    let interruptible = interrupt::catch();
     let poll = Duration::from_millis(if config.limits.is_some() { 50 } else { 200 });
     let mut printed = Printed::default();
     let mut hand = HandLines::from_stdin();
     while !server.is_finished() {
+        if interruptible && interrupt::requested() {
+            printed.print(&server, err)?;
+            server.stop().context("the simulated bus stopped")?;
+            return Ok(interrupt::EXIT_CODE);
+        }
         hand.serve(&server, poll, out)?;
         printed.print(&server, err)?;
     }

@@ -11,6 +11,7 @@
 //! - [`latency`]: a USB serial adapter's latency timer, for the replies on a pty.
 //! - [`monitor`]: safety monitors that check every goal the servos receive.
 //! - [`scene`]: an object on the table for a simulated gripper to pick up.
+//! - [`recording`]: the served servos' positions and goals on a fixed grid of real time, as CSV.
 //!
 //! The codecs, control tables and wire-time arithmetic are the firmware's own
 //! ([`firmware::bus`]): the simulator exercises the same code the boards run.
@@ -23,6 +24,7 @@ pub mod monitor;
 pub mod motion;
 pub mod port;
 pub mod pty;
+pub mod recording;
 pub mod scene;
 pub mod servo;
 
@@ -31,7 +33,8 @@ pub use clock::VirtualClock;
 pub use faults::{FaultStats, Faults};
 pub use monitor::{limits_of, GoalLimit, MonitorReport, RealTimeMonitor};
 pub use port::{PortStats, SharedBus, SimPort};
-pub use pty::{arm_bus, serve_arm, so101_bus, HandHandle, PtyServer, SimConfig};
+pub use pty::{arm_bus, serve_arm, so101_bus, HandHandle, PtyServer, ServeOptions, SimConfig};
+pub use recording::Recorder;
 pub use scene::Scene;
 pub use servo::{Jaw, SimServo};
 

@@ -19,6 +19,11 @@
 //! takes each request before it carries out the next bytes from the pty, and reports a hand's move
 //! done ([`PtyServer::hand_events`]) once the horn is there and its position has been read since,
 //! so that whoever reads the bus has seen where the hand stopped.
+//!
+//! [`PtyServer::spawn_with`] also starts the servos with horns placed and objects between jaws from
+//! the server's first instant, and can record the servos' positions on a grid of real time
+//! ([`super::recording`]): the serving thread writes the grid points up to each wake before it
+//! carries out what woke it, and flushes the file when it stops.
 
 use std::collections::VecDeque;
 use std::io::{Read, Write};
@@ -35,6 +40,7 @@ use super::bus::{SimBus, WireByte};
 use super::faults::{FaultState, Faults};
 use super::latency::LatencyTimer;
 use super::monitor::{GoalLimit, MonitorReport, RealTimeMonitor};
+use super::recording::Recorder;
 use super::servo::Jaw;
 
 /// Ticks between a duplicate servo's position and its twin's, so that their replies to a position
@@ -146,7 +152,40 @@ impl HandHandle {
     }
 }
 
-/// A simulated bus on a pseudo-terminal; dropping it stops the serving thread.
+/// What a server starts with beside its bus ([`PtyServer::spawn_with`]).
+#[derive(Debug, Default)]
+pub struct ServeOptions {
+    /// Horns placed by hand before the start, in their own ticks (before the homing offset), as
+    /// [`PtyServer::place`] puts them but from the server's first instant, so that a recording
+    /// starts with them there. A servo that is not on the bus is left out.
+    pub place: Vec<(u8, i64)>,
+    /// Objects between the jaws of gripper servos from the first instant, as
+    /// [`PtyServer::put_object`] puts them.
+    pub objects: Vec<(u8, Jaw)>,
+    /// A recording of the servos' positions and goals, written by the serving thread and flushed
+    /// when the server stops. Its columns are the bus's first servos, those of
+    /// [`SimConfig::ids`] in order.
+    pub record: Option<Recorder>,
+}
+
+impl ServeOptions {
+    /// Places the horns and puts the objects, at time 0.
+    fn set_up(&self, bus: &mut SimBus) {
+        for &(id, ticks) in &self.place {
+            if let Some(servo) = bus.servo_mut(id) {
+                servo.set_position(ticks, 0);
+            }
+        }
+        for &(id, jaw) in &self.objects {
+            if let Some(servo) = bus.servo_mut(id) {
+                servo.set_jaw(Some(jaw), 0);
+            }
+        }
+    }
+}
+
+/// A simulated bus on a pseudo-terminal; dropping it stops the serving thread (and flushes its
+/// recording).
 #[derive(Debug)]
 pub struct PtyServer {
     path: String,
@@ -164,6 +203,11 @@ impl PtyServer {
     /// Opens a pty pair, makes it its owner's alone ([`crate::pty_owner::make_private`]) and
     /// serves the bus of `config` on it. A `burst` of zero is refused.
     pub fn spawn(config: SimConfig) -> std::io::Result<PtyServer> {
+        Self::spawn_with(config, ServeOptions::default())
+    }
+
+    /// As [`PtyServer::spawn`], the servos set up and recorded as `options` says.
+    pub fn spawn_with(config: SimConfig, mut options: ServeOptions) -> std::io::Result<PtyServer> {
         if config.burst.is_some_and(|b| b.is_zero()) {
             return Err(std::io::Error::new(std::io::ErrorKind::InvalidInput, "the burst period must be positive"));
         }
@@ -182,10 +226,13 @@ impl PtyServer {
             monitor: monitor.clone(),
             hand: hand.clone(),
             pending: Vec::new(),
+            recorder: options.record.take(),
         };
         let thread = std::thread::Builder::new().name("sim-servos".into()).spawn(move || {
             let outbox = Outbox { timer: config.burst.map(LatencyTimer::new) };
-            serve(&mut master, &slave, config.build_for_pty(), !config.fixed_baud, control, outbox)
+            let mut bus = config.build_for_pty();
+            options.set_up(&mut bus);
+            serve(&mut master, &slave, bus, !config.fixed_baud, control, outbox)
         })?;
         Ok(PtyServer { path, stop, new_faults, hand, monitor, thread: Some(thread) })
     }
@@ -252,7 +299,8 @@ impl PtyServer {
         self.thread.as_ref().is_none_or(|t| t.is_finished())
     }
 
-    /// Stops serving; returns the thread's I/O error, if it ended on one.
+    /// Stops serving (the recording, if any, catches up and is flushed); returns the thread's I/O
+    /// error, if it ended on one (the recording's included).
     pub fn stop(mut self) -> std::io::Result<()> {
         self.halt()
     }
@@ -281,6 +329,8 @@ struct Control {
     hand: Arc<Mutex<HandQueue>>,
     /// (ticket, servo, when the horn gets there): moves waiting for a read of the position.
     pending: Vec<(u64, u8, u64)>,
+    /// The recording, owned by the serving thread.
+    recorder: Option<Recorder>,
 }
 
 impl Control {
@@ -324,6 +374,23 @@ impl Control {
             self.pending.drain(..).partition(|&(_, id, end_ns)| read_since(id, end_ns));
         self.pending = waiting;
         queue.events.extend(done.into_iter().map(|(ticket, ..)| HandEvent { ticket, result: Ok(()) }));
+    }
+
+    /// Records the grid points up to `now_ns`, the thread having woken then: called before
+    /// anything that changes the servos is carried out at `now_ns`.
+    fn record(&mut self, bus: &SimBus, now_ns: u64) -> std::io::Result<()> {
+        match &mut self.recorder {
+            Some(recorder) => recorder.catch_up(bus, now_ns),
+            None => Ok(()),
+        }
+    }
+
+    /// The server stops at `now_ns`: the recording catches up and is flushed.
+    fn finish(&mut self, bus: &SimBus, now_ns: u64) -> std::io::Result<()> {
+        match &mut self.recorder {
+            Some(recorder) => recorder.finish(bus, now_ns),
+            None => Ok(()),
+        }
     }
 
     /// Lets the monitor look at the bus after a burst that arrived at `at_ns`.
@@ -401,6 +468,8 @@ fn serve(
             *bus.faults() = FaultState::new(faults);
         }
         let now_ns = elapsed_ns(start);
+        // Each wake: first the recording up to now, from the servos as they stood before it.
+        control.record(&bus, now_ns)?;
         control.hand(&mut bus, now_ns);
         outbox.release(master, now_ns)?;
         master.set_timeout(outbox.wait(now_ns)).map_err(std::io::Error::from)?;
@@ -410,6 +479,7 @@ fn serve(
                 // A quiet line: a packet left incomplete is dead, and what it held back is served.
                 // (A shorter wait, for a release, is no sign of a quiet line.)
                 let now_ns = elapsed_ns(start);
+                control.record(&bus, now_ns)?;
                 if now_ns.saturating_sub(last_rx_ns) >= IDLE_READ.as_nanos() as u64 {
                     let replies = bus.line_idle();
                     control.observe(&bus, now_ns);
@@ -427,6 +497,7 @@ fn serve(
             bus.set_baud(baud);
         }
         let now_ns = elapsed_ns(start);
+        control.record(&bus, now_ns)?;
         // The hand's requests made before these bytes were sent come first.
         control.hand(&mut bus, now_ns);
         last_rx_ns = now_ns;
@@ -434,7 +505,7 @@ fn serve(
         control.observe(&bus, now_ns);
         outbox.send(master, &replies, now_ns)?;
     }
-    Ok(())
+    control.finish(&bus, elapsed_ns(start))
 }
 
 /// The bus of `arm`'s servos (its `[servos]` table, or its preset's): the joints' and the
