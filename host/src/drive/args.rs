@@ -112,7 +112,7 @@ impl LinkArgs {
     }
 
     /// The board or simulation to connect to, and the arm to configure on it.
-    pub(crate) fn target(&self) -> Result<(Target, Option<&str>)> {
+    pub fn target(&self) -> Result<(Target, Option<&str>)> {
         if self.object_mm.is_some() && !self.sim {
             bail!("--object-mm puts an object between the simulated gripper's jaws: it needs --sim");
         }

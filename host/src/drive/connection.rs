@@ -36,6 +36,26 @@ pub enum Target {
     Bus(Box<PcOptions>),
 }
 
+/// The latency timer of the simulated USB adapter of [`Target::in_real_time`].
+pub const SIM_ADAPTER_LATENCY: Duration = Duration::from_millis(1);
+
+impl Target {
+    /// The target for a loop that runs in real time (teleoperation, the browser view, a stream of
+    /// actions from Python): `Sim` becomes the core on this PC in real time against simulated
+    /// servos on a pseudo-terminal (as `armctl serve --sim`), with a USB adapter's 1 ms latency,
+    /// returned with it for the safety monitor's report; the virtual clock of the drive commands'
+    /// `--sim` would not pace such a loop. Other targets are returned as they are.
+    pub fn in_real_time(self) -> Result<(Target, Option<crate::sim::PtyServer>)> {
+        match self {
+            Target::Sim(options) => {
+                let (options, servos) = PcOptions::simulated(options.arm, Some(SIM_ADAPTER_LATENCY))?;
+                Ok((Target::Bus(Box::new(options)), Some(servos)))
+            }
+            other => Ok((other, None)),
+        }
+    }
+}
+
 /// An open link after the handshake.
 pub struct Connection {
     /// The link client.

@@ -8,6 +8,8 @@ use std::sync::OnceLock;
 static REQUESTED: AtomicBool = AtomicBool::new(false);
 static COUNT: AtomicU32 = AtomicU32::new(0);
 static INSTALLED: OnceLock<bool> = OnceLock::new();
+/// Asked by [`requested`] in a process that keeps its own signal handling ([`delegate`]).
+static CHECK: OnceLock<fn() -> bool> = OnceLock::new();
 
 /// The exit code after a Ctrl-C (128 + SIGINT, as shells report it).
 pub const EXIT_CODE: i32 = 130;
@@ -36,5 +38,22 @@ pub fn count() -> u32 {
 
 /// Whether Ctrl-C was pressed since [`catch`].
 pub fn requested() -> bool {
-    REQUESTED.load(Ordering::SeqCst)
+    if REQUESTED.load(Ordering::SeqCst) {
+        return true;
+    }
+    let asked = CHECK.get().is_some_and(|check| check());
+    if asked {
+        REQUESTED.store(true, Ordering::SeqCst);
+        COUNT.fetch_add(1, Ordering::SeqCst);
+    }
+    asked
+}
+
+/// For a process that keeps its own signal handling (the Python interpreter, whose Ctrl-C raises
+/// `KeyboardInterrupt`): no handler is ever installed, and the waiting loops ask `check` instead,
+/// which says whether Ctrl-C was pressed. Call it before anything else here; later calls change
+/// nothing.
+pub fn delegate(check: fn() -> bool) {
+    let _ = INSTALLED.set(true);
+    let _ = CHECK.set(check);
 }

@@ -10,10 +10,10 @@
 //! the arm (decelerating within its limits) and exits with code 130.
 
 pub mod args;
-mod commands;
+pub mod commands;
 pub mod connection;
 mod gripper;
-pub(crate) mod interrupt;
+pub mod interrupt;
 pub(crate) mod path;
 pub mod play;
 mod progress;

@@ -169,6 +169,53 @@ pub fn parse_keyframes(text: &str) -> Result<Keyframes> {
     }
 }
 
+impl Keyframes {
+    /// Keyframes given as values rather than a file (the Python package's arrays), with the
+    /// checks [`parse_keyframes`] makes: at least 2, times finite and strictly increasing, every
+    /// row of the same joint count, every value finite. The `lines` are the keyframes' numbers
+    /// (from 1), which errors name as `line N`.
+    pub fn from_rows(times: &[f64], positions: &[Vec<f64>], velocities: Option<&[Vec<f64>]>) -> Result<Self> {
+        let joints = positions.first().map_or(0, Vec::len);
+        if times.len() != positions.len() || velocities.is_some_and(|v| v.len() != times.len()) {
+            bail!(
+                "{} times but {} rows of positions{}",
+                times.len(),
+                positions.len(),
+                velocities.map(|v| format!(" and {} of velocities", v.len())).unwrap_or_default()
+            );
+        }
+        if times.len() < 2 {
+            bail!("{} keyframes: a trajectory needs at least 2", times.len());
+        }
+        if joints == 0 || joints > MAX_JOINTS {
+            bail!("{joints} joints: armctl trajectory handles 1 to {MAX_JOINTS}");
+        }
+        let rows = positions.iter().chain(velocities.into_iter().flatten());
+        for (i, row) in rows.enumerate() {
+            let k = i % times.len() + 1;
+            if row.len() != joints {
+                bail!("line {k}: {} values, but the first keyframe has {joints} joints", row.len());
+            }
+            if let Some(bad) = row.iter().find(|x| !x.is_finite()) {
+                bail!("line {k}: {bad} is not a finite number");
+            }
+        }
+        for (i, pair) in times.windows(2).enumerate() {
+            if !(pair[0].is_finite() && pair[1].is_finite()) || pair[1] <= pair[0] {
+                bail!("line {}: time {} is not later than the previous keyframe's ({})", i + 2, pair[1], pair[0]);
+            }
+        }
+        Ok(Self {
+            joints,
+            times: times.to_vec(),
+            positions: positions.to_vec(),
+            velocities: velocities.map(<[Vec<f64>]>::to_vec),
+            gripper: None,
+            lines: (1..=times.len()).collect(),
+        })
+    }
+}
+
 /// Reads and parses a keyframe file; errors start with the file name.
 pub fn read_keyframes(path: &std::path::Path) -> Result<Keyframes> {
     let text =

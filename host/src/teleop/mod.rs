@@ -24,27 +24,23 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::time::Duration;
 
-use anyhow::{anyhow, bail, Result};
+use anyhow::{bail, Result};
 use clap::Args;
 use serde_json::json;
 
 use crate::args::bus::ProtocolArg;
-use crate::arm::servos::servos_of;
 use crate::arm::ArmSpec;
 use crate::drive::args::{calibrated, LinkArgs};
-use crate::drive::connection::Target;
+use crate::drive::connection::SIM_ADAPTER_LATENCY;
 use crate::drive::interrupt;
 use crate::drive::session::{Driver, Waited};
-use crate::places::pc::PcOptions;
 use crate::sim::PtyServer;
 use stream::{quantile, Figures, Settings};
 
-/// The latency timer of the simulated USB adapters (`--sim` follower, `--leader sim`).
-const SIM_ADAPTER_LATENCY: Duration = Duration::from_millis(1);
 /// Added to one period for the default lead: the player heads for a keyframe from the previous
 /// one, so each must be queued one period before it is due, and this margin covers the leader's
 /// read, the link's delay and the loop's jitter.
-const LEAD_MARGIN: Duration = Duration::from_millis(8);
+pub const LEAD_MARGIN: Duration = Duration::from_millis(8);
 
 /// `armctl teleop`.
 #[derive(Args, Debug)]
@@ -124,18 +120,6 @@ impl TeleopArgs {
     }
 }
 
-/// The follower: a drive target, with `--sim` made the core on this PC in real time against
-/// simulated servos (kept here for the safety monitor's report).
-fn follower(target: Target, arm: Option<String>) -> Result<(Target, Option<String>, Option<PtyServer>)> {
-    match target {
-        Target::Sim(options) => {
-            let (options, servos) = PcOptions::simulated(options.arm, Some(SIM_ADAPTER_LATENCY))?;
-            Ok((Target::Bus(Box::new(options)), arm, Some(servos)))
-        }
-        other => Ok((other, arm, None)),
-    }
-}
-
 /// Runs `armctl teleop`; returns the exit code.
 pub fn run(link: &LinkArgs, args: TeleopArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
     // Everything the user typed is checked before anything is opened.
@@ -155,7 +139,7 @@ pub fn run(link: &LinkArgs, args: TeleopArgs, out: &mut dyn Write, err: &mut dyn
     let leader_path = simulated_leader.as_ref().map_or(args.leader.clone(), |l| l.path().to_string());
     let (mut leader, leader_latency_us) = leader::Leader::open(&leader_path, bus, &leader_arm)?;
 
-    let (target, arm, follower_servos) = follower(target, arm)?;
+    let (target, follower_servos) = target.in_real_time()?;
     let mut driver = Driver::open(target, arm.as_deref(), err)?;
     if driver.joints() != leader.joints() {
         bail!(
@@ -166,27 +150,9 @@ pub fn run(link: &LinkArgs, args: TeleopArgs, out: &mut dyn Write, err: &mut dyn
             driver.joints()
         );
     }
-    let follower_servos_setup = servos_of(driver.arm()).ok_or_else(|| anyhow!("the follower has no servo mapping"))?;
-    let range = (0..driver.joints())
-        .map(|j| {
-            follower_servos_setup
-                .commanded_range(driver.arm(), j)
-                .map(|(lo, hi)| (f64::from(lo), f64::from(hi)))
-                .ok_or_else(|| anyhow!("the follower's joint {} has no range within its servo", j + 1))
-        })
-        .collect::<Result<Vec<_>>>()?;
-    let max_velocity = f64::from(follower_servos_setup.max_velocity as f32);
-    let max_step = args.max_step.unwrap_or(max_velocity * period.as_secs_f64());
     let gripper = leader.has_gripper() && driver.gripper().is_some();
-    let settings = Settings {
-        period,
-        lead,
-        max_step: vec![max_step; driver.joints()],
-        range,
-        max_velocity: vec![max_velocity; driver.joints()],
-        gripper,
-        status_every: 5,
-    };
+    let settings = Settings::for_follower(&driver, period, lead, args.max_step, gripper)?;
+    let max_step = settings.max_step[0];
     let mut recorder =
         args.record.as_deref().map(|p| record::Recorder::create(p, driver.joints(), gripper)).transpose()?;
 

@@ -19,13 +19,14 @@
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
-use anyhow::{bail, Result};
+use anyhow::{anyhow, bail, Result};
 use firmware::link::message::{
     CartesianKeyframe, CartesianTarget, FirmwareMessage, HostMessage, JointKeyframe, Joints, NakReason, RunState,
 };
 
 use super::leader::Reading;
 use super::record::Recorder;
+use crate::arm::servos::servos_of;
 use crate::drive::session::Driver;
 use crate::link::client::LinkError;
 
@@ -51,6 +52,41 @@ pub struct Settings {
     pub gripper: bool,
     /// A status is asked for every this many periods (the playback clock and the tracking figure).
     pub status_every: u32,
+}
+
+impl Settings {
+    /// The settings for `driver`'s follower at one keyframe a `period`, each due `lead` after its
+    /// reading: the range each joint is commanded within, its speed limit, and the step clamp
+    /// (`max_step` rad, by default the speed limit over one period). A status every 5 keyframes.
+    pub fn for_follower(
+        driver: &Driver,
+        period: Duration,
+        lead: Duration,
+        max_step: Option<f64>,
+        gripper: bool,
+    ) -> Result<Self> {
+        let servos = servos_of(driver.arm()).ok_or_else(|| anyhow!("the follower has no servo mapping"))?;
+        let range = (0..driver.joints())
+            .map(|j| {
+                servos
+                    .commanded_range(driver.arm(), j)
+                    .map(|(lo, hi)| (f64::from(lo), f64::from(hi)))
+                    .ok_or_else(|| anyhow!("the follower's joint {} has no range within its servo", j + 1))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        // The limit as the firmware holds it (f32).
+        let max_velocity = f64::from(servos.max_velocity as f32);
+        let max_step = max_step.unwrap_or(max_velocity * period.as_secs_f64());
+        Ok(Settings {
+            period,
+            lead,
+            max_step: vec![max_step; driver.joints()],
+            range,
+            max_velocity: vec![max_velocity; driver.joints()],
+            gripper: gripper && driver.gripper().is_some(),
+            status_every: 5,
+        })
+    }
 }
 
 /// What a session measured.
@@ -299,22 +335,38 @@ impl Streamer {
     }
 
     /// The playback time a reading made at `read_at` is due at: one lead later, never before the
-    /// previous keyframe.
-    fn due(&self, read_at: Instant) -> f64 {
-        (self.clock.at(read_at) + self.settings.lead.as_secs_f64()).max(self.last_time + 1e-3)
+    /// previous keyframe. A reading that comes after the previous keyframe was due (its source
+    /// paused) first asks for a status: the player has then run out and holds, and the keyframe
+    /// starts a new playback.
+    fn due(&mut self, driver: &mut Driver, read_at: Instant) -> Result<f64> {
+        if self.playing && self.clock.at(read_at) > self.last_time + self.settings.period.as_secs_f64() {
+            self.look(driver)?;
+        }
+        Ok((self.clock.at(read_at) + self.settings.lead.as_secs_f64()).max(self.last_time + 1e-3))
+    }
+
+    /// Refuses a reading that cannot be a keyframe (another joint count, a value not finite); a
+    /// refused reading changes nothing, and the stream goes on with the next.
+    pub fn check(&self, reading: &Reading) -> Result<()> {
+        if reading.joints.len() != self.previous.len() {
+            bail!(
+                "{} joint values, but the follower has {} joints: nothing was sent",
+                reading.joints.len(),
+                self.previous.len()
+            );
+        }
+        if let Some(bad) = reading.joints.iter().chain(&reading.gripper).find(|x| !x.is_finite()) {
+            bail!("a reading holds {bad}: nothing was sent");
+        }
+        Ok(())
     }
 
     /// Sends `reading`, made at `read_at`, as a joint keyframe: clamped into the follower's range
     /// and to one step from the last keyframe, with the velocity that reaches it. Returns what was
     /// sent.
     pub fn send(&mut self, driver: &mut Driver, reading: &Reading, read_at: Instant) -> Result<Sent> {
-        if reading.joints.len() != self.previous.len() {
-            bail!("{} joint values, but the follower has {} joints", reading.joints.len(), self.previous.len());
-        }
-        if let Some(bad) = reading.joints.iter().chain(&reading.gripper).find(|x| !x.is_finite()) {
-            bail!("a reading holds {bad}: nothing was sent");
-        }
-        let time = self.due(read_at);
+        self.check(reading)?;
+        let time = self.due(driver, read_at)?;
         let period = self.settings.period.as_secs_f64();
         let dt = if self.playing { time - self.last_time } else { time.max(period) };
         let (q, v) = shape(reading, &self.previous, dt, &self.settings, &mut self.figures);
@@ -346,7 +398,7 @@ impl Streamer {
         if let Some(bad) = values.map(|&x| f64::from(x)).chain(gripper).find(|x| !x.is_finite()) {
             bail!("a pose holds {bad}: nothing was sent");
         }
-        let time = self.due(read_at);
+        let time = self.due(driver, read_at)?;
         let gripper = gripper.filter(|_| self.settings.gripper).map(|g| g.clamp(0.0, 100.0) as f32);
         let at = |time: f32| HostMessage::PushCartesianKeyframe(CartesianKeyframe { time, target, gripper });
         let time = self.pushed(driver, time, &at, read_at, None)?;

@@ -43,17 +43,13 @@ use clap::Args;
 
 use crate::arm::servos::servos_of;
 use crate::drive::args::LinkArgs;
-use crate::drive::connection::Target;
 use crate::drive::interrupt;
-use crate::places::pc::PcOptions;
 use arm_loop::ArmLoop;
 use server::{Served, ViewServer};
 use telemetry::Latest;
 
 /// Where the page is served unless `--listen` says otherwise: this machine only.
 pub const DEFAULT_LISTEN: &str = "127.0.0.1:8765";
-/// The latency timer of the simulated USB adapter of `--sim`.
-const SIM_ADAPTER_LATENCY: Duration = Duration::from_millis(1);
 
 /// `armctl view`.
 #[derive(Args, Debug)]
@@ -112,13 +108,7 @@ pub fn run(link: &LinkArgs, args: ViewArgs, out: &mut dyn Write, err: &mut dyn W
     // The address is taken before connecting, so a port in use changes nothing on the arm.
     let listener = ViewServer::bind(listen)?;
     // --sim runs in real time here (see the module doc).
-    let (target, simulated) = match target {
-        Target::Sim(options) => {
-            let (options, servos) = PcOptions::simulated(options.arm, Some(SIM_ADAPTER_LATENCY))?;
-            (Target::Bus(Box::new(options)), Some(servos))
-        }
-        other => (other, None),
-    };
+    let (target, simulated) = target.in_real_time()?;
     let latest = Arc::new(Latest::default());
     let (arm_loop, spec, queue_capacity) = ArmLoop::spawn(target, arm, latest.clone(), err)?;
     let (meshes, missing) = match urdf {

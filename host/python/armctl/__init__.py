@@ -1,0 +1,329 @@
+"""armctl from Python: the project's kinematics on numpy arrays, and its arms driven through the
+firmware core, as the ``armctl`` command line drives them.
+
+>>> import armctl
+>>> so101 = armctl.Model("so101")
+>>> pose = so101.fk([0, 0.3, -0.5, 0.2, 0])           # 4 x 4 homogeneous matrix
+>>> q = so101.ik(pose[:3, 3], seed=[0, 0.2, -0.4, 0.1, 0])
+>>> with armctl.Arm(sim="so101") as arm:              # the firmware core on simulated servos
+...     arm.move_to([0.2, 0.0, 0.15])
+...     with arm.stream(rate=30) as s:                # every value a timed keyframe on the player
+...         s.send(q, gripper=40.0)
+
+Every refusal is an :class:`ArmctlError` carrying the command line's one-line message. Nothing is
+implemented twice: the native module ``armctl._armctl`` calls the project's Rust crates.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any, Iterable, Sequence
+
+import numpy as np
+import numpy.typing as npt
+
+from . import _armctl
+from ._armctl import ArmctlError
+
+__all__ = ["Arm", "ArmctlError", "IkResult", "Model", "Stream", "Trajectory", "sample", "__version__"]
+__version__: str = _armctl.__version__
+
+Array = npt.NDArray[np.float64]
+
+
+def _vector(values: npt.ArrayLike, what: str, length: int | None = None) -> list[float]:
+    """A 1-D float vector as a list, its length checked."""
+    a = np.asarray(values, dtype=np.float64)
+    if a.ndim != 1:
+        raise ArmctlError(f"{what}: expected a 1-D array, got shape {a.shape}")
+    if length is not None and a.shape[0] != length:
+        raise ArmctlError(f"{what}: expected {length} values, got {a.shape[0]}")
+    return a.tolist()
+
+
+class IkResult:
+    """One IK answer: joint values and how well they reach the target."""
+
+    __slots__ = ("q", "status", "position_error", "orientation_error", "method")
+
+    def __init__(self, q: Array, status: str, position_error: float, orientation_error: float, method: str):
+        self.q = q
+        #: ``converged``, ``best-effort``, ``iteration-limit``, or why the input was refused.
+        self.status = status
+        #: Tool position error at ``q``, m.
+        self.position_error = position_error
+        #: Tool orientation error at ``q``, rad (0 for a position target).
+        self.orientation_error = orientation_error
+        #: ``analytic`` (the closed form) or the numerical method's name.
+        self.method = method
+
+    @property
+    def converged(self) -> bool:
+        """Within the limits and reaching the target within both tolerances (checked by FK)."""
+        return self.status == "converged"
+
+    def __repr__(self) -> str:
+        return (f"IkResult(q={np.array2string(self.q, precision=4)}, status={self.status!r}, "
+                f"position_error={self.position_error:.2e}, method={self.method!r})")
+
+
+class Model:
+    """An arm's kinematics: a preset (``so101``, ``open-manipulator-x``, ``ur5e``, ``puma560``,
+    ``iiwa14``, ``planar:N``), a URDF file (``tip`` names the link the chain ends at) or an arm
+    file (``.toml``), with a LeRobot ``calibration`` file if given."""
+
+    def __init__(self, arm: str, tip: str | None = None, calibration: str | None = None):
+        self._m = _armctl.Model(arm, tip, None if calibration is None else str(calibration))
+
+    @property
+    def name(self) -> str:
+        return self._m.name
+
+    @property
+    def dof(self) -> int:
+        return len(self._m.joint_names)
+
+    @property
+    def joint_names(self) -> list[str]:
+        return self._m.joint_names
+
+    @property
+    def limits(self) -> Array:
+        """``(dof, 2)``: lower and upper limit per joint, rad or m."""
+        return np.array(self._m.limits, dtype=np.float64).reshape(-1, 2)
+
+    @property
+    def closed_form(self) -> str | None:
+        """The closed-form IK shape of the arm's geometry, or None (numerical IK only)."""
+        return self._m.closed_form
+
+    def fk(self, q: npt.ArrayLike) -> Array:
+        """The tool pose at ``q``: a 4 x 4 homogeneous matrix; ``(n, dof)`` gives ``(n, 4, 4)``."""
+        a = np.asarray(q, dtype=np.float64)
+        if a.ndim == 2:
+            return np.array([self._m.fk(_vector(row, "q", self.dof)) for row in a])
+        return np.array(self._m.fk(_vector(a, "q", self.dof)))
+
+    def frames(self, q: npt.ArrayLike) -> Array:
+        """Every joint frame at ``q``, base first: ``(dof, 4, 4)``."""
+        return np.array(self._m.frames(_vector(q, "q", self.dof)))
+
+    def jacobian(self, q: npt.ArrayLike) -> Array:
+        """The 6 x dof geometric Jacobian at ``q`` (linear velocity rows first)."""
+        return np.array(self._m.jacobian(_vector(q, "q", self.dof)))
+
+    def solve(self, position: npt.ArrayLike, quaternion_wxyz: npt.ArrayLike | None = None,
+              seed: npt.ArrayLike | None = None, solver: str = "auto",
+              position_tolerance: float | None = None, orientation_tolerance: float | None = None) -> IkResult:
+        """Solves one target and says how it went (never raises for an unreachable target)."""
+        q, status, pe, oe, method = self._m.ik(
+            _vector(position, "position", 3),
+            None if quaternion_wxyz is None else _vector(quaternion_wxyz, "quaternion_wxyz", 4),
+            None if seed is None else _vector(seed, "seed", self.dof),
+            solver, position_tolerance, orientation_tolerance)
+        return IkResult(np.array(q), status, pe, oe, method)
+
+    def ik(self, position: npt.ArrayLike, quaternion_wxyz: npt.ArrayLike | None = None,
+           seed: npt.ArrayLike | None = None, solver: str = "auto", warm: bool = True) -> Array:
+        """Joint values reaching ``position`` (m; a pose with ``quaternion_wxyz``, w first).
+
+        A batch: ``position`` of shape ``(n, 3)`` (and ``quaternion_wxyz`` ``(n, 4)``) gives
+        ``(n, dof)``; with ``warm`` each target is seeded with the answer before it, as a path is.
+        Raises :class:`ArmctlError` naming the first target that does not converge."""
+        p = np.asarray(position, dtype=np.float64)
+        if p.ndim == 1:
+            r = self.solve(p, quaternion_wxyz, seed, solver)
+            if not r.converged:
+                raise ArmctlError(f"target {np.array2string(p, precision=4)} m not reached: {r.status}, "
+                                  f"{r.position_error * 1e3:.2f} mm short")
+            return r.q
+        if p.ndim != 2 or p.shape[1] != 3:
+            raise ArmctlError(f"position: expected shape (3,) or (n, 3), got {p.shape}")
+        quats = None if quaternion_wxyz is None else np.asarray(quaternion_wxyz, dtype=np.float64)
+        if quats is not None and quats.shape != (p.shape[0], 4):
+            raise ArmctlError(f"quaternion_wxyz: expected shape ({p.shape[0]}, 4), got {quats.shape}")
+        out = np.empty((p.shape[0], self.dof))
+        s = seed
+        for i, target in enumerate(p):
+            r = self.solve(target, None if quats is None else quats[i], s, solver)
+            if not r.converged:
+                raise ArmctlError(f"target {i} ({np.array2string(target, precision=4)} m) not reached: "
+                                  f"{r.status}, {r.position_error * 1e3:.2f} mm short")
+            out[i] = r.q
+            if warm:
+                s = r.q
+        return out
+
+
+class Trajectory:
+    """Samples of a curve through timed keyframes (:func:`sample`): times ``t`` ``(n,)`` and
+    positions ``q``, velocities ``v``, accelerations ``a``, each ``(n, joints)``."""
+
+    __slots__ = ("t", "q", "v", "a")
+
+    def __init__(self, t: Array, q: Array, v: Array, a: Array):
+        self.t, self.q, self.v, self.a = t, q, v, a
+
+
+def sample(times: npt.ArrayLike, positions: npt.ArrayLike, rate: float, method: str = "catmull-rom",
+           velocities: npt.ArrayLike | None = None, ends: str = "zero") -> Trajectory:
+    """Samples the curve through keyframes at ``rate`` samples a second, as ``armctl trajectory
+    sample`` does: ``method`` one of linear, catmull-rom, monotone, natural, hermite (with
+    ``velocities``), kb."""
+    p = np.asarray(positions, dtype=np.float64)
+    if p.ndim != 2:
+        raise ArmctlError(f"positions: expected shape (keyframes, joints), got {p.shape}")
+    v = None if velocities is None else np.asarray(velocities, dtype=np.float64).tolist()
+    t, q, vv, a = _armctl.sample(_vector(times, "times"), p.tolist(), float(rate), method, v, ends)
+    return Trajectory(np.array(t), np.array(q), np.array(vv), np.array(a))
+
+
+class Stream:
+    """A stream of readings to the arm's player (:meth:`Arm.stream`): each :meth:`send` is a
+    keyframe due one lead after it is sent, clamped into the joints' ranges and to one step from
+    the keyframe before; the player interpolates between them at the control rate within the
+    velocity and acceleration limits."""
+
+    def __init__(self, arm: "Arm"):
+        self._arm = arm
+        #: The figures of the stream once closed (keyframes, latency, underruns, clamps, tracking).
+        self.figures: dict[str, Any] | None = None
+
+    def send(self, q: npt.ArrayLike, gripper: float | None = None) -> tuple[float, Array, float | None]:
+        """Joint values (rad or m) and the gripper's opening (percent); returns ``(time, q,
+        gripper)`` as sent, after clamping."""
+        t, sent, g = self._arm._a.stream_joints(_vector(q, "q"), None if gripper is None else float(gripper))
+        return t, np.array(sent), g
+
+    def send_pose(self, position: npt.ArrayLike, quaternion_wxyz: npt.ArrayLike | None = None,
+                  gripper: float | None = None) -> tuple[float, float | None]:
+        """A tool pose, solved by the firmware's IK as the player reaches it; returns ``(time,
+        gripper)`` as sent."""
+        return self._arm._a.stream_pose(
+            _vector(position, "position", 3),
+            None if quaternion_wxyz is None else _vector(quaternion_wxyz, "quaternion_wxyz", 4),
+            None if gripper is None else float(gripper))
+
+    def close(self) -> dict[str, Any]:
+        """Ends the stream where it was (at rest) and returns its figures."""
+        if self.figures is None:
+            self.figures = json.loads(self._arm._a.stream_end())
+        return self.figures
+
+    def __enter__(self) -> "Stream":
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            self.close()
+        elif self._arm._a.streaming_now:
+            # An error in the caller's loop: the arm stops (decelerating within its limits).
+            self._arm._a.stop()
+
+
+class Arm:
+    """An arm driven through the firmware core, opened as the drive commands open it:
+
+    - ``sim="so101"`` (or ``"open-manipulator-x"``): the core on this PC in real time, against
+      simulated servos with the safety monitor (:meth:`monitor`);
+    - ``port="/dev/ttyACM0"``: a board running the firmware, or ``armctl serve``'s link;
+    - ``bus="/dev/ttyUSB0", protocol="sts"|"dxl2"``: the core on this PC (its own thread) against
+      the servos on a USB adapter, with ``arm`` and a LeRobot ``calibration`` file.
+
+    Each method is its command's request and returns the command's JSON answer as a dict."""
+
+    def __init__(self, *, sim: str | bool | None = None, port: str | None = None, bus: str | None = None,
+                 protocol: str | None = None, arm: str | None = None, calibration: str | None = None,
+                 baud: int | None = None):
+        if isinstance(sim, str):
+            if arm is not None and arm != sim:
+                raise ArmctlError(f"sim={sim!r} and arm={arm!r}: name the simulated arm once")
+            arm, sim = sim, True
+        self._a = _armctl.Arm(sim=bool(sim), port=port, bus=bus, protocol=protocol, arm=arm,
+                              calibration=None if calibration is None else str(calibration), baud=baud)
+
+    @property
+    def name(self) -> str:
+        return self._a.name
+
+    @property
+    def joint_names(self) -> list[str]:
+        return self._a.joint_names
+
+    @property
+    def dof(self) -> int:
+        return len(self._a.joint_names)
+
+    @property
+    def limits(self) -> Array:
+        """``(dof, 2)``: the range each joint is commanded within, rad or m."""
+        return np.array(self._a.limits, dtype=np.float64).reshape(-1, 2)
+
+    @property
+    def has_gripper(self) -> bool:
+        return self._a.has_gripper
+
+    @property
+    def servo_ids(self) -> list[int]:
+        """Bus ids of the joints' servos, base first, then the gripper's."""
+        return self._a.servo_ids
+
+    @property
+    def sim_port(self) -> str | None:
+        """The simulated servos' pseudo-terminal (``sim``), or None."""
+        return self._a.sim_port
+
+    def status(self) -> dict[str, Any]:
+        """State, ``measured`` and ``setpoints`` joints, ``tool`` position, gripper, queue, errors."""
+        return json.loads(self._a.status())
+
+    def joints(self) -> Array:
+        """The measured joint values, rad or m."""
+        return np.array(self.status()["measured"], dtype=np.float64)
+
+    def move_to(self, position: npt.ArrayLike, quaternion_wxyz: npt.ArrayLike | None = None, *,
+                speed: float | None = None, duration: float | None = None, path: str = "auto",
+                timeout: float = 60.0) -> dict[str, Any]:
+        """The tool to ``position`` (m), oriented by ``quaternion_wxyz`` if given; ``path`` auto
+        (a straight line where it is clear, else by joints), line or joint. Waits until at rest."""
+        return json.loads(self._a.move_to(_vector(position, "position"),
+                                          None if quaternion_wxyz is None else _vector(quaternion_wxyz, "quaternion_wxyz"),
+                                          speed, duration, path, timeout))
+
+    def move_joints(self, q: npt.ArrayLike, *, speed: float | None = None, duration: float | None = None,
+                    timeout: float = 60.0) -> dict[str, Any]:
+        """Every joint to ``q`` (rad or m), arriving together. Waits until at rest."""
+        return json.loads(self._a.move_joints(_vector(q, "q"), speed, duration, timeout))
+
+    def stream(self, rate: float, lead_ms: float | None = None, max_step: float | None = None) -> Stream:
+        """Opens a stream of ``rate`` readings a second (see :class:`Stream`); switches torque on."""
+        self._a.stream_begin(float(rate), lead_ms, max_step)
+        return Stream(self)
+
+    def stop(self) -> dict[str, Any]:
+        """Decelerates within the limits and holds (ends an open stream)."""
+        return json.loads(self._a.stop())
+
+    def torque(self, on: bool) -> dict[str, Any]:
+        return json.loads(self._a.torque(bool(on)))
+
+    def gripper(self, action: str | float, effort: float | None = None, timeout: float = 10.0) -> dict[str, Any]:
+        """``"open"``, ``"close"``, or an opening in percent (0 closed to 100 open)."""
+        if isinstance(action, str):
+            return json.loads(self._a.gripper(action, None, effort, timeout))
+        return json.loads(self._a.gripper("set", float(action), effort, timeout))
+
+    def monitor(self) -> dict[str, Any] | None:
+        """For ``sim``: the safety monitor's goals checked and violations; None otherwise."""
+        text = self._a.monitor()
+        return None if text is None else json.loads(text)
+
+    def close(self, torque_off: bool = False) -> None:
+        """Ends an open stream at rest, then the connection; ``torque_off`` lets the servos go limp."""
+        self._a.close(torque_off)
+
+    def __enter__(self) -> "Arm":
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        self.close()

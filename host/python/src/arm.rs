@@ -1,0 +1,460 @@
+//! An arm driven through the firmware core, for Python: opened as every drive command opens it
+//! (`sim`, `port`, or `bus` + `protocol`, with `arm` and `calibration`), and driven by the same
+//! requests ([`armctl::drive::commands`]), whose answers are the commands' JSON lines. A stream of
+//! readings (a policy's actions, a teleoperation) feeds the player through
+//! [`armctl::teleop::stream::Streamer`], as `armctl teleop` does.
+//!
+//! `sim` runs the core on this PC in real time against simulated servos on a pseudo-terminal (as
+//! `armctl serve --sim`), so that a stream is paced by the clock it is sent on, and the
+//! simulator's safety monitor judges every goal ([`Arm::monitor`]).
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use anyhow::{anyhow, bail, Result};
+use armctl::args::bus::ProtocolArg;
+use armctl::drive::args::{
+    DriveCommand, GripperAction, GripperArgs, JointsArgs, LinkArgs, MoveArgs, OnOff, OnlyLinkArgs, PathArg, TorqueArgs,
+};
+use armctl::drive::commands::{self, Request};
+use armctl::drive::interrupt;
+use armctl::drive::session::Driver;
+use armctl::sim::PtyServer;
+use armctl::teleop::leader::Reading;
+use armctl::teleop::stream::{quantile, Settings, Streamer};
+use clap::ValueEnum;
+use firmware::link::message::CartesianTarget;
+use pyo3::prelude::*;
+use serde_json::json;
+
+use crate::errors::{interrupted, to_py, OrRaise};
+
+/// Runs `f` with the GIL released, so that Python's other threads (a camera's reader) run while
+/// the arm is waited for. `detach` runs `f` on this very thread and returns its value here; its
+/// `Send` bound guards against Python objects crossing threads, and neither `f` nor its value
+/// holds any: only this unsendable object's driver, which never leaves the thread that owns it.
+fn released<T>(py: Python<'_>, f: impl FnOnce() -> T) -> T {
+    struct OnThisThread<V>(V);
+    // SAFETY: see above: the closure is called, and its value used, on the thread that made it.
+    unsafe impl<V> Send for OnThisThread<V> {}
+    impl<V> OnThisThread<V> {
+        fn call<T>(self) -> OnThisThread<T>
+        where
+            V: FnOnce() -> T,
+        {
+            OnThisThread((self.0)())
+        }
+        fn into_inner(self) -> V {
+            self.0
+        }
+    }
+    let f = OnThisThread(f);
+    py.detach(move || f.call()).into_inner()
+}
+
+/// A number as the command line would have been given it (`{:?}` writes every f64 exactly, and
+/// NaN and infinities as the words the parser refuses with its message).
+fn numbers(values: &[f64]) -> String {
+    values.iter().map(|x| format!("{x:?}")).collect::<Vec<_>>().join(",")
+}
+
+/// A stream's settings before it opens: its rate, lead and step clamp as given.
+struct StreamRequest {
+    period: Duration,
+    lead: Duration,
+    max_step: Option<f64>,
+}
+
+/// An arm connected through the firmware core.
+#[pyclass(unsendable, module = "armctl._armctl")]
+pub struct Arm {
+    /// `None` once closed.
+    driver: Option<Driver>,
+    /// The simulated servos of `sim`.
+    servos: Option<PtyServer>,
+    stream: Option<Streamer>,
+    /// What connecting said (for `bus`: the bus timing measured).
+    connected: String,
+}
+
+impl Arm {
+    fn driver(&mut self) -> PyResult<&mut Driver> {
+        self.driver.as_mut().ok_or_else(|| to_py(anyhow!("the arm is closed")))
+    }
+
+    /// Runs one drive command's request, refused while a stream is open; returns its JSON line.
+    fn command(&mut self, py: Python<'_>, command: DriveCommand) -> PyResult<String> {
+        if self.stream.is_some() {
+            return Err(to_py(anyhow!("a stream is open: close it before other commands (nothing was sent)")));
+        }
+        let request = Request::parse(&command).or_raise()?;
+        let driver = self.driver()?;
+        let (mut out, mut err) = (Vec::new(), Vec::new());
+        let code = released(py, || commands::run(driver, request, true, &mut out, &mut err)).or_raise()?;
+        match code {
+            0 => Ok(String::from_utf8_lossy(&out).trim().to_string()),
+            interrupt::EXIT_CODE => {
+                Err(interrupted()
+                    .unwrap_or_else(|| pyo3::exceptions::PyKeyboardInterrupt::new_err("stopped by Ctrl-C")))
+            }
+            _ => {
+                let said = String::from_utf8_lossy(&err);
+                let last = said.lines().last().unwrap_or("the command failed").trim_start_matches("error: ");
+                Err(to_py(anyhow!("{last}")))
+            }
+        }
+    }
+
+    fn open_stream(&mut self, py: Python<'_>, request: StreamRequest) -> PyResult<()> {
+        if self.stream.is_some() {
+            return Ok(());
+        }
+        let driver = self.driver()?;
+        let settings =
+            Settings::for_follower(driver, request.period, request.lead, request.max_step, true).or_raise()?;
+        let stream = released(py, || Streamer::begin(driver, settings)).or_raise()?;
+        self.stream = Some(stream);
+        Ok(())
+    }
+
+    fn streaming(&mut self) -> PyResult<(&mut Driver, &mut Streamer)> {
+        match (self.driver.as_mut(), self.stream.as_mut()) {
+            (Some(d), Some(s)) => Ok((d, s)),
+            (None, _) => Err(to_py(anyhow!("the arm is closed"))),
+            (_, None) => Err(to_py(anyhow!("no stream is open: call stream_begin first"))),
+        }
+    }
+
+    /// After a stream's keyframe failed: the stream is over, and the arm is stopped.
+    fn abandon_stream(&mut self, py: Python<'_>, e: anyhow::Error) -> PyErr {
+        self.stream = None;
+        if let Some(driver) = self.driver.as_mut() {
+            let _ = released(py, || driver.stop());
+        }
+        to_py(e)
+    }
+}
+
+#[pymethods]
+impl Arm {
+    #[new]
+    #[pyo3(signature = (*, sim = false, port = None, bus = None, protocol = None, arm = None, calibration = None, baud = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        sim: bool,
+        port: Option<String>,
+        bus: Option<String>,
+        protocol: Option<&str>,
+        arm: Option<String>,
+        calibration: Option<PathBuf>,
+        baud: Option<u32>,
+    ) -> PyResult<Self> {
+        let protocol = protocol
+            .map(|p| {
+                ProtocolArg::from_str(p, true)
+                    .map_err(|_| anyhow!("protocol {p:?}: sts (Feetech) or dxl2 (Dynamixel 2.0)"))
+            })
+            .transpose()
+            .or_raise()?;
+        let link = LinkArgs { port, bus, protocol, baud, sim, arm, calibration, object_mm: None, json: true };
+        let mut said = Vec::new();
+        let (driver, servos) = released(py, || -> Result<(Driver, Option<PtyServer>)> {
+            let (target, arm) = link.target()?;
+            let (target, servos) = target.in_real_time()?;
+            Ok((Driver::open(target, arm, &mut said)?, servos))
+        })
+        .or_raise()?;
+        let connected = String::from_utf8_lossy(&said).trim().to_string();
+        Ok(Self { driver: Some(driver), servos, stream: None, connected })
+    }
+
+    /// The arm's name.
+    #[getter]
+    fn name(&mut self) -> PyResult<String> {
+        Ok(self.driver()?.arm().name.clone())
+    }
+
+    /// Joint names, base first.
+    #[getter]
+    fn joint_names(&mut self) -> PyResult<Vec<String>> {
+        Ok(self.driver()?.arm().joints.iter().map(|j| j.name.clone()).collect())
+    }
+
+    /// (lower, upper) per joint: the range the firmware commands it within, rad or m.
+    #[getter]
+    fn limits(&mut self) -> PyResult<Vec<(f64, f64)>> {
+        let driver = self.driver()?;
+        let servos = armctl::arm::servos::servos_of(driver.arm());
+        (0..driver.joints())
+            .map(|j| {
+                servos
+                    .as_ref()
+                    .and_then(|s| s.commanded_range(driver.arm(), j))
+                    .map(|(lo, hi)| (f64::from(lo), f64::from(hi)))
+                    .ok_or_else(|| to_py(anyhow!("joint {} has no range within its servo", j + 1)))
+            })
+            .collect()
+    }
+
+    /// Whether the arm has a gripper.
+    #[getter]
+    fn has_gripper(&mut self) -> PyResult<bool> {
+        Ok(self.driver()?.gripper().is_some())
+    }
+
+    /// What connecting said (for `bus`: the bus timing it measured), or "".
+    #[getter]
+    fn connected(&self) -> String {
+        self.connected.clone()
+    }
+
+    /// The servo ids of the joints, base first, then the gripper's.
+    #[getter]
+    fn servo_ids(&mut self) -> PyResult<Vec<u16>> {
+        let servos = armctl::arm::servos::servos_of(self.driver()?.arm());
+        Ok(servos.map(|s| s.bus_ids().into_iter().map(u16::from).collect()).unwrap_or_default())
+    }
+
+    /// `armctl status --json`: the controller's state, measured joints, setpoints, tool, gripper,
+    /// queue and error counts.
+    fn status(&mut self, py: Python<'_>) -> PyResult<String> {
+        if self.stream.is_some() {
+            // Read between a stream's keyframes (a LeRobot observation): the same answer.
+            let driver = self.driver()?;
+            let status = released(py, || driver.status()).or_raise()?;
+            let tool = driver.tool_position(&status.measured).or_raise()?;
+            let mut v = serde_json::to_value(&status).map_err(|e| to_py(e.into()))?;
+            v["arm"] = json!(driver.arm().name);
+            v["tool"] = json!(tool);
+            return Ok(v.to_string());
+        }
+        self.command(py, DriveCommand::Status(OnlyLinkArgs { link: LinkArgs::default() }))
+    }
+
+    /// `armctl move`: the tool to `position` (m), with `quaternion_wxyz` if given; waits until the
+    /// arm is at rest.
+    #[pyo3(signature = (position, quaternion_wxyz = None, speed = None, duration = None, path = "auto", timeout = 60.0))]
+    #[allow(clippy::too_many_arguments)] // Python's keyword arguments, each a command-line option.
+    fn move_to(
+        &mut self,
+        py: Python<'_>,
+        position: Vec<f64>,
+        quaternion_wxyz: Option<Vec<f64>>,
+        speed: Option<f64>,
+        duration: Option<f64>,
+        path: &str,
+        timeout: f64,
+    ) -> PyResult<String> {
+        let path = PathArg::from_str(path, true).map_err(|_| to_py(anyhow!("path {path:?}: auto, line or joint")))?;
+        if speed.is_some() && duration.is_some() {
+            return Err(to_py(anyhow!("give speed or duration, not both (nothing was sent)")));
+        }
+        let args = MoveArgs {
+            link: LinkArgs::default(),
+            to: numbers(&position),
+            quat: quaternion_wxyz.as_deref().map(numbers),
+            speed,
+            duration,
+            path,
+            timeout,
+        };
+        self.command(py, DriveCommand::Move(args))
+    }
+
+    /// `armctl joints`: every joint to `q` (rad or m), arriving together; waits until at rest.
+    #[pyo3(signature = (q, speed = None, duration = None, timeout = 60.0))]
+    fn move_joints(
+        &mut self,
+        py: Python<'_>,
+        q: Vec<f64>,
+        speed: Option<f64>,
+        duration: Option<f64>,
+        timeout: f64,
+    ) -> PyResult<String> {
+        if speed.is_some() && duration.is_some() {
+            return Err(to_py(anyhow!("give speed or duration, not both (nothing was sent)")));
+        }
+        let args = JointsArgs { link: LinkArgs::default(), q: numbers(&q), duration, speed, timeout };
+        self.command(py, DriveCommand::Joints(args))
+    }
+
+    /// `armctl stop`: decelerates within the limits and holds; waits until at rest. Closes an
+    /// open stream first.
+    fn stop(&mut self, py: Python<'_>) -> PyResult<String> {
+        self.stream = None;
+        self.command(py, DriveCommand::Stop(OnlyLinkArgs { link: LinkArgs::default() }))
+    }
+
+    /// `armctl torque on|off`.
+    fn torque(&mut self, py: Python<'_>, on: bool) -> PyResult<String> {
+        let state = if on { OnOff::On } else { OnOff::Off };
+        self.command(py, DriveCommand::Torque(TorqueArgs { state, link: LinkArgs::default() }))
+    }
+
+    /// `armctl gripper open|close|set PERCENT [--effort E]`; waits until the jaws stop.
+    #[pyo3(signature = (action, percent = None, effort = None, timeout = 10.0))]
+    fn gripper(
+        &mut self,
+        py: Python<'_>,
+        action: &str,
+        percent: Option<f64>,
+        effort: Option<f64>,
+        timeout: f64,
+    ) -> PyResult<String> {
+        let action = GripperAction::from_str(action, true)
+            .map_err(|_| to_py(anyhow!("gripper action {action:?}: open, close or set")))?;
+        let args = GripperArgs { action, percent, effort, timeout, link: LinkArgs::default() };
+        self.command(py, DriveCommand::Gripper(args))
+    }
+
+    /// Opens a stream at `rate` readings a second: each reading is a keyframe due `lead_ms` after
+    /// it is sent (default: one period plus 8 ms), no joint moving more than `max_step` rad from
+    /// one keyframe to the next (default: the speed limit over one period). Switches torque on.
+    #[pyo3(signature = (rate, lead_ms = None, max_step = None))]
+    fn stream_begin(&mut self, py: Python<'_>, rate: f64, lead_ms: Option<f64>, max_step: Option<f64>) -> PyResult<()> {
+        let check = || -> Result<StreamRequest> {
+            if !(rate.is_finite() && (1.0..=1000.0).contains(&rate)) {
+                bail!("rate: {rate} must be between 1 and 1000 readings per second");
+            }
+            let period = Duration::from_secs_f64(1.0 / rate);
+            let lead = match lead_ms {
+                Some(ms) if ms.is_finite() && ms > 0.0 && ms <= 1000.0 => Duration::from_secs_f64(ms * 1e-3),
+                Some(ms) => bail!("lead_ms: {ms} must be above 0 and at most 1000"),
+                None => period + armctl::teleop::LEAD_MARGIN,
+            };
+            if let Some(step) = max_step {
+                if !(step.is_finite() && step > 0.0) {
+                    bail!("max_step: {step} must be a positive number of radians");
+                }
+            }
+            Ok(StreamRequest { period, lead, max_step })
+        };
+        let request = check().or_raise()?;
+        self.open_stream(py, request)
+    }
+
+    /// Sends joint values `q` (rad or m) and the gripper's opening (percent) as the stream's next
+    /// keyframe; returns `(time, q, gripper)` as sent, after the range and step clamps.
+    #[pyo3(signature = (q, gripper = None))]
+    fn stream_joints(
+        &mut self,
+        py: Python<'_>,
+        q: Vec<f64>,
+        gripper: Option<f64>,
+    ) -> PyResult<(f64, Vec<f64>, Option<f64>)> {
+        let read_at = Instant::now();
+        let reading = Reading { joints: q, gripper };
+        let (driver, stream) = self.streaming()?;
+        // Bad input ends nothing: the stream goes on with the next good reading.
+        stream.check(&reading).or_raise()?;
+        match released(py, || stream.send(driver, &reading, read_at)) {
+            Ok(sent) => Ok((sent.time, sent.joints, sent.gripper)),
+            Err(e) => Err(self.abandon_stream(py, e)),
+        }
+    }
+
+    /// Sends the tool pose (`position` m, `quaternion_wxyz` or None for a position only) and the
+    /// gripper's opening as the stream's next keyframe, solved by the firmware's IK as the player
+    /// reaches it; returns `(time, gripper)` as sent.
+    #[pyo3(signature = (position, quaternion_wxyz = None, gripper = None))]
+    fn stream_pose(
+        &mut self,
+        py: Python<'_>,
+        position: [f64; 3],
+        quaternion_wxyz: Option<[f64; 4]>,
+        gripper: Option<f64>,
+    ) -> PyResult<(f64, Option<f64>)> {
+        let read_at = Instant::now();
+        let values = position.iter().chain(quaternion_wxyz.iter().flatten()).chain(&gripper);
+        if let Some(bad) = values.copied().find(|x| !x.is_finite()) {
+            return Err(to_py(anyhow!("a pose holds {bad}: nothing was sent")));
+        }
+        let orientation = match quaternion_wxyz {
+            Some(q) => {
+                let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+                if (norm - 1.0).abs() > f64::from(firmware::link::message::QUATERNION_TOLERANCE) {
+                    return Err(to_py(anyhow!("quaternion_wxyz must be a unit quaternion; its norm is {norm:.6}")));
+                }
+                Some(q.map(|x| x as f32))
+            }
+            None => None,
+        };
+        let target = CartesianTarget { position: position.map(|x| x as f32), orientation };
+        let (driver, stream) = self.streaming()?;
+        match released(py, || stream.send_pose(driver, target, gripper, read_at)) {
+            Ok(sent) => Ok((sent.time, sent.gripper)),
+            Err(e) => Err(self.abandon_stream(py, e)),
+        }
+    }
+
+    /// Whether a stream is open.
+    #[getter]
+    fn streaming_now(&self) -> bool {
+        self.stream.is_some()
+    }
+
+    /// Ends the stream: a last keyframe at rest where it was, then waits until the arm holds.
+    /// Returns the stream's figures as JSON (keyframes, latency, underruns, clamps, tracking).
+    fn stream_end(&mut self, py: Python<'_>) -> PyResult<String> {
+        let Some(stream) = self.stream.take() else {
+            return Err(to_py(anyhow!("no stream is open")));
+        };
+        let driver = self.driver()?;
+        let (f, _) = released(py, || stream.finish(driver)).or_raise()?;
+        released(py, || driver.wait_until_rest(10.0)).or_raise()?;
+        let value = json!({
+            "keyframes": f.keyframes, "seconds": f.seconds, "rate_hz": f.rate_hz(),
+            "latency_ms": {"queued_p50": quantile(&f.queued_ms, 0.5), "queued_p99": quantile(&f.queued_ms, 0.99),
+                "goal_p50": quantile(&f.goal_ms, 0.5), "goal_p99": quantile(&f.goal_ms, 0.99)},
+            "late_keyframes": f.late_keyframes, "underruns": f.underruns, "restarts": f.restarts, "retimed": f.retimed,
+            "clamped_steps": f.clamped_steps, "limited_values": f.limited_values,
+            "tracking_rad": {"p50": quantile(&f.tracking, 0.5), "p99": quantile(&f.tracking, 0.99), "max": quantile(&f.tracking, 1.0)},
+        });
+        Ok(value.to_string())
+    }
+
+    /// The simulated servos' safety monitor (for `sim`) as JSON: goals checked, violations (the
+    /// first 100 in words), the largest step against the limit; None for a real arm.
+    fn monitor(&self) -> Option<String> {
+        let report = self.servos.as_ref()?.monitor()?;
+        let violations: Vec<String> = report.violations.iter().map(ToString::to_string).collect();
+        Some(
+            json!({"goals": report.checked, "violations": report.violation_count, "max_step_ratio": report.max_step_ratio,
+                "first_violations": violations})
+            .to_string(),
+        )
+    }
+
+    /// The simulated servos' pseudo-terminal (for `sim`), or None.
+    #[getter]
+    fn sim_port(&self) -> Option<String> {
+        self.servos.as_ref().map(|s| s.path().to_string())
+    }
+
+    /// Ends an open stream (the arm comes to rest where it was), then the connection. With
+    /// `torque_off`, the servos go limp last. Closing twice does nothing.
+    #[pyo3(signature = (torque_off = false))]
+    fn close(&mut self, py: Python<'_>, torque_off: bool) -> PyResult<()> {
+        if self.driver.is_none() {
+            return Ok(());
+        }
+        let mut first_error = None;
+        if self.stream.is_some() {
+            first_error = self.stream_end(py).err();
+        }
+        if torque_off {
+            if let Err(e) = self.torque(py, false) {
+                first_error.get_or_insert(e);
+            }
+        }
+        if let Some(driver) = self.driver.take() {
+            let mut said = Vec::new();
+            if let Err(e) = released(py, || driver.close(&mut said)) {
+                first_error.get_or_insert(to_py(e));
+            }
+        }
+        self.servos = None;
+        first_error.map_or(Ok(()), Err)
+    }
+}

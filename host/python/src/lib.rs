@@ -1,0 +1,24 @@
+//! `armctl._armctl`, the native half of the `armctl` Python package: the project's crates bound
+//! with PyO3, nothing of their own. The pure-Python half (`armctl/__init__.py`) turns numpy arrays
+//! into the plain lists these functions take, and their answers (JSON, lists) back.
+//!
+//! - [`model`]: an arm's kinematics (forward kinematics, Jacobian, IK) and trajectory sampling;
+//! - [`arm`]: an arm driven through the firmware core, as every drive command drives it;
+//! - [`errors`]: `ArmctlError`, carrying the command line's one-line messages, and Ctrl-C.
+
+mod arm;
+mod errors;
+mod model;
+
+use pyo3::prelude::*;
+
+#[pymodule]
+fn _armctl(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    errors::keep_python_signal_handling();
+    m.add("ArmctlError", m.py().get_type::<errors::ArmctlError>())?;
+    m.add_class::<model::Model>()?;
+    m.add_function(wrap_pyfunction!(model::sample, m)?)?;
+    m.add_class::<arm::Arm>()?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}
