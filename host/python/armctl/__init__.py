@@ -23,9 +23,9 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _armctl
-from ._armctl import ArmctlError
+from ._armctl import ArmctlError, calibrate
 
-__all__ = ["Arm", "ArmctlError", "IkResult", "Model", "Stream", "Trajectory", "sample", "__version__"]
+__all__ = ["Arm", "ArmctlError", "IkResult", "Model", "Stream", "Trajectory", "calibrate", "sample", "__version__"]
 __version__: str = _armctl.__version__
 
 Array = npt.NDArray[np.float64]
@@ -91,6 +91,11 @@ class Model:
     def limits(self) -> Array:
         """``(dof, 2)``: lower and upper limit per joint, rad or m."""
         return np.array(self._m.limits, dtype=np.float64).reshape(-1, 2)
+
+    @property
+    def has_gripper(self) -> bool:
+        """Whether the arm has a gripper (a servo outside the chain, 0 % closed to 100 % open)."""
+        return self._m.has_gripper
 
     @property
     def closed_form(self) -> str | None:
@@ -295,9 +300,14 @@ class Arm:
         """Every joint to ``q`` (rad or m), arriving together. Waits until at rest."""
         return json.loads(self._a.move_joints(_vector(q, "q"), speed, duration, timeout))
 
-    def stream(self, rate: float, lead_ms: float | None = None, max_step: float | None = None) -> Stream:
-        """Opens a stream of ``rate`` readings a second (see :class:`Stream`); switches torque on."""
-        self._a.stream_begin(float(rate), lead_ms, max_step)
+    def stream(self, rate: float, lead_ms: float | None = None,
+               max_step: float | Sequence[float] | None = None) -> Stream:
+        """Opens a stream of ``rate`` readings a second (see :class:`Stream`); switches torque on.
+        Each keyframe is due ``lead_ms`` after it is sent (default: one period plus 8 ms); no joint
+        moves more than ``max_step`` rad (one value, or one per joint) from one keyframe to the
+        next (default: its speed limit over one period)."""
+        steps = None if max_step is None else _vector(np.atleast_1d(np.asarray(max_step, dtype=np.float64)), "max_step")
+        self._a.stream_begin(float(rate), lead_ms, steps)
         return Stream(self)
 
     def stop(self) -> dict[str, Any]:

@@ -62,7 +62,8 @@ fn numbers(values: &[f64]) -> String {
 struct StreamRequest {
     period: Duration,
     lead: Duration,
-    max_step: Option<f64>,
+    /// One value for every joint, or one per joint.
+    max_step: Option<Vec<f64>>,
 }
 
 /// An arm connected through the firmware core.
@@ -110,8 +111,19 @@ impl Arm {
             return Ok(());
         }
         let driver = self.driver()?;
-        let settings =
-            Settings::for_follower(driver, request.period, request.lead, request.max_step, true).or_raise()?;
+        let mut settings = Settings::for_follower(driver, request.period, request.lead, None, true).or_raise()?;
+        match request.max_step.as_deref() {
+            None => {}
+            Some(&[step]) => settings.max_step.fill(step),
+            Some(steps) if steps.len() == driver.joints() => settings.max_step = steps.to_vec(),
+            Some(steps) => {
+                let joints = driver.joints();
+                return Err(to_py(anyhow!(
+                    "max_step: {} values for {joints} joints: give one, or one per joint",
+                    steps.len()
+                )));
+            }
+        }
         let stream = released(py, || Streamer::begin(driver, settings)).or_raise()?;
         self.stream = Some(stream);
         Ok(())
@@ -310,9 +322,16 @@ impl Arm {
 
     /// Opens a stream at `rate` readings a second: each reading is a keyframe due `lead_ms` after
     /// it is sent (default: one period plus 8 ms), no joint moving more than `max_step` rad from
-    /// one keyframe to the next (default: the speed limit over one period). Switches torque on.
+    /// one keyframe to the next (one value, or one per joint; default: the speed limit over one
+    /// period, LeRobot's `max_relative_target`). Switches torque on.
     #[pyo3(signature = (rate, lead_ms = None, max_step = None))]
-    fn stream_begin(&mut self, py: Python<'_>, rate: f64, lead_ms: Option<f64>, max_step: Option<f64>) -> PyResult<()> {
+    fn stream_begin(
+        &mut self,
+        py: Python<'_>,
+        rate: f64,
+        lead_ms: Option<f64>,
+        max_step: Option<Vec<f64>>,
+    ) -> PyResult<()> {
         let check = || -> Result<StreamRequest> {
             if !(rate.is_finite() && (1.0..=1000.0).contains(&rate)) {
                 bail!("rate: {rate} must be between 1 and 1000 readings per second");
@@ -323,10 +342,8 @@ impl Arm {
                 Some(ms) => bail!("lead_ms: {ms} must be above 0 and at most 1000"),
                 None => period + armctl::teleop::LEAD_MARGIN,
             };
-            if let Some(step) = max_step {
-                if !(step.is_finite() && step > 0.0) {
-                    bail!("max_step: {step} must be a positive number of radians");
-                }
+            if let Some(step) = max_step.iter().flatten().find(|step| !(step.is_finite() && **step > 0.0)) {
+                bail!("max_step: {step} must be a positive number of radians");
             }
             Ok(StreamRequest { period, lead, max_step })
         };

@@ -4,9 +4,11 @@
 //!
 //! - [`model`]: an arm's kinematics (forward kinematics, Jacobian, IK) and trajectory sampling;
 //! - [`arm`]: an arm driven through the firmware core, as every drive command drives it;
+//! - [`calibrate`]: LeRobot's calibration procedure, answered on standard input;
 //! - [`errors`]: `ArmctlError`, carrying the command line's one-line messages, and Ctrl-C.
 
 mod arm;
+mod calibrate;
 mod errors;
 mod model;
 
@@ -19,6 +21,7 @@ fn _armctl(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<model::Model>()?;
     m.add_function(wrap_pyfunction!(model::sample, m)?)?;
     m.add_class::<arm::Arm>()?;
+    m.add_function(wrap_pyfunction!(calibrate::calibrate, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

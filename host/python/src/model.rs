@@ -73,6 +73,12 @@ impl Model {
         self.arm.spec().joints.iter().map(|j| (j.lower, j.upper)).collect()
     }
 
+    /// Whether the arm has a gripper (its servos' `[gripper]` table, or its preset's).
+    #[getter]
+    fn has_gripper(&self) -> bool {
+        armctl::arm::servos::servos_of(self.arm.spec()).is_some_and(|s| s.gripper.is_some())
+    }
+
     /// The closed-form IK shape its geometry has (`spherical_wrist`, `three_parallel`,
     /// `yaw_pitch`), or None.
     #[getter]
