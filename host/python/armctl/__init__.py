@@ -210,9 +210,10 @@ class Stream:
             None if gripper is None else float(gripper))
 
     def close(self) -> dict[str, Any]:
-        """Ends the stream where it was (at rest) and returns its figures."""
+        """Ends the stream where it was (at rest) and returns its figures. A stream a failed send
+        already ended (the arm was stopped, and the send raised why) has no figures: ``{}``."""
         if self.figures is None:
-            self.figures = json.loads(self._arm._a.stream_end())
+            self.figures = json.loads(self._arm._a.stream_end()) if self._arm._a.streaming_now else {}
         return self.figures
 
     def __enter__(self) -> "Stream":

@@ -39,6 +39,15 @@ fn by_name<T: ValueEnum>(name: &str, what: &str) -> anyhow::Result<T> {
     })
 }
 
+/// `q` itself, or the error naming its first value that is not finite (NaN or infinite joint
+/// values would give a pose of NaNs, not an error).
+fn finite(q: Vec<f64>) -> PyResult<Vec<f64>> {
+    match q.iter().position(|x| !x.is_finite()) {
+        Some(i) => Err(crate::errors::to_py(anyhow::anyhow!("q: value {} ({}) is not a finite number", i + 1, q[i]))),
+        None => Ok(q),
+    }
+}
+
 /// An arm's kinematics: a preset (`so101`, `ur5e`, `planar:3`, ...), a URDF file (with `tip`, the
 /// link the chain ends at) or an arm file (`.toml`), optionally with a LeRobot calibration.
 #[pyclass(frozen, module = "armctl._armctl")]
@@ -88,17 +97,17 @@ impl Model {
 
     /// The tool pose at `q`, a 4 x 4 homogeneous matrix.
     fn fk(&self, q: Vec<f64>) -> PyResult<Matrix4> {
-        Ok(homogeneous(&self.arm.tool_pose(&q).or_raise()?))
+        Ok(homogeneous(&self.arm.tool_pose(&finite(q)?).or_raise()?))
     }
 
     /// Every joint frame (after its motion) at `q`, base first.
     fn frames(&self, q: Vec<f64>) -> PyResult<Vec<Matrix4>> {
-        Ok(self.arm.joint_frames(&q).or_raise()?.iter().map(homogeneous).collect())
+        Ok(self.arm.joint_frames(&finite(q)?).or_raise()?.iter().map(homogeneous).collect())
     }
 
     /// The 6 x N geometric Jacobian at `q` (linear rows first), row by row.
     fn jacobian(&self, q: Vec<f64>) -> PyResult<Vec<Vec<f64>>> {
-        self.arm.jacobian(&q).or_raise()
+        self.arm.jacobian(&finite(q)?).or_raise()
     }
 
     /// Solves one target: `(q, status, position_error, orientation_error, method)`. The status is

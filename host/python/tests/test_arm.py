@@ -1,0 +1,141 @@
+"""The package's Arm, driven as the drive commands drive it: against the simulated arm (the core
+on this PC in real time, with the safety monitor) and against `armctl serve --sim` through a port,
+every call, the stream, and bad input raising the command line's own message."""
+
+from __future__ import annotations
+
+import subprocess
+import time
+
+import numpy as np
+import pytest
+
+import armctl
+
+
+@pytest.fixture(scope="module")
+def arm():
+    a = armctl.Arm(sim="so101")
+    yield a
+    a.close()
+
+
+def test_status_says_where_the_arm_is(arm):
+    s = arm.status()
+    assert s["arm"] == "so101"
+    assert len(s["measured"]) == 5 and len(s["tool"]) == 3
+    assert arm.joint_names[0] == "shoulder_pan" and arm.dof == 5 and arm.has_gripper
+    assert arm.servo_ids == [1, 2, 3, 4, 5, 6]
+    assert arm.sim_port.startswith("/dev/")
+
+
+def test_move_to_arrives_and_says_how(arm):
+    r = arm.move_to([0.2, 0.05, 0.15], speed=0.2)
+    assert r["command"] == "move" and r["path"] in ("line", "joint", "line, then joints")
+    assert r["error_mm"] < 1.0
+    tool = np.array(arm.status()["tool"])
+    assert np.linalg.norm(tool - [0.2, 0.05, 0.15]) < 1e-3
+
+
+def test_move_joints_and_the_gripper_and_torque(arm):
+    q = [0.2, 0.1, -0.3, 0.2, 0.1]
+    r = arm.move_joints(q, duration=1.0)
+    assert r["max_error"] < 2e-3
+    np.testing.assert_allclose(arm.joints(), q, atol=2e-3)
+    g = arm.gripper(30)
+    assert abs(g["opening"] - 30) < 2
+    assert arm.gripper("open")["opening"] > 95
+    assert arm.torque(False)["state"] == "TorqueOff"
+    assert arm.torque(True)["state"] in ("Idle", "Hold")
+    assert arm.stop()["command"] == "stop"
+
+
+def test_a_stream_plays_timed_keyframes_within_the_limits(arm):
+    arm.move_joints([0, 0, 0, 0, 0], duration=1.0)
+    lim = arm.limits
+    with arm.stream(rate=50) as s:
+        for i in range(50):
+            q = np.array([0.3, 0.2, -0.2, 0.1, 0.0]) * np.sin(np.pi * i / 50)
+            t, sent, g = s.send(q, gripper=40.0)
+            np.testing.assert_allclose(sent, q, atol=1e-9)
+            assert g == 40.0
+            time.sleep(0.02)
+        # A reading beyond a joint's range is clamped to it, and to one step (the speed limit,
+        # 2 rad/s, over a period) from the last keyframe.
+        last = sent[0]
+        t, sent, g = s.send([5.0, 0, 0, 0, 0])
+        assert sent[0] < lim[0, 1] and abs(sent[0] - (last + 2.0 / 50)) < 1e-6
+        # Bad readings change nothing and the stream goes on.
+        with pytest.raises(armctl.ArmctlError, match="nothing was sent"):
+            s.send([0.0, 0.0])
+        with pytest.raises(armctl.ArmctlError, match="nothing was sent"):
+            s.send([np.nan, 0, 0, 0, 0])
+        with pytest.raises(armctl.ArmctlError, match="a stream is open"):
+            arm.move_joints([0, 0, 0, 0, 0])
+        s.send([0, 0, 0, 0, 0])
+    f = s.figures
+    assert f["keyframes"] == 52 and f["limited_values"] >= 1
+    monitor = arm.monitor()
+    assert monitor["goals"] > 0 and monitor["violations"] == 0, monitor
+
+
+def test_a_pose_stream_is_solved_by_the_firmware(arm):
+    arm.move_joints([0, 0.3, -0.6, 0.3, 0], duration=1.0)
+    start = np.array(arm.status()["tool"])
+    with arm.stream(rate=30) as s:
+        for i in range(31):
+            s.send_pose(start + [0.0, 0.03 * i / 30, 0.0], gripper=50.0)
+            time.sleep(1 / 30)
+    time.sleep(0.3)
+    np.testing.assert_allclose(arm.status()["tool"], start + [0, 0.03, 0], atol=2e-3)
+
+
+@pytest.mark.parametrize(
+    "call, cli_args",
+    [
+        (lambda a: a.move_to([float("nan"), 0.0, 0.2]), ["move", "--to", "NaN,0.0,0.2"]),
+        (lambda a: a.move_to([3.0, 0.0, 0.2]), ["move", "--to", "3.0,0.0,0.2"]),
+        (lambda a: a.move_to([0.2, 0.0, 0.2], [1.0, 1.0, 0.0, 0.0]), ["move", "--to", "0.2,0.0,0.2", "--quat", "1.0,1.0,0.0,0.0"]),
+        (lambda a: a.move_joints([5.0, 0, 0, 0, 0]), ["joints", "--q", "5.0,0,0,0,0"]),
+        (lambda a: a.move_joints([0.0, 0.0]), ["joints", "--q", "0.0,0.0"]),
+        (lambda a: a.gripper(150.0), ["gripper", "set", "150"]),
+    ],
+)
+def test_bad_input_raises_the_command_lines_message_and_moves_nothing(arm, cli, call, cli_args):
+    before = arm.status()["setpoints"]
+    with pytest.raises(armctl.ArmctlError) as e:
+        call(arm)
+    code, _, err = cli("--sim", *cli_args)
+    assert code != 0
+    # The same words; the command line's fresh simulated arm starts limp, so a refused move may
+    # add "(torque is off again, as it was)".
+    said = err.strip().splitlines()[-1].removeprefix("error: ")
+    assert said.startswith(str(e.value)), (said, str(e.value))
+    np.testing.assert_allclose(arm.status()["setpoints"], before, atol=1e-6)
+
+
+def test_opening_errors_are_one_line():
+    with pytest.raises(armctl.ArmctlError, match="/dev/no-such-port") as e:
+        armctl.Arm(port="/dev/no-such-port")
+    assert "\n" not in str(e.value)
+    with pytest.raises(armctl.ArmctlError, match="--protocol"):
+        armctl.Arm(bus="/dev/no-such-port")
+    with pytest.raises(armctl.ArmctlError, match="protocol"):
+        armctl.Arm(bus="/dev/no-such-port", protocol="can")
+    with pytest.raises(armctl.ArmctlError, match="unknown arm"):
+        armctl.Arm(sim="no-such-arm")
+
+
+def test_through_a_port_served_by_armctl_serve(armctl_bin):
+    serve = subprocess.Popen([armctl_bin, "serve", "--sim"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        port = serve.stdout.readline().strip()
+        assert port.startswith("/dev/"), serve.stderr.read()
+        with armctl.Arm(port=port) as a:
+            assert a.name == "so101"
+            r = a.move_joints([0.1, 0.0, 0.0, 0.0, 0.0], duration=0.5)
+            assert r["max_error"] < 2e-3
+            assert a.monitor() is None  # the servos are serve's: its monitor reports there
+    finally:
+        serve.terminate()
+        serve.wait(timeout=10)

@@ -1,0 +1,128 @@
+"""The package's kinematics against the command line's values (the same crates, so equal to the
+last bit where the arithmetic is the same), against finite differences, and on bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import armctl
+
+RNG = np.random.default_rng(29)
+
+
+def random_q(model: armctl.Model, n: int) -> np.ndarray:
+    lim = model.limits
+    return lim[:, 0] + (lim[:, 1] - lim[:, 0]) * (0.05 + 0.9 * RNG.random((n, model.dof)))
+
+
+@pytest.mark.parametrize("arm", ["so101", "ur5e", "open-manipulator-x", "planar:3"])
+def test_fk_and_jacobian_equal_the_command_line(arm, cli_json):
+    model = armctl.Model(arm)
+    for q in random_q(model, 3):
+        text = ",".join(repr(float(x)) for x in q)
+        fk = cli_json("fk", "--arm", arm, "--q", text)
+        pose = model.fk(q)
+        np.testing.assert_allclose(pose[:3, 3], fk["position"], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(pose[:3, :3], fk["rotation"], rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(pose[3], [0, 0, 0, 1])
+        frames = model.frames(q)
+        np.testing.assert_allclose(frames[:, :3, 3], [f["position"] for f in fk["frames"]], atol=1e-12)
+        jac = cli_json("jacobian", "--arm", arm, "--q", text)
+        np.testing.assert_allclose(model.jacobian(q), jac["jacobian"], rtol=0, atol=1e-12)
+
+
+def test_jacobian_matches_finite_differences_of_fk():
+    model = armctl.Model("ur5e")
+    q = random_q(model, 1)[0]
+    j = model.jacobian(q)
+    h = 1e-6
+    for i in range(model.dof):
+        dq = np.zeros(model.dof)
+        dq[i] = h
+        dp = (model.fk(q + dq)[:3, 3] - model.fk(q - dq)[:3, 3]) / (2 * h)
+        np.testing.assert_allclose(j[:3, i], dp, atol=1e-7)
+
+
+@pytest.mark.parametrize("arm", ["so101", "ur5e"])
+def test_ik_reaches_reachable_targets_and_equals_the_command_line(arm, cli_json):
+    model = armctl.Model(arm)
+    for q in random_q(model, 5):
+        target = model.fk(q)[:3, 3]
+        r = model.solve(target)
+        assert r.converged, r
+        assert np.linalg.norm(model.fk(r.q)[:3, 3] - target) < 1e-4
+        assert np.all(r.q >= model.limits[:, 0] - 1e-12) and np.all(r.q <= model.limits[:, 1] + 1e-12)
+        out = cli_json("ik", "--arm", arm, "--target", ",".join(repr(float(x)) for x in target))
+        assert out["status"] == "converged"
+        assert out["solver"] == r.method
+        np.testing.assert_allclose(r.q, out["q"], atol=1e-12)
+
+
+def test_ik_of_a_pose_and_a_batch():
+    model = armctl.Model("ur5e")
+    qs = random_q(model, 8)
+    poses = model.fk(qs)
+    quats = []
+    for p in poses:
+        r = p[:3, :3]
+        w = np.sqrt(max(1e-12, 1 + np.trace(r))) / 2
+        quats.append([w, (r[2, 1] - r[1, 2]) / (4 * w), (r[0, 2] - r[2, 0]) / (4 * w), (r[1, 0] - r[0, 1]) / (4 * w)])
+    quats = np.array(quats)
+    quats /= np.linalg.norm(quats, axis=1, keepdims=True)
+    q = model.ik(poses[:, :3, 3], quats)
+    assert q.shape == (8, 6)
+    np.testing.assert_allclose(model.fk(q)[:, :3, 3], poses[:, :3, 3], atol=1e-4)
+    np.testing.assert_allclose(model.fk(q)[:, :3, :3], poses[:, :3, :3], atol=1e-3)
+
+
+def test_an_unreachable_target_says_how_far():
+    model = armctl.Model("so101")
+    r = model.solve([2.0, 0.0, 0.0])
+    assert not r.converged and r.position_error > 1.0
+    with pytest.raises(armctl.ArmctlError, match="not reached"):
+        model.ik([2.0, 0.0, 0.0])
+
+
+def test_sampling_equals_the_command_line(tmp_path, cli_json):
+    times = [0.0, 0.8, 2.0, 2.5]
+    q = [[0.0, 0.1], [0.5, -0.2], [0.1, 0.4], [0.0, 0.0]]
+    keyframes = tmp_path / "k.csv"
+    keyframes.write_text("t,q1,q2\n" + "".join(f"{t},{a},{b}\n" for t, (a, b) in zip(times, q)))
+    for method in ["linear", "catmull-rom", "natural", "monotone"]:
+        s = armctl.sample(times, q, 50.0, method=method)
+        out = cli_json("trajectory", "sample", "--keyframes", str(keyframes), "--method", method, "--rate", "50",
+                       "--json")
+        rows = out["samples"] if "samples" in out else out["rows"]
+        np.testing.assert_allclose(s.t, [r["t"] for r in rows], atol=1e-12)
+        np.testing.assert_allclose(s.q, [r["q"] for r in rows], atol=1e-12)
+        np.testing.assert_allclose(s.v, [r["v"] for r in rows], atol=1e-12)
+
+
+def test_models_from_files(tmp_path):
+    root = armctl.Model("so101")
+    urdf = __import__("pathlib").Path(__file__).resolve().parents[2] / "tests/data/so101_new_calib.urdf"
+    from_urdf = armctl.Model(str(urdf), tip="gripper_frame_link")
+    assert from_urdf.dof == 5
+    assert np.isfinite(from_urdf.fk(np.zeros(5))).all()
+    assert root.has_gripper and root.closed_form == "yaw_pitch"
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda: armctl.Model("no-such-arm"), "unknown arm"),
+        (lambda: armctl.Model("/no/such/arm.toml"), "cannot read arm file"),
+        (lambda: armctl.Model("so101").fk([0, 1]), "expected 5 values"),
+        (lambda: armctl.Model("so101").fk([[0, 0, 0, 0, np.nan]]), "not finite|NaN|finite"),
+        (lambda: armctl.Model("so101").solve([0.2, 0, 0.1], solver="magic"), "solver \"magic\""),
+        (lambda: armctl.Model("so101").solve([0.2, 0, 0.1], seed=[0, 0]), "expected 5 values"),
+        (lambda: armctl.sample([0, 1], [[0], [1]], 10, method="wavy"), "method \"wavy\""),
+        (lambda: armctl.sample([0, 0], [[0], [1]], 10), "not later"),
+        (lambda: armctl.sample([0, 1], [[0], [np.inf]], 10), "not a finite number"),
+    ],
+)
+def test_bad_input_raises_one_line(call, message):
+    with pytest.raises(armctl.ArmctlError, match=message) as e:
+        call()
+    assert "\n" not in str(e.value)

@@ -1,0 +1,136 @@
+"""armctl_follower as LeRobot sees it: found by LeRobot's plugin mechanism, the features of
+so101_follower, actions streamed as keyframes (clamped, and said so), the end effector, the
+calibration check against simulated servos written by LeRobot's own code."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import numpy as np
+import pytest
+
+import armctl
+from conftest import need_lerobot
+
+need_lerobot()
+
+from lerobot.robots.config import RobotConfig  # noqa: E402
+from lerobot.robots.utils import make_robot_from_config  # noqa: E402
+from lerobot.utils.import_utils import register_third_party_plugins  # noqa: E402
+
+import lerobot_sim  # noqa: E402
+
+
+def config(**kw):
+    register_third_party_plugins()
+    return RobotConfig.get_choice_class("armctl_follower")(**kw)
+
+
+def test_found_by_lerobots_plugin_mechanism_with_so101_followers_features(tmp_path):
+    robot = make_robot_from_config(config(id="t", sim=True, calibration_dir=tmp_path))
+    assert type(robot).__name__ == "ArmctlFollower"
+    from lerobot.robots.so_follower import SO101Follower, SO101FollowerConfig
+
+    so101 = SO101Follower(SO101FollowerConfig(port="/dev/null", id="t", calibration_dir=tmp_path))
+    assert robot.action_features == so101.action_features
+    assert robot.observation_features == so101.observation_features
+
+
+def test_where_the_arm_is_must_be_said_once():
+    with pytest.raises(ValueError, match="exactly one of sim, port and bus"):
+        config(id="t")
+    with pytest.raises(ValueError, match="exactly one"):
+        config(id="t", sim=True, port="/dev/x")
+    with pytest.raises(ValueError, match="protocol"):
+        config(id="t", bus="/dev/x")
+
+
+def test_actions_become_keyframes_and_come_back_as_sent(tmp_path):
+    robot = make_robot_from_config(config(id="t", sim=True, calibration_dir=tmp_path, fps=30))
+    robot.connect()
+    try:
+        obs = robot.get_observation()
+        assert set(obs) == set(robot.observation_features)
+        sent = None
+        for i in range(45):
+            action = {k: 0.0 for k in robot.action_features}
+            action["shoulder_pan.pos"] = 15.0 * np.sin(np.pi * i / 45)
+            action["gripper.pos"] = 60.0
+            sent = robot.send_action(action)
+            assert abs(sent["shoulder_pan.pos"] - action["shoulder_pan.pos"]) < 1e-4
+            time.sleep(1 / 30)
+        # Beyond the joint's range: clamped, and the action returned says what was sent.
+        jump = dict(sent, **{"elbow_flex.pos": 500.0})
+        back = robot.send_action(jump)
+        assert back["elbow_flex.pos"] < 500.0
+        with pytest.raises(armctl.ArmctlError, match="does not take"):
+            robot.send_action(dict(sent, **{"elbow.pos": 1.0}))
+        with pytest.raises(armctl.ArmctlError, match="has no wrist_roll.pos"):
+            robot.send_action({k: v for k, v in sent.items() if k != "wrist_roll.pos"})
+        time.sleep(0.5)
+        obs = robot.get_observation()
+        assert abs(obs["gripper.pos"] - 60.0) < 3.0
+        monitor = robot._arm.monitor()
+        assert monitor["violations"] == 0, monitor
+    finally:
+        robot.disconnect()
+    assert not robot.is_connected
+
+
+def test_end_effector_actions_are_solved_by_the_core(tmp_path):
+    robot = make_robot_from_config(config(id="t", sim=True, calibration_dir=tmp_path, action_space="ee"))
+    robot.connect()
+    try:
+        assert set(robot.action_features) == {"ee.x", "ee.y", "ee.z", "ee.wx", "ee.wy", "ee.wz", "ee.gripper_pos"}
+        # A path of poses an SO-101 can take (it has five joints: not every pose is one), as a
+        # leader arm's end effector gives them.
+        model = armctl.Model("so101")
+        from lerobot_robot_armctl.rotation import matrix_to_rotvec
+
+        q_end = np.array([0.2, 0.3, -0.6, 0.4, 0.1])
+        for i in range(1, 61):
+            pose = model.fk(q_end * i / 60)
+            p, w = pose[:3, 3], matrix_to_rotvec(pose[:3, :3])
+            robot.send_action({"ee.x": p[0], "ee.y": p[1], "ee.z": p[2], "ee.wx": w[0], "ee.wy": w[1],
+                               "ee.wz": w[2], "ee.gripper_pos": 50.0})
+            time.sleep(1 / 30)
+        time.sleep(1.0)
+        obs = robot.get_observation()
+        np.testing.assert_allclose([obs["ee.x"], obs["ee.y"], obs["ee.z"]], model.fk(q_end)[:3, 3], atol=3e-3)
+        np.testing.assert_allclose([obs["ee.wx"], obs["ee.wy"], obs["ee.wz"]], matrix_to_rotvec(model.fk(q_end)[:3, :3]),
+                                   atol=1e-2)
+    finally:
+        robot.disconnect()
+
+
+def test_the_servos_must_hold_the_calibration_the_gripper_too(tmp_path, armctl_bin):
+    cal = lerobot_sim.so101_calibration()
+    path = lerobot_sim.write_calibration_file(tmp_path / "f.json", cal)
+    with lerobot_sim.SimServos(armctl_bin) as servos:
+        cfg = dict(id="f", bus=servos.port, protocol="sts", calibration_dir=tmp_path)
+        # No file for another id: not calibrated, and connecting without calibrating refuses.
+        other = make_robot_from_config(config(**dict(cfg, id="other")))
+        assert not other.is_calibrated
+        with pytest.raises(armctl.ArmctlError, match="calibrate first"):
+            other.connect(calibrate=False)
+        # The file, but servos that do not hold it yet: refused, naming a servo.
+        robot = make_robot_from_config(config(**cfg))
+        assert robot.is_calibrated
+        with pytest.raises(armctl.ArmctlError, match="calibration"):
+            robot.connect(calibrate=False)
+        # Written by LeRobot's own code, all but the gripper's: refused, naming the gripper.
+        wrong = json.loads(path.read_text())
+        wrong["gripper"]["range_max"] = 3050
+        lerobot_sim.write_calibration_file(tmp_path / "g.json", wrong)
+        lerobot_sim.calibrate_bus(servos.port, "g", tmp_path)
+        with pytest.raises(armctl.ArmctlError, match="gripper"):
+            robot.connect(calibrate=False)
+        # Then the file's own values: accepted.
+        lerobot_sim.calibrate_bus(servos.port, "f", tmp_path)
+        robot.connect(calibrate=False)
+        try:
+            obs = robot.get_observation()
+            assert abs(obs["shoulder_pan.pos"]) < 0.1  # the servo's middle, tick 2048
+        finally:
+            robot.disconnect()
