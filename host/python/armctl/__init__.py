@@ -301,6 +301,34 @@ class Arm:
         """Every joint to ``q`` (rad or m), arriving together. Waits until at rest."""
         return json.loads(self._a.move_joints(_vector(q, "q"), speed, duration, timeout))
 
+    def play(self, keyframes: str | None = None, *, times: npt.ArrayLike | None = None,
+             positions: npt.ArrayLike | None = None, gripper: npt.ArrayLike | None = None,
+             timeout: float = 30.0) -> dict[str, Any]:
+        """Plays timed keyframes as ``armctl play`` does (streamed with flow control, waited for):
+        a keyframe file (joint or Cartesian, by its header), or ``times`` (s), ``positions``
+        ``(n, dof)`` and the gripper's opening per keyframe (percent)."""
+        if keyframes is not None:
+            if times is not None or positions is not None or gripper is not None:
+                raise ArmctlError("play takes a keyframe file or times and positions, not both")
+            return json.loads(self._a.play(str(keyframes), None, "keyframes", timeout))
+        if times is None or positions is None:
+            raise ArmctlError("play needs a keyframe file, or times and positions")
+        t = np.asarray(times, dtype=np.float64)
+        q = np.asarray(positions, dtype=np.float64)
+        if t.ndim != 1 or q.ndim != 2 or q.shape[0] != t.shape[0]:
+            raise ArmctlError(f"times {t.shape} and positions {q.shape}: expected (n,) and (n, joints)")
+        columns = [t[:, None], q]
+        header = ["t"] + [f"q{j + 1}" for j in range(q.shape[1])]
+        if gripper is not None:
+            g = np.asarray(gripper, dtype=np.float64).reshape(-1, 1)
+            if g.shape[0] != t.shape[0]:
+                raise ArmctlError(f"gripper: {g.shape[0]} values for {t.shape[0]} keyframes")
+            columns.append(g)
+            header.append("gripper")
+        rows = np.hstack(columns)
+        text = ",".join(header) + "\n" + "".join(",".join(repr(float(x)) for x in row) + "\n" for row in rows)
+        return json.loads(self._a.play(None, text, "keyframes", timeout))
+
     def stream(self, rate: float, lead_ms: float | None = None,
                max_step: float | Sequence[float] | None = None) -> Stream:
         """Opens a stream of ``rate`` readings a second (see :class:`Stream`); switches torque on.

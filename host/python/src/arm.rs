@@ -14,10 +14,12 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, bail, Result};
 use armctl::args::bus::ProtocolArg;
 use armctl::drive::args::{
-    DriveCommand, GripperAction, GripperArgs, JointsArgs, LinkArgs, MoveArgs, OnOff, OnlyLinkArgs, PathArg, TorqueArgs,
+    DriveCommand, GripperAction, GripperArgs, JointsArgs, LinkArgs, MoveArgs, OnOff, OnlyLinkArgs, PathArg, PlayArgs,
+    TorqueArgs,
 };
 use armctl::drive::commands::{self, Request};
 use armctl::drive::interrupt;
+use armctl::drive::play::Plan;
 use armctl::drive::session::Driver;
 use armctl::sim::PtyServer;
 use armctl::teleop::leader::Reading;
@@ -85,10 +87,15 @@ impl Arm {
 
     /// Runs one drive command's request, refused while a stream is open; returns its JSON line.
     fn command(&mut self, py: Python<'_>, command: DriveCommand) -> PyResult<String> {
+        let request = Request::parse(&command).or_raise()?;
+        self.run(py, request)
+    }
+
+    /// Runs a checked request (see [`Arm::command`]).
+    fn run(&mut self, py: Python<'_>, request: Request) -> PyResult<String> {
         if self.stream.is_some() {
             return Err(to_py(anyhow!("a stream is open: close it before other commands (nothing was sent)")));
         }
-        let request = Request::parse(&command).or_raise()?;
         let driver = self.driver()?;
         let (mut out, mut err) = (Vec::new(), Vec::new());
         let code = released(py, || commands::run(driver, request, true, &mut out, &mut err)).or_raise()?;
@@ -289,6 +296,32 @@ impl Arm {
         }
         let args = JointsArgs { link: LinkArgs::default(), q: numbers(&q), duration, speed, timeout };
         self.command(py, DriveCommand::Joints(args))
+    }
+
+    /// `armctl play`: a keyframe file (joint `t,q1,...,qN[,v1,...,vN][,gripper]` or Cartesian),
+    /// given by its `path`, or its `text` (named `name` in messages); streamed with flow control
+    /// and waited for.
+    #[pyo3(signature = (path = None, text = None, name = "keyframes", timeout = 30.0))]
+    fn play(
+        &mut self,
+        py: Python<'_>,
+        path: Option<PathBuf>,
+        text: Option<String>,
+        name: &str,
+        timeout: f64,
+    ) -> PyResult<String> {
+        let command = match (path, text) {
+            (Some(file), None) => DriveCommand::Play(PlayArgs { link: LinkArgs::default(), file, timeout }),
+            (None, Some(text)) => {
+                if !(timeout.is_finite() && timeout > 0.0) {
+                    return Err(to_py(anyhow!("timeout: {timeout} s must be a positive number")));
+                }
+                let plan = Plan::parse(&text, std::path::Path::new(name), timeout).or_raise()?;
+                return self.run(py, Request::Play(plan));
+            }
+            _ => return Err(to_py(anyhow!("play takes a file's path or its text, one of them"))),
+        };
+        self.command(py, command)
     }
 
     /// `armctl stop`: decelerates within the limits and holds; waits until at rest. Closes an

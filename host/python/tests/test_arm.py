@@ -139,3 +139,21 @@ def test_through_a_port_served_by_armctl_serve(armctl_bin):
     finally:
         serve.terminate()
         serve.wait(timeout=10)
+
+
+def test_play_timed_keyframes_with_the_gripper_and_a_file(arm, tmp_path):
+    arm.move_joints([0, 0, 0, 0, 0], duration=1.0)
+    times = [0.0, 0.6, 1.2]
+    q = [[0, 0, 0, 0, 0], [0.3, 0.1, -0.2, 0.1, 0.0], [0.1, 0.0, 0.0, 0.0, 0.2]]
+    r = arm.play(times=times, positions=q, gripper=[50, 20, 70])
+    assert r["command"] == "play", r
+    np.testing.assert_allclose(arm.joints(), q[-1], atol=2e-3)
+    assert abs(arm.status()["gripper"]["opening"] - 70) < 3
+    f = tmp_path / "k.csv"
+    f.write_text("t,q1,q2,q3,q4,q5\n0,0.1,0,0,0,0.2\n0.5,0,0,0,0,0\n")
+    arm.play(str(f))
+    np.testing.assert_allclose(arm.joints(), [0, 0, 0, 0, 0], atol=2e-3)
+    with pytest.raises(armctl.ArmctlError, match="keyframes: line 3"):
+        arm.play(times=[0, 1], positions=[[0, 0, 0, 0, 0], [9, 0, 0, 0, 0]])
+    with pytest.raises(armctl.ArmctlError, match="cannot read keyframe file"):
+        arm.play(str(tmp_path / "missing.csv"))
