@@ -3,7 +3,7 @@ on a pseudo-terminal, calibrated the way LeRobot calibrates (its `write_calibrat
 file's homing offsets and limits into the servos), with the safety monitor judging the calibrated
 mapping and, if asked, the servos' positions recorded every 2 ms.
 
-Used by the smoothness benchmark (smoothness.py), the LeRobot runs of CI (lerobot_ci.sh) and the
+Used by the smoothness benchmark (smoothness.py), the LeRobot runs of CI (lerobot_ci.py) and the
 Python package's tests. Needs the `armctl` binary (`--armctl`, default target/debug/armctl) and,
 for `calibrate_bus`, LeRobot.
 """
