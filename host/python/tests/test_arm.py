@@ -157,3 +157,41 @@ def test_play_timed_keyframes_with_the_gripper_and_a_file(arm, tmp_path):
         arm.play(times=[0, 1], positions=[[0, 0, 0, 0, 0], [9, 0, 0, 0, 0]])
     with pytest.raises(armctl.ArmctlError, match="cannot read keyframe file"):
         arm.play(str(tmp_path / "missing.csv"))
+
+
+CTRL_C_CHILD = """
+import json, sys, time, armctl
+arm = armctl.Arm(sim="so101")
+arm.move_joints([0, 0, 0, 0, 0], duration=0.5)
+print("moving", flush=True)
+try:
+    arm.move_joints([1.0, 0, 0, 0, 0], duration=8.0)
+    print(json.dumps({"interrupted": False}))
+except KeyboardInterrupt:
+    s = arm.status()
+    print(json.dumps({"interrupted": True, "state": s["state"], "q": s["measured"]}))
+"""
+
+
+def test_ctrl_c_during_a_move_stops_the_arm_and_raises_keyboard_interrupt():
+    import json
+    import signal
+    import sys
+
+    child = subprocess.Popen([sys.executable, "-c", CTRL_C_CHILD], stdout=subprocess.PIPE, text=True)
+    try:
+        assert child.stdout.readline().strip() == "moving"
+        time.sleep(1.5)
+        sent = time.monotonic()
+        child.send_signal(signal.SIGINT)
+        out, _ = child.communicate(timeout=20)
+        took = time.monotonic() - sent
+    finally:
+        if child.poll() is None:
+            child.kill()
+    answer = json.loads(out.strip().splitlines()[-1])
+    assert answer["interrupted"], answer
+    assert answer["state"] == "Idle", answer
+    # Stopped on the way (a stop decelerates within the limits), far from the target of 1 rad.
+    assert 0.02 < answer["q"][0] < 0.8, answer
+    assert took < 10, took
