@@ -242,11 +242,7 @@ impl Arm {
             // Read between a stream's keyframes (a LeRobot observation): the same answer.
             let driver = self.driver()?;
             let status = released(py, || driver.status()).or_raise()?;
-            let tool = driver.tool_position(&status.measured).or_raise()?;
-            let mut v = serde_json::to_value(&status).map_err(|e| to_py(e.into()))?;
-            v["arm"] = json!(driver.arm().name);
-            v["tool"] = json!(tool);
-            return Ok(v.to_string());
+            return Ok(commands::status_json(driver, &status).or_raise()?.to_string());
         }
         self.command(py, DriveCommand::Status(OnlyLinkArgs { link: LinkArgs::default() }))
     }

@@ -319,15 +319,21 @@ fn angle(a: &[f64; 4], b: &[f64; 4]) -> f64 {
     2.0 * dot.acos()
 }
 
+/// `status --json`'s answer: the status with the arm's name and the tool position of the measured
+/// joints.
+pub fn status_json(driver: &Driver, s: &Status) -> Result<serde_json::Value> {
+    let mut v = serde_json::to_value(s)?;
+    v["arm"] = json!(driver.arm().name);
+    v["tool"] = json!(driver.tool_position(&s.measured)?);
+    Ok(v)
+}
+
 fn print_status(driver: &Driver, s: &Status, json: bool, out: &mut dyn Write) -> Result<()> {
-    let tool = driver.tool_position(&s.measured)?;
     if json {
-        let mut v = serde_json::to_value(s)?;
-        v["arm"] = json!(driver.arm().name);
-        v["tool"] = json!(tool);
-        writeln!(out, "{v}")?;
+        writeln!(out, "{}", status_json(driver, s)?)?;
         return Ok(());
     }
+    let tool = driver.tool_position(&s.measured)?;
     let ik = &s.ik;
     let e = &s.errors;
     let state = match s.state {
