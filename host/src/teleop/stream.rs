@@ -1,5 +1,8 @@
-//! The teleoperation loop: at a fixed rate, read the leader, make the reading a keyframe the
-//! follower may take, and push it to the follower's player through the link.
+//! A stream of readings to the follower's player: each reading made a keyframe the follower may
+//! take and pushed through the link ([`Streamer`]). `armctl teleop` reads a leader at a fixed rate
+//! ([`run`]); the Python package's `Arm.stream` and LeRobot's `armctl_follower` push whatever
+//! comes, when it comes (a policy's actions), through the same [`Streamer`]. A reading that comes
+//! after the player ran out (its source paused) starts a new playback from where the arm holds.
 //!
 //! Timing. A keyframe is due `lead` after the reading it carries, on the follower's playback clock
 //! (`Status::play_time`, which the firmware reports at the status's own time, not only at ticks).
