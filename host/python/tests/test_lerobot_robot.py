@@ -134,3 +134,73 @@ def test_the_servos_must_hold_the_calibration_the_gripper_too(tmp_path, armctl_b
             assert abs(obs["shoulder_pan.pos"]) < 0.1  # the servo's middle, tick 2048
         finally:
             robot.disconnect()
+
+
+CALIBRATE_CHILD = """
+import sys
+from lerobot.utils.import_utils import register_third_party_plugins
+register_third_party_plugins()
+from lerobot.robots.config import RobotConfig
+from lerobot.robots.utils import make_robot_from_config
+from pathlib import Path
+cfg = RobotConfig.get_choice_class("armctl_follower")(id="c", bus=sys.argv[1], protocol="sts", calibration_dir=Path(sys.argv[2]))
+robot = make_robot_from_config(cfg)
+robot.calibrate()
+robot.connect(calibrate=False)
+print("connected", robot.get_observation()["shoulder_pan.pos"], flush=True)
+robot.disconnect()
+"""
+
+
+def test_calibrate_runs_armctls_procedure_and_writes_lerobots_file(tmp_path, armctl_bin):
+    """`calibrate` through LeRobot's robot: the two steps answered on stdin, the hand moving the
+    horns in between; LeRobot's file written, the servos holding it, and connecting accepting it."""
+    import subprocess
+    import sys
+
+    with lerobot_sim.SimServos(armctl_bin) as servos:
+        child = subprocess.Popen([sys.executable, "-c", CALIBRATE_CHILD, servos.port, str(tmp_path)],
+                                 stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        seen = []
+
+        def until(text):
+            for line in child.stdout:
+                seen.append(line)
+                if text in line:
+                    return
+            raise AssertionError(f"no {text!r} in {seen} {child.stderr.read()}")
+
+        def hand(commands):
+            before = len(servos._done_lines)
+            for c in commands:
+                servos.hand(c)
+            deadline = time.monotonic() + 10
+            while len(servos._done_lines) < before + len(commands):
+                assert time.monotonic() < deadline, servos._done_lines
+                time.sleep(0.01)
+            assert all(l.startswith("done") for l in servos._done_lines[before:]), servos._done_lines
+
+        try:
+            until("step 1 of 2")
+            child.stdin.write("\n")
+            child.stdin.flush()
+            until("step 2 of 2")
+            swept = [1, 2, 3, 4, 6]  # the wrist roll gets the whole turn, as in LeRobot
+            for a, b, s in [(2048, 1500, 0.25), (1500, 1500, 0.1), (1500, 2600, 0.25), (2600, 2600, 0.1),
+                            (2600, 2048, 0.25)]:
+                hand([f"sweep {i} {a} {b} {s}" for i in swept])
+            child.stdin.write("\n")
+            child.stdin.flush()
+            out, err = child.communicate(timeout=60)
+        finally:
+            if child.poll() is None:
+                child.kill()
+        assert child.returncode == 0, (seen, out, err)
+        cal = json.loads((tmp_path / "c.json").read_text())
+        assert list(cal) == lerobot_sim.SO101_MOTORS
+        for name in ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "gripper"):
+            # Homed at the middle (2048 reads 2047), so the stops read one tick lower.
+            assert (cal[name]["homing_offset"], cal[name]["range_min"], cal[name]["range_max"]) == (1, 1499, 2599), cal
+        assert (cal["wrist_roll"]["range_min"], cal["wrist_roll"]["range_max"]) == (0, 4095)
+        assert (tmp_path / "c.toml").is_file()
+        assert "connected" in out, out
