@@ -209,6 +209,13 @@ class Stream:
             None if quaternion_wxyz is None else _vector(quaternion_wxyz, "quaternion_wxyz", 4),
             None if gripper is None else float(gripper))
 
+    @property
+    def open(self) -> bool:
+        """Whether the stream still takes readings: not closed, and not ended by a failed send
+        (the link failed: the arm was stopped). A keyframe the firmware refused (a pose it cannot
+        reach) raises and changes nothing; the stream stays open."""
+        return self.figures is None and self._arm._a.streaming_now
+
     def close(self) -> dict[str, Any]:
         """Ends the stream where it was (at rest) and returns its figures. A stream a failed send
         already ended (the arm was stopped, and the send raised why) has no figures: ``{}``."""

@@ -23,7 +23,7 @@ use armctl::drive::play::Plan;
 use armctl::drive::session::Driver;
 use armctl::sim::PtyServer;
 use armctl::teleop::leader::Reading;
-use armctl::teleop::stream::{quantile, Settings, Streamer};
+use armctl::teleop::stream::{quantile, refused, Settings, Streamer};
 use clap::ValueEnum;
 use firmware::link::message::CartesianTarget;
 use pyo3::prelude::*;
@@ -115,7 +115,7 @@ impl Arm {
 
     fn open_stream(&mut self, py: Python<'_>, request: StreamRequest) -> PyResult<()> {
         if self.stream.is_some() {
-            return Ok(());
+            return Err(to_py(anyhow!("a stream is open already: close it before opening another")));
         }
         let driver = self.driver()?;
         let mut settings = Settings::for_follower(driver, request.period, request.lead, None, true).or_raise()?;
@@ -144,11 +144,15 @@ impl Arm {
         }
     }
 
-    /// After a stream's keyframe failed: the stream is over, and the arm is stopped.
-    fn abandon_stream(&mut self, py: Python<'_>, e: anyhow::Error) -> PyErr {
-        self.stream = None;
-        if let Some(driver) = self.driver.as_mut() {
-            let _ = released(py, || driver.stop());
+    /// After a stream's keyframe failed. One the firmware refused (an unreachable pose) changed
+    /// nothing, and the stream goes on; otherwise (the link failed, the arm left playback) the
+    /// stream is over, and the arm is stopped.
+    fn failed_keyframe(&mut self, py: Python<'_>, e: anyhow::Error) -> PyErr {
+        if !refused(&e) {
+            self.stream = None;
+            if let Some(driver) = self.driver.as_mut() {
+                let _ = released(py, || driver.stop());
+            }
         }
         to_py(e)
     }
@@ -396,7 +400,7 @@ impl Arm {
         stream.check(&reading).or_raise()?;
         match released(py, || stream.send(driver, &reading, read_at)) {
             Ok(sent) => Ok((sent.time, sent.joints, sent.gripper)),
-            Err(e) => Err(self.abandon_stream(py, e)),
+            Err(e) => Err(self.failed_keyframe(py, e)),
         }
     }
 
@@ -430,7 +434,7 @@ impl Arm {
         let (driver, stream) = self.streaming()?;
         match released(py, || stream.send_pose(driver, target, gripper, read_at)) {
             Ok(sent) => Ok((sent.time, sent.gripper)),
-            Err(e) => Err(self.abandon_stream(py, e)),
+            Err(e) => Err(self.failed_keyframe(py, e)),
         }
     }
 

@@ -83,9 +83,17 @@ def test_a_pose_stream_is_solved_by_the_firmware(arm):
     arm.move_joints([0, 0.3, -0.6, 0.3, 0], duration=1.0)
     start = np.array(arm.status()["tool"])
     with arm.stream(rate=30) as s:
+        with pytest.raises(armctl.ArmctlError, match="a stream is open already"):
+            arm.stream(rate=30)
         for i in range(31):
             s.send_pose(start + [0.0, 0.03 * i / 30, 0.0], gripper=50.0)
             time.sleep(1 / 30)
+            if i == 15:
+                # A pose beyond reach is refused by the firmware; nothing changes, the stream goes on.
+                with pytest.raises(armctl.ArmctlError, match="unreachable"):
+                    s.send_pose([0.9, 0.0, 0.2])
+                assert s.open
+    assert s.figures["keyframes"] == 31, s.figures
     time.sleep(0.3)
     np.testing.assert_allclose(arm.status()["tool"], start + [0, 0.03, 0], atol=2e-3)
 

@@ -249,10 +249,21 @@ fn push(
                 figures.retimed += 1;
                 time += RETIME_STEP;
             }
-            Err(e) => bail!("keyframe at {time:.3} s (the previous at {last_time:.3} s): {e}"),
+            // The link's error kept as the cause: a keyframe the firmware refused (a `Nak`) left
+            // the stream as it was, which a caller may tell from a link that failed.
+            Err(e) => {
+                return Err(anyhow::Error::new(e)
+                    .context(format!("keyframe at {time:.3} s (the previous at {last_time:.3} s)")))
+            }
         }
     }
     bail!("the follower's queue kept refusing keyframes up to {time:.3} s (the previous at {last_time:.3} s)")
+}
+
+/// Whether `e` is a keyframe the follower's firmware refused (a `Nak`: a pose it cannot reach, a
+/// value out of range), which changed nothing: the stream may go on with the next reading.
+pub fn refused(e: &anyhow::Error) -> bool {
+    e.chain().any(|cause| matches!(cause.downcast_ref::<LinkError>(), Some(LinkError::Nak(_))))
 }
 
 /// A keyframe as it was sent.

@@ -173,7 +173,9 @@ class ArmctlFollower(Robot):
         return [float(np.radians(m))]
 
     def _stream_open(self) -> armctl.Stream:
-        if self._stream is None:
+        # A stream that a failed send ended (the arm was stopped, and that send raised why) is
+        # opened again by the next action.
+        if self._stream is None or not self._stream.open:
             self._stream = self._arm.stream(rate=self.config.fps, lead_ms=self.config.lead_ms,
                                             max_step=self._max_steps())
         return self._stream
