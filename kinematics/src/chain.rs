@@ -198,7 +198,7 @@ impl<T: Real, const N: usize> Chain<T, N> {
 
 /// Joint `i` with its axis normalised, if it is valid: a non-zero finite axis, a valid frame,
 /// ordered finite limits (but for a continuous joint).
-fn checked<T: Real>(mut j: Joint<T>, i: usize) -> Result<Joint<T>, ChainError> {
+pub(crate) fn checked<T: Real>(mut j: Joint<T>, i: usize) -> Result<Joint<T>, ChainError> {
     let n = j.axis.norm();
     if !n.finite() || n <= T::EPSILON {
         return Err(ChainError::ZeroAxis { joint: i });
@@ -239,7 +239,7 @@ fn rx<T: Real>(alpha: T) -> Matrix3<T> {
     Matrix3::new(T::one(), T::zero(), T::zero(), T::zero(), c, -s, T::zero(), s, c)
 }
 
-fn frame_is_valid<T: Real>(p: &Pose<T>) -> bool {
+pub(crate) fn frame_is_valid<T: Real>(p: &Pose<T>) -> bool {
     if !p.rotation.iter().chain(p.translation.iter()).all(|v| v.finite()) {
         return false;
     }

@@ -1,5 +1,6 @@
 //! Fixed-size kinematics for serial arms: chains, forward kinematics, geometric Jacobians and
-//! inverse kinematics, with no heap and no panics on any input.
+//! inverse kinematics, with no heap and no panics on any input; and kinematic trees ([`tree`]):
+//! several end effectors on one body, solved together.
 //!
 //! Generic over the scalar (`f32` on the microcontroller, `f64` on the host) and the joint count
 //! `N` (a const generic). Units are SI: metres and radians. Bad input is an error value:
@@ -31,6 +32,7 @@ pub mod presets;
 mod real;
 mod rng;
 pub mod trajectory;
+pub mod tree;
 pub mod trig;
 
 pub use angle::wrap_angle;

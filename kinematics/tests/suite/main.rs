@@ -10,3 +10,4 @@ mod limits;
 mod methods;
 mod player;
 mod rotation;
+mod tree;
