@@ -16,6 +16,11 @@ use crate::chain::{checked, frame_is_valid};
 use crate::linalg::cholesky_solve;
 use crate::{rotation_error, ChainError, Joint, JointKind, Pose, Real};
 
+/// The least damping of a second-priority step.
+const SECOND_DAMPING: f64 = 0.1;
+/// The damping of the null-space projector of the first priority.
+const PROJECTOR_DAMPING: f64 = 1e-4;
+
 /// Why a tree description was rejected.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum TreeError {
@@ -193,8 +198,11 @@ pub struct EffectorTarget<T: Real> {
     pub position: Vector3<T>,
     /// Orientation (rotation matrix, base frame), or `None` for a position only.
     pub rotation: Option<nalgebra::Matrix3<T>>,
-    /// Its weight against the other targets (> 0).
+    /// Its weight against the other targets of its priority (> 0).
     pub weight: T,
+    /// 0 for the first priority; 1 for a target met only in the null space of the first ones
+    /// (the joints they leave free), as far as it can be without disturbing them.
+    pub priority: u8,
 }
 
 /// The targets of a tree IK problem: one per end effector, `None` where it is free.
@@ -278,18 +286,32 @@ impl<T: Real, const N: usize, const E: usize> Tree<T, N, E> {
         })
     }
 
-    /// The weighted squared error of every target.
-    fn cost(&self, problem: &TreeProblem<T, N, E>, frames: &TreeFrames<T, N, E>) -> T {
+    /// The weighted squared error of the first priority's targets and of the second's.
+    fn cost(&self, problem: &TreeProblem<T, N, E>, frames: &TreeFrames<T, N, E>) -> (T, T) {
         let w2 = problem.orientation_weight * problem.orientation_weight;
-        self.outcomes(problem, frames)
-            .iter()
-            .zip(problem.targets.iter())
-            .filter_map(|(o, t)| {
-                t.map(|t| {
-                    t.weight * (o.position_error * o.position_error + w2 * o.orientation_error * o.orientation_error)
-                })
-            })
-            .fold(T::zero(), |a, b| a + b)
+        let mut cost = (T::zero(), T::zero());
+        for (o, t) in self.outcomes(problem, frames).iter().zip(problem.targets.iter()) {
+            let Some(t) = t else { continue };
+            let c = t.weight * (o.position_error * o.position_error + w2 * o.orientation_error * o.orientation_error);
+            if t.priority == 0 {
+                cost.0 += c;
+            } else {
+                cost.1 += c;
+            }
+        }
+        cost
+    }
+
+    /// Whether every target of the first priority is reached.
+    fn first_reached(&self, problem: &TreeProblem<T, N, E>, frames: &TreeFrames<T, N, E>) -> bool {
+        let outcomes = self.outcomes(problem, frames);
+        problem.targets.iter().zip(outcomes.iter()).all(|(t, o)| t.is_none_or(|t| t.priority != 0) || o.reached)
+    }
+
+    /// Whether an answer of error `now` is better than one of `before`: the first priority's
+    /// error lower, or the second's lower with the first priority's targets still reached.
+    fn better(&self, now: (T, T), before: (T, T), first_reached: bool) -> bool {
+        now.0 < before.0 || (first_reached && now.1 < before.1)
     }
 
     fn valid(&self, problem: &TreeProblem<T, N, E>) -> bool {
@@ -300,6 +322,7 @@ impl<T: Real, const N: usize, const E: usize> Tree<T, N, E> {
                     && t.weight.finite()
                     && t.weight > T::zero()
                     && t.rotation.is_none_or(|r| r.iter().all(|x| x.finite()))
+                    && t.priority <= 1
             })
             && problem.position_tolerance > T::zero()
             && problem.orientation_tolerance > T::zero()
@@ -337,7 +360,8 @@ impl<T: Real, const N: usize, const E: usize> Tree<T, N, E> {
             // The better answer reaches more targets; among those reaching as many, the one with
             // the smaller weighted error (a target out of reach must not cost the others theirs).
             let (now, before) = (self.reached_count(problem, &q), self.reached_count(problem, &best_q));
-            if now > before || (now == before && cost < best_cost) {
+            let first = self.first_reached(problem, &self.forward(&q));
+            if now > before || (now == before && self.better(cost, best_cost, first)) {
                 (best_q, best_cost, ran_out) = (q, cost, out);
             }
         }
@@ -360,15 +384,120 @@ impl<T: Real, const N: usize, const E: usize> Tree<T, N, E> {
         self.outcomes(problem, &self.forward(q)).iter().filter(|o| o.reached).count()
     }
 
+    /// The normal equations of the targets of `priority`: the sum of `J^T W J` and `J^T W r`.
+    fn normal_equations(
+        &self,
+        problem: &TreeProblem<T, N, E>,
+        frames: &TreeFrames<T, N, E>,
+        priority: u8,
+    ) -> (SMatrix<T, N, N>, SVector<T, N>, bool) {
+        let w_o = problem.orientation_weight;
+        let mut a = SMatrix::<T, N, N>::zeros();
+        let mut b = SVector::<T, N>::zeros();
+        let mut any = false;
+        for (e, target) in problem.targets.iter().enumerate() {
+            let Some(t) = target.filter(|t| t.priority == priority) else { continue };
+            any = true;
+            let pose = &frames.effectors[e];
+            let mut jw = self.jacobian_of(frames, e);
+            let mut r = SVector::<T, 6>::zeros();
+            r.fixed_rows_mut::<3>(0).copy_from(&(t.position - pose.translation));
+            match t.rotation {
+                Some(rot) => {
+                    r.fixed_rows_mut::<3>(3).copy_from(&(rotation_error(&rot, &pose.rotation) * w_o));
+                    let mut angular = jw.fixed_rows_mut::<3>(3);
+                    angular *= w_o;
+                }
+                None => jw.fixed_rows_mut::<3>(3).fill(T::zero()),
+            }
+            a += jw.transpose() * jw * t.weight;
+            b += jw.transpose() * r * t.weight;
+        }
+        (a, b, any)
+    }
+
+    /// A joint at a limit that `dq` pushes further out takes no part (its clamp would undo its
+    /// share of the step and spoil the others'): its row and column of `damped` and its entry of
+    /// `b` are set aside. Returns whether any was.
+    fn set_aside_blocked(
+        &self,
+        q: &SVector<T, N>,
+        dq: &SVector<T, N>,
+        damped: &mut SMatrix<T, N, N>,
+        b: &mut SVector<T, N>,
+    ) -> bool {
+        let mut blocked = false;
+        for k in 0..N {
+            let (joint, v) = (&self.joints[k], q[k]);
+            let at_lower = v <= joint.limits.lower && dq[k] < T::zero();
+            let at_upper = v >= joint.limits.upper && dq[k] > T::zero();
+            if joint.kind != JointKind::Continuous && (at_lower || at_upper) {
+                blocked = true;
+                for i in 0..N {
+                    damped[(k, i)] = T::zero();
+                    damped[(i, k)] = T::zero();
+                }
+                damped[(k, k)] = T::one();
+                b[k] = T::zero();
+            }
+        }
+        blocked
+    }
+
+    /// One damped step: toward the first priority's targets, then toward the second's within
+    /// the null space the first leave (the damped projector `I - (A1 + l^2 I)^-1 A1`).
+    fn step(
+        &self,
+        problem: &TreeProblem<T, N, E>,
+        frames: &TreeFrames<T, N, E>,
+        q: &SVector<T, N>,
+        lambda: T,
+    ) -> Option<SVector<T, N>> {
+        let damping = SMatrix::<T, N, N>::identity() * (lambda * lambda);
+        let (a1, mut b1, _) = self.normal_equations(problem, frames, 0);
+        let mut damped = a1 + damping;
+        let mut dq1 = cholesky_solve(&damped, &b1)?;
+        if self.set_aside_blocked(q, &dq1, &mut damped, &mut b1) {
+            dq1 = cholesky_solve(&damped, &b1)?;
+        }
+        let (a2, b2, second) = self.normal_equations(problem, frames, 1);
+        // One constraint at a time: the second priority moves once the first is met.
+        if !second || !self.first_reached(problem, frames) {
+            return Some(dq1);
+        }
+        // The projector onto what the first priority leaves free, column by column, damped only
+        // enough to stay defined: P = I - (A1 + d^2 I)^-1 A1. (The step's own damping would let
+        // the first priority's directions leak into it.)
+        let mut held = a1 + SMatrix::<T, N, N>::identity() * T::of(PROJECTOR_DAMPING * PROJECTOR_DAMPING);
+        let mut unused = b1;
+        self.set_aside_blocked(q, &dq1, &mut held, &mut unused);
+        let mut projector = SMatrix::<T, N, N>::identity();
+        for c in 0..N {
+            let column = cholesky_solve(&held, &a1.column(c).into_owned())?;
+            let mut target = projector.column_mut(c);
+            target -= &column;
+        }
+        // The second priority's residual after the first step, through the projector:
+        // minimise |J2 (dq1 + P y) - r2|^2, i.e. (P^T A2 P + l^2 I) y = P^T (b2 - A2 dq1).
+        // Damped more than the first (at least SECOND_DAMPING): directions the first priority
+        // holds are only nearly absent from the projector, and a second target far out of reach
+        // would otherwise push through what is left of them.
+        let rhs = projector.transpose() * (b2 - a2 * dq1);
+        let second_damping = lambda.max(T::of(SECOND_DAMPING));
+        let lhs =
+            projector.transpose() * a2 * projector + SMatrix::<T, N, N>::identity() * (second_damping * second_damping);
+        let y = cholesky_solve(&lhs, &rhs)?;
+        Some(dq1 + projector * y)
+    }
+
     /// One descent from `seed`, counting its iterations into `iterations`; returns the answer, its
-    /// weighted error, and whether the budget ran out while it was still approaching.
+    /// weighted errors (first priority, second), and whether the budget ran out while it was still approaching.
     fn attempt(
         &self,
         problem: &TreeProblem<T, N, E>,
         seed: SVector<T, N>,
         iterations: &mut u32,
-    ) -> (SVector<T, N>, T, bool) {
-        let w_o = problem.orientation_weight;
+    ) -> (SVector<T, N>, (T, T), bool) {
         let mut q = seed;
         let mut frames = self.forward(&q);
         let mut cost = self.cost(problem, &frames);
@@ -386,50 +515,14 @@ impl<T: Real, const N: usize, const E: usize> Tree<T, N, E> {
             }
             *iterations += 1;
             own += 1;
-            // Normal equations: the sum over the targets of J^T W J and J^T W r.
-            let mut a = SMatrix::<T, N, N>::zeros();
-            let mut b = SVector::<T, N>::zeros();
-            for (e, target) in problem.targets.iter().enumerate() {
-                let Some(t) = target else { continue };
-                let pose = &frames.effectors[e];
-                let mut jw = self.jacobian_of(&frames, e);
-                let mut r = SVector::<T, 6>::zeros();
-                r.fixed_rows_mut::<3>(0).copy_from(&(t.position - pose.translation));
-                match t.rotation {
-                    Some(rot) => {
-                        r.fixed_rows_mut::<3>(3).copy_from(&(rotation_error(&rot, &pose.rotation) * w_o));
-                        let mut angular = jw.fixed_rows_mut::<3>(3);
-                        angular *= w_o;
-                    }
-                    None => jw.fixed_rows_mut::<3>(3).fill(T::zero()),
+            let Some(dq) = self.step(problem, &frames, &q, lambda) else {
+                if lambda >= T::of(1e3) {
+                    return (q, cost, false);
                 }
-                a += jw.transpose() * jw * t.weight;
-                b += jw.transpose() * r * t.weight;
-            }
-            let mut damped = a + SMatrix::<T, N, N>::identity() * (lambda * lambda);
-            let mut step = cholesky_solve(&damped, &b);
-            // A joint at a limit that the step pushes further out takes no part (its clamp would
-            // undo its share of the step and spoil the others'): solved again without it.
-            if let Some(dq) = step {
-                let mut blocked = false;
-                for k in 0..N {
-                    let (joint, v) = (&self.joints[k], q[k]);
-                    let at_lower = v <= joint.limits.lower && dq[k] < T::zero();
-                    let at_upper = v >= joint.limits.upper && dq[k] > T::zero();
-                    if joint.kind != JointKind::Continuous && (at_lower || at_upper) {
-                        blocked = true;
-                        for i in 0..N {
-                            damped[(k, i)] = T::zero();
-                            damped[(i, k)] = T::zero();
-                        }
-                        damped[(k, k)] = T::one();
-                        b[k] = T::zero();
-                    }
-                }
-                if blocked {
-                    step = cholesky_solve(&damped, &b);
-                }
-            }
+                lambda = (lambda * T::of(10.0)).min(T::of(1e3));
+                continue;
+            };
+            let step = Some(dq);
             let next = step.map(|dq| {
                 let mut next = q + dq;
                 for (k, v) in next.iter_mut().enumerate() {
@@ -437,7 +530,9 @@ impl<T: Real, const N: usize, const E: usize> Tree<T, N, E> {
                 }
                 next
             });
-            let better = next.map(|n| (n, self.forward(&n))).filter(|(_, f)| self.cost(problem, f) < cost);
+            let better = next
+                .map(|n| (n, self.forward(&n)))
+                .filter(|(_, f)| self.better(self.cost(problem, f), cost, self.first_reached(problem, f)));
             match better {
                 Some((n, f)) => {
                     let moved = (n - q).amax();

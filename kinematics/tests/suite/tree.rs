@@ -116,6 +116,7 @@ fn problem(tree: &Tree<f64, N, 2>, q_true: &SVector<f64, N>, oriented: bool) -> 
             position: frames.effectors[e].translation,
             rotation: oriented.then_some(frames.effectors[e].rotation),
             weight: 1.0,
+            priority: 0,
         })
     };
     TreeProblem {
@@ -206,4 +207,76 @@ fn bad_trees_and_bad_targets_are_refused() {
     let mut p = problem(&tree, &tree.middle(), false);
     p.targets[1].as_mut().unwrap().weight = 0.0;
     assert_eq!(tree.solve(&p).status, TreeStatus::InvalidInput);
+}
+
+/// The priority mode (the course's "one constraint at a time"): with the torso shared, a right
+/// target out of reach pulls the torso, and so the left hand, when both weigh alike; as a second
+/// priority it is met only in the joints the left target leaves free, and the left target is kept.
+#[test]
+fn a_second_priority_out_of_reach_leaves_the_first_reached() {
+    let (tree, _) = body(true);
+    let mut rng = SplitMix64::new(34);
+    let mut kept = 0;
+    let mut pulled = 0;
+    let mut nearer = 0;
+    let n = 50;
+    for _ in 0..n {
+        let q_true = random_q(&tree, &mut rng, 0.1);
+        let mut p = problem(&tree, &q_true, false);
+        // Far out to the right and behind: the right arm reaches toward it through the torso.
+        p.targets[1].as_mut().unwrap().position = Vector3::new(-1.5, -1.5, 0.3);
+        let weighted = tree.solve(&p);
+        assert!(!weighted.effectors[1].reached);
+        if !weighted.effectors[0].reached {
+            pulled += 1;
+        }
+        p.targets[1].as_mut().unwrap().priority = 1;
+        let s = tree.solve(&p);
+        assert_ne!(s.status, TreeStatus::Converged);
+        assert!(!s.effectors[1].reached && s.effectors[1].position_error > 1.0);
+        assert!(tree.admits(&s.q));
+        if s.effectors[0].reached {
+            kept += 1;
+        }
+        // The second target is still pursued, in the joints the first leaves free: the right hand
+        // ends nearer to it than where the first target alone leaves it.
+        let goal = p.targets[1].unwrap().position;
+        p.targets[1] = None;
+        let alone = tree.solve(&p);
+        let alone_error = (tree.forward(&alone.q).effectors[1].translation - goal).norm();
+        if s.effectors[1].position_error < alone_error - 1e-3 {
+            nearer += 1;
+        }
+    }
+    println!(
+        "priority: the first target kept in {kept} of {n} (weighted alike, pulled off in {pulled}); the second \
+         nearer its target than without it in {nearer}"
+    );
+    assert_eq!(kept, n, "the first priority's target lost");
+    assert_eq!(nearer, n, "the second priority's target not pursued");
+    assert!(pulled > 0, "the example does not show the difference");
+}
+
+/// The tree in f32, as a microcontroller would hold it: a two-joint planar arm's tip to a point.
+#[test]
+fn solves_in_f32() {
+    let link = Pose::<f32>::from_xyz_rpy([0.3, 0.0, 0.0], [0.0, 0.0, 0.0]);
+    let j0 = Joint::revolute(Pose::identity(), [0.0, 0.0, 1.0], Limits::new(-3.0, 3.0));
+    let j1 = Joint::revolute(link, [0.0, 0.0, 1.0], Limits::new(-3.0, 3.0));
+    let tree = Tree::<f32, 2, 1>::new([j0, j1], [None, Some(0)], [Effector { joint: Some(1), offset: link }]).unwrap();
+    let goal = tree.forward(&SVector::from([0.4f32, 0.9])).effectors[0].translation;
+    let p = TreeProblem {
+        targets: [Some(EffectorTarget { position: goal, rotation: None, weight: 1.0, priority: 0 })],
+        seed: SVector::from([0.1, 0.1]),
+        position_tolerance: 1e-4,
+        orientation_tolerance: 1e-3,
+        orientation_weight: 0.2,
+        max_iterations: 200,
+        attempt_iterations: 100,
+        max_restarts: 4,
+        rng_seed: 1,
+    };
+    let s = tree.solve(&p);
+    assert_eq!(s.status, TreeStatus::Converged, "{s:?}");
+    assert!((tree.forward(&s.q).effectors[0].translation - goal).norm() <= 1e-4);
 }
