@@ -10,6 +10,7 @@ pub mod presets;
 pub mod servos;
 pub mod toml_file;
 pub mod toml_writer;
+pub mod tree;
 pub mod urdf;
 pub mod urdf_visuals;
 

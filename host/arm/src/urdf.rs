@@ -1,4 +1,5 @@
-//! URDF import: the serial chain from the root link to a tip link of a `<robot>` description.
+//! URDF import: the serial chain from the root link to a tip link of a `<robot>` description
+//! ([`parse`]), or the tree of every joint on the paths to several tip links ([`parse_tree`]).
 //!
 //! Only `<link>` and `<joint>` elements directly under `<robot>` are read; visuals, collisions,
 //! inertials, transmissions, Gazebo tags and materials are ignored (the view reads the visual
@@ -8,6 +9,7 @@
 //! missing `xyz`/`rpy` are zero and a missing `<axis>` is (1, 0, 0). Every error is one line that
 //! names the line of the file and the joint, link or attribute at fault.
 
+use super::tree::{EffectorSpec, TreeSpec};
 use super::{ArmSpec, JointSpec};
 use anyhow::{anyhow, bail, Result};
 use kinematics::{JointKind, Pose};
@@ -36,153 +38,218 @@ pub(crate) struct UrdfJoint<'a> {
     limits: Option<(f64, f64)>,
 }
 
+/// A URDF's links and joints, checked: every joint's links exist, every link has at most one
+/// parent joint, one root, no cycle.
+struct Robot<'a> {
+    name: &'a str,
+    links: BTreeMap<&'a str, u32>,
+    joints: Vec<UrdfJoint<'a>>,
+    /// The joint whose child each link is.
+    parent_joint: BTreeMap<&'a str, usize>,
+}
+
+impl<'a> Robot<'a> {
+    fn read(doc: &'a Document<'a>) -> Result<Self> {
+        let robot = doc.root_element();
+        if robot.tag_name().name() != "robot" {
+            bail!("the root element is <{}>, not <robot>", robot.tag_name().name());
+        }
+        let line = |node: Node| doc.text_pos_at(node.range().start).row;
+        let name =
+            robot.attribute("name").ok_or_else(|| anyhow!("line {}: <robot> has no name attribute", line(robot)))?;
+
+        // Links, by name, with the line that declares them.
+        let mut links: BTreeMap<&str, u32> = BTreeMap::new();
+        for node in robot.children().filter(|n| n.has_tag_name("link")) {
+            let name =
+                node.attribute("name").ok_or_else(|| anyhow!("line {}: <link> has no name attribute", line(node)))?;
+            if let Some(first) = links.insert(name, line(node)) {
+                bail!("line {}: link {name} is declared twice (first on line {first})", line(node));
+            }
+        }
+
+        // Joints, by child link (every link has at most one parent joint).
+        let mut joints: Vec<UrdfJoint> = Vec::new();
+        let mut names: BTreeMap<&str, u32> = BTreeMap::new();
+        for node in robot.children().filter(|n| n.has_tag_name("joint")) {
+            let joint = read_joint(node, line(node))?;
+            if let Some(first) = names.insert(joint.name, joint.line) {
+                bail!("line {}: joint {} is declared twice (first on line {first})", joint.line, joint.name);
+            }
+            for (role, link) in [("parent", joint.parent), ("child", joint.child)] {
+                if !links.contains_key(link) {
+                    bail!("line {}: joint {}: {role} link {link} is not a <link> of the robot", joint.line, joint.name);
+                }
+            }
+            if joint.parent == joint.child {
+                bail!("line {}: joint {} connects link {} to itself", joint.line, joint.name, joint.parent);
+            }
+            joints.push(joint);
+        }
+        let mut parent_joint: BTreeMap<&str, usize> = BTreeMap::new();
+        for (i, j) in joints.iter().enumerate() {
+            if let Some(other) = parent_joint.insert(j.child, i) {
+                bail!(
+                    "line {}: link {} is the child of two joints, {} and {} (a URDF is a tree)",
+                    j.line,
+                    j.child,
+                    joints[other].name,
+                    j.name
+                );
+            }
+        }
+
+        // The root: the one link that is nobody's child.
+        let roots: Vec<&str> = links.keys().copied().filter(|l| !parent_joint.contains_key(l)).collect();
+        match roots.as_slice() {
+            [_] => {}
+            [] if links.is_empty() => bail!("the robot has no links"),
+            [] => bail!("no root link: every link is the child of a joint, so the joints form a cycle"),
+            several => {
+                bail!(
+                    "several root links: {} (all links must be connected by joints into one tree)",
+                    several.join(", ")
+                )
+            }
+        }
+        // With one root and one parent per link, any link whose ancestors never reach the root is
+        // on a cycle.
+        for &link in links.keys() {
+            let mut current = link;
+            let mut steps = 0;
+            while let Some(&j) = parent_joint.get(current) {
+                current = joints[j].parent;
+                steps += 1;
+                if steps > joints.len() {
+                    let cycle = cycle_through(link, &joints, &parent_joint);
+                    bail!("the joints {} form a cycle", cycle.join(", "));
+                }
+            }
+        }
+        Ok(Self { name, links, joints, parent_joint })
+    }
+
+    /// `tip` checked to be a link (a joint's name gets a hint).
+    fn link(&self, tip: &'a str) -> Result<&'a str> {
+        if self.links.contains_key(tip) {
+            return Ok(tip);
+        }
+        if let Some(j) = self.joints.iter().find(|j| j.name == tip) {
+            bail!("tip {tip} is a joint, not a link: pass a link name (this joint's child link is {})", j.child);
+        }
+        bail!("tip link {tip} is not a <link> of the robot (links: {})", join(self.links.keys()))
+    }
+
+    /// The links no joint starts from.
+    fn leaves(&self) -> Vec<&'a str> {
+        let parents: BTreeSet<&str> = self.joints.iter().map(|j| j.parent).collect();
+        self.links.keys().copied().filter(|l| !parents.contains(l)).collect()
+    }
+
+    /// The joints from the root to `link`, root first.
+    fn path(&self, link: &str) -> Vec<&UrdfJoint<'a>> {
+        let mut path = Vec::new();
+        let mut current = link;
+        while let Some(&j) = self.parent_joint.get(current) {
+            path.push(&self.joints[j]);
+            current = self.joints[j].parent;
+        }
+        path.reverse();
+        path
+    }
+}
+
+/// The arm's joint for the moving URDF joint `j` at `origin` (its own, with the fixed joints
+/// before it folded in); `None` for a fixed joint, an error for a floating or planar one.
+fn moving_joint(j: &UrdfJoint, origin: Pose<f64>, what: &str) -> Result<Option<JointSpec>> {
+    let kind = match j.kind {
+        UrdfKind::Fixed => return Ok(None),
+        UrdfKind::Floating | UrdfKind::Planar => {
+            let kind = if j.kind == UrdfKind::Floating { "floating" } else { "planar" };
+            bail!(
+                "line {}: joint {} is {kind}: {what} takes only revolute, continuous, prismatic and fixed joints",
+                j.line,
+                j.name
+            );
+        }
+        UrdfKind::Moving(kind) => kind,
+    };
+    let (lower, upper) = match (kind, j.limits) {
+        (JointKind::Continuous, _) => (-core::f64::consts::PI, core::f64::consts::PI),
+        (_, Some(limits)) => limits,
+        // read_joint already demands limits for revolute and prismatic joints.
+        (_, None) => bail!("line {}: joint {} has no <limit lower upper>", j.line, j.name),
+    };
+    Ok(Some(JointSpec { name: j.name.to_string(), kind, origin, axis: j.axis, lower, upper }))
+}
+
 /// Reads the arm from URDF `text`: the chain from the root link to the link `tip`, or to the only
 /// leaf link when `tip` is `None`.
 pub fn parse(text: &str, tip: Option<&str>) -> Result<ArmSpec> {
     let doc = Document::parse(text).map_err(|e| anyhow!("not well-formed XML: {e}"))?;
-    let robot = doc.root_element();
-    if robot.tag_name().name() != "robot" {
-        bail!("the root element is <{}>, not <robot>", robot.tag_name().name());
-    }
-    let line = |node: Node| doc.text_pos_at(node.range().start).row;
-    let robot_name =
-        robot.attribute("name").ok_or_else(|| anyhow!("line {}: <robot> has no name attribute", line(robot)))?;
-
-    // Links, by name, with the line that declares them.
-    let mut links: BTreeMap<&str, u32> = BTreeMap::new();
-    for node in robot.children().filter(|n| n.has_tag_name("link")) {
-        let name =
-            node.attribute("name").ok_or_else(|| anyhow!("line {}: <link> has no name attribute", line(node)))?;
-        if let Some(first) = links.insert(name, line(node)) {
-            bail!("line {}: link {name} is declared twice (first on line {first})", line(node));
-        }
-    }
-
-    // Joints, by child link (every link has at most one parent joint).
-    let mut joints: Vec<UrdfJoint> = Vec::new();
-    let mut names: BTreeMap<&str, u32> = BTreeMap::new();
-    for node in robot.children().filter(|n| n.has_tag_name("joint")) {
-        let joint = read_joint(node, line(node))?;
-        if let Some(first) = names.insert(joint.name, joint.line) {
-            bail!("line {}: joint {} is declared twice (first on line {first})", joint.line, joint.name);
-        }
-        for (role, link) in [("parent", joint.parent), ("child", joint.child)] {
-            if !links.contains_key(link) {
-                bail!("line {}: joint {}: {role} link {link} is not a <link> of the robot", joint.line, joint.name);
-            }
-        }
-        if joint.parent == joint.child {
-            bail!("line {}: joint {} connects link {} to itself", joint.line, joint.name, joint.parent);
-        }
-        joints.push(joint);
-    }
-    let mut parent_joint: BTreeMap<&str, usize> = BTreeMap::new();
-    for (i, j) in joints.iter().enumerate() {
-        if let Some(other) = parent_joint.insert(j.child, i) {
-            bail!(
-                "line {}: link {} is the child of two joints, {} and {} (a URDF is a tree)",
-                j.line,
-                j.child,
-                joints[other].name,
-                j.name
-            );
-        }
-    }
-
-    // The root: the one link that is nobody's child.
-    let roots: Vec<&str> = links.keys().copied().filter(|l| !parent_joint.contains_key(l)).collect();
-    let root = match roots.as_slice() {
-        [root] => *root,
-        [] if links.is_empty() => bail!("the robot has no links"),
-        [] => bail!("no root link: every link is the child of a joint, so the joints form a cycle"),
-        several => {
-            bail!("several root links: {} (all links must be connected by joints into one tree)", several.join(", "))
-        }
-    };
-    // With one root and one parent per link, any link whose ancestors never reach the root is on a
-    // cycle.
-    for &link in links.keys() {
-        let mut current = link;
-        let mut steps = 0;
-        while let Some(&j) = parent_joint.get(current) {
-            current = joints[j].parent;
-            steps += 1;
-            if steps > joints.len() {
-                let cycle = cycle_through(link, &joints, &parent_joint);
-                bail!("the joints {} form a cycle", cycle.join(", "));
-            }
-        }
-    }
-
+    let robot = Robot::read(&doc)?;
     let tip = match tip {
-        Some(tip) => {
-            if !links.contains_key(tip) {
-                if let Some(j) = joints.iter().find(|j| j.name == tip) {
-                    bail!(
-                        "tip {tip} is a joint, not a link: pass a link name (this joint's child link is {})",
-                        j.child
-                    );
-                }
-                bail!("tip link {tip} is not a <link> of the robot (links: {})", join(links.keys()));
-            }
-            tip
-        }
-        None => {
-            let parents: BTreeSet<&str> = joints.iter().map(|j| j.parent).collect();
-            let leaves: Vec<&str> = links.keys().copied().filter(|l| !parents.contains(l)).collect();
-            match leaves.as_slice() {
-                [leaf] => *leaf,
-                _ => bail!("several tip links: pass --tip one of {}", leaves.join(", ")),
-            }
-        }
+        Some(tip) => robot.link(tip)?,
+        None => match robot.leaves().as_slice() {
+            [leaf] => *leaf,
+            leaves => bail!("several tip links: pass --tip one of {}", leaves.join(", ")),
+        },
     };
-
-    // The joints from the root to the tip.
-    let mut path: Vec<&UrdfJoint> = Vec::new();
-    let mut current = tip;
-    while let Some(&j) = parent_joint.get(current) {
-        path.push(&joints[j]);
-        current = joints[j].parent;
-    }
-    debug_assert_eq!(current, root);
-    path.reverse();
 
     // Fold fixed joints into the next moving joint's origin, or into the tool frame.
     let mut pending = Pose::identity();
     let mut specs = Vec::new();
-    for j in path {
-        let kind = match j.kind {
-            UrdfKind::Fixed => {
-                pending = pending.compose(&j.origin);
+    for j in robot.path(tip) {
+        match moving_joint(j, pending.compose(&j.origin), "an arm chain")? {
+            Some(spec) => {
+                specs.push(spec);
+                pending = Pose::identity();
+            }
+            None => pending = pending.compose(&j.origin),
+        }
+    }
+    Ok(ArmSpec { name: robot.name.to_string(), joints: specs, tool: pending, servos: None })
+}
+
+/// Reads a tree from URDF `text`: every joint on the paths from the root to the links `tips` (by
+/// default every leaf), each an end effector named by its link. Fixed joints are folded into the
+/// next moving joint's origin, or into the end effector's offset; the joints come parents first.
+pub fn parse_tree(text: &str, tips: &[&str]) -> Result<TreeSpec> {
+    let doc = Document::parse(text).map_err(|e| anyhow!("not well-formed XML: {e}"))?;
+    let robot = Robot::read(&doc)?;
+    let tips: Vec<&str> =
+        if tips.is_empty() { robot.leaves() } else { tips.iter().map(|t| robot.link(t)).collect::<Result<_>>()? };
+    for (i, tip) in tips.iter().enumerate() {
+        if tips[..i].contains(tip) {
+            bail!("tip link {tip} is named twice");
+        }
+    }
+    let mut tree =
+        TreeSpec { name: robot.name.to_string(), joints: Vec::new(), parents: Vec::new(), effectors: Vec::new() };
+    // Per URDF joint already placed: the tree joint it became (None: folded), and per link the
+    // last tree joint above it and the fixed offset since.
+    let mut placed: BTreeMap<&str, (Option<usize>, Pose<f64>)> = BTreeMap::new();
+    for tip in &tips {
+        let (mut above, mut pending) = (None, Pose::identity());
+        for j in robot.path(tip) {
+            if let Some(&(index, offset)) = placed.get(j.child) {
+                (above, pending) = (index, offset);
                 continue;
             }
-            UrdfKind::Floating | UrdfKind::Planar => {
-                let kind = if j.kind == UrdfKind::Floating { "floating" } else { "planar" };
-                bail!(
-                    "line {}: joint {} is {kind}: an arm chain takes only revolute, continuous, prismatic and fixed joints",
-                    j.line,
-                    j.name
-                );
+            match moving_joint(j, pending.compose(&j.origin), "a tree")? {
+                Some(spec) => {
+                    tree.joints.push(spec);
+                    tree.parents.push(above);
+                    above = Some(tree.joints.len() - 1);
+                    pending = Pose::identity();
+                }
+                None => pending = pending.compose(&j.origin),
             }
-            UrdfKind::Moving(kind) => kind,
-        };
-        let (lower, upper) = match (kind, j.limits) {
-            (JointKind::Continuous, _) => (-core::f64::consts::PI, core::f64::consts::PI),
-            (_, Some(limits)) => limits,
-            // read_joint already demands limits for revolute and prismatic joints.
-            (_, None) => bail!("line {}: joint {} has no <limit lower upper>", j.line, j.name),
-        };
-        specs.push(JointSpec {
-            name: j.name.to_string(),
-            kind,
-            origin: pending.compose(&j.origin),
-            axis: j.axis,
-            lower,
-            upper,
-        });
-        pending = Pose::identity();
+            placed.insert(j.child, (above, pending));
+        }
+        tree.effectors.push(EffectorSpec { link: tip.to_string(), joint: above, offset: pending });
     }
-    Ok(ArmSpec { name: robot_name.to_string(), joints: specs, tool: pending, servos: None })
+    Ok(tree)
 }
 
 /// Reads the `<joint>` element `node`, declared on `line`.
