@@ -1,6 +1,6 @@
 //! Forward kinematics: every joint frame and the tool pose in one pass from the base.
 
-use crate::{Chain, JointKind, Pose, Real};
+use crate::{Chain, Joint, JointKind, Pose, Real};
 use nalgebra::{SMatrix, SVector, Vector3};
 
 /// World poses of every joint frame (after its motion) and of the tool, for one joint vector.
@@ -75,18 +75,32 @@ impl<T: Real, const N: usize> Chain<T, N> {
     pub fn point_jacobian(&self, frames: &Frames<T, N>, upto: usize, point: &Vector3<T>) -> SMatrix<T, 6, N> {
         let mut j = SMatrix::<T, 6, N>::zeros();
         for (k, (joint, frame)) in self.joints().iter().zip(frames.joints.iter()).enumerate().take(upto) {
-            let axis = frame.rotation * joint.axis;
-            let linear = match joint.kind {
-                JointKind::Prismatic => axis,
-                JointKind::Revolute | JointKind::Continuous => axis.cross(&(point - frame.translation)),
-                // Moves nothing: its column stays zero.
-                JointKind::Fixed => continue,
-            };
-            j.fixed_view_mut::<3, 1>(0, k).copy_from(&linear);
-            if joint.kind != JointKind::Prismatic {
-                j.fixed_view_mut::<3, 1>(3, k).copy_from(&axis);
-            }
+            write_column(&mut j, k, joint, frame, point);
         }
         j
+    }
+}
+
+/// Column `k` of a geometric Jacobian, for `joint` whose moving frame is `frame` (base frame), at
+/// `point`: `[a x (point - p); a]` for a revolute joint, `[a; 0]` for a prismatic one, where `a` is
+/// the joint axis and `p` the frame's origin. A fixed joint moves nothing: its column is left
+/// as it is (zero). The chain's and the tree's Jacobians are made of these.
+#[inline]
+pub(crate) fn write_column<T: Real, const N: usize>(
+    j: &mut SMatrix<T, 6, N>,
+    k: usize,
+    joint: &Joint<T>,
+    frame: &Pose<T>,
+    point: &Vector3<T>,
+) {
+    let axis = frame.rotation * joint.axis;
+    let linear = match joint.kind {
+        JointKind::Prismatic => axis,
+        JointKind::Revolute | JointKind::Continuous => axis.cross(&(point - frame.translation)),
+        JointKind::Fixed => return,
+    };
+    j.fixed_view_mut::<3, 1>(0, k).copy_from(&linear);
+    if joint.kind != JointKind::Prismatic {
+        j.fixed_view_mut::<3, 1>(3, k).copy_from(&axis);
     }
 }

@@ -13,6 +13,8 @@
 use nalgebra::{SMatrix, SVector, Vector3};
 
 use crate::chain::{checked, frame_is_valid};
+use crate::fk::write_column;
+use crate::ik::IkConfig;
 use crate::linalg::cholesky_solve;
 use crate::{rotation_error, ChainError, Joint, JointKind, Pose, Real};
 
@@ -166,19 +168,8 @@ impl<T: Real, const N: usize, const E: usize> Tree<T, N, E> {
         let mut j = SMatrix::<T, 6, N>::zeros();
         let Some(point) = frames.effectors.get(e).map(|p| p.translation) else { return j };
         for k in 0..N {
-            if !self.moves(e, k) {
-                continue;
-            }
-            let (joint, frame) = (&self.joints[k], &frames.joints[k]);
-            let axis = frame.rotation * joint.axis;
-            let linear = match joint.kind {
-                JointKind::Prismatic => axis,
-                JointKind::Revolute | JointKind::Continuous => axis.cross(&(point - frame.translation)),
-                JointKind::Fixed => continue,
-            };
-            j.fixed_view_mut::<3, 1>(0, k).copy_from(&linear);
-            if joint.kind != JointKind::Prismatic {
-                j.fixed_view_mut::<3, 1>(3, k).copy_from(&axis);
+            if self.moves(e, k) {
+                write_column(&mut j, k, &self.joints[k], &frames.joints[k], &point);
             }
         }
         j
@@ -212,22 +203,9 @@ pub struct TreeProblem<T: Real, const N: usize, const E: usize> {
     pub targets: [Option<EffectorTarget<T>>; E],
     /// Where the search starts.
     pub seed: SVector<T, N>,
-    /// Position tolerance, m.
-    pub position_tolerance: T,
-    /// Orientation tolerance, rad.
-    pub orientation_tolerance: T,
-    /// Metres per radian of orientation error in the least-squares sum.
-    pub orientation_weight: T,
-    /// Iterations at most, over every attempt.
-    pub max_iterations: u32,
-    /// Iterations of one attempt before it counts as stuck (a crawl along a limit) and a restart
-    /// is drawn.
-    pub attempt_iterations: u32,
-    /// Attempts from random seeds after the first (from `seed`) misses, while iterations remain;
-    /// the best answer of them all is kept.
-    pub max_restarts: u32,
-    /// Seed of the random restarts (the same problem gives the same answer).
-    pub rng_seed: u64,
+    /// Tolerances, the weight of orientation errors, the iteration budget (over every attempt and
+    /// per attempt) and the restarts, as the chain's solvers take them.
+    pub config: IkConfig<T>,
 }
 
 /// How one end effector came out.
@@ -278,7 +256,7 @@ impl<T: Real, const N: usize, const E: usize> Tree<T, N, E> {
                 let p = (t.position - frames.effectors[e].translation).norm();
                 let o = t.rotation.map_or(T::zero(), |r| rotation_error(&r, &frames.effectors[e].rotation).norm());
                 EffectorOutcome {
-                    reached: p <= problem.position_tolerance && o <= problem.orientation_tolerance,
+                    reached: p <= problem.config.position_tolerance && o <= problem.config.orientation_tolerance,
                     position_error: p,
                     orientation_error: o,
                 }
@@ -288,7 +266,7 @@ impl<T: Real, const N: usize, const E: usize> Tree<T, N, E> {
 
     /// The weighted squared error of the first priority's targets and of the second's.
     fn cost(&self, problem: &TreeProblem<T, N, E>, frames: &TreeFrames<T, N, E>) -> (T, T) {
-        let w2 = problem.orientation_weight * problem.orientation_weight;
+        let w2 = problem.config.orientation_weight * problem.config.orientation_weight;
         let mut cost = (T::zero(), T::zero());
         for (o, t) in self.outcomes(problem, frames).iter().zip(problem.targets.iter()) {
             let Some(t) = t else { continue };
@@ -324,9 +302,9 @@ impl<T: Real, const N: usize, const E: usize> Tree<T, N, E> {
                     && t.rotation.is_none_or(|r| r.iter().all(|x| x.finite()))
                     && t.priority <= 1
             })
-            && problem.position_tolerance > T::zero()
-            && problem.orientation_tolerance > T::zero()
-            && problem.orientation_weight > T::zero()
+            && problem.config.position_tolerance > T::zero()
+            && problem.config.orientation_tolerance > T::zero()
+            && problem.config.orientation_weight > T::zero()
     }
 
     /// Damped least squares over every target at once (Levenberg-Marquardt: the damping halves
@@ -345,11 +323,13 @@ impl<T: Real, const N: usize, const E: usize> Tree<T, N, E> {
             let effectors = self.outcomes(problem, &frames).map(|o| EffectorOutcome { reached: false, ..o });
             return TreeSolution { q, status: TreeStatus::InvalidInput, effectors, iterations: 0, restarts: 0 };
         }
-        let mut rng = crate::SplitMix64::new(problem.rng_seed);
+        let mut rng = crate::SplitMix64::new(problem.config.rng_seed);
         let mut iterations = 0;
         let mut restarts = 0;
         let (mut best_q, mut best_cost, mut ran_out) = self.attempt(problem, q, &mut iterations);
-        while !self.reached(problem, &best_q) && restarts < problem.max_restarts && iterations < problem.max_iterations
+        while !self.reached(problem, &best_q)
+            && restarts < problem.config.max_restarts
+            && iterations < problem.config.max_iterations
         {
             restarts += 1;
             let seed = SVector::from_fn(|k, _| {
@@ -391,7 +371,7 @@ impl<T: Real, const N: usize, const E: usize> Tree<T, N, E> {
         frames: &TreeFrames<T, N, E>,
         priority: u8,
     ) -> (SMatrix<T, N, N>, SVector<T, N>, bool) {
-        let w_o = problem.orientation_weight;
+        let w_o = problem.config.orientation_weight;
         let mut a = SMatrix::<T, N, N>::zeros();
         let mut b = SVector::<T, N>::zeros();
         let mut any = false;
@@ -507,10 +487,10 @@ impl<T: Real, const N: usize, const E: usize> Tree<T, N, E> {
             if self.outcomes(problem, &frames).iter().all(|o| o.reached) {
                 return (q, cost, false);
             }
-            if *iterations >= problem.max_iterations {
+            if *iterations >= problem.config.max_iterations {
                 return (q, cost, true);
             }
-            if own >= problem.attempt_iterations {
+            if own >= problem.config.attempt_iterations {
                 return (q, cost, false);
             }
             *iterations += 1;
@@ -522,17 +502,14 @@ impl<T: Real, const N: usize, const E: usize> Tree<T, N, E> {
                 lambda = (lambda * T::of(10.0)).min(T::of(1e3));
                 continue;
             };
-            let step = Some(dq);
-            let next = step.map(|dq| {
-                let mut next = q + dq;
-                for (k, v) in next.iter_mut().enumerate() {
-                    *v = self.joints[k].normalise(*v);
-                }
-                next
-            });
-            let better = next
-                .map(|n| (n, self.forward(&n)))
-                .filter(|(_, f)| self.better(self.cost(problem, f), cost, self.first_reached(problem, f)));
+            let mut next = q + dq;
+            for (k, v) in next.iter_mut().enumerate() {
+                *v = self.joints[k].normalise(*v);
+            }
+            let next_frames = self.forward(&next);
+            let better = self
+                .better(self.cost(problem, &next_frames), cost, self.first_reached(problem, &next_frames))
+                .then_some((next, next_frames));
             match better {
                 Some((n, f)) => {
                     let moved = (n - q).amax();

@@ -3,6 +3,7 @@
 //! and IK on random reachable targets for both arms at once: the solve rate, no false claims, and
 //! a target out of reach said so while the other arm's is reached.
 
+use kinematics::ik::IkConfig;
 use kinematics::tree::{Effector, EffectorTarget, Tree, TreeProblem, TreeStatus};
 use kinematics::{presets, Chain, Joint, Limits, Pose, SplitMix64};
 use nalgebra::{SVector, Vector3};
@@ -122,13 +123,15 @@ fn problem(tree: &Tree<f64, N, 2>, q_true: &SVector<f64, N>, oriented: bool) -> 
     TreeProblem {
         targets: [target(0), target(1)],
         seed: tree.middle(),
-        position_tolerance: 1e-4,
-        orientation_tolerance: 1e-3,
-        orientation_weight: 1.0,
-        max_iterations: 6000,
-        attempt_iterations: 100,
-        max_restarts: 60,
-        rng_seed: 7,
+        config: IkConfig {
+            position_tolerance: 1e-4,
+            orientation_tolerance: 1e-3,
+            orientation_weight: 1.0,
+            max_iterations: 6000,
+            attempt_iterations: 100,
+            max_restarts: 60,
+            rng_seed: 7,
+        },
     }
 }
 
@@ -268,13 +271,15 @@ fn solves_in_f32() {
     let p = TreeProblem {
         targets: [Some(EffectorTarget { position: goal, rotation: None, weight: 1.0, priority: 0 })],
         seed: SVector::from([0.1, 0.1]),
-        position_tolerance: 1e-4,
-        orientation_tolerance: 1e-3,
-        orientation_weight: 0.2,
-        max_iterations: 200,
-        attempt_iterations: 100,
-        max_restarts: 4,
-        rng_seed: 1,
+        config: IkConfig {
+            position_tolerance: 1e-4,
+            orientation_tolerance: 1e-3,
+            orientation_weight: 0.2,
+            max_iterations: 200,
+            attempt_iterations: 100,
+            max_restarts: 4,
+            rng_seed: 1,
+        },
     };
     let s = tree.solve(&p);
     assert_eq!(s.status, TreeStatus::Converged, "{s:?}");
