@@ -48,6 +48,7 @@ fn rig_on(servos: SimConfig, arm: Option<&str>) -> Option<Rig> {
     let elf = qemu::build(qemu::FIRMWARE_BIN).unwrap();
     let bus = PtyServer::spawn(servos).unwrap();
     let board = Qemu::start(&QemuConfig { elf, bus: Some(bus.path().to_string()) }).unwrap();
+    board.wait_started(qemu::START_TIMEOUT).unwrap();
     let path = board.link_path().to_string();
     // The pty QEMU opened for UART0 (the one `armctl sim --qemu` prints) and the servos' pty.
     assert_private(&path);

@@ -318,6 +318,7 @@ fn run_qemu(elf: Option<PathBuf>, faults: &FaultArgs, out: &mut dyn Write, err: 
     };
     let bus = PtyServer::spawn(crate::sim::so101_bus(faults)).context("cannot open a pseudo-terminal")?;
     let mut board = Qemu::start(&QemuConfig { elf, bus: Some(bus.path().to_string()) })?;
+    board.wait_started(qemu::START_TIMEOUT)?;
     writeln!(out, "{}", board.link_path())?;
     out.flush()?;
     writeln!(

@@ -42,6 +42,7 @@ pub struct MeasuredStack {
 pub fn measure(elf: &Path) -> Result<MeasuredStack> {
     let bus = PtyServer::spawn(so101_bus(Faults::default())).context("cannot start the simulated servo bus")?;
     let board = Qemu::start(&QemuConfig { elf: elf.to_path_buf(), bus: Some(bus.path().to_string()) })?;
+    board.wait_started(crate::places::qemu::START_TIMEOUT)?;
     let mut link =
         open(Target::Port { path: board.link_path().to_string(), baud: 1_000_000 }, None, &mut std::io::sink())?;
     let c = &mut link.client;

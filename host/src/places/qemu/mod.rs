@@ -28,6 +28,13 @@ pub const FIRMWARE_BIN: &str = "board-mps2-an386";
 /// crate's `log::LOG_FILE`).
 const LOG_FILE: &str = "defmt.bin";
 
+/// The start of the line the board binary's `main` logs just before it enters the control loop.
+const STARTED_LINE: &str = "static state:";
+
+/// How long the firmware may take to start under QEMU: a fraction of a second unloaded; the margin
+/// is for a machine busy with other work.
+pub const START_TIMEOUT: Duration = Duration::from_secs(60);
+
 /// Whether `qemu-system-arm` can be started.
 pub fn available() -> bool {
     Command::new("qemu-system-arm").arg("--version").stdout(Stdio::null()).stderr(Stdio::null()).status().is_ok()
@@ -109,6 +116,20 @@ impl Qemu {
     /// The pty of the host link (UART0), its owner's alone (mode 0600), for `armctl --port`.
     pub fn link_path(&self) -> &str {
         &self.link
+    }
+
+    /// Waits up to `timeout` for the board binary to log that its control loop starts (the line
+    /// its `main` logs once the hardware and the firmware core are up). The host link is served
+    /// from then on; a handshake sent earlier, while a loaded machine still boots the emulator,
+    /// could spend its retries before the firmware listens.
+    pub fn wait_started(&self, timeout: Duration) -> Result<()> {
+        match self.log().wait_for(STARTED_LINE, timeout) {
+            Some(_) => Ok(()),
+            None => bail!(
+                "the firmware under QEMU did not start within {} s (no \"{STARTED_LINE}\" in its log)",
+                timeout.as_secs()
+            ),
+        }
     }
 
     /// The firmware's log.
