@@ -3,7 +3,7 @@
 //!
 //! The modules, top to bottom (a module uses only those below it):
 //! - [`cli`]: the command line, which uses everything;
-//! - [`demo`], [`bench`], [`footprint`], [`teleop`], [`drive`], [`mocap`], [`motion`], [`servo`]: what armctl
+//! - [`demo`], [`bench`], [`footprint`], [`teleop`], [`rig`], [`drive`], [`mocap`], [`motion`], [`servo`]: what armctl
 //!   does;
 //! - [`places`]: where the firmware core runs on this PC (SIL, QEMU);
 //! - [`link`] and [`sim`]: the host link and its transports, the servo-bus simulator;
@@ -26,6 +26,7 @@ pub mod motion;
 pub mod places;
 pub mod plot;
 pub mod pty_owner;
+pub mod rig;
 pub mod servo;
 pub mod sim;
 pub mod teleop;

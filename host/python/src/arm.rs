@@ -180,7 +180,8 @@ impl Arm {
             })
             .transpose()
             .or_raise()?;
-        let link = LinkArgs { port, bus, protocol, baud, sim, arm, calibration, object_mm: None, json: true };
+        let link =
+            LinkArgs { port, bus, protocol, baud, sim, arm, calibration, object_mm: None, rig: None, json: true };
         let mut said = Vec::new();
         let (driver, servos) = released(py, || -> Result<(Driver, Option<PtyServer>)> {
             let (target, arm) = link.target()?;
@@ -271,8 +272,8 @@ impl Arm {
         }
         let args = MoveArgs {
             link: LinkArgs::default(),
-            to: numbers(&position),
-            quat: quaternion_wxyz.as_deref().map(numbers),
+            to: vec![numbers(&position)],
+            quat: quaternion_wxyz.as_deref().map(numbers).into_iter().collect(),
             speed,
             duration,
             path,

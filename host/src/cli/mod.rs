@@ -202,7 +202,13 @@ fn run(link: &crate::drive::args::LinkArgs, command: Command, out: &mut dyn Writ
         link.refuse_for_other_commands()?;
     }
     match command {
-        Command::Drive(command) => return crate::drive::run(link, command, out, err),
+        Command::Drive(command) => {
+            let merged = link.merged(command.link())?;
+            if let Some(rig) = &merged.rig {
+                return crate::rig::commands::run(rig, &merged, command, out, err);
+            }
+            return crate::drive::run(link, command, out, err);
+        }
         Command::Demo(args) => return crate::demo::run(&args, out),
         Command::Retarget(args) => return retarget::run(link, args, out, err),
         Command::Teleop(args) => return crate::teleop::run(link, args, out, err),

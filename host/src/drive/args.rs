@@ -57,6 +57,11 @@ pub struct LinkArgs {
     /// With --sim: an object this wide (mm) between the gripper's jaws, which stop on it.
     #[arg(long, value_name = "MM", allow_negative_numbers = true)]
     pub object_mm: Option<f64>,
+    /// Drive every arm of a rig together (a rig file, or the built-in bimanual-so101): status,
+    /// stop, torque, move (--to ARM=x,y,z in the world frame, once per arm) and play (a keyframe
+    /// file with each arm's columns, ARM.q1,...). Each arm's place is in the file.
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["sim", "port", "bus"])]
+    pub rig: Option<String>,
     /// Print the result as one line of JSON.
     #[arg(long)]
     pub json: bool,
@@ -81,6 +86,7 @@ impl LinkArgs {
             arm: one("--arm", &self.arm, &after.arm)?,
             calibration: one("--calibration", &self.calibration, &after.calibration)?,
             object_mm: one("--object-mm", &self.object_mm, &after.object_mm)?,
+            rig: one("--rig", &self.rig, &after.rig)?,
             json: self.json || after.json,
         })
     }
@@ -96,6 +102,7 @@ impl LinkArgs {
             (self.arm.is_some(), "--arm"),
             (self.calibration.is_some(), "--calibration"),
             (self.object_mm.is_some(), "--object-mm"),
+            (self.rig.is_some(), "--rig"),
             (self.json, "--json"),
         ]
         .into_iter()
@@ -113,6 +120,9 @@ impl LinkArgs {
 
     /// The board or simulation to connect to, and the arm to configure on it.
     pub fn target(&self) -> Result<(Target, Option<&str>)> {
+        if self.rig.is_some() {
+            bail!("--rig drives status, stop, torque, move and play so far; this command drives one arm");
+        }
         if self.object_mm.is_some() && !self.sim {
             bail!("--object-mm puts an object between the simulated gripper's jaws: it needs --sim");
         }
@@ -274,12 +284,14 @@ pub struct MoveArgs {
     #[command(flatten)]
     #[allow(missing_docs)]
     pub link: LinkArgs,
-    /// Tool position x,y,z (m, base frame).
+    /// Tool position x,y,z (m, base frame). With --rig: ARM=x,y,z (m, the rig's world frame),
+    /// once for each arm to move.
+    #[arg(long, allow_hyphen_values = true, required = true)]
+    pub to: Vec<String>,
+    /// Tool orientation as a unit quaternion w,x,y,z (omit to leave it free). With --rig:
+    /// ARM=w,x,y,z (world frame).
     #[arg(long, allow_hyphen_values = true)]
-    pub to: String,
-    /// Tool orientation as a unit quaternion w,x,y,z (omit to leave it free).
-    #[arg(long, allow_hyphen_values = true)]
-    pub quat: Option<String>,
+    pub quat: Vec<String>,
     /// Tool speed along the line (m/s) [default: 0.1].
     #[arg(long, conflicts_with = "duration", allow_hyphen_values = true)]
     pub speed: Option<f64>,

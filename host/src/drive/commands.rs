@@ -80,24 +80,43 @@ fn positive(value: f64, max: f64, what: &str, unit: &str) -> Result<f32> {
 }
 
 fn parse_move(args: &MoveArgs) -> Result<Request> {
-    let position = parse::fixed::<3>(&args.to, "--to")?;
+    let [to] = args.to.as_slice() else {
+        bail!("--to is given {} times: once for one arm (with --rig, once per arm as ARM=x,y,z)", args.to.len());
+    };
+    let quat = match args.quat.as_slice() {
+        [] => None,
+        [quat] => Some(quat.as_str()),
+        more => bail!("--quat is given {} times: at most once for one arm", more.len()),
+    };
+    let position = parse_position(to, "--to")?;
+    let orientation = quat.map(|text| parse_quaternion(text, "--quat")).transpose()?;
+    let (timing, path) = parse_motion(args)?;
+    Ok(Request::Move { target: CartesianTarget { position, orientation }, timing, path, timeout: args.timeout })
+}
+
+/// A tool position x,y,z (m) within any desk arm's reach of its base (or of the world origin).
+pub fn parse_position(text: &str, what: &str) -> Result<[f32; 3]> {
+    let position = parse::fixed::<3>(text, what)?;
     for (value, axis) in position.iter().zip(["x", "y", "z"]) {
         if value.abs() > f64::from(MAX_REACH) {
-            bail!("--to: {axis} = {value} m is more than {MAX_REACH} m from the base, beyond any desk arm");
+            bail!("{what}: {axis} = {value} m is more than {MAX_REACH} m from the base, beyond any desk arm");
         }
     }
-    let orientation = args
-        .quat
-        .as_deref()
-        .map(|text| {
-            let q = parse::fixed::<4>(text, "--quat")?;
-            let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
-            if (norm - 1.0).abs() > f64::from(QUATERNION_TOLERANCE) {
-                bail!("--quat: w,x,y,z must be a unit quaternion; its norm is {norm:.6}");
-            }
-            Ok(q.map(|x| x as f32))
-        })
-        .transpose()?;
+    Ok(position.map(|x| x as f32))
+}
+
+/// A unit quaternion w,x,y,z.
+pub fn parse_quaternion(text: &str, what: &str) -> Result<[f32; 4]> {
+    let q = parse::fixed::<4>(text, what)?;
+    let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if (norm - 1.0).abs() > f64::from(QUATERNION_TOLERANCE) {
+        bail!("{what}: w,x,y,z must be a unit quaternion; its norm is {norm:.6}");
+    }
+    Ok(q.map(|x| x as f32))
+}
+
+/// A move's timing and path, as `move` takes them.
+pub fn parse_motion(args: &MoveArgs) -> Result<(Timing, MovePath)> {
     let timing = match args.duration {
         Some(d) => Timing::Duration(positive(d, f64::from(MAX_TIME), "--duration", "s")?),
         None => Timing::MaxSpeed(positive(
@@ -113,12 +132,7 @@ fn parse_move(args: &MoveArgs) -> Result<Request> {
         PathArg::Line => MovePath::Line,
         PathArg::Joint => MovePath::Joint,
     };
-    Ok(Request::Move {
-        target: CartesianTarget { position: position.map(|x| x as f32), orientation },
-        timing,
-        path,
-        timeout: args.timeout,
-    })
+    Ok((timing, path))
 }
 
 fn parse_joints(args: &JointsArgs) -> Result<Request> {
@@ -328,7 +342,8 @@ pub fn status_json(driver: &Driver, s: &Status) -> Result<serde_json::Value> {
     Ok(v)
 }
 
-fn print_status(driver: &Driver, s: &Status, json: bool, out: &mut dyn Write) -> Result<()> {
+/// Prints a status as `armctl status` does (one line of JSON with `json`).
+pub fn print_status(driver: &Driver, s: &Status, json: bool, out: &mut dyn Write) -> Result<()> {
     if json {
         writeln!(out, "{}", status_json(driver, s)?)?;
         return Ok(());

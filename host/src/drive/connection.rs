@@ -125,6 +125,24 @@ pub fn open(target: Target, arm: Option<&str>, err: &mut dyn std::io::Write) -> 
             Box::new(sil)
         }
     };
+    connect(transport, loaded_arm, arm, pc)
+}
+
+/// Opens the link of board `index` of a group of simulated boards on one clock (a rig's arms in
+/// SIL), with `arm` (the one the board was made for) sent as it is.
+pub fn open_in_group(group: &crate::places::sil::group::SilGroup, index: usize, arm: ArmSpec) -> Result<Connection> {
+    let member = group.member(index).ok_or_else(|| anyhow!("no simulated board {index} in the group"))?;
+    connect(Box::new(member), Some(arm), None, None)
+}
+
+/// The handshake over `transport`, with `loaded_arm` sent as it is or else `arm` by name; then,
+/// for a core on this PC, the wait until it has read every servo.
+fn connect(
+    transport: Box<dyn Transport>,
+    loaded_arm: Option<ArmSpec>,
+    arm: Option<&str>,
+    pc: Option<Pc>,
+) -> Result<Connection> {
     let mut client = LinkClient::new(transport, LinkConfig::default());
     let (info, spec) = match loaded_arm {
         Some(spec) => handshake_with(&mut client, Some(spec))?,

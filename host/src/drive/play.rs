@@ -110,6 +110,29 @@ impl Plan {
         self.times_and_lines().0.last().copied().unwrap_or(0.0)
     }
 
+    /// The longest the player may take beyond the last keyframe's time (controller seconds).
+    pub fn timeout(&self) -> f64 {
+        self.timeout
+    }
+
+    /// How far the arm at `measured` ended from the last keyframe, and the unit: the largest
+    /// joint difference (rad) for joint keyframes, the tool's distance (m) for Cartesian ones. The
+    /// firmware keeps within the joint limits, so a file that asks for more can end elsewhere.
+    pub fn end_error(&self, driver: &Driver, measured: &[f32]) -> Result<(f64, &'static str)> {
+        Ok(match &self.frames {
+            Frames::Joint(k) => {
+                let goal = k.positions.last().map(Vec::as_slice).unwrap_or_default();
+                let error = goal.iter().zip(measured).map(|(g, m)| (g - f64::from(*m)).abs()).fold(0.0, f64::max);
+                (error, "rad")
+            }
+            Frames::Cartesian(k) => {
+                let goal = k.positions.last().copied().unwrap_or_default();
+                let tool = driver.tool_position(measured)?;
+                ((0..3).map(|i| (goal[i] - tool[i]).powi(2)).sum::<f64>().sqrt(), "m")
+            }
+        })
+    }
+
     /// The planned tool path, one point per keyframe (m): the keyframes' positions, or the forward
     /// kinematics of joint keyframes.
     pub fn tool_path(&self, driver: &Driver) -> Result<Vec<[f64; 3]>> {
@@ -308,19 +331,10 @@ pub fn run(driver: &mut Driver, plan: Plan, json: bool, out: &mut dyn Write, err
         )?;
     }
     let tool = driver.tool_position(&last.measured)?;
-    // Where the arm ended against the last keyframe: the firmware keeps within the joint limits,
-    // so a file that asks for more than they allow can end elsewhere.
-    let (format, end_error, unit, tolerance) = match &plan.frames {
-        Frames::Joint(k) => {
-            let goal = k.positions.last().map(Vec::as_slice).unwrap_or_default();
-            let error = goal.iter().zip(&last.measured).map(|(g, m)| (g - f64::from(*m)).abs()).fold(0.0, f64::max);
-            ("joint", error, "rad", 0.01)
-        }
-        Frames::Cartesian(k) => {
-            let goal = k.positions.last().copied().unwrap_or_default();
-            let error = (0..3).map(|i| (goal[i] - tool[i]).powi(2)).sum::<f64>().sqrt();
-            ("cartesian", error, "m", 0.002)
-        }
+    let (end_error, unit) = plan.end_error(driver, &last.measured)?;
+    let (format, tolerance) = match &plan.frames {
+        Frames::Joint(_) => ("joint", 0.01),
+        Frames::Cartesian(_) => ("cartesian", 0.002),
     };
     if end_error > tolerance {
         writeln!(

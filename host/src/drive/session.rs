@@ -42,7 +42,11 @@ impl Driver {
     /// Connects (handshake, arm configuration when asked); what connecting to `--bus` measured is
     /// said on `err`.
     pub fn open(target: Target, arm: Option<&str>, err: &mut dyn Write) -> Result<Self> {
-        let conn = connection::open(target, arm, err)?;
+        Self::on(connection::open(target, arm, err)?)
+    }
+
+    /// A driver over a connection already open.
+    pub fn on(conn: Connection) -> Result<Self> {
         let fk = dof::build(conn.arm.clone())?;
         Ok(Self { conn, fk })
     }

@@ -37,7 +37,7 @@ pub(crate) fn is_cartesian_header(header: &str) -> bool {
     header.split(',').nth(1).is_some_and(|name| name.trim() == "x")
 }
 
-fn rows(text: &str) -> impl Iterator<Item = (usize, &str)> {
+pub(crate) fn rows(text: &str) -> impl Iterator<Item = (usize, &str)> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     text.split('\n')
         .enumerate()

@@ -7,6 +7,12 @@
 //! the tool position that forward kinematics gives for the measured joint values. So a demo that
 //! closes the gripper away from the object grasps nothing, and the object ends where the arm
 //! really carried it. No gravity, no friction, no slip: a held object never falls.
+//!
+//! Several grippers can share one object ([`Scene::for_gripper`]): each has a scene of its own,
+//! for its own jaws, over the same position, so one arm can hand the object to another.
+
+use std::cell::Cell;
+use std::rc::Rc;
 
 use anyhow::{bail, Result};
 
@@ -23,8 +29,10 @@ pub const REACH_M: f64 = 0.01;
 pub struct Scene {
     gripper: GripperSpec,
     jaw: Jaw,
-    /// Where the object's centre is (m).
-    position: [f64; 3],
+    /// The object's width (mm).
+    width_mm: f64,
+    /// Where the object's centre is (m), shared with the scenes of other grippers.
+    position: Rc<Cell<[f64; 3]>>,
     /// Whether it is between the jaws (the gripper servo's [`Jaw`] is set).
     between: bool,
     /// Its offset from the tool point while the jaws grip it (m): it moves with the tool.
@@ -43,12 +51,26 @@ impl Scene {
             bail!("the object's position {position:?} is not a finite point");
         }
         let jaw = Jaw::for_object(gripper, width_mm)?;
-        Ok(Self { gripper: *gripper, jaw, position, between: false, grip: None })
+        Ok(Self {
+            gripper: *gripper,
+            jaw,
+            width_mm,
+            position: Rc::new(Cell::new(position)),
+            between: false,
+            grip: None,
+        })
+    }
+
+    /// The same object, for the jaws of another gripper (of another arm, in the same world frame):
+    /// where either carries it, the other finds it. Refused unless it fits between those jaws.
+    pub fn for_gripper(&self, gripper: &GripperSpec) -> Result<Self> {
+        let jaw = Jaw::for_object(gripper, self.width_mm)?;
+        Ok(Self { gripper: *gripper, jaw, position: Rc::clone(&self.position), between: false, grip: None, ..*self })
     }
 
     /// Where the object is (m).
     pub fn position(&self) -> [f64; 3] {
-        self.position
+        self.position.get()
     }
 
     /// Whether the jaws hold it now.
@@ -69,7 +91,7 @@ impl Scene {
         let Some(servo) = bus.servo_mut(self.gripper.id) else { return };
         servo.update(t_ns);
         let present = servo.get(servo.model().items.present_position) as f64;
-        let near = distance(tool, self.position) <= REACH_M;
+        let near = distance(tool, self.position.get()) <= REACH_M;
         if !self.between {
             // The jaws must be open past the contact (not touching) to take the object in.
             if near && !self.jaw.reached(present) {
@@ -87,7 +109,8 @@ impl Scene {
             }
             return;
         }
-        let offset = *self.grip.get_or_insert([0, 1, 2].map(|i| self.position[i] - tool[i]));
-        self.position = [0, 1, 2].map(|i| tool[i] + offset[i]);
+        let position = self.position.get();
+        let offset = *self.grip.get_or_insert([0, 1, 2].map(|i| position[i] - tool[i]));
+        self.position.set([0, 1, 2].map(|i| tool[i] + offset[i]));
     }
 }

@@ -18,6 +18,7 @@
 //! of the measured joints each tick.
 
 pub mod board;
+pub mod group;
 pub mod wire;
 
 use std::io::{self, ErrorKind, Read, Write};
@@ -28,6 +29,8 @@ use firmware::builtin;
 use firmware::bus::master::{BusConfig, Master, NoDirectionPin};
 use firmware::bus::table::Model;
 use firmware::controller::{Config, GripperState, TickReport};
+
+use kinematics::Pose;
 
 use crate::arm::dof::DynArm;
 use crate::arm::servos::{servos_of, ServoSetup};
@@ -157,8 +160,9 @@ pub struct Sil {
     last_report: Option<TickReport>,
     stats: SilStats,
     scratch: Vec<u8>,
-    /// An object on the table and the arm whose tool can pick it up.
-    scene: Option<(Scene, Box<dyn DynArm>)>,
+    /// An object on the table, the arm whose tool can pick it up, and where that arm's base is
+    /// in the object's frame.
+    scene: Option<(Scene, Box<dyn DynArm>, Pose<f64>)>,
 }
 
 impl Sil {
@@ -234,14 +238,27 @@ impl Sil {
     pub fn put_object(&mut self, arm: Box<dyn DynArm>, width_mm: f64, position: [f64; 3]) -> Result<()> {
         let gripper = gripper_of(&self.arm.name, &self.servos)?;
         let scene = Scene::new(&gripper, width_mm, position)?;
+        self.share_object(arm, Pose::identity(), scene)
+    }
+
+    /// The gripper's spec (for a [`Scene`] of its jaws); fails for an arm without one.
+    pub fn gripper(&self) -> Result<crate::arm::servos::GripperSpec> {
+        gripper_of(&self.arm.name, &self.servos)
+    }
+
+    /// Makes `scene` (made for this arm's gripper, often sharing its object with another arm's
+    /// scene: [`Scene::for_gripper`]) this board's, with the arm's base at `base` in the scene's
+    /// frame: the tool's position there is `base` composed with the forward kinematics of `arm`.
+    pub fn share_object(&mut self, arm: Box<dyn DynArm>, base: Pose<f64>, scene: Scene) -> Result<()> {
+        let gripper = gripper_of(&self.arm.name, &self.servos)?;
         put_object(&self.bus, &gripper, None)?;
-        self.scene = Some((scene, arm));
+        self.scene = Some((scene, arm, base));
         Ok(())
     }
 
     /// The object on the table, if there is one.
     pub fn object(&self) -> Option<&Scene> {
-        self.scene.as_ref().map(|(scene, _)| scene)
+        self.scene.as_ref().map(|(scene, ..)| scene)
     }
 
     /// The simulated servo bus (to change faults or inspect servos mid-run).
@@ -291,16 +308,18 @@ impl Sil {
 
     /// Lets `seconds` of virtual time pass with the host silent.
     pub fn run_for(&mut self, seconds: f64) {
-        let until = self.clock.now_ns() + (seconds * 1e9) as u64;
-        while self.step(until) {}
-        self.clock.advance_to(until);
+        run_in_step(std::slice::from_mut(self), seconds);
+    }
+
+    /// When the board's next event is due (link input or a control tick), ns.
+    fn next_event_ns(&self) -> u64 {
+        self.to_board.next_arrival_ns().map_or(self.next_tick_ns, |t| t.min(self.next_tick_ns))
     }
 
     /// Runs the next board event (link input or a control tick) if it is due by `limit_ns`;
     /// false when none is.
     fn step(&mut self, limit_ns: u64) -> bool {
-        let input = self.to_board.next_arrival_ns();
-        let next = input.map_or(self.next_tick_ns, |t| t.min(self.next_tick_ns));
+        let next = self.next_event_ns();
         if next > limit_ns {
             return false;
         }
@@ -337,10 +356,10 @@ impl Sil {
             self.next_tick_ns = self.clock.now_ns();
         }
         let time = now_ns as f64 * 1e-9;
-        if let Some((scene, arm)) = &mut self.scene {
+        if let Some((scene, arm, base)) = &mut self.scene {
             // A tool pose that cannot be computed (no joint read yet) leaves the object be.
             if let Ok(pose) = arm.tool_pose(&self.board.measured()) {
-                let p = pose.translation;
+                let p = base.compose(&pose).translation;
                 scene.update(&self.bus, [p.x, p.y, p.z], self.clock.now_ns());
             }
         }
@@ -353,7 +372,7 @@ impl Sil {
                 setpoints: self.board.setpoints(),
                 measured: self.board.measured(),
                 gripper: self.board.gripper(),
-                object_held: self.scene.as_ref().map(|(scene, _)| scene.held()),
+                object_held: self.scene.as_ref().map(|(scene, ..)| scene.held()),
             });
         }
     }
@@ -384,25 +403,67 @@ impl Read for Sil {
     /// The bytes that have arrived, after running the board until one does; `TimedOut` after the
     /// read timeout of virtual time without any.
     fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
-        if buf.is_empty() {
-            return Ok(0);
+        read_in_step(std::slice::from_mut(self), 0, buf)
+    }
+}
+
+/// The next event of any board of `sils` (link input or a control tick).
+fn next_event_ns(sils: &[Sil]) -> u64 {
+    sils.iter().map(Sil::next_event_ns).min().unwrap_or(u64::MAX)
+}
+
+/// Runs every board of `sils` whose next event is the earliest of all, if that is due by
+/// `limit_ns`, and brings every clock to its time; false when none is due. The boards share one
+/// time line: no board's clock runs ahead of another's.
+fn step_in_step(sils: &mut [Sil], limit_ns: u64) -> bool {
+    let next = next_event_ns(sils);
+    if next > limit_ns {
+        return false;
+    }
+    for sil in sils.iter_mut() {
+        if sil.next_event_ns() == next {
+            sil.step(next);
         }
-        let deadline = self.clock.now_ns() + self.read_timeout_ns;
-        loop {
-            let now_ns = self.clock.now_ns();
-            let mut got = Vec::new();
-            let n = self.to_host.take_arrived(now_ns, &mut got, buf.len());
-            if n > 0 {
-                buf[..n].copy_from_slice(&got);
-                self.stats.host_bytes.1 += n as u64;
-                return Ok(n);
+        sil.clock.advance_to(next);
+    }
+    true
+}
+
+/// Lets `seconds` of virtual time pass on every board of `sils`, the host silent.
+fn run_in_step(sils: &mut [Sil], seconds: f64) {
+    let Some(first) = sils.first() else { return };
+    let until = first.clock.now_ns() + (seconds * 1e9) as u64;
+    while step_in_step(sils, until) {}
+    for sil in sils {
+        sil.clock.advance_to(until);
+    }
+}
+
+/// [`Read::read`] for the host end of `sils[reader]`: runs every board of `sils` in step until a
+/// byte for that host arrives; `TimedOut` after its read timeout of virtual time without any.
+fn read_in_step(sils: &mut [Sil], reader: usize, buf: &mut [u8]) -> io::Result<usize> {
+    if buf.is_empty() {
+        return Ok(0);
+    }
+    let deadline = sils[reader].clock.now_ns() + sils[reader].read_timeout_ns;
+    loop {
+        let sil = &mut sils[reader];
+        let now_ns = sil.clock.now_ns();
+        let mut got = Vec::new();
+        let n = sil.to_host.take_arrived(now_ns, &mut got, buf.len());
+        if n > 0 {
+            buf[..n].copy_from_slice(&got);
+            sil.stats.host_bytes.1 += n as u64;
+            return Ok(n);
+        }
+        let arrival = sil.to_host.next_arrival_ns();
+        let limit = arrival.map_or(deadline, |t| t.min(deadline));
+        if !step_in_step(sils, limit) {
+            for sil in sils.iter_mut() {
+                sil.clock.advance_to(limit);
             }
-            let limit = self.to_host.next_arrival_ns().map_or(deadline, |t| t.min(deadline));
-            if !self.step(limit) {
-                self.clock.advance_to(limit);
-                if limit >= deadline && self.to_host.next_arrival_ns().is_none_or(|t| t > deadline) {
-                    return Err(io::Error::new(ErrorKind::TimedOut, "no bytes from the simulated board"));
-                }
+            if limit >= deadline && arrival.is_none_or(|t| t > deadline) {
+                return Err(io::Error::new(ErrorKind::TimedOut, "no bytes from the simulated board"));
             }
         }
     }

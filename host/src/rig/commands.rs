@@ -1,0 +1,265 @@
+//! `armctl --rig FILE status|stop|torque|move|play`: the drive commands over every arm of a rig.
+//! As for one arm, everything typed and the whole keyframe file are checked before anything is
+//! sent; then each arm gets the request its own `armctl` command would send it.
+
+use std::io::Write;
+
+use anyhow::{bail, Context, Result};
+use firmware::link::message::{CartesianTarget, HostMessage, MovePath, Timing};
+use kinematics::Pose;
+use serde_json::json;
+
+use super::columns::{self, ArmPart};
+use super::play::stop_all;
+use super::{Rig, RigSpec};
+use crate::drive::args::{DriveCommand, LinkArgs, MoveArgs, OnOff};
+use crate::drive::commands::{parse_motion, parse_position, parse_quaternion, print_status, status_json};
+use crate::drive::interrupt;
+use crate::drive::path::{decide, send};
+use crate::drive::session::fmt3;
+
+/// One arm's tool target of a rig move (world frame).
+struct ArmTarget {
+    arm: usize,
+    position: [f32; 3],
+    orientation: Option<[f32; 4]>,
+}
+
+/// A rig command with its input checked.
+enum RigRequest {
+    Status,
+    Stop,
+    Torque(bool),
+    Move { targets: Vec<ArmTarget>, timing: Timing, path: MovePath, timeout: f64 },
+    Play(Vec<ArmPart>),
+}
+
+/// Runs a drive command on the rig `file` (a rig file or a built-in rig's name); returns the exit
+/// code. `link` holds the drive options as merged from before and after the command.
+pub fn run(
+    file: &str,
+    link: &LinkArgs,
+    command: DriveCommand,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> Result<i32> {
+    let per_arm = LinkArgs { rig: None, json: false, ..link.clone() };
+    if per_arm != LinkArgs::default() {
+        bail!(
+            "with --rig, each arm's place and arm are in the rig file: give no --port, --bus, --sim, --arm or the like"
+        );
+    }
+    let spec = RigSpec::load(file)?;
+    let request = parse(&spec, &command)?;
+    let mut rig = Rig::open(&spec, err)?;
+    let code = execute(&mut rig, request, link.json, out, err)?;
+    rig.close(err)?;
+    Ok(code)
+}
+
+/// `ARM=VALUES`: the arm's index and the values' text.
+fn named<'a>(spec: &RigSpec, text: &'a str, what: &str) -> Result<(usize, &'a str)> {
+    let Some((name, values)) = text.split_once('=') else {
+        bail!("{what} {text:?}: with --rig, name the arm: ARM=VALUES (e.g. {}=0.2,0,0.1)", spec.arms[0].name);
+    };
+    Ok((spec.arm(name.trim()).with_context(|| what.to_string())?, values))
+}
+
+fn parse(spec: &RigSpec, command: &DriveCommand) -> Result<RigRequest> {
+    Ok(match command {
+        DriveCommand::Status(_) => RigRequest::Status,
+        DriveCommand::Stop(_) => RigRequest::Stop,
+        DriveCommand::Torque(args) => RigRequest::Torque(args.state == OnOff::On),
+        DriveCommand::Move(args) => parse_move(spec, args)?,
+        DriveCommand::Play(args) => {
+            if !(args.timeout.is_finite() && args.timeout > 0.0) {
+                bail!("--timeout: {} s must be a positive number", args.timeout);
+            }
+            let names: Vec<&str> = spec.arms.iter().map(|a| a.name.as_str()).collect();
+            let bases: Vec<Pose<f64>> = spec.arms.iter().map(|a| a.base).collect();
+            RigRequest::Play(columns::read(&args.file, &names, &bases, args.timeout)?)
+        }
+        DriveCommand::Joints(_) | DriveCommand::Gripper(_) => bail!(
+            "--rig drives status, stop, torque, move and play so far; for joints or the gripper, drive that arm on its own"
+        ),
+    })
+}
+
+fn parse_move(spec: &RigSpec, args: &MoveArgs) -> Result<RigRequest> {
+    let mut targets: Vec<ArmTarget> = Vec::new();
+    for text in &args.to {
+        let (arm, values) = named(spec, text, "--to")?;
+        if targets.iter().any(|t| t.arm == arm) {
+            bail!("--to: arm {} is given twice", spec.arms[arm].name);
+        }
+        targets.push(ArmTarget { arm, position: parse_position(values, "--to")?, orientation: None });
+    }
+    for text in &args.quat {
+        let (arm, values) = named(spec, text, "--quat")?;
+        let Some(target) = targets.iter_mut().find(|t| t.arm == arm) else {
+            bail!("--quat: arm {} has no --to", spec.arms[arm].name);
+        };
+        if target.orientation.is_some() {
+            bail!("--quat: arm {} is given twice", spec.arms[arm].name);
+        }
+        target.orientation = Some(parse_quaternion(values, "--quat")?);
+    }
+    let (timing, path) = parse_motion(args)?;
+    Ok(RigRequest::Move { targets, timing, path, timeout: args.timeout })
+}
+
+/// A world-frame target in the base frame of the arm at `base`.
+fn in_base(base: &Pose<f64>, target: &ArmTarget) -> CartesianTarget {
+    let rotation = target
+        .orientation
+        .and_then(|q| Pose::rotation_from_quaternion_wxyz(q.map(f64::from)))
+        .unwrap_or_else(kinematics::nalgebra::Matrix3::identity);
+    let world = Pose { rotation, translation: target.position.map(f64::from).into() };
+    let local = base.inverse().compose(&world);
+    CartesianTarget {
+        position: local.translation.map(|x| x as f32).into(),
+        orientation: target.orientation.map(|_| local.quaternion_wxyz().map(|x| x as f32)),
+    }
+}
+
+fn execute(rig: &mut Rig, request: RigRequest, json: bool, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+    match request {
+        RigRequest::Status => {
+            let mut arms = serde_json::Map::new();
+            for arm in &mut rig.arms {
+                let status = arm.driver.status()?;
+                let tool = arm.tool_in_world(&status.measured)?;
+                if json {
+                    let mut v = status_json(&arm.driver, &status)?;
+                    v["tool_world"] = json!(tool);
+                    arms.insert(arm.name.clone(), v);
+                } else {
+                    writeln!(out, "== {} (tool at {} m in the world frame)", arm.name, fmt3(&tool))?;
+                    print_status(&arm.driver, &status, false, out)?;
+                }
+            }
+            if json {
+                writeln!(out, "{}", json!({"rig": rig.name, "arms": arms}))?;
+            }
+            Ok(0)
+        }
+        RigRequest::Stop => {
+            // Every arm told first, then each waited for: no arm waits on another's stop.
+            let sent = stop_all(rig);
+            let mut arms = serde_json::Map::new();
+            for arm in &mut rig.arms {
+                let status = arm.driver.stop().with_context(|| format!("arm {}", arm.name))?;
+                let tool = arm.tool_in_world(&status.measured)?;
+                if json {
+                    arms.insert(
+                        arm.name.clone(),
+                        json!({"state": status.state, "tool_world": tool, "joints": status.measured}),
+                    );
+                } else {
+                    writeln!(out, "{}: stopped, {:?} at {} m (world)", arm.name, status.state, fmt3(&tool))?;
+                }
+            }
+            if json {
+                writeln!(out, "{}", json!({"command": "stop", "rig": rig.name, "arms": arms}))?;
+            } else {
+                writeln!(out, "stop: {sent}")?;
+            }
+            Ok(0)
+        }
+        RigRequest::Torque(on) => {
+            let mut arms = serde_json::Map::new();
+            for arm in &mut rig.arms {
+                let result = if on { arm.driver.torque_on() } else { arm.driver.request(&HostMessage::Torque { on }) };
+                result
+                    .map_err(|e| anyhow::anyhow!("arm {}: torque {}: {e}", arm.name, if on { "on" } else { "off" }))?;
+                let state = arm.driver.status()?.state;
+                arms.insert(arm.name.clone(), json!(state));
+                if !json {
+                    writeln!(out, "{}: torque {}: state {state:?}", arm.name, if on { "on" } else { "off" })?;
+                }
+            }
+            if json {
+                writeln!(out, "{}", json!({"command": "torque", "on": on, "rig": rig.name, "arms": arms}))?;
+            }
+            Ok(0)
+        }
+        RigRequest::Move { targets, timing, path, timeout } => {
+            move_arms(rig, &targets, timing, path, timeout, json, out, err)
+        }
+        RigRequest::Play(parts) => super::play::run(rig, parts, json, out, err),
+    }
+}
+
+/// Sends every arm its move (each decided as `armctl move` decides one), then waits for all.
+#[allow(clippy::too_many_arguments)]
+fn move_arms(
+    rig: &mut Rig,
+    targets: &[ArmTarget],
+    timing: Timing,
+    path: MovePath,
+    timeout: f64,
+    json: bool,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> Result<i32> {
+    let mut starts = Vec::new();
+    for (k, target) in targets.iter().enumerate() {
+        let arm = &mut rig.arms[target.arm];
+        let local = in_base(&arm.base, target);
+        let shown = format!("{} to {} m (world)", arm.name, fmt3(&target.position.map(f64::from)));
+        let sent = (|| -> Result<(firmware::link::message::Status, bool)> {
+            let (start, switched) = arm.driver.ready_to_move()?;
+            let (decided, _) = decide(&arm.driver, &start, &local, path)?;
+            match send(&mut arm.driver, &start, local, timing, decided)? {
+                Ok(_) => Ok((start, switched)),
+                Err(e) => {
+                    let undone = arm.driver.undo_torque(switched);
+                    bail!("{e}{undone}")
+                }
+            }
+        })();
+        match sent {
+            Ok(start) => starts.push(start),
+            Err(e) => {
+                let others = if k > 0 { format!("; {}", stop_all(rig)) } else { String::new() };
+                bail!("move {shown}: {e:#}; that arm did not move{others}");
+            }
+        }
+    }
+    interrupt::catch();
+    let indices: Vec<usize> = targets.iter().map(|t| t.arm).collect();
+    let Some(ends) = rig.wait_all(&indices, timeout)? else {
+        let stopped = stop_all(rig);
+        writeln!(err, "stopped by Ctrl-C: {stopped}")?;
+        return Ok(interrupt::EXIT_CODE);
+    };
+    let mut arms = serde_json::Map::new();
+    for ((target, (start, switched)), status) in targets.iter().zip(starts).zip(ends) {
+        let arm = &rig.arms[target.arm];
+        if switched {
+            writeln!(err, "{}: torque was off: switched it on", arm.name)?;
+        }
+        let reached = arm.tool_in_world(&status.measured)?;
+        let goal = target.position.map(f64::from);
+        let error_mm = 1e3 * (0..3).map(|i| (reached[i] - goal[i]).powi(2)).sum::<f64>().sqrt();
+        let took = f64::from(status.time - start.time);
+        if json {
+            arms.insert(
+                arm.name.clone(),
+                json!({"target": goal, "reached": reached, "error_mm": error_mm, "time_s": took, "joints": status.measured}),
+            );
+        } else {
+            writeln!(
+                out,
+                "{}: target {} m, reached {} m (world), error {error_mm:.2} mm, took {took:.2} s",
+                arm.name,
+                fmt3(&goal),
+                fmt3(&reached)
+            )?;
+        }
+    }
+    if json {
+        writeln!(out, "{}", json!({"command": "move", "rig": rig.name, "arms": arms}))?;
+    }
+    Ok(0)
+}

@@ -1,0 +1,161 @@
+//! A rig: several arms on one timeline, each with its own firmware core (one board or one USB
+//! adapter per arm, as LeRobot's bimanual robots use two ports) and its base somewhere in one
+//! world frame. A rig is several link clients, one per arm, on one clock: the host's.
+//!
+//! - [`file`]: the rig file ([`RigSpec`]), and the built-in rigs.
+//! - [`Rig`]: the arms connected. Arms simulated in this process (`sim = true`) share one virtual
+//!   clock ([`crate::places::sil::group`]), so their cores run in step as two boards would.
+//! - [`commands`]: `armctl --rig FILE status|stop|torque|move|play`.
+//! - [`columns`]: a keyframe file with every arm's columns, split into one file per arm.
+
+pub mod columns;
+pub mod commands;
+pub mod file;
+pub mod play;
+
+use std::io::Write;
+
+use anyhow::{bail, Context, Result};
+use firmware::link::message::{RunState, Status};
+use kinematics::Pose;
+
+pub use file::{RigArmSpec, RigSpec};
+
+use crate::drive::connection::{self, Target};
+use crate::drive::interrupt;
+use crate::drive::session::Driver;
+use crate::places::sil::group::SilGroup;
+use crate::places::sil::Sil;
+
+/// One arm of a connected rig.
+pub struct RigArm {
+    /// Its name in the rig.
+    pub name: String,
+    /// Its base in the world frame.
+    pub base: Pose<f64>,
+    /// The connection to its core.
+    pub driver: Driver,
+}
+
+impl RigArm {
+    /// A world-frame point in this arm's base frame.
+    pub fn to_base(&self, world: [f64; 3]) -> [f64; 3] {
+        let p = self.base.inverse().compose(&Pose::from_translation(world.into()));
+        p.translation.into()
+    }
+
+    /// A point of this arm's base frame in the world frame.
+    pub fn to_world(&self, local: [f64; 3]) -> [f64; 3] {
+        self.base.compose(&Pose::from_translation(local.into())).translation.into()
+    }
+
+    /// The tool's position in the world frame for joint values `q`.
+    pub fn tool_in_world(&self, q: &[f32]) -> Result<[f64; 3]> {
+        Ok(self.to_world(self.driver.tool_position(q)?))
+    }
+}
+
+/// The arms of a rig, connected.
+pub struct Rig {
+    /// The rig's name.
+    pub name: String,
+    /// The arms, in the rig file's order.
+    pub arms: Vec<RigArm>,
+    /// The simulated boards of the arms with `sim = true`, on one virtual clock.
+    pub sim: Option<SilGroup>,
+}
+
+impl Rig {
+    /// Connects every arm of `spec`: the simulated ones in one group on one virtual clock, the
+    /// others each at its place. What connecting to a `bus` measured is said on `err`.
+    pub fn open(spec: &RigSpec, err: &mut dyn Write) -> Result<Self> {
+        let mut targets = Vec::new();
+        for arm in &spec.arms {
+            let (target, name) = arm.link.target().with_context(|| format!("arm {}", arm.name))?;
+            targets.push((target, name.map(str::to_string)));
+        }
+        // The simulated boards first, all made before any link opens, so they start together.
+        let mut sils = Vec::new();
+        let mut sim_arms = Vec::new();
+        for (target, _) in &targets {
+            if let Target::Sim(options) = target {
+                let mut options = options.as_ref().clone();
+                options.read_timeout_ms = connection::READ_TIMEOUT.as_millis() as u64;
+                sim_arms.push(options.arm.clone());
+                sils.push(Sil::new(&options)?);
+            }
+        }
+        let group = (!sils.is_empty()).then(|| SilGroup::new(sils)).transpose()?;
+        let mut arms = Vec::new();
+        let mut sim_index = 0;
+        for (arm, (target, name)) in spec.arms.iter().zip(targets) {
+            let conn = match (target, &group) {
+                (Target::Sim(_), Some(group)) => {
+                    sim_index += 1;
+                    connection::open_in_group(group, sim_index - 1, sim_arms[sim_index - 1].clone())
+                }
+                (target, _) => connection::open(target, name.as_deref(), err),
+            }
+            .with_context(|| format!("arm {}", arm.name))?;
+            arms.push(RigArm { name: arm.name.clone(), base: arm.base, driver: Driver::on(conn)? });
+        }
+        Ok(Self { name: spec.name.clone(), arms, sim: group })
+    }
+
+    /// The arm named `name`.
+    pub fn arm_index(&self, name: &str) -> Result<usize> {
+        self.arms.iter().position(|a| a.name == name).ok_or_else(|| {
+            let names: Vec<&str> = self.arms.iter().map(|a| a.name.as_str()).collect();
+            anyhow::anyhow!("the rig {} has no arm {name:?} (its arms: {})", self.name, names.join(", "))
+        })
+    }
+
+    /// Polls every arm of `arms` until all are at rest, then lets each settle
+    /// ([`Driver::settle`]). Every moving arm hears from the host at each poll, so none stops on
+    /// its link watchdog while the host waits on another. Gives up after `timeout` controller
+    /// seconds (stopping every arm); fails if an arm goes limp or is emergency-stopped; `None`
+    /// after Ctrl-C, with nothing sent about it yet.
+    pub fn wait_all(&mut self, arms: &[usize], timeout: f64) -> Result<Option<Vec<Status>>> {
+        let started = std::time::Instant::now();
+        let mut first: Option<f32> = None;
+        loop {
+            if interrupt::requested() {
+                return Ok(None);
+            }
+            let mut statuses = Vec::new();
+            for &a in arms {
+                let arm = &mut self.arms[a];
+                let status = arm.driver.status()?;
+                match status.state {
+                    RunState::TorqueOff => bail!("arm {} went limp (torque off) before it was at rest", arm.name),
+                    RunState::EStopped => bail!("arm {} was emergency-stopped before it was at rest", arm.name),
+                    _ => statuses.push(status),
+                }
+            }
+            if statuses.iter().all(|s| s.state == RunState::Idle) {
+                let mut settled = Vec::new();
+                for (&a, status) in arms.iter().zip(statuses) {
+                    settled.push(self.arms[a].driver.settle(status)?);
+                }
+                return Ok(Some(settled));
+            }
+            let now = statuses.first().map_or(0.0, |s| s.time);
+            let waited = f64::from(now - *first.get_or_insert(now));
+            if waited > timeout || started.elapsed().as_secs_f64() > 4.0 * timeout + 10.0 {
+                let stopped = play::stop_all(self);
+                bail!("timed out after {waited:.1} s with an arm still moving; {stopped}");
+            }
+            if let Some(&a) = arms.first() {
+                self.arms[a].driver.pause()?;
+            }
+        }
+    }
+
+    /// Ends every connection, saying on `err` what each place that ran a core did.
+    pub fn close(self, err: &mut dyn Write) -> Result<()> {
+        for arm in self.arms {
+            arm.driver.close(err)?;
+        }
+        Ok(())
+    }
+}

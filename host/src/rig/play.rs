@@ -1,0 +1,263 @@
+//! `armctl --rig FILE play KEYFRAMES.csv`: every arm's keyframes on one timeline.
+//!
+//! Each arm's part of the file ([`super::columns`]) is checked against its arm first, so a bad file
+//! sends nothing to any arm. Then every arm's queue is filled, the arms are started one right after
+//! the other, and each arm's queue is topped up as its slots free, as `armctl play` does for one.
+//! A push one arm refuses stops every arm. The skew between the arms is measured: the times at
+//! which their playback clocks started, read from each status as the controller time less the
+//! playback time. On simulated arms (one virtual clock) that is exact; on boards, whose clocks
+//! differ, the host's time between the first and the last `Start` acknowledgement is reported
+//! instead.
+
+use std::io::Write;
+use std::time::Instant;
+
+use anyhow::{bail, Result};
+use firmware::link::message::{FirmwareMessage, HostMessage, RunState, Status};
+use serde_json::json;
+
+use super::columns::ArmPart;
+use super::Rig;
+use crate::drive::interrupt;
+use crate::drive::session::fmt3;
+
+/// One arm's playback.
+struct Track {
+    arm: usize,
+    messages: Vec<(usize, HostMessage)>,
+    pushed: usize,
+    switched: bool,
+    /// Controller time at which its playback clock was zero, as first seen (s).
+    origin: Option<f64>,
+    last: Option<Status>,
+    restarts: u32,
+}
+
+/// Pushes one keyframe; fails unless it was acknowledged.
+fn push(rig: &mut Rig, arm: usize, message: &HostMessage) -> Result<()> {
+    match rig.arms[arm].driver.push(message)? {
+        FirmwareMessage::Ack { .. } => Ok(()),
+        other => bail!("unexpected reply {other:?} to a keyframe push"),
+    }
+}
+
+/// Stops every arm (each stop sent before waiting for any); words for an error message.
+pub fn stop_all(rig: &mut Rig) -> String {
+    let failed: Vec<String> = rig
+        .arms
+        .iter_mut()
+        .filter_map(|a| a.driver.request(&HostMessage::Stop).err().map(|e| format!("{}: {e}", a.name)))
+        .collect();
+    if failed.is_empty() {
+        "every arm was stopped".to_string()
+    } else {
+        format!("stop failed on {}", failed.join("; "))
+    }
+}
+
+/// Plays the parts on their arms; returns the exit code.
+pub fn run(rig: &mut Rig, parts: Vec<ArmPart>, json: bool, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+    let seconds = parts.iter().map(|p| p.plan.seconds()).fold(0.0, f64::max);
+    let timeout = parts.iter().map(|p| p.plan.timeout()).fold(0.0, f64::max);
+    let mut tracks = Vec::new();
+    for part in &parts {
+        let driver = &rig.arms[part.arm].driver;
+        let messages = part.plan.messages(driver)?;
+        tracks.push(Track {
+            arm: part.arm,
+            messages,
+            pushed: 0,
+            switched: false,
+            origin: None,
+            last: None,
+            restarts: 0,
+        });
+    }
+    for t in &tracks {
+        let arm = &mut rig.arms[t.arm];
+        let status = arm.driver.status()?;
+        if !matches!(status.state, RunState::Idle | RunState::TorqueOff) {
+            bail!("arm {} is busy ({:?}): wait, or `stop` it first; nothing was sent", arm.name, status.state);
+        }
+    }
+    for i in 0..tracks.len() {
+        let arm = &mut rig.arms[tracks[i].arm];
+        match arm.driver.ready_to_move() {
+            Ok((status, switched)) => {
+                tracks[i].switched = switched;
+                if status.queued > 0 {
+                    arm.driver.request(&HostMessage::Stop)?;
+                    writeln!(err, "{}: dropped {} keyframes left in the queue from before", arm.name, status.queued)?;
+                }
+            }
+            Err(e) => {
+                let name = arm.name.clone();
+                undo_torque(rig, &tracks);
+                bail!("arm {name}: {e:#}");
+            }
+        }
+    }
+    interrupt::catch();
+    // Every queue filled before any start, so the starts do not wait on the links.
+    for i in 0..tracks.len() {
+        let a = tracks[i].arm;
+        let capacity = rig.arms[a].driver.queue_capacity().max(1);
+        while tracks[i].pushed < tracks[i].messages.len().min(capacity)
+            && (tracks[i].pushed == 0 || rig.arms[a].driver.free_slots() > 0)
+        {
+            let (line, message) = &tracks[i].messages[tracks[i].pushed];
+            if let Err(e) = push(rig, a, message) {
+                let at = parts[i].plan.at(*line);
+                let stopped = stop_all(rig);
+                undo_torque(rig, &tracks);
+                bail!("{at}: {e:#}; nothing moved ({stopped}, the queued keyframes dropped)");
+            }
+            tracks[i].pushed += 1;
+        }
+    }
+    let mut start_acks = Vec::new();
+    for t in &tracks {
+        rig.arms[t.arm].driver.request(&HostMessage::Start)?;
+        start_acks.push(Instant::now());
+    }
+    let host_gap_s = match (start_acks.first(), start_acks.last()) {
+        (Some(first), Some(last)) => last.duration_since(*first).as_secs_f64(),
+        _ => 0.0,
+    };
+    let started = Instant::now();
+    // Each arm's controller time at its first status, for the timeout.
+    let mut first_time: Vec<f32> = Vec::new();
+    loop {
+        if interrupt::requested() {
+            let stopped = stop_all(rig);
+            writeln!(err, "stopped by Ctrl-C: {stopped}")?;
+            return Ok(interrupt::EXIT_CODE);
+        }
+        let mut pushed_any = false;
+        for i in 0..tracks.len() {
+            let a = tracks[i].arm;
+            if tracks[i].pushed < tracks[i].messages.len() && rig.arms[a].driver.free_slots() > 0 {
+                let (line, message) = &tracks[i].messages[tracks[i].pushed];
+                if let Err(e) = push(rig, a, message) {
+                    let at = parts[i].plan.at(*line);
+                    let stopped = stop_all(rig);
+                    bail!("{at}: {e:#}; {stopped} after {} keyframes of arm {}", tracks[i].pushed, rig.arms[a].name);
+                }
+                tracks[i].pushed += 1;
+                pushed_any = true;
+            }
+        }
+        if pushed_any {
+            continue;
+        }
+        let mut done = true;
+        for (i, t) in tracks.iter_mut().enumerate() {
+            let arm = &mut rig.arms[t.arm];
+            let status = arm.driver.status()?;
+            if first_time.len() <= i {
+                first_time.push(status.time);
+            }
+            if status.state == RunState::Moving && status.play_time > 0.0 && t.restarts == 0 {
+                t.origin.get_or_insert(f64::from(status.time) - f64::from(status.play_time));
+            }
+            match status.state {
+                RunState::Idle if t.pushed == t.messages.len() && status.queued == 0 => {}
+                RunState::Idle if status.queued > 0 => {
+                    t.restarts += 1;
+                    arm.driver.request(&HostMessage::Start)?;
+                    done = false;
+                }
+                RunState::TorqueOff | RunState::EStopped => {
+                    let name = arm.name.clone();
+                    let stopped = stop_all(rig);
+                    bail!("arm {name} stopped ({:?}) during the play; {stopped}", status.state);
+                }
+                _ => done = false,
+            }
+            t.last = Some(status);
+        }
+        if done {
+            break;
+        }
+        let waited = tracks
+            .iter()
+            .zip(&first_time)
+            .filter_map(|(t, t0)| t.last.as_ref().map(|s| f64::from(s.time - t0)))
+            .fold(0.0, f64::max);
+        if waited > seconds + timeout || started.elapsed().as_secs_f64() > 4.0 * (seconds + timeout) + 10.0 {
+            let stopped = stop_all(rig);
+            bail!("timed out after {waited:.1} s with an arm still moving; {stopped}");
+        }
+        let any = tracks[0].arm;
+        rig.arms[any].driver.pause()?;
+    }
+    for t in &mut tracks {
+        if let Some(status) = t.last.take() {
+            t.last = Some(rig.arms[t.arm].driver.settle(status)?);
+        }
+    }
+    for t in &tracks {
+        if t.switched {
+            writeln!(err, "{}: torque was off: switched it on", rig.arms[t.arm].name)?;
+        }
+        if t.restarts > 0 {
+            writeln!(err, "warning: {}: the queue ran dry (restarted {} times)", rig.arms[t.arm].name, t.restarts)?;
+        }
+    }
+    // The skew: exact where every arm is simulated on one clock, else the host's gap.
+    let all_simulated = rig.sim.as_ref().is_some_and(|g| g.len() == rig.arms.len());
+    let origins: Option<Vec<f64>> = tracks.iter().map(|t| t.origin).collect();
+    let (skew_s, skew_from) = match (&origins, all_simulated) {
+        (Some(o), true) if !o.is_empty() => {
+            let (lo, hi) = o.iter().fold((f64::MAX, f64::MIN), |(lo, hi), &x| (lo.min(x), hi.max(x)));
+            (hi - lo, "playback clocks (one virtual clock)")
+        }
+        _ => (host_gap_s, "host time between the Start acknowledgements"),
+    };
+    let mut arms_json = serde_json::Map::new();
+    for (t, part) in tracks.iter().zip(&parts) {
+        let arm = &rig.arms[t.arm];
+        let last = t.last.as_ref().expect("every track has a status after the loop");
+        let tool = arm.tool_in_world(&last.measured)?;
+        let end_error = part.plan.end_error(&arm.driver, &last.measured)?;
+        if json {
+            arms_json.insert(
+                arm.name.clone(),
+                json!({"keyframes": t.messages.len(), "pushed": t.pushed, "end_error": end_error.0,
+                       "end_error_unit": end_error.1, "tool_world": tool, "joints": last.measured,
+                       "restarts": t.restarts}),
+            );
+        } else {
+            writeln!(
+                out,
+                "{}: {} of {} keyframes pushed and acknowledged; tool at {} m (world), {:.4} {} from the last keyframe",
+                arm.name,
+                t.pushed,
+                t.messages.len(),
+                fmt3(&tool),
+                end_error.0,
+                end_error.1
+            )?;
+        }
+    }
+    if json {
+        let v = json!({"command": "play", "rig": rig.name, "trajectory_s": seconds, "arms": arms_json,
+                       "start_skew_s": skew_s, "skew_from": skew_from});
+        writeln!(out, "{v}")?;
+    } else {
+        writeln!(
+            out,
+            "play: {} arms on one timeline, {seconds:.2} s of trajectory; start skew between the arms {:.3} ms ({skew_from})",
+            tracks.len(),
+            skew_s * 1e3
+        )?;
+    }
+    Ok(0)
+}
+
+/// Switches torque off again on the arms whose torque this play switched on.
+fn undo_torque(rig: &mut Rig, tracks: &[Track]) {
+    for t in tracks.iter().filter(|t| t.switched) {
+        let _ = rig.arms[t.arm].driver.undo_torque(true);
+    }
+}
