@@ -11,6 +11,7 @@
 //! - [`run`](self::run): the run, its measurements and the report.
 
 pub mod grasp;
+pub mod handover;
 pub mod plot;
 mod scenario;
 
@@ -36,8 +37,12 @@ use scenario::Scenario;
 pub struct DemoArgs {
     /// The simulated arm: a preset with servos (so101 on a Feetech STS3215 bus,
     /// open-manipulator-x on a Dynamixel XM430 bus) or an arm file with a [servos] table.
-    #[arg(long, default_value = "so101")]
+    #[arg(long, default_value = "so101", conflicts_with = "rig")]
     arm: String,
+    /// The second scene: a rig of simulated arms (bimanual-so101, or a rig file of two
+    /// simulated arms with grippers) hands an object from the first arm to the second.
+    #[arg(long, value_name = "RIG")]
+    rig: Option<String>,
     /// Where to write the PNG plot (default demo-ARM.png in the current directory).
     #[arg(long)]
     plot: Option<PathBuf>,
@@ -275,6 +280,12 @@ fn fmt3(p: [f64; 3]) -> String {
 
 /// Runs `armctl demo`.
 pub fn run(args: &DemoArgs, out: &mut dyn Write) -> Result<i32> {
+    if let Some(rig) = &args.rig {
+        if args.plot.is_some() {
+            bail!("--plot draws the one-arm demo; the handover (--rig) has no plot yet");
+        }
+        return handover::run(rig, args.json, out);
+    }
     let wall = Instant::now();
     let options = SilOptions::new(&args.arm)?;
     let mut sil = Sil::new(&options)?;

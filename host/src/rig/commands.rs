@@ -15,7 +15,7 @@ use super::{Rig, RigSpec};
 use crate::drive::args::{DriveCommand, LinkArgs, MoveArgs, OnOff};
 use crate::drive::commands::{parse_motion, parse_position, parse_quaternion, print_status, status_json};
 use crate::drive::interrupt;
-use crate::drive::path::{decide, send};
+use crate::drive::path::{decide, host_solution, send};
 use crate::drive::session::fmt3;
 
 /// One arm's tool target of a rig move (world frame).
@@ -202,6 +202,18 @@ fn move_arms(
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> Result<i32> {
+    // Every target solved on the host first: one out of reach moves no arm.
+    for target in targets {
+        let arm = &mut rig.arms[target.arm];
+        let status = arm.driver.status()?;
+        if host_solution(&arm.driver, &status, &in_base(&arm.base, target))?.is_none() {
+            bail!(
+                "move {} to {} m (world): out of reach within the joint limits; no arm moved",
+                arm.name,
+                fmt3(&target.position.map(f64::from))
+            );
+        }
+    }
     let mut starts = Vec::new();
     for (k, target) in targets.iter().enumerate() {
         let arm = &mut rig.arms[target.arm];

@@ -55,8 +55,84 @@ pub fn stop_all(rig: &mut Rig) -> String {
     }
 }
 
-/// Plays the parts on their arms; returns the exit code.
+/// How one arm's part went.
+pub struct ArmPlayed {
+    /// The arm's index in the rig.
+    pub arm: usize,
+    /// Keyframes in its part, and pushed (all of them unless the play failed).
+    pub keyframes: usize,
+    /// Keyframes pushed and acknowledged.
+    pub pushed: usize,
+    /// Its status at rest after the play.
+    pub last: Status,
+    /// How far it ended from its last keyframe, and the unit (rad or m).
+    pub end_error: (f64, &'static str),
+    /// Times its queue ran dry and it was started again.
+    pub restarts: u32,
+    /// Whether this play switched its torque on.
+    pub switched: bool,
+}
+
+/// How a rig play went.
+pub struct Played {
+    /// Each arm with columns, in the file's order of arms.
+    pub arms: Vec<ArmPlayed>,
+    /// The last keyframe's time (s).
+    pub seconds: f64,
+    /// The largest skew between the arms' playback starts (s), and how it was measured.
+    pub skew_s: f64,
+    /// How the skew was measured.
+    pub skew_from: &'static str,
+}
+
+/// Plays the parts on their arms and prints what happened; returns the exit code.
 pub fn run(rig: &mut Rig, parts: Vec<ArmPart>, json: bool, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+    let Some(played) = play(rig, parts, err)? else {
+        return Ok(interrupt::EXIT_CODE);
+    };
+    let mut arms_json = serde_json::Map::new();
+    for a in &played.arms {
+        let arm = &rig.arms[a.arm];
+        let tool = arm.tool_in_world(&a.last.measured)?;
+        if json {
+            arms_json.insert(
+                arm.name.clone(),
+                json!({"keyframes": a.keyframes, "pushed": a.pushed, "end_error": a.end_error.0,
+                       "end_error_unit": a.end_error.1, "tool_world": tool, "joints": a.last.measured,
+                       "restarts": a.restarts}),
+            );
+        } else {
+            writeln!(
+                out,
+                "{}: {} of {} keyframes pushed and acknowledged; tool at {} m (world), {:.4} {} from the last keyframe",
+                arm.name,
+                a.pushed,
+                a.keyframes,
+                fmt3(&tool),
+                a.end_error.0,
+                a.end_error.1
+            )?;
+        }
+    }
+    let (seconds, skew_s, skew_from) = (played.seconds, played.skew_s, played.skew_from);
+    if json {
+        let v = json!({"command": "play", "rig": rig.name, "trajectory_s": seconds, "arms": arms_json,
+                       "start_skew_s": skew_s, "skew_from": skew_from});
+        writeln!(out, "{v}")?;
+    } else {
+        writeln!(
+            out,
+            "play: {} arms on one timeline, {seconds:.2} s of trajectory; start skew between the arms {:.3} ms ({skew_from})",
+            played.arms.len(),
+            skew_s * 1e3
+        )?;
+    }
+    Ok(0)
+}
+
+/// Plays the parts on their arms: checked, queued, started together, topped up, waited for.
+/// `None` after Ctrl-C (every arm stopped). Warnings go to `err`.
+pub fn play(rig: &mut Rig, parts: Vec<ArmPart>, err: &mut dyn Write) -> Result<Option<Played>> {
     let seconds = parts.iter().map(|p| p.plan.seconds()).fold(0.0, f64::max);
     let timeout = parts.iter().map(|p| p.plan.timeout()).fold(0.0, f64::max);
     let mut tracks = Vec::new();
@@ -131,7 +207,7 @@ pub fn run(rig: &mut Rig, parts: Vec<ArmPart>, json: bool, out: &mut dyn Write, 
         if interrupt::requested() {
             let stopped = stop_all(rig);
             writeln!(err, "stopped by Ctrl-C: {stopped}")?;
-            return Ok(interrupt::EXIT_CODE);
+            return Ok(None);
         }
         let mut pushed_any = false;
         for i in 0..tracks.len() {
@@ -214,45 +290,21 @@ pub fn run(rig: &mut Rig, parts: Vec<ArmPart>, json: bool, out: &mut dyn Write, 
         }
         _ => (host_gap_s, "host time between the Start acknowledgements"),
     };
-    let mut arms_json = serde_json::Map::new();
-    for (t, part) in tracks.iter().zip(&parts) {
-        let arm = &rig.arms[t.arm];
-        let last = t.last.as_ref().expect("every track has a status after the loop");
-        let tool = arm.tool_in_world(&last.measured)?;
-        let end_error = part.plan.end_error(&arm.driver, &last.measured)?;
-        if json {
-            arms_json.insert(
-                arm.name.clone(),
-                json!({"keyframes": t.messages.len(), "pushed": t.pushed, "end_error": end_error.0,
-                       "end_error_unit": end_error.1, "tool_world": tool, "joints": last.measured,
-                       "restarts": t.restarts}),
-            );
-        } else {
-            writeln!(
-                out,
-                "{}: {} of {} keyframes pushed and acknowledged; tool at {} m (world), {:.4} {} from the last keyframe",
-                arm.name,
-                t.pushed,
-                t.messages.len(),
-                fmt3(&tool),
-                end_error.0,
-                end_error.1
-            )?;
-        }
+    let mut arms = Vec::new();
+    for (t, part) in tracks.into_iter().zip(&parts) {
+        let last = t.last.expect("every track has a status after the loop");
+        let end_error = part.plan.end_error(&rig.arms[t.arm].driver, &last.measured)?;
+        arms.push(ArmPlayed {
+            arm: t.arm,
+            keyframes: t.messages.len(),
+            pushed: t.pushed,
+            last,
+            end_error,
+            restarts: t.restarts,
+            switched: t.switched,
+        });
     }
-    if json {
-        let v = json!({"command": "play", "rig": rig.name, "trajectory_s": seconds, "arms": arms_json,
-                       "start_skew_s": skew_s, "skew_from": skew_from});
-        writeln!(out, "{v}")?;
-    } else {
-        writeln!(
-            out,
-            "play: {} arms on one timeline, {seconds:.2} s of trajectory; start skew between the arms {:.3} ms ({skew_from})",
-            tracks.len(),
-            skew_s * 1e3
-        )?;
-    }
-    Ok(0)
+    Ok(Some(Played { arms, seconds, skew_s, skew_from }))
 }
 
 /// Switches torque off again on the arms whose torque this play switched on.

@@ -1,0 +1,236 @@
+//! A rig of two simulated SO-101 arms (the built-in bimanual-so101), each with its own firmware
+//! core, on one virtual clock: `armctl --rig` status, move, play and stop, the handover demo, and
+//! bad input refused in one line with nothing moved.
+
+use std::path::Path;
+
+use armctl::rig::{play, Rig, RigSpec};
+use firmware::link::message::{HostMessage, JointKeyframe, RunState};
+use serde_json::Value;
+
+/// `armctl ARGS` in process: exit code, stdout, stderr.
+fn armctl(args: &[&str]) -> (i32, String, String) {
+    let (mut out, mut err) = (Vec::new(), Vec::new());
+    let code = armctl::cli::main(std::iter::once("armctl").chain(args.iter().copied()), &mut out, &mut err);
+    (code, String::from_utf8(out).unwrap(), String::from_utf8(err).unwrap())
+}
+
+fn json_of(args: &[&str]) -> Value {
+    let (code, out, err) = armctl(args);
+    assert_eq!(code, 0, "armctl {args:?}: {err}");
+    serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("not JSON ({e}): {out}"))
+}
+
+/// An error: exit code 1 and one line on stderr that contains `expected`.
+fn refused(args: &[&str], expected: &str) {
+    let (code, out, err) = armctl(args);
+    assert_ne!(code, 0, "armctl {args:?} succeeded: {out}");
+    assert_eq!(err.lines().count(), 1, "one line: {err}");
+    assert!(err.contains(expected), "{err:?} does not say {expected:?}");
+}
+
+fn distance(a: &Value, b: [f64; 3]) -> f64 {
+    (0..3).map(|i| (a[i].as_f64().unwrap() - b[i]).powi(2)).sum::<f64>().sqrt()
+}
+
+#[test]
+fn the_handover_demo_hands_the_object_from_one_gripper_to_the_other_with_no_violation() {
+    let v = json_of(&["demo", "--rig", "bimanual-so101", "--json"]);
+    eprintln!("{v}");
+    let (left, right) = (&v["arms"]["left"], &v["arms"]["right"]);
+    for arm in [left, right] {
+        assert_eq!(arm["grasp"]["held_throughout"], true, "{arm}");
+        assert_eq!(arm["safety"]["violations"], 0, "{arm}");
+        assert!(arm["safety"]["goals_checked"].as_u64().unwrap() > 5000);
+        // The jaws stopped on the 30 mm object: a third of the SO-101's 90 mm opening.
+        assert!((arm["grasp"]["jaw_mm"].as_f64().unwrap() - 30.0).abs() < 2.0, "{arm}");
+    }
+    let (l_from, r_from) =
+        (left["grasp"]["held_from_s"].as_f64().unwrap(), right["grasp"]["held_from_s"].as_f64().unwrap());
+    let l_open = left["grasp"]["told_to_open_s"].as_f64().unwrap();
+    // The giver held it first, the taker closed on it before the giver let go.
+    assert!(l_from < r_from && r_from < l_open, "{l_from} {r_from} {l_open}");
+    assert!(v["both_held_s"].as_f64().unwrap() > 0.5);
+    assert!(v["object_to_place_mm"].as_f64().unwrap() < 5.0);
+    assert_eq!(v["handed_over"], true);
+    assert!(v["start_skew_s"].as_f64().unwrap() < 0.01);
+}
+
+#[test]
+fn move_sends_each_arm_to_its_world_target() {
+    let v = json_of(&[
+        "--rig",
+        "bimanual-so101",
+        "move",
+        "--to",
+        "left=0.22,0.08,0.12",
+        "--to",
+        "right=0.2,-0.02,0.1",
+        "--json",
+    ]);
+    assert!(distance(&v["arms"]["left"]["reached"], [0.22, 0.08, 0.12]) < 1e-3, "{v}");
+    assert!(distance(&v["arms"]["right"]["reached"], [0.2, -0.02, 0.1]) < 1e-3, "{v}");
+    // The same world point is a different point of each arm's base frame.
+    let status = json_of(&["--rig", "bimanual-so101", "status", "--json"]);
+    let (left, right) = (&status["arms"]["left"], &status["arms"]["right"]);
+    for (arm, y) in [(left, 0.15), (right, -0.15)] {
+        let (tool, world) = (&arm["tool"], &arm["tool_world"]);
+        assert!((world[1].as_f64().unwrap() - tool[1].as_f64().unwrap() - y).abs() < 1e-9, "{arm}");
+    }
+}
+
+/// A file with the left arm's joint columns and the right arm's Cartesian ones (world frame).
+fn two_arm_file(dir: &Path) -> std::path::PathBuf {
+    let mut text = String::from(
+        "# both arms, one timeline\nt,left.q1,left.q2,left.q3,left.q4,left.q5,left.gripper,right.x,right.y,right.z\n",
+    );
+    for k in 0..=30 {
+        let t = 0.5 + 0.1 * f64::from(k);
+        let q: Vec<String> = (0..5).map(|j| format!("{:.4}", 0.3 * (t + f64::from(j) * 0.5).sin())).collect();
+        text += &format!(
+            "{t:.2},{},{:.1},{:.4},{:.4},0.12\n",
+            q.join(","),
+            50.0 + 30.0 * t.sin(),
+            0.2 + 0.03 * t.sin(),
+            -0.12 + 0.03 * t.cos()
+        );
+    }
+    let path = dir.join("two_arms.csv");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn a_file_with_both_arms_columns_plays_on_one_timeline() {
+    let dir = tempdir();
+    let file = two_arm_file(&dir);
+    let v = json_of(&["--rig", "bimanual-so101", "play", file.to_str().unwrap(), "--json"]);
+    eprintln!("{v}");
+    assert_eq!(v["arms"]["left"]["pushed"], 31);
+    assert_eq!(v["arms"]["right"]["pushed"], 31);
+    assert!(v["arms"]["left"]["end_error"].as_f64().unwrap() < 0.01, "{v}");
+    assert!(v["arms"]["right"]["end_error"].as_f64().unwrap() < 0.002, "{v}");
+    // Both playback clocks started on the same control tick (one virtual clock measures it).
+    assert_eq!(v["skew_from"], "playback clocks (one virtual clock)");
+    assert!(v["start_skew_s"].as_f64().unwrap() < 1e-6, "{v}");
+    // The right arm's last keyframe, in the world frame, is where its tool ended.
+    let x = 0.2 + 0.03 * 3.5f64.sin();
+    let y = -0.12 + 0.03 * 3.5f64.cos();
+    assert!(distance(&v["arms"]["right"]["tool_world"], [x, y, 0.12]) < 2e-3, "{v}");
+}
+
+#[test]
+fn stop_stops_every_arm_in_the_middle_of_a_play() {
+    let spec = RigSpec::load("bimanual-so101").unwrap();
+    let mut rig = Rig::open(&spec, &mut std::io::sink()).unwrap();
+    for arm in &mut rig.arms {
+        arm.driver.torque_on().unwrap();
+        // Ten seconds of slow joint motion, more than the queue holds.
+        for k in 1..=20 {
+            let t = k as f32 * 0.5;
+            let positions = (0..5).map(|_| 0.4 * (t / 10.0)).collect();
+            let message =
+                HostMessage::PushKeyframe(JointKeyframe { time: t, positions, velocities: None, gripper: None });
+            if arm.driver.free_slots() == 0 {
+                break;
+            }
+            arm.driver.push(&message).unwrap();
+        }
+    }
+    for arm in &mut rig.arms {
+        arm.driver.request(&HostMessage::Start).unwrap();
+    }
+    // Both move for a second of the shared clock, each polled (its link watchdog hears the host).
+    let t0 = rig.sim.as_ref().unwrap().now_s();
+    while rig.sim.as_ref().unwrap().now_s() - t0 < 1.0 {
+        for arm in &mut rig.arms {
+            assert_eq!(arm.driver.status().unwrap().state, RunState::Moving);
+        }
+        rig.arms[0].driver.pause().unwrap();
+    }
+    assert_eq!(play::stop_all(&mut rig), "every arm was stopped");
+    let mut held = Vec::new();
+    for arm in &mut rig.arms {
+        let status = arm.driver.stop().unwrap();
+        assert_eq!(status.state, RunState::Idle);
+        assert_eq!(status.queued, 0, "the queue is dropped");
+        assert!(status.measured[0] > 0.01, "it had moved: {:?}", status.measured);
+        held.push(status.measured.clone());
+    }
+    // Half a second later neither arm has moved on.
+    let t1 = rig.sim.as_ref().unwrap().now_s();
+    while rig.sim.as_ref().unwrap().now_s() - t1 < 0.5 {
+        rig.arms[0].driver.pause().unwrap();
+        rig.arms[1].driver.status().unwrap();
+    }
+    for (arm, before) in rig.arms.iter_mut().zip(held) {
+        let now = arm.driver.status().unwrap().measured;
+        let moved = now.iter().zip(&before).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+        assert!(moved < 2e-3, "{} moved {moved} rad after the stop", arm.name);
+    }
+    for i in 0..2 {
+        assert_eq!(rig.sim.as_ref().unwrap().board(i).monitor().violation_count, 0);
+    }
+}
+
+#[test]
+fn bad_rig_input_is_refused_in_one_line() {
+    let dir = tempdir();
+    let file = two_arm_file(&dir);
+    let text = std::fs::read_to_string(&file).unwrap();
+    let write = |name: &str, text: &str| {
+        let path = dir.join(name);
+        std::fs::write(&path, text).unwrap();
+        path.to_str().unwrap().to_string()
+    };
+    let unknown = write("unknown.csv", &text.replace("right.x", "middle.x"));
+    refused(&["--rig", "bimanual-so101", "play", &unknown], "no arm \"middle\"");
+    let unnamed = write("unnamed.csv", &text.replace("left.q1", "q1"));
+    refused(&["--rig", "bimanual-so101", "play", &unnamed], "ARM.COLUMN");
+    // The right arm's tool asked 2 m away, on line 12: found before anything is sent.
+    let far: Vec<String> = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| match l.strip_suffix(",0.12") {
+            Some(rest) if i == 11 => format!("{rest},2.0"),
+            _ => l.to_string(),
+        })
+        .collect();
+    let far = write("far.csv", &far.join("\n"));
+    refused(&["--rig", "bimanual-so101", "play", &far], "line 12");
+    refused(
+        &["--rig", "bimanual-so101", "move", "--to", "left=0.2,0.05,0.1", "--to", "right=0.6,0,0.1"],
+        "no arm moved",
+    );
+    refused(&["--rig", "bimanual-so101", "move", "--to", "0.2,0.05,0.1"], "name the arm");
+    refused(&["--rig", "bimanual-so101", "move", "--to", "left=0.2,nan,0.1"], "--to");
+    refused(&["--rig", "bimanual-so101", "--sim", "status"], "--sim");
+    refused(&["--rig", "bimanual-so101", "joints", "--q", "0,0,0,0,0"], "--rig drives");
+    refused(&["--rig", "no-such-rig", "status"], "not a built-in rig");
+
+    let arm = |extra: &str| format!("name = \"r\"\n[[arm]]\nname = \"a\"\narm = \"so101\"\n{extra}\n");
+    let cases = [
+        (arm(""), "exactly one of sim"),
+        (arm("sim = true\nport = \"/dev/null\""), "exactly one of sim"),
+        (arm("sim = true\nxyz = [0.0, nan, 0.0]"), "finite"),
+        (arm("bus = \"/dev/null\"\nprotocol = \"can\""), "protocol \"can\""),
+        (arm("sim = true\nspeed = 3"), "unknown field"),
+        (format!("{}[[arm]]\nname = \"a\"\narm = \"so101\"\nsim = true\n", arm("sim = true")), "two arms are named"),
+        ("name = \"r\"\n".to_string(), "missing field"),
+        (arm("sim = true").replace("so101", "no-such-arm"), "no-such-arm"),
+    ];
+    for (text, expected) in cases {
+        let error =
+            format!("{:#}", RigSpec::parse(&text, Path::new(".")).err().unwrap_or_else(|| panic!("accepted: {text}")));
+        assert!(!error.contains('\n') && error.contains(expected), "{error:?} does not say {expected:?}");
+    }
+}
+
+fn tempdir() -> std::path::PathBuf {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    static N: AtomicUsize = AtomicUsize::new(0);
+    let dir =
+        std::env::temp_dir().join(format!("armctl-rig-{}-{}", std::process::id(), N.fetch_add(1, Ordering::Relaxed)));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
