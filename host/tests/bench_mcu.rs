@@ -7,13 +7,16 @@
 
 use serde_json::Value;
 
-/// Every operation the issue asks for.
-const OPERATIONS: [&str; 9] = [
+/// Every operation the issues ask for (the `tree_` ones: issue 30, kinematic trees).
+const OPERATIONS: [&str; 12] = [
     "fk6",
     "dls_iter",
     "ik_track_1cm",
     "hermite6",
     "hermite6_gripper",
+    "tree_fk",
+    "tree_jacobian",
+    "tree_ik_track_1cm",
     "sync_write6_sts",
     "sync_write6_dxl2",
     "sync_read6_sts",

@@ -17,6 +17,7 @@ const ROWS: &[&[&str]] = &[
     &["places"],
     &["motion", "servo"],
     &["drive", "mocap"],
+    &["rig"],
     &["demo", "bench", "footprint", "teleop", "view"],
     &["cli"],
 ];

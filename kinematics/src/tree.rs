@@ -8,7 +8,9 @@
 //! the IK weighs every target through it. A serial chain is the one-leaf case; the chain's own
 //! solvers ([`crate::Chain`]) stay as they are, so their figures do not change.
 //!
-//! Fixed capacity, no heap, no panics: the same rules as the chain.
+//! Fixed capacity, no heap, no panics: the same rules as the chain. The board's `opcount` binary
+//! links the tree's f32 FK, Jacobians and IK for the Cortex-M4F and fails to link if any of it
+//! can reach a panic.
 
 use nalgebra::{SMatrix, SVector, Vector3};
 
@@ -101,11 +103,13 @@ impl<T: Real, const N: usize, const E: usize> Tree<T, N, E> {
                 return Err(TreeError::Effector { effector: e });
             }
             // Up the parents from the end effector's joint; each step goes to a lower index, so
-            // this ends within N steps.
+            // this ends within N steps. (`get` rather than indexing: the indices were checked
+            // above, which the compiler cannot follow, and the MCU build keeps no panic path.)
             let mut at = effector.joint;
             while let Some(k) = at {
-                path[k] = true;
-                at = parents[k];
+                let (Some(on_path), Some(&parent)) = (path.get_mut(k), parents.get(k)) else { break };
+                *on_path = true;
+                at = parent;
             }
         }
         Ok(Self { joints: checked_joints, parents, effectors, moves })
@@ -143,19 +147,21 @@ impl<T: Real, const N: usize, const E: usize> Tree<T, N, E> {
 
     /// Forward kinematics of every joint frame and end effector, in one pass from the root.
     pub fn forward(&self, q: &SVector<T, N>) -> TreeFrames<T, N, E> {
+        // The parents and the end effectors' joints are looked up with `get`: `new` checked them,
+        // which the compiler cannot follow, so indexing would keep a panic path.
         let mut joints = [Pose::identity(); N];
         for k in 0..N {
             let joint = &self.joints[k];
             let local = joint.origin.compose(&joint.motion(q[k]));
-            joints[k] = match self.parents[k] {
-                Some(p) => joints[p].compose(&local),
+            joints[k] = match self.parents[k].and_then(|p| joints.get(p)) {
+                Some(parent) => parent.compose(&local),
                 None => local,
             };
         }
         let effectors = core::array::from_fn(|e| {
             let effector = &self.effectors[e];
-            match effector.joint {
-                Some(k) => joints[k].compose(&effector.offset),
+            match effector.joint.and_then(|k| joints.get(k)) {
+                Some(frame) => frame.compose(&effector.offset),
                 None => effector.offset,
             }
         });
@@ -375,10 +381,9 @@ impl<T: Real, const N: usize, const E: usize> Tree<T, N, E> {
         let mut a = SMatrix::<T, N, N>::zeros();
         let mut b = SVector::<T, N>::zeros();
         let mut any = false;
-        for (e, target) in problem.targets.iter().enumerate() {
+        for (e, (target, pose)) in problem.targets.iter().zip(frames.effectors.iter()).enumerate() {
             let Some(t) = target.filter(|t| t.priority == priority) else { continue };
             any = true;
-            let pose = &frames.effectors[e];
             let mut jw = self.jacobian_of(frames, e);
             let mut r = SVector::<T, 6>::zeros();
             r.fixed_rows_mut::<3>(0).copy_from(&(t.position - pose.translation));
@@ -453,7 +458,8 @@ impl<T: Real, const N: usize, const E: usize> Tree<T, N, E> {
         self.set_aside_blocked(q, &dq1, &mut held, &mut unused);
         let mut projector = SMatrix::<T, N, N>::identity();
         for c in 0..N {
-            let column = cholesky_solve(&held, &a1.column(c).into_owned())?;
+            // Entry by entry: nalgebra's `into_owned` of a column view keeps a panic path.
+            let column = cholesky_solve(&held, &SVector::from_fn(|r, _| a1[(r, c)]))?;
             let mut target = projector.column_mut(c);
             target -= &column;
         }

@@ -1,5 +1,7 @@
 //! `armctl bench mcu`: instructions per operation of the firmware's per-tick work on the Cortex-M4F,
-//! counted by the board crate's `opcount` binary under `qemu-system-arm -icount shift=0`.
+//! counted by the board crate's `opcount` binary under `qemu-system-arm -icount shift=0`, and of
+//! the kinematic tree's (`kinematics::tree`, which the firmware does not run yet) in f32 on a
+//! two-arm body, with the bytes of stack its IK takes.
 //!
 //! The binary times each operation over a batch of repetitions with SysTick, which under
 //! `-icount shift=0` on the 25 MHz core clock counts one tick per 40 guest instructions, the same
@@ -35,7 +37,7 @@ const EMPTY: &str = "empty";
 pub const GOALS: [(&str, u64); 3] = [("ik_track_1cm", 50_000), ("fk6", 4_000), ("hermite6_gripper", 1_500)];
 
 /// What each operation is, for the table's readers.
-const DESCRIPTIONS: [(&str, &str); 12] = [
+const DESCRIPTIONS: [(&str, &str); 15] = [
     ("fk6", "forward kinematics of the 6-joint UR5e, every frame, f32"),
     ("sincos", "one f32 sin and cos (kinematics::trig, in f32)"),
     ("sincos_libm", "the same with libm's sincosf (f64 inside, software)"),
@@ -43,6 +45,9 @@ const DESCRIPTIONS: [(&str, &str); 12] = [
     ("ik_track_1cm", "tracking IK step, target 1 cm away, warm start"),
     ("hermite6", "player tick, 6 joints, inside a Hermite segment"),
     ("hermite6_gripper", "the same tick with the gripper's keyframe track and ramp"),
+    ("tree_fk", "FK of a two-arm tree (torso, 2 x 5 joints), every frame"),
+    ("tree_jacobian", "both hands' Jacobians of that tree, from its frames"),
+    ("tree_ik_track_1cm", "tree IK, both hands 1 cm away, positions, warm start"),
     ("sync_write6_sts", "encode a Feetech sync write of 6 goals"),
     ("sync_write6_dxl2", "encode a Dynamixel 2.0 sync write of 6 goals"),
     ("sync_read6_sts", "decode 6 Feetech replies of a sync read"),

@@ -43,7 +43,8 @@ pub struct FootprintArgs {
     #[arg(long, value_enum)]
     board: Option<Board>,
     /// Report on this firmware ELF instead of building the board binary (any Cortex-M ELF; with no
-    /// --board the board is told by its symbols).
+    /// --board the board is told by its start-up and loop functions, and an ELF without them, such
+    /// as the `opcount` benchmark, is bounded from `main`).
     #[arg(long)]
     elf: Option<PathBuf>,
     /// Skip the stack measurement under QEMU.

@@ -31,14 +31,6 @@ impl Board {
         }
     }
 
-    /// The crate's symbols' prefix, to tell the board of an ELF given with --elf.
-    fn symbol_prefix(self) -> &'static str {
-        match self {
-            Board::Mps2An386 => "board_mps2_an386::",
-            Board::Stm32f411 => "board_stm32f411::",
-        }
-    }
-
     /// Builds the release binary and returns its path.
     fn build(self) -> Result<PathBuf> {
         match self {
@@ -149,9 +141,10 @@ fn report(
     let bytes = std::fs::read(elf).with_context(|| format!("cannot read {}", elf.display()))?;
     let sections = Sizes::of_elf(&bytes).with_context(|| elf.display().to_string())?;
     let program = Program::parse(&tools.disassemble(elf)?);
-    let board = board.or_else(|| {
-        Board::ALL.into_iter().find(|b| program.functions.iter().any(|f| f.symbol.starts_with(b.symbol_prefix())))
-    });
+    // The board whose firmware functions the ELF has: the board crate's other binary, `opcount`,
+    // links some of its functions too, but it is not the firmware (no start-up or loop to bound).
+    let board =
+        board.or_else(|| Board::ALL.into_iter().find(|b| b.roots().iter().all(|root| program.find(root).is_some())));
 
     let sites = program.panic_sites();
     let addresses: Vec<u64> = sites.iter().map(|s| s.address).collect();
@@ -171,7 +164,9 @@ fn report(
         static_stack.push(program.stack_bound(f));
     }
 
-    let (measured_stack, measured_stack_skipped) = if board != Some(Board::Mps2An386) {
+    let (measured_stack, measured_stack_skipped) = if board.is_none() {
+        (None, Some("not measured: not a board's firmware (measured on the mps2-an386 firmware only)".to_string()))
+    } else if board != Some(Board::Mps2An386) {
         (None, Some("not measured: QEMU emulates only the mps2-an386 board".to_string()))
     } else if args.no_qemu {
         (None, Some("not measured (--no-qemu)".to_string()))

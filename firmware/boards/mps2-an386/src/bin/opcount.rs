@@ -1,5 +1,7 @@
 //! Instruction counts of the firmware's per-tick operations on the Cortex-M4F, under
-//! `qemu-system-arm -icount shift=0` (`armctl bench mcu` runs it and prints the table).
+//! `qemu-system-arm -icount shift=0` (`armctl bench mcu` runs it and prints the table), and of the
+//! kinematic tree's in f32 (`kinematics::tree`, not in the firmware yet), with the stack its IK
+//! takes, measured by painting.
 //!
 //! With `-icount shift=0` QEMU runs one guest instruction per virtual nanosecond, and SysTick on the
 //! 25 MHz core clock counts one tick per 40 ns, so one tick is 40 instructions, the same on every
@@ -18,7 +20,7 @@
 
 use core::hint::black_box;
 
-use board_mps2_an386::{clock, halt};
+use board_mps2_an386::{clock, halt, stack};
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m::peripheral::SYST;
 use cortex_m_rt::entry;
@@ -33,7 +35,8 @@ use firmware::tracking::Tracker;
 use kinematics::ik::{DampedLeastSquares, IkConfig, IkMethod, IkStatus, Residual, Target};
 use kinematics::nalgebra::{ComplexField, SVector, Vector3};
 use kinematics::trajectory::{JointLimits, Player, PlayerKeyframe};
-use kinematics::{presets, Pose};
+use kinematics::tree::{Effector, EffectorTarget, Tree, TreeProblem, TreeSolution, TreeStatus};
+use kinematics::{presets, Joint, Limits, Pose};
 
 /// Guest instructions per SysTick tick: 1 instruction per ns (`-icount shift=0`) over a 25 MHz clock.
 const INSTRUCTIONS_PER_TICK: u32 = 1_000_000_000 / clock::SYSCLK_HZ;
@@ -55,6 +58,16 @@ const BUF: usize = 256;
 /// The joint values the arm sits at: away from the UR5e's singularities (elbow bent, wrist not
 /// aligned with the shoulder), as a tracking arm would be.
 const SEED: [f32; J] = [0.3, -1.2, 1.4, -1.6, -1.5, 0.2];
+/// The joints of the measured tree: the kinematics' two-arm test body, a torso that turns and two
+/// five-joint SO-101 arms on it.
+const TREE_J: usize = 11;
+/// Its joint values: the torso turned a little, each arm as the firmware's tracking test holds it.
+const TREE_SEED: [f32; TREE_J] = [0.2, 0.1, -0.4, 0.6, 0.8, 0.0, 0.1, -0.4, 0.6, 0.8, 0.0];
+
+extern "C" {
+    /// The initial stack pointer (top of RAM), from cortex-m-rt's linker script.
+    static _stack_start: u32;
+}
 
 #[entry]
 fn main() -> ! {
@@ -78,6 +91,7 @@ fn main() -> ! {
 
     report("empty", EMPTY_REPS, measure(&mut syst, EMPTY_REPS, || black_box(0u32)));
     kinematics_ops(&mut syst);
+    tree_ops(&mut syst);
     bus_ops(&mut syst, &STS3215, "sts");
     bus_ops(&mut syst, &XL430_W250, "dxl2");
 
@@ -168,6 +182,89 @@ fn kinematics_ops(syst: &mut SYST) {
     report("hermite6_gripper", REPS, ticks);
 }
 
+/// The kinematics' two-arm test body (`kinematics/tests/suite/tree.rs`): a torso joint turning
+/// about z, 0.3 m up, then the left SO-101's five joints, then the right's, each arm 0.2 m to its
+/// side of the torso's axis, a hand on each.
+fn two_arm_body() -> Option<Tree<f32, TREE_J, 2>> {
+    let arm = presets::so101::<f32>().ok()?;
+    let torso_origin = Pose::from_xyz_rpy([0.0, 0.0, 0.3], [0.0; 3]);
+    let torso = Joint::revolute(torso_origin, [0.0, 0.0, 1.0], Limits::new(-1.5, 1.5));
+    let joints = core::array::from_fn(|i| {
+        if i == 0 {
+            return torso;
+        }
+        let (side, k) = ((i - 1) / 5, (i - 1) % 5);
+        let mut joint = arm.joints()[k];
+        if k == 0 {
+            let y = if side == 0 { 0.2 } else { -0.2 };
+            joint.origin = Pose::from_xyz_rpy([0.0, y, 0.0], [0.0; 3]).compose(&joint.origin);
+        }
+        joint
+    });
+    // Each arm's first joint hangs on the torso, every other joint on the one before it.
+    let parents = core::array::from_fn(|i| match i {
+        0 => None,
+        _ if (i - 1) % 5 == 0 => Some(0),
+        _ => Some(i - 1),
+    });
+    let hand = |joint| Effector { joint: Some(joint), offset: *arm.tool() };
+    Tree::new(joints, parents, [hand(5), hand(10)]).ok()
+}
+
+/// The tree in f32 on the two-arm body: FK of every frame, both hands' Jacobians, and a tracking
+/// solve of both hands at once. (`Tree::solve` has no public single step, so there is no
+/// per-iteration count as the chain's `dls_iter`.)
+fn tree_ops(syst: &mut SYST) {
+    let Some(tree) = two_arm_body() else { halt() };
+    let q = SVector::<f32, TREE_J>::from(TREE_SEED);
+    // The tree goes through `black_box` too: built here, its parents and paths would otherwise be
+    // constants the compiler could fold into the code, as they cannot be in a firmware that
+    // receives its body at run time.
+    report("tree_fk", REPS, measure(syst, REPS, || black_box(&tree).forward(black_box(&q))));
+
+    let frames = tree.forward(&q);
+    let ticks = measure(syst, REPS, || {
+        let (tree, frames) = (black_box(&tree), black_box(&frames));
+        [tree.jacobian_of(frames, 0), tree.jacobian_of(frames, 1)]
+    });
+    report("tree_jacobian", REPS, ticks);
+
+    // Both hands' goals move 1 cm (6 mm forward, 8 mm outward), positions only, solved from where
+    // the body is with the firmware's tracking budget and no restart, as `Tracker` solves a chain.
+    let budget = Config::default().ik_iterations_per_tick;
+    let config =
+        IkConfig { max_iterations: budget, attempt_iterations: budget, max_restarts: 0, ..IkConfig::default() };
+    let target = |hand: &Pose<f32>, outward: f32| {
+        let position = hand.translation + Vector3::new(0.006, outward, 0.0);
+        Some(EffectorTarget { position, rotation: None, weight: 1.0, priority: 0 })
+    };
+    let [left, right] = frames.effectors;
+    let problem = TreeProblem { targets: [target(&left, 0.008), target(&right, -0.008)], seed: q, config };
+    // Called through a pointer the compiler cannot see through, so the solve has its own frames
+    // below the caller's and the stack it takes is what painting finds below the caller.
+    let solve: fn(&Tree<f32, TREE_J, 2>, &TreeProblem<f32, TREE_J, 2>) -> TreeSolution<f32, TREE_J, 2> = Tree::solve;
+    let (solution, stack_bytes) = stack_use(|| black_box(solve)(&tree, &problem));
+    let ticks = measure(syst, REPS, || black_box(&tree).solve(black_box(&problem)));
+    report_with2("tree_ik_track_1cm", REPS, ticks, ("iterations", solution.iterations), ("stack_bytes", stack_bytes));
+    if solution.status != TreeStatus::Converged {
+        defmt::warn!("tree_ik_track_1cm did not converge within {=u32} iterations", budget);
+    }
+}
+
+/// What `op` returns, and the bytes of stack it takes below the caller's frame, found by painting
+/// the stack first ([`stack`]). Only what `op` calls is below the frame: what the compiler inlines
+/// into this function is not counted, so `op` should call through a pointer.
+#[inline(never)]
+fn stack_use<R>(op: impl FnOnce() -> R) -> (R, u32) {
+    stack::paint();
+    let sp = cortex_m::register::msp::read() as usize;
+    let result = black_box(op());
+    // Only the symbol's address is taken, which is safe.
+    let top = core::ptr::addr_of!(_stack_start) as usize;
+    let below = stack::high_water().saturating_sub(top.saturating_sub(sp));
+    (result, u32::try_from(below).unwrap_or(u32::MAX))
+}
+
 /// Encoding the sync write of six goals and decoding the six replies of a sync read, for `model`.
 fn bus_ops(syst: &mut SYST, model: &'static Model, protocol: &'static str) {
     let ids: [Id; J] = [1, 2, 3, 4, 5, 6];
@@ -188,11 +285,13 @@ fn bus_ops(syst: &mut SYST, model: &'static Model, protocol: &'static str) {
         if item.encode(i64::from(goal), model.endian, &mut data).is_err() {
             halt()
         }
-        let status = Status { id, error: 0, params: &data[..item.len()] };
-        let Ok(n) = model.protocol.encode_status(&status, &mut replies[len..]) else { halt() };
+        let Some(params) = data.get(..item.len()) else { halt() };
+        let status = Status { id, error: 0, params };
+        let Some(free) = replies.get_mut(len..) else { halt() };
+        let Ok(n) = model.protocol.encode_status(&status, free) else { halt() };
         len += n;
     }
-    let replies = &replies[..len];
+    let Some(replies) = replies.get(..len) else { halt() };
     let mut decoder = StreamDecoder::<BUF>::new(model.protocol);
     let mut positions = [0i32; J];
     let answered = decode_sync_read(model, &ids, replies, &mut decoder, &mut positions);
@@ -215,11 +314,11 @@ fn encode_sync_write(model: &Model, ids: &[Id; J], goals: &[i32; J], tx: &mut [u
     let mut value = [0u8; 4];
     for (&id, &goal) in ids.iter().zip(goals) {
         item.encode(i64::from(goal), model.endian, &mut value).ok()?;
-        writer.sync_write(id, &value[..item.len()]).ok()?;
+        writer.sync_write(id, value.get(..item.len())?).ok()?;
     }
     let len = writer.records().len();
     let instruction =
-        Instruction::SyncWrite { address: item.address, length: u16::from(item.size), data: &records[..len] };
+        Instruction::SyncWrite { address: item.address, length: u16::from(item.size), data: records.get(..len)? };
     model.protocol.encode_instruction(&InstructionPacket { id: BROADCAST, instruction }, tx).ok()
 }
 
@@ -247,15 +346,17 @@ fn decode_sync_read(
                 let Ok(status) = model.protocol.parse_status(frame) else { continue };
                 let Some(i) = ids.iter().position(|&id| id == status.id) else { continue };
                 if status.params.len() == len && answered & (1 << i) == 0 {
-                    raw[i * len..(i + 1) * len].copy_from_slice(status.params);
-                    answered |= 1 << i;
+                    if let Some(slot) = raw.get_mut(i * len..(i + 1) * len) {
+                        slot.copy_from_slice(status.params);
+                        answered |= 1 << i;
+                    }
                 }
             }
         }
     }
     for (i, v) in positions.iter_mut().enumerate() {
         if answered & (1 << i) != 0 {
-            if let Ok(x) = item.decode(&raw[i * len..(i + 1) * len], model.endian) {
+            if let Some(Ok(x)) = raw.get(i * len..(i + 1) * len).map(|bytes| item.decode(bytes, model.endian)) {
                 *v = x.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
             }
         }
@@ -323,6 +424,38 @@ fn report_with(name: &str, reps: u32, ticks: Option<u32>, key: &str, value: u32)
     }
 }
 
+/// [`report`] with two more `key=value` fields.
+fn report_with2(name: &str, reps: u32, ticks: Option<u32>, first: (&str, u32), second: (&str, u32)) {
+    match ticks {
+        Some(ticks) => defmt::info!(
+            "op {=str} reps={=u32} ticks={=u32} {=str}={=u32} {=str}={=u32}",
+            name,
+            reps,
+            ticks,
+            first.0,
+            first.1,
+            second.0,
+            second.1
+        ),
+        None => defmt::error!("op {=str} reps={=u32} wrapped", name, reps),
+    }
+}
+
+/// No panic path, as in the firmware (`main.rs`): the release handler calls a function that
+/// exists nowhere, so if anything this binary counts could panic (the tree's IK among it), the
+/// link fails ("undefined symbol: opcount_reaches_a_panic") and `armctl footprint --elf` on a
+/// debug build lists the call sites. Debug builds keep their checks and halt.
+#[cfg(not(debug_assertions))]
+#[panic_handler]
+fn panic(_: &core::panic::PanicInfo) -> ! {
+    extern "C" {
+        fn opcount_reaches_a_panic() -> !;
+    }
+    // SAFETY: never runs: the symbol is undefined, so a binary that could reach this does not link.
+    unsafe { opcount_reaches_a_panic() }
+}
+
+#[cfg(debug_assertions)]
 #[panic_handler]
 fn panic(_: &core::panic::PanicInfo) -> ! {
     halt()
