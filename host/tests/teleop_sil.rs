@@ -139,3 +139,60 @@ fn ctrl_c_stops_the_follower() {
     assert_eq!(report["monitor"]["violations"], 0, "{report}");
     assert!(report["keyframes"].as_u64().unwrap() > 20, "{report}");
 }
+
+/// The right leader's path: the left one's mirrored about the arms' middle plane (base and wrist
+/// roll turned the other way).
+const MIRRORED: &str = "t,q1,q2,q3,q4,q5,gripper
+0,0,0,0,0,0,50
+0.8,-0.3,-0.2,0.3,0.2,-0.1,80
+1.6,0.3,0.2,0.5,-0.2,0.1,20
+1.62,-0.4,0.2,0.5,-0.2,0.1,20
+2.6,-0.1,-0.1,0.2,0.1,-0.05,60
+";
+
+/// `armctl teleop --rig`: one simulated leader per follower, named in the rig file, both pairs at
+/// once; each follower ends where its own leader ends, within its limits.
+#[test]
+fn a_rig_has_one_leader_per_follower() {
+    let dir = scratch("rig");
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("left.csv"), SCRIPT).unwrap();
+    std::fs::write(dir.join("right.csv"), MIRRORED).unwrap();
+    let pair = |name: &str, y: f64| {
+        format!(
+            "[[arm]]\nname = \"{name}\"\narm = \"so101\"\nsim = true\nxyz = [0.0, {y}, 0.0]\n[arm.leader]\nsim = true\nscript = \"{name}.csv\"\n"
+        )
+    };
+    let rig = dir.join("rig.toml");
+    std::fs::write(&rig, format!("name = \"pairs\"\n{}{}", pair("left", 0.15), pair("right", -0.15))).unwrap();
+    let run = armctl(&["teleop", "--rig", s(&rig), "--json"]);
+    assert_eq!(run.code, 0, "stderr: {}", run.stderr);
+    let report: Value = serde_json::from_str(run.stdout.trim()).unwrap_or_else(|e| panic!("{e}: {}", run.stdout));
+    eprintln!("{report}");
+    let mirrored_end = [-END[0], END[1], END[2], END[3], -END[4]];
+    for (name, end) in [("left", END), ("right", mirrored_end)] {
+        let arm = &report["arms"][name];
+        assert!((140..=290).contains(&arm["keyframes"].as_u64().unwrap()), "{name}: {arm}");
+        assert_eq!(arm["monitor"]["violations"], 0, "{name}: {arm}");
+        assert!(arm["monitor"]["max_step_ratio"].as_f64().unwrap() <= 1.0, "{name}: {arm}");
+        let rest: Vec<f64> = arm["follower_at_rest"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+        for (j, (got, want)) in rest.iter().zip(end).enumerate() {
+            assert!((got - want).abs() <= 0.01, "{name} joint {}: at rest at {got}, its leader ended at {want}", j + 1);
+        }
+    }
+    // Bad rig input: one line each, nothing starts.
+    let leaderless = dir.join("leaderless.toml");
+    std::fs::write(&leaderless, "name = \"x\"\n[[arm]]\nname = \"a\"\narm = \"so101\"\nsim = true\n").unwrap();
+    for (args, needle) in [
+        (vec!["teleop", "--rig", s(&leaderless)], "has no leader"),
+        (vec!["teleop", "--rig", s(&rig), "--leader", "sim"], "leader is in the rig file"),
+        (vec!["teleop", "--rig", s(&rig), "--record", "x.csv"], "--record with --rig"),
+        (vec!["--sim", "teleop", "--rig", s(&rig)], "--sim"),
+    ] {
+        let run = armctl(&args);
+        assert_eq!(run.code, 1, "{args:?}: {}", run.stderr);
+        let errors: Vec<&str> = run.stderr.lines().filter(|l| l.starts_with("error:")).collect();
+        assert_eq!(errors.len(), 1, "{args:?}: {}", run.stderr);
+        assert!(errors[0].contains(needle), "{args:?}: {:?} does not say {needle:?}", errors[0]);
+    }
+}

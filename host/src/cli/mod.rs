@@ -83,6 +83,7 @@ enum Command {
     Calibrate(crate::servo::calibrate::CalibrateArgs),
     /// A human arm from a BVH motion-capture file onto the arm: joint keyframes for `armctl play`
     /// (--out), the hand's and the tool's paths (--plot), tracking figures; --play streams them.
+    /// With --rig RIG: the human's arms onto every arm of the rig, one keyframe file for all.
     Retarget(retarget::RetargetArgs),
     /// Teleoperation: a leader arm moved by hand (torque off, read by sync read) drives the
     /// follower given by the drive options (--port, --bus or --sim), through both calibrations,
@@ -195,9 +196,9 @@ pub(crate) fn load(arm: &ArmArgs) -> Result<Box<dyn DynArm>> {
 }
 
 fn run(link: &crate::drive::args::LinkArgs, command: Command, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
-    // `retarget --play` drives an arm too: it takes the drive options.
+    // `retarget --play` drives an arm too: it takes the drive options; `retarget --rig` takes the rig.
     if !matches!(&command, Command::Drive(_) | Command::Teleop(_) | Command::View(_))
-        && !matches!(&command, Command::Retarget(a) if a.plays())
+        && !matches!(&command, Command::Retarget(a) if a.plays() || link.rig.is_some())
     {
         link.refuse_for_other_commands()?;
     }

@@ -1,6 +1,7 @@
 //! `armctl retarget FILE.bvh --arm ARM`: a motion-capture arm onto a robot arm, as joint keyframes
 //! for `armctl play` (`--out`), a plot (`--plot`), and with `--play` streamed to the arm the drive
-//! options name (`--sim`, `--port`, `--bus`) through the same code as `armctl play`.
+//! options name (`--sim`, `--port`, `--bus`) through the same code as `armctl play`. With
+//! `--rig RIG`, every arm of a rig at once: see [`rig`].
 //!
 //! The report is one JSON line on stdout; the choices made (chain, rest, axes, scale, placement)
 //! and warnings about the file go to stderr.
@@ -20,49 +21,58 @@ use crate::mocap::retarget::{self, Options, Retargeted, Scale};
 use crate::mocap::skeleton::RootOffset;
 use crate::mocap::timing::Timing;
 
+pub mod rig;
+
 /// `armctl retarget` options.
 #[derive(Args, Debug)]
 pub struct RetargetArgs {
-    /// The arm (--arm, required) and, with --play, where it is (--sim, --port, --bus ...).
+    /// The arm (--arm, required) and, with --play, where it is (--sim, --port, --bus ...); or
+    /// --rig RIG, every arm of a rig (a rig file or the built-in bimanual-so101).
     #[command(flatten)]
-    link: LinkArgs,
+    pub(super) link: LinkArgs,
     /// The BVH file.
-    file: PathBuf,
+    pub(super) file: PathBuf,
     /// The human arm's joints, SHOULDER,ELBOW,WRIST [default: the right arm, by the usual names].
-    #[arg(long)]
-    chain: Option<String>,
+    /// With --rig: ARM=SHOULDER,ELBOW,WRIST, once per rig arm [default: a rig arm named left or
+    /// right (or with that word in its name, as left_follower) follows that human arm].
+    #[arg(long, value_name = "CHAIN")]
+    pub(super) chain: Vec<String>,
     /// The file's rest pose: auto (read from the rest bone directions), t-pose, a-pose or arms-down.
     #[arg(long, default_value = "auto")]
-    reference: String,
-    /// Metres per file unit, or auto: the arm's reach over the human arm's length.
+    pub(super) reference: String,
+    /// Metres per file unit, or auto: the arm's reach over the human arm's length (with --rig,
+    /// the smallest of the arms' own, one scale for all).
     #[arg(long, default_value = "auto")]
-    scale: String,
+    pub(super) scale: String,
     /// Whether the root's OFFSET adds to its translation channels [default: guessed from the file].
     #[arg(long, value_enum)]
-    root_offset: Option<RootOffset>,
+    pub(super) root_offset: Option<RootOffset>,
     /// Keyframes per second (lowered where a file would need more than 20,000).
     #[arg(long, default_value_t = retarget::DEFAULT_RATE)]
-    rate: f64,
+    pub(super) rate: f64,
     /// Only the first this many seconds of the file.
     #[arg(long)]
-    seconds: Option<f64>,
+    pub(super) seconds: Option<f64>,
     /// Where the human moves faster than the arm's velocity limits: fit (the motion slows down
     /// there, the tool keeps the hand's path) or captured (the capture's timing kept, joint steps
-    /// cut to the limit: the tool lags).
+    /// cut to the limit: the tool lags). With --rig, the slowest arm sets every arm's pace.
     #[arg(long, value_enum, default_value = "fit")]
-    timing: Timing,
-    /// Write the joint keyframes (CSV t,q1,...,qN for armctl play) to this file.
+    pub(super) timing: Timing,
+    /// Write the joint keyframes (CSV t,q1,...,qN for armctl play) to this file; with --rig, one
+    /// file with every arm's columns (t,left.q1,...,right.q1,...) for armctl --rig RIG play.
     #[arg(long)]
-    out: Option<PathBuf>,
-    /// Draw the human hand's path (scaled, in the arm's frame) against the tool's to this PNG.
+    pub(super) out: Option<PathBuf>,
+    /// Draw the human hand's path (scaled, in the arm's frame) against the tool's to this PNG;
+    /// with --rig, one PNG per arm, named FILE-ARM.png.
     #[arg(long)]
-    plot: Option<PathBuf>,
-    /// Stream the keyframes to the arm (--sim, --port PORT or --bus PORT) once retargeted.
+    pub(super) plot: Option<PathBuf>,
+    /// Stream the keyframes to the arm (--sim, --port PORT or --bus PORT) once retargeted; with
+    /// --rig, to every arm of the rig, on one timeline.
     #[arg(long)]
-    play: bool,
+    pub(super) play: bool,
     /// With --play: give up this many seconds after the last keyframe's time.
     #[arg(long, default_value_t = 30.0)]
-    timeout: f64,
+    pub(super) timeout: f64,
 }
 
 impl RetargetArgs {
@@ -72,7 +82,8 @@ impl RetargetArgs {
     }
 }
 
-fn options(args: &RetargetArgs) -> Result<Options> {
+/// The retarget's settings; the chain is left to the caller.
+pub(super) fn options(args: &RetargetArgs) -> Result<Options> {
     let reference = match args.reference.as_str() {
         "auto" => None,
         "t-pose" => Some(Rest::TPose),
@@ -88,7 +99,7 @@ fn options(args: &RetargetArgs) -> Result<Options> {
         ),
     };
     Ok(Options {
-        chain: args.chain.clone(),
+        chain: None,
         reference,
         scale,
         root_offset: args.root_offset,
@@ -96,6 +107,20 @@ fn options(args: &RetargetArgs) -> Result<Options> {
         seconds: args.seconds,
         timing: args.timing,
     })
+}
+
+/// The one arm's `--chain`, given at most once and naming no rig arm.
+fn one_chain(given: &[String]) -> Result<Option<String>> {
+    match given {
+        [] => Ok(None),
+        [text] if text.contains('=') => {
+            bail!("--chain {text}: ARM=SHOULDER,ELBOW,WRIST names a rig's arm: add --rig RIG, or give SHOULDER,ELBOW,WRIST")
+        }
+        [text] => Ok(Some(text.clone())),
+        _ => {
+            bail!("--chain is given {} times: one arm follows one chain (with --rig, one ARM=... per arm)", given.len())
+        }
+    }
 }
 
 /// The drive options that only make sense with --play.
@@ -118,21 +143,31 @@ fn refuse_without_play(link: &LinkArgs) -> Result<()> {
     Ok(())
 }
 
-fn notes(r: &Retargeted, err: &mut dyn Write) -> Result<()> {
+/// The chain note: which joints, found how.
+pub(super) fn chain_note(r: &Retargeted) -> String {
     let [s, e, w] = &r.chain.names;
-    writeln!(err, "note: chain {s} -> {e} -> {w} ({})", r.chain.found_by)?;
-    writeln!(
-        err,
-        "note: rest: {} (the upper arm points {:.1} degrees below horizontal at rest){}",
+    format!("chain {s} -> {e} -> {w} ({})", r.chain.found_by)
+}
+
+/// The rest note: read from the skeleton, and taken as what.
+pub(super) fn rest_note(r: &Retargeted) -> String {
+    format!(
+        "rest: {} (the upper arm points {:.1} degrees below horizontal at rest){}",
         r.reading.rest.name(),
         r.reading.upper_arm_droop_deg + 0.0,
         if r.rest == r.reading.rest { String::new() } else { format!("; taken as {} (--reference)", r.rest.name()) }
-    )?;
-    writeln!(
-        err,
-        "note: axes: the file's Y is up and the human faces its +Z; on the arm they face +X (its front), up is +Z, \
-         their left +Y; the hand is taken relative to the shoulder in the torso's frame"
-    )?;
+    )
+}
+
+/// The axes note.
+pub(super) const AXES_NOTE: &str = "axes: the file's Y is up and the human faces its +Z; on the arm they face +X (its \
+                                    front), up is +Z, their left +Y; the hand is taken relative to the shoulder in \
+                                    the torso's frame";
+
+fn notes(r: &Retargeted, err: &mut dyn Write) -> Result<()> {
+    writeln!(err, "note: {}", chain_note(r))?;
+    writeln!(err, "note: {}", rest_note(r))?;
+    writeln!(err, "note: {AXES_NOTE}")?;
     writeln!(
         err,
         "note: scale {:.5} m per file unit (arm reach {:.3} m, human arm {:.3} units); the path's middle placed at \
@@ -155,6 +190,9 @@ fn notes(r: &Retargeted, err: &mut dyn Write) -> Result<()> {
 pub fn run(global: &LinkArgs, args: RetargetArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
     let started = Instant::now();
     let link = global.merged(&args.link)?;
+    if let Some(rig) = &link.rig {
+        return rig::run(rig, &link, &args, out, err);
+    }
     if args.play {
         if link.port.is_none() && link.bus.is_none() && !link.sim {
             bail!("--play streams the keyframes to an arm: give --sim, --port PORT or --bus PORT");
@@ -163,7 +201,7 @@ pub fn run(global: &LinkArgs, args: RetargetArgs, out: &mut dyn Write, err: &mut
         refuse_without_play(&link)?;
     }
     let arm_name = link.arm.clone().ok_or_else(|| anyhow!("--arm is required: the arm to retarget onto"))?;
-    let options = options(&args)?;
+    let options = Options { chain: one_chain(&args.chain)?, ..options(&args)? };
     let spec = crate::drive::args::calibrated(ArmSpec::load(&arm_name, None)?, link.calibration.as_deref())?;
     let arm = crate::arm::dof::build(spec)?;
 

@@ -46,7 +46,7 @@ fn pieces(t: &Track, k: usize) -> usize {
     (largest / MAX_JOINT_STEP).ceil().max(1.0) as usize
 }
 
-/// What [`densify`] did.
+/// What cutting the long steps did.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Added {
     /// This many keyframes (0: no step was long).
@@ -55,23 +55,27 @@ pub enum Added {
     TooMany(usize),
 }
 
-/// `t` with the long steps cut; unchanged when that would make more than `max_keyframes`.
-pub fn densify(arm: &dyn DynArm, t: Track, oriented: bool, max_keyframes: usize) -> Result<(Track, Added)> {
-    let cuts: Vec<usize> = (1..t.q.len()).map(|k| pieces(&t, k)).collect();
-    let total = 1 + cuts.iter().sum::<usize>();
-    if total > max_keyframes {
-        return Ok((t, Added::TooMany(total)));
-    }
-    if total == t.q.len() {
-        return Ok((t, Added::Keyframes(0)));
-    }
+/// How many pieces each step of `t` would be cut in (1: left whole), step k into keyframe k at
+/// index k - 1. Cutting them all ([`cut`]) can make too many keyframes: see [`Added::TooMany`].
+pub fn cuts(t: &Track) -> Vec<usize> {
+    (1..t.q.len()).map(|k| pieces(t, k)).collect()
+}
+
+/// `t` with step k cut in `cuts[k - 1]` pieces: [`cuts`] of this track, or more where the arms of
+/// a rig share their keyframe times (another arm's long step cuts this arm's step too). A step
+/// this track leaves whole by its own measure because it has no line to follow (into a changed
+/// configuration, or from or to a target IK missed) is cut at joint-space points, counted as not
+/// reached: they are where the player's interpolation would pass anyway.
+pub fn cut(arm: &dyn DynArm, t: Track, oriented: bool, cuts: &[usize]) -> Result<Track> {
+    assert_eq!(cuts.len() + 1, t.q.len(), "one cut count per step");
     let mut out = Track::default();
     out.q.push(t.q[0].clone());
     out.targets.push(t.targets[0]);
     out.reachable.push(t.reachable[0]);
     out.reconfigured.push(t.reconfigured[0]);
-    for (k, &n) in (1..t.q.len()).zip(&cuts) {
-        let (r0, r1) = if oriented && n > 1 {
+    for (k, &n) in (1..t.q.len()).zip(cuts) {
+        let along_line = !t.reconfigured[k] && t.reachable[k - 1] && t.reachable[k];
+        let (r0, r1) = if oriented && n > 1 && along_line {
             (rotation(arm, &t.q[k - 1])?, rotation(arm, &t.q[k])?)
         } else {
             (UnitQuaternion::identity(), UnitQuaternion::identity())
@@ -79,17 +83,22 @@ pub fn densify(arm: &dyn DynArm, t: Track, oriented: bool, max_keyframes: usize)
         for i in 1..n {
             let s = i as f64 / n as f64;
             let target = t.targets[k - 1].lerp(&t.targets[k], s);
-            let goal = r0.slerp(&r1, s);
-            let seed = out.q.last().cloned();
-            let solved = arm.solve(&request(target, oriented.then_some(&goal), seed))?;
-            let q = if solved.status == IkStatus::Converged {
-                solved.q
+            let between = || t.q[k - 1].iter().zip(&t.q[k]).map(|(a, b)| a + s * (b - a)).collect();
+            let (q, reached) = if along_line {
+                let goal = r0.slerp(&r1, s);
+                let seed = out.q.last().cloned();
+                let solved = arm.solve(&request(target, oriented.then_some(&goal), seed))?;
+                if solved.status == IkStatus::Converged {
+                    (solved.q, true)
+                } else {
+                    (between(), false)
+                }
             } else {
-                t.q[k - 1].iter().zip(&t.q[k]).map(|(a, b)| a + s * (b - a)).collect()
+                (between(), false)
             };
             out.q.push(q);
             out.targets.push(target);
-            out.reachable.push(solved.status == IkStatus::Converged);
+            out.reachable.push(reached);
             out.reconfigured.push(false);
             out.steps.push(t.steps[k - 1] / n as f64);
         }
@@ -99,6 +108,51 @@ pub fn densify(arm: &dyn DynArm, t: Track, oriented: bool, max_keyframes: usize)
         out.reconfigured.push(t.reconfigured[k]);
         out.steps.push(t.steps[k - 1] / n as f64);
     }
-    let added = out.q.len() - t.q.len();
-    Ok((out, Added::Keyframes(added)))
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn so101() -> Box<dyn DynArm> {
+        crate::arm::dof::build(crate::arm::ArmSpec::load("so101", None).unwrap()).unwrap()
+    }
+
+    /// Two keyframes 0.05 rad apart on every joint: short enough to be left whole.
+    fn short_step(arm: &dyn DynArm, reconfigured: bool) -> Track {
+        let q0 = arm.middle();
+        let q1: Vec<f64> = q0.iter().map(|v| v + 0.05).collect();
+        let targets = [&q0, &q1].map(|q| arm.tool_pose(q).unwrap().translation).to_vec();
+        Track {
+            q: vec![q0, q1],
+            targets,
+            reachable: vec![true, true],
+            reconfigured: vec![false, reconfigured],
+            steps: vec![0.04],
+        }
+    }
+
+    #[test]
+    fn another_arms_cuts_split_a_short_step_on_the_line_or_in_joint_space() {
+        let arm = so101();
+        let t = short_step(arm.as_ref(), false);
+        assert_eq!(cuts(&t), [1]);
+        // Cut in 4 as another arm needs: IK on the line between the targets, each piece reached.
+        let c = cut(arm.as_ref(), t.clone(), false, &[4]).unwrap();
+        assert_eq!(c.q.len(), 5);
+        assert_eq!(c.steps, [0.01; 4]);
+        assert_eq!(c.reachable, [true; 5]);
+        for (q, target) in c.q.iter().zip(&c.targets) {
+            assert!((arm.tool_pose(q).unwrap().translation - target).norm() < 1e-4);
+        }
+        assert_eq!(c.q[4], t.q[1]);
+        // Into a changed configuration there is no line: joint-space points, not reached.
+        let t = short_step(arm.as_ref(), true);
+        let c = cut(arm.as_ref(), t.clone(), false, &[2]).unwrap();
+        let halfway: Vec<f64> = t.q[0].iter().zip(&t.q[1]).map(|(a, b)| a + 0.5 * (b - a)).collect();
+        assert_eq!(c.q[1], halfway);
+        assert_eq!(c.reachable, [true, false, true]);
+        assert_eq!(c.reconfigured, [false, false, true]);
+    }
 }

@@ -7,7 +7,8 @@
 //! - [`rest`]: T-pose, A-pose or arms down, and rotations carried between rests.
 //! - [`hand`]: the hand relative to the shoulder, smoothed and sampled.
 //! - [`workspace`]: how far the arm reaches and where its workspace is.
-//! - [`retarget`]: scale, placement, IK per keyframe, tracking figures.
+//! - [`retarget`]: scale, placement, IK per keyframe, tracking figures; several arms (a rig's)
+//!   from one file on one scale and one time base ([`retarget::timebase`]).
 //! - [`solve`]: the IK requests, warm and afresh, and the way toward a target out of reach.
 //! - [`densify`]: keyframes added where a joint would move far between two.
 //! - [`timing`]: keyframe times within the arm's velocity and acceleration limits.

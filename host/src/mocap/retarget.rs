@@ -19,20 +19,28 @@
 //!    90 % of its velocity and acceleration limits (the servos' `max_velocity` and
 //!    `max_acceleration`, which the firmware enforces too), so the player need not cut corners:
 //!    see [`super::timing`].
+//!
+//! Several arms from one file (a rig's, each following its own human arm) go through the same
+//! steps with one scale and one time base: [`timebase`], of which one arm is the case [`retarget`]
+//! runs.
 
 use super::bvh::Bvh;
 use super::chain::{self, ArmChain};
-use super::densify::{densify, Added, Track, MAX_JOINT_STEP};
+use super::densify::Track;
 use super::hand::{self, HandSample};
-use super::rest::{self, Rest, RestReading};
+use super::rest::{Rest, RestReading};
 use super::skeleton::RootOffset;
 use super::solve::{branch_changed, nearest, request, toward};
-use super::timing::{time_keyframes, Limits, Timing};
-use super::workspace::{self, Workspace};
+use super::timing::Timing;
+use super::workspace::Workspace;
 use crate::arm::dof::DynArm;
 use anyhow::{bail, Result};
 use kinematics::ik::IkStatus;
 use kinematics::nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
+
+pub mod timebase;
+
+use timebase::{retarget_arms, Job};
 
 /// Keyframes per second by default: the firmware's player interpolates between them (cubic
 /// Hermite at its 100 Hz control rate), and 25 Hz carries a human arm's motion (a few hertz).
@@ -119,7 +127,7 @@ pub struct Retargeted {
     pub lead_in: f64,
     /// File frames used.
     pub frames_used: usize,
-    /// Keyframes sampled from the capture, before [`densify`] added any.
+    /// Keyframes sampled from the capture, before [`super::densify`] added any.
     pub keyframes_sampled: usize,
     /// Keyframe times (s, from the start of play).
     pub times: Vec<f64>,
@@ -135,10 +143,10 @@ pub struct Retargeted {
     /// may change its configuration (elbow or wrist flipped, the base swung round) on the way
     /// there, and its tool leaves the straight line between the two targets meanwhile.
     pub reconfigured: Vec<bool>,
-    /// Steps between two sampled keyframes (before [`densify`]) in which some joint moves more
+    /// Steps between two sampled keyframes (before [`super::densify`]) in which some joint moves more
     /// than [`super::solve::BRANCH_CHANGE`]: the arm changing its configuration, whichever solve gave it.
     pub jumps: usize,
-    /// The share of the sampled keyframes (before [`densify`] added any) whose target IK reached.
+    /// The share of the sampled keyframes (before [`super::densify`] added any) whose target IK reached.
     pub inside_workspace: f64,
     /// The share of the sampled keyframes whose pose (position and the hand's turn) IK reached;
     /// `None` on arms of fewer than six joints, which follow the position only.
@@ -237,57 +245,54 @@ fn rotation_of(pose: &kinematics::Pose<f64>) -> UnitQuaternion<f64> {
     UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(pose.rotation))
 }
 
-/// Retargets `bvh` onto `arm`.
+/// Fails unless `rate` is a positive number of keyframes per second.
+fn check_rate(rate: f64) -> Result<()> {
+    if !(rate.is_finite() && rate > 0.0) {
+        bail!("--rate {rate}: keyframes per second must be a positive number");
+    }
+    Ok(())
+}
+
+/// Retargets `bvh` onto `arm`: the one-arm case of [`timebase::retarget_arms`].
 pub fn retarget(bvh: &Bvh, arm: &dyn DynArm, options: &Options) -> Result<Retargeted> {
-    if !(options.rate.is_finite() && options.rate > 0.0) {
-        bail!("--rate {}: keyframes per second must be a positive number", options.rate);
-    }
+    check_rate(options.rate)?;
     let chain = chain::find(bvh, options.chain.as_deref())?;
-    let reading = rest::detect(bvh, &chain)?;
-    let rest_used = options.reference.unwrap_or(reading.rest);
-    let d = rest::rest_to_t_pose(bvh, &chain, &reading, options.reference);
-    let root_offset = options.root_offset.unwrap_or_else(|| RootOffset::detect(bvh));
-    let mut notes = Vec::new();
+    let job = Job { name: arm.spec().name.clone(), arm, chain };
+    Ok(retarget_arms(bvh, vec![job], options)?.into_one())
+}
 
-    let mut path = hand::hand_path(bvh, &chain, root_offset, &d[2]);
-    if let Some(seconds) = options.seconds {
-        if !(seconds.is_finite() && seconds > 0.0) {
-            bail!("--seconds {seconds}: must be a positive number");
-        }
-        path.truncate(((seconds / bvh.frame_time).floor() as usize + 1).min(path.len()));
-    }
-    let duration = (path.len() - 1) as f64 * bvh.frame_time;
-    if path.len() < 2 {
-        bail!("one frame of motion: a path needs at least two");
-    }
-    let max_keyframes = MAX_KEYFRAMES;
-    let mut rate = options.rate;
-    if (duration * rate).floor() as usize + 1 > max_keyframes {
-        rate = (max_keyframes - 1) as f64 / duration;
-        notes.push(format!(
-            "{duration:.1} s of motion at {} keyframes a second would be more than {max_keyframes} keyframes: \
-             {rate:.2} a second instead",
-            options.rate
-        ));
-    }
-    let count = (duration * rate + 1e-9).floor() as usize + 1;
+/// One arm's keyframes as IK found them, before [`super::densify`] and timing.
+struct Followed {
+    /// Where the middle of the scaled path's bounding box was put (m, arm base frame).
+    pub placed_at: [f64; 3],
+    /// The share of the path placement found inside the sampled workspace.
+    pub placed_inside: f64,
+    /// The keyframes, one per sample.
+    pub track: Track,
+    /// Whether IK follows the hand's turn too (arms of six joints or more).
+    pub with_orientation: bool,
+    /// The share of the samples whose pose IK reached (with orientation only).
+    pub oriented: Option<f64>,
+    /// The share of the samples whose target IK reached.
+    pub inside_workspace: f64,
+    /// Steps in which some joint moves more than [`super::solve::BRANCH_CHANGE`].
+    pub jumps: usize,
+}
 
-    let [s, e, w] = chain.joints;
-    let human_arm_length = (rest::rest_position(bvh, e) - rest::rest_position(bvh, s)).norm()
-        + (rest::rest_position(bvh, w) - rest::rest_position(bvh, e)).norm();
-    if human_arm_length <= 0.0 {
-        bail!("the arm {}..{} has zero length at rest", chain.names[0], chain.names[2]);
-    }
-    let ws = workspace::sample(arm)?;
-    let scale = match options.scale {
-        Scale::Auto => ws.reach / human_arm_length,
-        Scale::Factor(f) if f.is_finite() && f > 0.0 => f,
-        Scale::Factor(f) => bail!("--scale {f}: must be a positive number (metres per file unit) or auto"),
-    };
-
+/// Steps 1, 2, 4 and 5 of the module's list for one arm: the hand `path` (file frames
+/// `frame_time` s apart) sampled `count` times at `rate`, scaled by `scale`, placed in `ws` and
+/// followed by IK keyframe by keyframe.
+fn follow(
+    arm: &dyn DynArm,
+    path: &[HandSample],
+    frame_time: f64,
+    (rate, count): (f64, usize),
+    scale: f64,
+    ws: &Workspace,
+) -> Result<Followed> {
     let c = file_to_arm();
     let samples: Vec<HandSample> =
-        (0..count).map(|k| hand::sample(&path, bvh.frame_time, k as f64 / rate, 1.0 / rate)).collect();
+        (0..count).map(|k| hand::sample(path, frame_time, k as f64 / rate, 1.0 / rate)).collect();
     let scaled: Vec<Vector3<f64>> = samples.iter().map(|h| c * h.position * scale).collect();
     let (shift, placed_inside) = ws.place(&scaled);
     let lo = scaled.iter().fold(Vector3::repeat(f64::INFINITY), |a, p| a.inf(p));
@@ -295,7 +300,6 @@ pub fn retarget(bvh: &Bvh, arm: &dyn DynArm, options: &Options) -> Result<Retarg
     let targets: Vec<Vector3<f64>> = scaled.iter().map(|p| p + shift).collect();
 
     let with_orientation = arm.spec().dof() >= 6;
-    let v_max = crate::arm::servos::servos_of(arm.spec()).map_or(DEFAULT_MAX_VELOCITY, |s| s.max_velocity);
     let mut q: Vec<Vec<f64>> = Vec::with_capacity(count);
     let mut reachable = Vec::with_capacity(count);
     let mut reconfigured = Vec::with_capacity(count);
@@ -356,78 +360,14 @@ pub fn retarget(bvh: &Bvh, arm: &dyn DynArm, options: &Options) -> Result<Retarg
 
     let inside_workspace = reachable.iter().filter(|r| **r).count() as f64 / count as f64;
     let jumps = q.windows(2).filter(|w| branch_changed(&w[0], &w[1])).count();
-    let track = Track { q, targets, reachable, reconfigured, steps: vec![1.0 / rate; count - 1] };
-    let (track, added) = densify(arm, track, with_orientation, max_keyframes)?;
-    match added {
-        Added::Keyframes(0) => {}
-        Added::Keyframes(n) => notes.push(format!(
-            "{n} keyframes added where a joint would move more than {MAX_JOINT_STEP} rad between two (the tool \
-             would bow off the hand's path)"
-        )),
-        Added::TooMany(n) => notes.push(format!(
-            "no keyframes added between those where a joint moves more than {MAX_JOINT_STEP} rad: that would make \
-             {n}, more than {max_keyframes}; the tool bows off the hand's path there (a lower --rate or --seconds \
-             leaves room)"
-        )),
-    }
-    let Track { mut q, targets, reachable, reconfigured, steps } = track;
-    let keyframes = q.len();
-
-    // Time for the arm to come to the first pose: from the middle of its limits at half its
-    // velocity limit, plus a second to settle.
-    let middle = arm.middle();
-    let far = q[0].iter().zip(&middle).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
-    let lead_in = 1.0 + far / (0.5 * v_max);
-    let a_max = crate::arm::servos::servos_of(arm.spec()).map_or(DEFAULT_MAX_ACCELERATION, |s| s.max_acceleration);
-    let limits = Limits { velocity: VELOCITY_MARGIN * v_max, acceleration: VELOCITY_MARGIN * a_max };
-    let timed = time_keyframes(&mut q, &steps, &limits, options.timing);
-    let times: Vec<f64> = timed.offsets.iter().map(|t| lead_in + t).collect();
-    let tool = q.iter().map(|qk| arm.tool_pose(qk).map(|p| p.translation.into())).collect::<Result<Vec<[f64; 3]>>>()?;
-    if timed.limited > 0 {
-        notes.push(match options.timing {
-            Timing::Fit => format!(
-                "{} of {} keyframe steps would move or speed up a joint faster than {:.0} % of its limits ({v_max} rad/s, \
-                 {a_max} rad/s²): they take longer, and the motion plays in {:.2} s instead of the captured {:.2} s",
-                timed.limited,
-                keyframes - 1,
-                VELOCITY_MARGIN * 100.0,
-                timed.offsets[keyframes - 1],
-                (count - 1) as f64 / rate
-            ),
-            Timing::Captured => format!(
-                "{} of {} keyframe steps had a joint step cut to {:.0} % of the velocity limit ({v_max} rad/s): the \
-                 tool lags the hand there",
-                timed.limited,
-                keyframes - 1,
-                VELOCITY_MARGIN * 100.0
-            ),
-        });
-    }
-    Ok(Retargeted {
-        chain,
-        reading,
-        rest: rest_used,
-        root_offset,
-        scale,
-        human_arm_length,
+    Ok(Followed {
         placed_at: (shift + (lo + hi) / 2.0).into(),
         placed_inside,
-        workspace: ws,
-        rate,
-        lead_in,
-        frames_used: path.len(),
-        times,
-        q,
-        targets: targets.iter().map(|t| (*t).into()).collect(),
-        keyframes_sampled: count,
-        tool,
-        reachable,
-        reconfigured,
-        jumps,
-        inside_workspace,
+        track: Track { q, targets, reachable, reconfigured, steps: vec![1.0 / rate; count - 1] },
+        with_orientation,
         oriented: with_orientation.then_some(oriented as f64 / count as f64),
-        velocity_limited: timed.limited,
-        notes,
+        inside_workspace,
+        jumps,
     })
 }
 

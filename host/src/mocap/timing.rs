@@ -39,14 +39,14 @@ pub struct Timed {
 
 /// The largest amount by which a step of `dq` over `dt` breaks the acceleration limit, coming
 /// from velocity `before` over a step of `dt_before` and going on to `after` (0 at the ends).
-fn excess(dq: &[f64], dt: f64, before: &[f64], dt_before: f64, limits: &Limits, end: bool) -> f64 {
+fn excess(dq: &[f64], dt: f64, before: &[f64], dt_before: f64, limits: &[Limits], end: bool) -> f64 {
     let mut worst = f64::NEG_INFINITY;
-    for (d, b) in dq.iter().zip(before) {
+    for ((d, b), l) in dq.iter().zip(before).zip(limits) {
         let v = d / dt;
-        worst = worst.max((v - b).abs() - limits.acceleration * (dt_before + dt) / 2.0);
+        worst = worst.max((v - b).abs() - l.acceleration * (dt_before + dt) / 2.0);
         if end {
             // Coming to rest at the last keyframe.
-            worst = worst.max(v.abs() - limits.acceleration * dt / 2.0);
+            worst = worst.max(v.abs() - l.acceleration * dt / 2.0);
         }
     }
     worst
@@ -54,7 +54,7 @@ fn excess(dq: &[f64], dt: f64, before: &[f64], dt_before: f64, limits: &Limits, 
 
 /// The shortest step time from `shortest` up that keeps the acceleration limit (doubling, then
 /// halving the bracket to a microsecond).
-fn stretch(dq: &[f64], shortest: f64, before: &[f64], dt_before: f64, limits: &Limits, end: bool) -> f64 {
+fn stretch(dq: &[f64], shortest: f64, before: &[f64], dt_before: f64, limits: &[Limits], end: bool) -> f64 {
     let ok = |dt: f64| excess(dq, dt, before, dt_before, limits, end) <= 0.0;
     if ok(shortest) {
         return shortest;
@@ -78,6 +78,15 @@ fn stretch(dq: &[f64], shortest: f64, before: &[f64], dt_before: f64, limits: &L
 /// [`Timing`]); `q` changes only with [`Timing::Captured`].
 pub fn time_keyframes(q: &mut [Vec<f64>], steps: &[f64], limits: &Limits, timing: Timing) -> Timed {
     let joints = q.first().map_or(0, Vec::len);
+    time_joints(q, steps, &vec![*limits; joints], timing)
+}
+
+/// As [`time_keyframes`], with limits of each joint's own (`limits[j]` for joint j). Several arms
+/// timed together as one vector of all their joints get one time warp: a step takes as long as
+/// the slowest of them needs (see [`super::retarget::timebase`]).
+pub fn time_joints(q: &mut [Vec<f64>], steps: &[f64], limits: &[Limits], timing: Timing) -> Timed {
+    let joints = q.first().map_or(0, Vec::len);
+    assert_eq!(limits.len(), joints, "one limit per joint");
     let mut offsets = vec![0.0];
     let mut limited = 0;
     // The previous step's mean velocity and time: at rest before the first.
@@ -87,19 +96,21 @@ pub fn time_keyframes(q: &mut [Vec<f64>], steps: &[f64], limits: &Limits, timing
         let captured = steps[k - 1];
         let (done, rest) = q.split_at_mut(k);
         let (previous, next) = (&done[k - 1], &mut rest[0]);
-        let too_fast = next.iter().zip(previous.iter()).any(|(a, b)| (a - b).abs() > limits.velocity * captured);
+        let too_fast =
+            next.iter().zip(previous.iter()).zip(limits).any(|((a, b), l)| (a - b).abs() > l.velocity * captured);
         let dt = match timing {
             Timing::Fit => {
                 let dq: Vec<f64> = next.iter().zip(previous).map(|(a, b)| a - b).collect();
-                let largest = dq.iter().fold(0.0f64, |m, d| m.max(d.abs()));
-                let shortest = captured.max(largest / limits.velocity);
+                // The time the slowest joint needs at its velocity limit.
+                let needed = dq.iter().zip(limits).fold(0.0f64, |m, (d, l)| m.max(d.abs() / l.velocity));
+                let shortest = captured.max(needed);
                 let dt = stretch(&dq, shortest, &before, dt_before, limits, k + 1 == count);
                 before = dq.iter().map(|d| d / dt).collect();
                 dt
             }
             Timing::Captured => {
-                for (a, b) in next.iter_mut().zip(previous.iter()) {
-                    *a = a.clamp(b - limits.velocity * captured, b + limits.velocity * captured);
+                for ((a, b), l) in next.iter_mut().zip(previous.iter()).zip(limits) {
+                    *a = a.clamp(b - l.velocity * captured, b + l.velocity * captured);
                 }
                 captured
             }
@@ -149,6 +160,30 @@ mod tests {
             }
             dt_before = dt;
         }
+    }
+
+    #[test]
+    fn joints_timed_together_take_the_slowest_ones_time() {
+        // Two arms of one joint each. Alone, 0.5 rad at 1 rad/s takes 0.5 s and 0.1 rad at
+        // 0.5 rad/s 0.2 s; together the step takes 0.5 s, whichever joint needs it.
+        let fast = Limits { velocity: 1.0, acceleration: 100.0 };
+        let slow = Limits { velocity: 0.5, acceleration: 100.0 };
+        let t = time_joints(&mut [vec![0.0, 0.0], vec![0.5, 0.1]], &[0.1], &[fast, slow], Timing::Fit);
+        assert!((t.offsets[1] - 0.5).abs() < 1e-9, "{:?}", t.offsets);
+        let t = time_joints(&mut [vec![0.0, 0.0], vec![0.1, 0.5]], &[0.1], &[fast, slow], Timing::Fit);
+        assert!((t.offsets[1] - 1.0).abs() < 1e-9, "{:?}", t.offsets);
+        // Captured: the times stay, each joint cut to its own limit.
+        let mut q = vec![vec![0.0, 0.0], vec![0.5, 0.5]];
+        let t = time_joints(&mut q, &[0.1], &[fast, slow], Timing::Captured);
+        assert_eq!(t.offsets, vec![0.0, 0.1]);
+        assert!((q[1][0] - 0.1).abs() < 1e-12 && (q[1][1] - 0.05).abs() < 1e-12, "{q:?}");
+        // With one limit for every joint it is time_keyframes.
+        let mut a: Vec<Vec<f64>> = (0..30).map(|k| vec![(k as f64 * 0.7).sin(), (k as f64 * 0.3).cos()]).collect();
+        let mut b = a.clone();
+        assert_eq!(
+            time_joints(&mut a, &[0.04; 29], &[LIMITS, LIMITS], Timing::Fit),
+            time_keyframes(&mut b, &[0.04; 29], &LIMITS, Timing::Fit)
+        );
     }
 
     #[test]

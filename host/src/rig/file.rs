@@ -10,6 +10,9 @@
 //! calibration = "left.json"     # with bus: LeRobot's calibration file, relative to this file
 //! xyz = [0.0, 0.15, 0.0]        # the base in the world frame (m)
 //! rpy_deg = [0.0, 0.0, 0.0]     # and its roll, pitch, yaw (degrees, fixed axes x, y, z)
+//! [arm.leader]                  # optional: the leader arm that drives it in `armctl teleop --rig`
+//! port = "/dev/ttyUSB2"         # its USB adapter; or sim = true with script = "left.csv"
+//! arm = "so101"                 # and calibration, protocol, baud as `armctl teleop --leader-*`
 //! ```
 //!
 //! Each arm becomes the drive options of one arm ([`LinkArgs`]), checked as those are, so a rig
@@ -55,6 +58,38 @@ struct ArmEntry {
     xyz: [f64; 3],
     #[serde(default)]
     rpy_deg: [f64; 3],
+    leader: Option<LeaderEntry>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LeaderEntry {
+    port: Option<String>,
+    #[serde(default)]
+    sim: bool,
+    script: Option<String>,
+    arm: Option<String>,
+    calibration: Option<String>,
+    protocol: Option<String>,
+    baud: Option<u32>,
+}
+
+/// The leader arm of a rig arm, for `armctl teleop --rig`: what `armctl teleop`'s `--leader*`
+/// options say for one follower.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LeaderSpec {
+    /// Its serial port, or `sim` (simulated leader servos turned by `script`).
+    pub port: String,
+    /// With `sim`: the path the simulated hand moves it along (a joint keyframe file).
+    pub script: Option<PathBuf>,
+    /// The leader arm: a preset or an arm file [default: so101].
+    pub arm: String,
+    /// Its LeRobot calibration file.
+    pub calibration: Option<PathBuf>,
+    /// Its servo protocol [default: its servos'].
+    pub protocol: Option<ProtocolArg>,
+    /// Its bus's baud rate [default: its arm file's].
+    pub baud: Option<u32>,
 }
 
 /// One arm of a rig.
@@ -66,6 +101,8 @@ pub struct RigArmSpec {
     pub link: LinkArgs,
     /// Its base in the world frame.
     pub base: Pose<f64>,
+    /// The leader arm that drives it in `armctl teleop --rig`, if the file names one.
+    pub leader: Option<LeaderSpec>,
 }
 
 /// A rig: its arms, in the file's order.
@@ -150,21 +187,8 @@ impl ArmEntry {
         if places != 1 {
             bail!("give exactly one of sim = true, port = \"PORT\" or bus = \"PORT\" (with protocol)");
         }
-        let protocol = self
-            .protocol
-            .as_deref()
-            .map(|p| match p {
-                "sts" => Ok(ProtocolArg::Sts),
-                "dxl2" => Ok(ProtocolArg::Dxl2),
-                other => bail!("protocol {other:?}: sts (Feetech) or dxl2 (Dynamixel 2.0)"),
-            })
-            .transpose()?;
-        // A preset's name stays a name; anything with an extension is a file next to the rig file.
-        let arm = if Path::new(&self.arm).extension().is_some() {
-            relative(dir, &self.arm).display().to_string()
-        } else {
-            self.arm.clone()
-        };
+        let protocol = self.protocol.as_deref().map(protocol).transpose()?;
+        let arm = arm_path(dir, &self.arm);
         let link = LinkArgs {
             port: self.port.clone(),
             bus: self.bus.clone(),
@@ -180,6 +204,55 @@ impl ArmEntry {
         // The same checks as the drive options of one arm, and the arm loaded once to prove it.
         link.target()?;
         let rpy = self.rpy_deg.map(f64::to_radians);
-        Ok(RigArmSpec { name: self.name.clone(), link, base: Pose::from_xyz_rpy(self.xyz, rpy) })
+        let leader = self.leader.as_ref().map(|l| l.check(dir)).transpose().context("leader")?;
+        Ok(RigArmSpec { name: self.name.clone(), link, base: Pose::from_xyz_rpy(self.xyz, rpy), leader })
+    }
+}
+
+/// A protocol's name as typed.
+fn protocol(name: &str) -> Result<ProtocolArg> {
+    match name {
+        "sts" => Ok(ProtocolArg::Sts),
+        "dxl2" => Ok(ProtocolArg::Dxl2),
+        other => bail!("protocol {other:?}: sts (Feetech) or dxl2 (Dynamixel 2.0)"),
+    }
+}
+
+/// An arm's name as typed: a preset's name stays a name, anything with an extension is a file
+/// next to the rig file.
+fn arm_path(dir: &Path, arm: &str) -> String {
+    if Path::new(arm).extension().is_some() {
+        relative(dir, arm).display().to_string()
+    } else {
+        arm.to_string()
+    }
+}
+
+impl LeaderEntry {
+    fn check(&self, dir: &Path) -> Result<LeaderSpec> {
+        let port = match (&self.port, self.sim, &self.script) {
+            (Some(port), false, None) => port.clone(),
+            (None, true, Some(_)) => "sim".to_string(),
+            (None, true, None) => {
+                bail!("sim = true needs script = \"FILE\": the path the simulated hand moves it along")
+            }
+            (_, false, Some(_)) => bail!("script moves a simulated leader: it needs sim = true (and no port)"),
+            _ => bail!("give one of port = \"PORT\" or sim = true (with script)"),
+        };
+        let arm = arm_path(dir, self.arm.as_deref().unwrap_or("so101"));
+        // Loaded once here, so a bad arm or calibration is said before anything opens.
+        let spec = crate::drive::args::calibrated(
+            crate::arm::ArmSpec::load(&arm, None)?,
+            self.calibration.as_deref().map(|c| relative(dir, c)).as_deref(),
+        )?;
+        drop(spec);
+        Ok(LeaderSpec {
+            port,
+            script: self.script.as_deref().map(|s| relative(dir, s)),
+            arm,
+            calibration: self.calibration.as_deref().map(|c| relative(dir, c)),
+            protocol: self.protocol.as_deref().map(protocol).transpose()?,
+            baud: self.baud,
+        })
     }
 }

@@ -31,7 +31,7 @@ use serde_json::json;
 use crate::args::bus::ProtocolArg;
 use crate::arm::ArmSpec;
 use crate::drive::args::{calibrated, LinkArgs};
-use crate::drive::connection::SIM_ADAPTER_LATENCY;
+use crate::drive::connection::{Target, SIM_ADAPTER_LATENCY};
 use crate::drive::interrupt;
 use crate::drive::session::{Driver, Waited};
 use crate::sim::PtyServer;
@@ -51,7 +51,7 @@ pub struct TeleopArgs {
     /// The leader arm's serial port (its USB adapter), or `sim`: simulated leader servos, turned by
     /// --leader-script.
     #[arg(long, value_name = "PORT|sim")]
-    pub leader: String,
+    pub leader: Option<String>,
     /// The leader's servo protocol [default: that of --leader-arm's servos].
     #[arg(long, value_enum)]
     pub leader_protocol: Option<ProtocolArg>,
@@ -109,34 +109,190 @@ impl TeleopArgs {
                 bail!("--duration: {d} must be a positive number of seconds");
             }
         }
-        match (self.leader == "sim", &self.leader_script) {
+        Ok((period, lead))
+    }
+
+    /// The leader the options name, checked.
+    fn leader(&self) -> Result<LeaderSource> {
+        let Some(port) = self.leader.clone() else {
+            bail!("--leader PORT|sim is missing: the leader arm's serial port, or sim with --leader-script");
+        };
+        match (port == "sim", &self.leader_script) {
             (true, None) => {
                 bail!("--leader sim needs --leader-script FILE: the path the simulated hand moves it along")
             }
             (false, Some(_)) => bail!("--leader-script moves a simulated leader: it needs --leader sim"),
             _ => {}
         }
-        Ok((period, lead))
+        Ok(LeaderSource {
+            port,
+            protocol: self.leader_protocol,
+            arm: self.leader_arm.clone(),
+            calibration: self.leader_calibration.clone(),
+            baud: self.leader_baud,
+            script: self.leader_script.clone(),
+        })
     }
+}
+
+/// A leader arm, as `armctl teleop`'s `--leader*` options or a rig file's `[arm.leader]` name it.
+#[derive(Clone, Debug)]
+pub struct LeaderSource {
+    /// Its serial port, or `sim`.
+    pub port: String,
+    /// Its servo protocol [default: its servos'].
+    pub protocol: Option<ProtocolArg>,
+    /// The leader arm: a preset or an arm file.
+    pub arm: String,
+    /// Its LeRobot calibration file.
+    pub calibration: Option<PathBuf>,
+    /// Its bus's baud rate.
+    pub baud: Option<u32>,
+    /// With `sim`: the simulated hand's path.
+    pub script: Option<PathBuf>,
+}
+
+/// The loop's settings every follower of a session shares.
+#[derive(Clone, Copy, Debug)]
+struct LoopSettings {
+    rate: f64,
+    period: Duration,
+    lead: Duration,
+    max_step: Option<f64>,
+    duration: Option<f64>,
+}
+
+/// One leader driving one follower to the end.
+struct Session {
+    figures: Figures,
+    ending: Ending,
+    code: i32,
 }
 
 /// Runs `armctl teleop`; returns the exit code.
 pub fn run(link: &LinkArgs, args: TeleopArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
     // Everything the user typed is checked before anything is opened.
     let link = link.merged(&args.link)?;
+    if let Some(rig) = &link.rig {
+        return run_rig(rig, &link, &args, out, err);
+    }
     let (period, lead) = args.check()?;
+    let leader = args.leader()?;
     let (target, arm) = link.target()?;
     if link.object_mm.is_some() {
         bail!("--object-mm: teleop's simulated follower has no object between its jaws");
     }
-    let arm = arm.map(str::to_string);
-    let leader_arm = calibrated(ArmSpec::load(&args.leader_arm, None)?, args.leader_calibration.as_deref())?;
-    let bus = leader::bus_config(&leader_arm, args.leader_protocol.map(Into::into), args.leader_baud)?;
-    let mut simulated_leader = match &args.leader_script {
-        Some(script) => Some(hand::SimLeader::spawn(&leader_arm, script, Some(SIM_ADAPTER_LATENCY))?),
-        None => None,
+    let settings = LoopSettings { rate: args.rate, period, lead, max_step: args.max_step, duration: args.duration };
+    interrupt::catch();
+    let s = session(target, arm.map(str::to_string), &leader, &settings, args.record.as_deref(), err)?;
+    report(&s.figures, period, lead, &s.ending, link.json, out)?;
+    Ok(if s.ending.monitor.is_some_and(|m| m.violation_count > 0) { 1 } else { s.code })
+}
+
+/// `armctl teleop --rig RIG`: every rig arm's leader (its `[arm.leader]`) drives it, each pair in
+/// a loop of its own on a thread of its own, all on the PC's clock; the figures per arm.
+fn run_rig(rig: &str, link: &LinkArgs, args: &TeleopArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+    let per_arm = LinkArgs { rig: None, json: false, ..link.clone() };
+    if per_arm != LinkArgs::default() {
+        bail!("with --rig, each arm's place is in the rig file: give no --port, --bus, --sim, --arm or the like");
+    }
+    let given_leader = args.leader.is_some()
+        || args.leader_protocol.is_some()
+        || args.leader_calibration.is_some()
+        || args.leader_baud.is_some()
+        || args.leader_script.is_some();
+    if given_leader {
+        bail!("with --rig, each arm's leader is in the rig file ([arm.leader]): give no --leader options");
+    }
+    if args.record.is_some() {
+        bail!("--record with --rig is not built yet: record each pair with its own `armctl teleop`");
+    }
+    let (period, lead) = args.check()?;
+    let spec = crate::rig::RigSpec::load(rig)?;
+    let mut pairs = Vec::new();
+    for arm in &spec.arms {
+        let Some(leader) = &arm.leader else {
+            bail!(
+                "rig {}: arm {} has no leader: add an [arm.leader] table (port = \"PORT\", or sim = true with script)",
+                spec.name,
+                arm.name
+            );
+        };
+        let (target, follower) = arm.link.target()?;
+        let source = LeaderSource {
+            port: leader.port.clone(),
+            protocol: leader.protocol,
+            arm: leader.arm.clone(),
+            calibration: leader.calibration.clone(),
+            baud: leader.baud,
+            script: leader.script.clone(),
+        };
+        pairs.push((arm.name.clone(), target, follower.map(str::to_string), source));
+    }
+    let settings = LoopSettings { rate: args.rate, period, lead, max_step: args.max_step, duration: args.duration };
+    interrupt::catch();
+    let results: Vec<(String, Result<Session>, Vec<u8>)> = std::thread::scope(|scope| {
+        let handles: Vec<_> = pairs
+            .into_iter()
+            .map(|(name, target, follower, source)| {
+                scope.spawn(move || {
+                    let mut said = Vec::new();
+                    let result = session(target, follower, &source, &settings, None, &mut said);
+                    (name, result, said)
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().expect("a teleop thread panicked")).collect()
+    });
+    let mut code = 0;
+    let mut arms = serde_json::Map::new();
+    let mut failed = Vec::new();
+    for (name, result, said) in results {
+        for line in String::from_utf8_lossy(&said).lines() {
+            writeln!(err, "{name}: {line}")?;
+        }
+        match result {
+            Ok(s) => {
+                if s.ending.monitor.as_ref().is_some_and(|m| m.violation_count > 0) || s.code != 0 {
+                    code = if s.code != 0 { s.code } else { 1 };
+                }
+                if link.json {
+                    arms.insert(name, report_json(&s.figures, period, lead, &s.ending));
+                } else {
+                    writeln!(out, "== {name}")?;
+                    report(&s.figures, period, lead, &s.ending, false, out)?;
+                }
+            }
+            Err(e) => failed.push(format!("{name}: {e:#}")),
+        }
+    }
+    if !failed.is_empty() {
+        bail!("{}", failed.join("; "));
+    }
+    if link.json {
+        writeln!(out, "{}", json!({"rig": spec.name, "arms": arms}))?;
+    }
+    Ok(code)
+}
+
+/// One leader driving one follower (`target`, running `arm` if named) until the duration, the
+/// script's end or Ctrl-C; then the follower brought to rest. What opening said goes to `err`.
+fn session(
+    target: Target,
+    arm: Option<String>,
+    source: &LeaderSource,
+    settings: &LoopSettings,
+    record: Option<&std::path::Path>,
+    err: &mut dyn Write,
+) -> Result<Session> {
+    let LoopSettings { rate, period, lead, max_step, duration } = *settings;
+    let leader_arm = calibrated(ArmSpec::load(&source.arm, None)?, source.calibration.as_deref())?;
+    let bus = leader::bus_config(&leader_arm, source.protocol.map(Into::into), source.baud)?;
+    let mut simulated_leader = match (&source.script, source.port == "sim") {
+        (Some(script), true) => Some(hand::SimLeader::spawn(&leader_arm, script, Some(SIM_ADAPTER_LATENCY))?),
+        _ => None,
     };
-    let leader_path = simulated_leader.as_ref().map_or(args.leader.clone(), |l| l.path().to_string());
+    let leader_path = simulated_leader.as_ref().map_or(source.port.clone(), |l| l.path().to_string());
     let (mut leader, leader_latency_us) = leader::Leader::open(&leader_path, bus, &leader_arm)?;
 
     let (target, follower_servos) = target.in_real_time()?;
@@ -151,12 +307,11 @@ pub fn run(link: &LinkArgs, args: TeleopArgs, out: &mut dyn Write, err: &mut dyn
         );
     }
     let gripper = leader.has_gripper() && driver.gripper().is_some();
-    let settings = Settings::for_follower(&driver, period, lead, args.max_step, gripper)?;
+    let settings = Settings::for_follower(&driver, period, lead, max_step, gripper)?;
     let max_step = settings.max_step[0];
-    let mut recorder =
-        args.record.as_deref().map(|p| record::Recorder::create(p, driver.joints(), gripper)).transpose()?;
+    let mut recorder = record.map(|p| record::Recorder::create(p, driver.joints(), gripper)).transpose()?;
 
-    let until = match (args.duration, &simulated_leader) {
+    let until = match (duration, &simulated_leader) {
         (Some(d), _) => Some(Duration::from_secs_f64(d)),
         // The script's end and a little for the follower to get there.
         (None, Some(l)) => Some(l.duration() + Duration::from_millis(200)),
@@ -167,15 +322,14 @@ pub fn run(link: &LinkArgs, args: TeleopArgs, out: &mut dyn Write, err: &mut dyn
         "teleop: leader {} on {} (adapter latency {:.1} ms) drives follower {} at {:.0} Hz, {:.1} ms ahead, at most \
          {:.4} rad per step{}",
         leader_arm.name,
-        args.leader,
+        source.port,
         leader_latency_us as f64 * 1e-3,
         driver.arm().name,
-        args.rate,
+        rate,
         lead.as_secs_f64() * 1e3,
         max_step,
         if until.is_none() { "; Ctrl-C ends it" } else { "" }
     )?;
-    interrupt::catch();
     if let Some(l) = simulated_leader.as_mut() {
         l.start()?;
     }
@@ -199,10 +353,8 @@ pub fn run(link: &LinkArgs, args: TeleopArgs, out: &mut dyn Write, err: &mut dyn
     };
     let recorded = recorder.map(record::Recorder::finish).transpose()?;
     let monitor = follower_servos.as_ref().and_then(PtyServer::monitor);
-    let ending = Ending { rest, monitor, recorded };
-    report(&figures, period, lead, &ending, link.json, out)?;
     driver.close(err)?;
-    Ok(if ending.monitor.is_some_and(|m| m.violation_count > 0) { 1 } else { code })
+    Ok(Session { figures, ending: Ending { rest, monitor, recorded }, code })
 }
 
 /// How a session ended.
@@ -213,6 +365,26 @@ struct Ending {
     monitor: Option<crate::sim::monitor::MonitorReport>,
     /// The keyframe file written.
     recorded: Option<PathBuf>,
+}
+
+/// The session's figures as JSON.
+fn report_json(f: &Figures, period: Duration, lead: Duration, ending: &Ending) -> serde_json::Value {
+    let (monitor, recorded) = (ending.monitor.as_ref(), ending.recorded.as_deref());
+    let (q50, q99) = (quantile(&f.queued_ms, 0.5), quantile(&f.queued_ms, 0.99));
+    let (g50, g99) = (quantile(&f.goal_ms, 0.5), quantile(&f.goal_ms, 0.99));
+    let (t50, t99, tmax) = (quantile(&f.tracking, 0.5), quantile(&f.tracking, 0.99), quantile(&f.tracking, 1.0));
+    json!({
+            "keyframes": f.keyframes, "seconds": f.seconds, "rate_hz": f.rate_hz(),
+            "period_ms": period.as_secs_f64() * 1e3, "lead_ms": lead.as_secs_f64() * 1e3,
+            "late_iterations": f.late_iterations, "read_failures": f.read_failures,
+            "latency_ms": {"read_to_queued_p50": q50, "read_to_queued_p99": q99, "read_to_goal_p50": g50, "read_to_goal_p99": g99},
+            "late_keyframes": f.late_keyframes, "underruns": f.underruns, "restarts": f.restarts, "retimed": f.retimed,
+            "clamped_steps": f.clamped_steps, "limited_values": f.limited_values,
+            "tracking_rad": {"p50": t50, "p99": t99, "max": tmax},
+            "monitor": monitor.map(|m| json!({"goals": m.checked, "violations": m.violation_count, "max_step_ratio": m.max_step_ratio})),
+            "recorded": recorded.map(|p| p.display().to_string()),
+            "follower_at_rest": ending.rest,
+    })
 }
 
 /// The session's figures: on `out`, one line of JSON with `json`, else a few lines of text.
@@ -229,19 +401,7 @@ fn report(
     let (g50, g99) = (quantile(&f.goal_ms, 0.5), quantile(&f.goal_ms, 0.99));
     let (t50, t99, tmax) = (quantile(&f.tracking, 0.5), quantile(&f.tracking, 0.99), quantile(&f.tracking, 1.0));
     if as_json {
-        let value = json!({
-            "keyframes": f.keyframes, "seconds": f.seconds, "rate_hz": f.rate_hz(),
-            "period_ms": period.as_secs_f64() * 1e3, "lead_ms": lead.as_secs_f64() * 1e3,
-            "late_iterations": f.late_iterations, "read_failures": f.read_failures,
-            "latency_ms": {"read_to_queued_p50": q50, "read_to_queued_p99": q99, "read_to_goal_p50": g50, "read_to_goal_p99": g99},
-            "late_keyframes": f.late_keyframes, "underruns": f.underruns, "restarts": f.restarts, "retimed": f.retimed,
-            "clamped_steps": f.clamped_steps, "limited_values": f.limited_values,
-            "tracking_rad": {"p50": t50, "p99": t99, "max": tmax},
-            "monitor": monitor.map(|m| json!({"goals": m.checked, "violations": m.violation_count, "max_step_ratio": m.max_step_ratio})),
-            "recorded": recorded.map(|p| p.display().to_string()),
-            "follower_at_rest": ending.rest,
-        });
-        writeln!(out, "{value}")?;
+        writeln!(out, "{}", report_json(f, period, lead, ending))?;
         return Ok(());
     }
     writeln!(
