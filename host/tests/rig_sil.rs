@@ -234,3 +234,77 @@ fn tempdir() -> std::path::PathBuf {
     std::fs::create_dir_all(&dir).unwrap();
     dir
 }
+
+/// The example rig of two SO-101 arms on a turning torso (host/examples/rigs): one tree.
+fn torso_rig() -> String {
+    format!("{}/examples/rigs/torso-rig.toml", env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Random reachable targets for both hands of the torso rig (FK of random joints 5 % inside every
+/// limit, the torso's included), moved to as one tree: every pair reached within a millimetre,
+/// and the shared torso joint used (turned) where the targets ask for it.
+#[test]
+fn a_shared_joint_makes_the_rig_one_tree_and_random_reachable_targets_are_reached() {
+    use armctl::rig::tree::{RigTree, TreeArm};
+    let spec = RigSpec::load(&torso_rig()).unwrap();
+    let arms: Vec<armctl::arm::ArmSpec> =
+        spec.arms.iter().map(|a| armctl::arm::ArmSpec::load(a.link.arm.as_deref().unwrap(), None).unwrap()).collect();
+    let tree_arms: Vec<TreeArm<'_>> =
+        arms.iter().zip(&spec.arms).map(|(arm, a)| TreeArm { arm, base: a.base, mount: a.mount }).collect();
+    let tree = RigTree::new(&tree_arms).unwrap();
+    let mut rng = kinematics::SplitMix64::new(30);
+    let mut torso_turned = 0;
+    for case in 0..12 {
+        let q: Vec<Vec<f64>> = arms
+            .iter()
+            .map(|arm| {
+                arm.joints
+                    .iter()
+                    .map(|j| {
+                        let margin = 0.05 * (j.upper - j.lower);
+                        rng.uniform(j.lower + margin, j.upper - margin)
+                    })
+                    .collect()
+            })
+            .collect();
+        let tools = tree.tools(&q);
+        let to = |p: [f64; 3]| format!("{:.5},{:.5},{:.5}", p[0], p[1], p[2]);
+        let (left, right) = (format!("left={}", to(tools[1])), format!("right={}", to(tools[2])));
+        let (code, out, err) = armctl(&["--rig", &torso_rig(), "move", "--to", &left, "--to", &right, "--json"]);
+        assert_eq!(code, 0, "case {case}: {left} {right}: {err}");
+        let v: Value = serde_json::from_str(out.trim()).unwrap();
+        assert_eq!(v["solved_as"], "one tree");
+        for name in ["left", "right"] {
+            let e = v["arms"][name]["error_mm"].as_f64().unwrap();
+            assert!(e < 1.0, "case {case}: {name} {e} mm: {v}");
+        }
+        if v["arms"]["torso"]["joints"][0].as_f64().unwrap().abs() > 0.05 {
+            torso_turned += 1;
+        }
+    }
+    assert!(torso_turned >= 6, "the torso turned in {torso_turned} of 12 cases");
+    // A mounted arm's tool in the world: the torso's tool frame, the mount offset, the arm.
+    let status = json_of(&["--rig", &torso_rig(), "status", "--json"]);
+    let world = &status["arms"]["left"]["tool_world"];
+    let local = &status["arms"]["left"]["tool"];
+    assert!((world[1].as_f64().unwrap() - local[1].as_f64().unwrap() - 0.15).abs() < 1e-9, "{status}");
+    assert!((world[2].as_f64().unwrap() - local[2].as_f64().unwrap() - 0.1).abs() < 1e-9, "{status}");
+    // Out of reach for the tree: nothing moves; orientations and Cartesian columns are refused.
+    refused(&["--rig", &torso_rig(), "move", "--to", "left=0.2,0.9,0.1", "--to", "right=0.2,-0.1,0.1"], "no arm moved");
+    refused(&["--rig", &torso_rig(), "move", "--to", "left=0.2,0.2,0.1", "--quat", "left=1,0,0,0"], "positions only");
+    refused(&["demo", "--rig", &torso_rig()], "mounted on another arm");
+    let dir = tempdir();
+    let cartesian = dir.join("cartesian.csv");
+    std::fs::write(&cartesian, "t,left.x,left.y,left.z\n1,0.2,0.2,0.2\n").unwrap();
+    refused(&["--rig", &torso_rig(), "play", cartesian.to_str().unwrap()], "give it joint columns");
+    // Joint columns play on the tree as on any rig: the torso turns, both arms with it.
+    let joints = dir.join("joints.csv");
+    std::fs::write(
+        &joints,
+        "t,torso.q1,left.q1,left.q2,left.q3,left.q4,left.q5,right.q1,right.q2,right.q3,right.q4,right.q5\n\
+         1,0.5,0.2,0,0,0,0,-0.2,0,0,0,0\n2,0.3,0.1,0.1,0.1,0.1,0,-0.1,0.1,0.1,0.1,0\n",
+    )
+    .unwrap();
+    let v = json_of(&["--rig", &torso_rig(), "play", joints.to_str().unwrap(), "--json"]);
+    assert!((v["arms"]["torso"]["joints"][0].as_f64().unwrap() - 0.3).abs() < 0.01, "{v}");
+}

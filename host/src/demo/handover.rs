@@ -204,6 +204,7 @@ impl Hold {
 pub fn run(name: &str, json_out: bool, out: &mut dyn Write) -> Result<i32> {
     let wall = Instant::now();
     let spec = RigSpec::load(name)?;
+    spec.refuse_mounts("the handover demo")?;
     if spec.arms.len() != 2 {
         bail!("rig {}: the handover takes two arms; this rig has {}", spec.name, spec.arms.len());
     }
@@ -233,9 +234,9 @@ pub fn run(name: &str, json_out: bool, out: &mut dyn Write) -> Result<i32> {
         group.board(i).record();
     }
     let mut starts = Vec::new();
-    for arm in &mut rig.arms {
-        let status = arm.driver.status()?;
-        starts.push(arm.tool_in_world(&status.measured)?);
+    for i in 0..rig.arms.len() {
+        let status = rig.arms[i].driver.status()?;
+        starts.push(rig.tool_in_world(i, &status.measured)?);
     }
     let (giver, taker) = waypoints(starts[0], starts[1]);
     let owned = [rig.arms[0].name.clone(), rig.arms[1].name.clone()];

@@ -110,6 +110,11 @@ impl Plan {
         self.times_and_lines().0.last().copied().unwrap_or(0.0)
     }
 
+    /// Whether the keyframes are Cartesian (tool positions) rather than joint values.
+    pub fn is_cartesian(&self) -> bool {
+        matches!(self.frames, Frames::Cartesian(_))
+    }
+
     /// The longest the player may take beyond the last keyframe's time (controller seconds).
     pub fn timeout(&self) -> f64 {
         self.timeout

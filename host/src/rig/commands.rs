@@ -16,7 +16,7 @@ use crate::drive::args::{DriveCommand, LinkArgs, MoveArgs, OnOff};
 use crate::drive::commands::{parse_motion, parse_position, parse_quaternion, print_status, status_json};
 use crate::drive::interrupt;
 use crate::drive::path::{decide, host_solution, send};
-use crate::drive::session::fmt3;
+use crate::drive::session::{check_joints, fmt3};
 
 /// One arm's tool target of a rig move (world frame).
 struct ArmTarget {
@@ -77,7 +77,16 @@ fn parse(spec: &RigSpec, command: &DriveCommand) -> Result<RigRequest> {
             }
             let names: Vec<&str> = spec.arms.iter().map(|a| a.name.as_str()).collect();
             let bases: Vec<Pose<f64>> = spec.arms.iter().map(|a| a.base).collect();
-            RigRequest::Play(columns::read(&args.file, &names, &bases, args.timeout)?)
+            let parts = columns::read(&args.file, &names, &bases, args.timeout)?;
+            if let Some(part) = parts.iter().find(|p| spec.arms[p.arm].mount.is_some() && p.plan.is_cartesian()) {
+                bail!(
+                    "{}: arm {} is mounted on another arm, which moves its base: give it joint columns (its Cartesian \
+                     columns would be in a moving frame)",
+                    args.file.display(),
+                    spec.arms[part.arm].name
+                );
+            }
+            RigRequest::Play(parts)
         }
         DriveCommand::Joints(_) | DriveCommand::Gripper(_) => bail!(
             "--rig drives status, stop, torque, move and play so far; for joints or the gripper, drive that arm on its own"
@@ -105,6 +114,15 @@ fn parse_move(spec: &RigSpec, args: &MoveArgs) -> Result<RigRequest> {
         target.orientation = Some(parse_quaternion(values, "--quat")?);
     }
     let (timing, path) = parse_motion(args)?;
+    if spec.arms.iter().any(|a| a.mount.is_some()) {
+        // One tree: solved on the host, each arm's share sent as a joint move.
+        if targets.iter().any(|t| t.orientation.is_some()) {
+            bail!("--quat: a rig with an arm mounted on another (a shared joint) solves tool positions only so far");
+        }
+        if path == MovePath::Line {
+            bail!("--path line: a rig with an arm mounted on another (a shared joint) moves by joints (auto or joint)");
+        }
+    }
     Ok(RigRequest::Move { targets, timing, path, timeout: args.timeout })
 }
 
@@ -126,9 +144,10 @@ fn execute(rig: &mut Rig, request: RigRequest, json: bool, out: &mut dyn Write, 
     match request {
         RigRequest::Status => {
             let mut arms = serde_json::Map::new();
-            for arm in &mut rig.arms {
-                let status = arm.driver.status()?;
-                let tool = arm.tool_in_world(&status.measured)?;
+            for i in 0..rig.arms.len() {
+                let status = rig.arms[i].driver.status()?;
+                let tool = rig.tool_in_world(i, &status.measured)?;
+                let arm = &rig.arms[i];
                 if json {
                     let mut v = status_json(&arm.driver, &status)?;
                     v["tool_world"] = json!(tool);
@@ -147,9 +166,11 @@ fn execute(rig: &mut Rig, request: RigRequest, json: bool, out: &mut dyn Write, 
             // Every arm told first, then each waited for: no arm waits on another's stop.
             let sent = stop_all(rig);
             let mut arms = serde_json::Map::new();
-            for arm in &mut rig.arms {
-                let status = arm.driver.stop().with_context(|| format!("arm {}", arm.name))?;
-                let tool = arm.tool_in_world(&status.measured)?;
+            for i in 0..rig.arms.len() {
+                let name = rig.arms[i].name.clone();
+                let status = rig.arms[i].driver.stop().with_context(|| format!("arm {name}"))?;
+                let tool = rig.tool_in_world(i, &status.measured)?;
+                let arm = &rig.arms[i];
                 if json {
                     arms.insert(
                         arm.name.clone(),
@@ -183,11 +204,100 @@ fn execute(rig: &mut Rig, request: RigRequest, json: bool, out: &mut dyn Write, 
             }
             Ok(0)
         }
-        RigRequest::Move { targets, timing, path, timeout } => {
-            move_arms(rig, &targets, timing, path, timeout, json, out, err)
-        }
+        RigRequest::Move { targets, timing, path, timeout } => match rig.tree()? {
+            Some(tree) => move_tree(rig, &tree, &targets, timing, timeout, json, out, err),
+            None => move_arms(rig, &targets, timing, path, timeout, json, out, err),
+        },
         RigRequest::Play(parts) => super::play::run(rig, parts, json, out, err),
     }
+}
+
+/// The move of a rig that is one tree (an arm mounted on another): every target solved at once
+/// on the host over every joint of the tree (an arm without a target keeps its tool where it is),
+/// then each arm's share sent as a joint move, all with one duration so they arrive together.
+#[allow(clippy::too_many_arguments)]
+fn move_tree(
+    rig: &mut Rig,
+    tree: &super::tree::RigTree,
+    targets: &[ArmTarget],
+    timing: Timing,
+    timeout: f64,
+    json: bool,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> Result<i32> {
+    let mut q = Vec::new();
+    for arm in &mut rig.arms {
+        q.push(arm.driver.status()?.measured.iter().map(|&x| f64::from(x)).collect::<Vec<f64>>());
+    }
+    let mut wanted: Vec<Option<[f64; 3]>> = vec![None; rig.arms.len()];
+    for t in targets {
+        wanted[t.arm] = Some(t.position.map(f64::from));
+    }
+    let names: Vec<&str> = rig.arms.iter().map(|a| a.name.as_str()).collect();
+    let shown: Vec<String> =
+        targets.iter().map(|t| format!("{} to {} m", names[t.arm], fmt3(&t.position.map(f64::from)))).collect();
+    let solved = tree
+        .solve(&q, &wanted, &names)
+        .map_err(|e| anyhow::anyhow!("move {} (world): {e:#}; no arm moved", shown.join(", ")))?;
+    // One duration for all: the tool speed over the longest tool travel, or --duration; each
+    // firmware lengthens it where its joint limits need longer, so the speed limit still holds.
+    let before = tree.tools(&q);
+    let after = tree.tools(&solved.q);
+    let travel = before
+        .iter()
+        .zip(&after)
+        .map(|(a, b)| (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>().sqrt())
+        .fold(0.0, f64::max);
+    let seconds = match timing {
+        Timing::Duration(d) => d,
+        Timing::MaxSpeed(speed) => ((travel / f64::from(speed)) as f32).max(0.5),
+    };
+    let mut switched = Vec::new();
+    for (a, arm) in rig.arms.iter_mut().enumerate() {
+        let (_, on) = arm.driver.ready_to_move().with_context(|| format!("arm {}", arm.name))?;
+        switched.push(on);
+        let positions = check_joints(&arm.driver, &solved.q[a], &format!("arm {}", arm.name))?;
+        let message = HostMessage::MoveJoints { positions, timing: Timing::Duration(seconds) };
+        if let Err(e) = arm.driver.request(&message) {
+            let name = arm.name.clone();
+            let stopped = stop_all(rig);
+            bail!("move: arm {name} refused its joints: {e}; {stopped}");
+        }
+    }
+    interrupt::catch();
+    let all: Vec<usize> = (0..rig.arms.len()).collect();
+    let Some(ends) = rig.wait_all(&all, timeout)? else {
+        let stopped = stop_all(rig);
+        writeln!(err, "stopped by Ctrl-C: {stopped}")?;
+        return Ok(interrupt::EXIT_CODE);
+    };
+    let measured: Vec<Vec<f64>> = ends.iter().map(|s| s.measured.iter().map(|&x| f64::from(x)).collect()).collect();
+    let reached = tree.tools(&measured);
+    let mut arms = serde_json::Map::new();
+    for (a, arm) in rig.arms.iter().enumerate() {
+        if switched[a] {
+            writeln!(err, "{}: torque was off: switched it on", arm.name)?;
+        }
+        let goal = wanted[a];
+        let error_mm = goal.map(|g| 1e3 * (0..3).map(|i| (reached[a][i] - g[i]).powi(2)).sum::<f64>().sqrt());
+        if json {
+            arms.insert(
+                arm.name.clone(),
+                json!({"target": goal, "reached": reached[a], "error_mm": error_mm, "joints": ends[a].measured}),
+            );
+        } else {
+            let target = goal.map(|g| format!("target {} m, ", fmt3(&g))).unwrap_or_else(|| "no target, ".to_string());
+            let error = error_mm.map(|e| format!(", error {e:.2} mm")).unwrap_or_default();
+            writeln!(out, "{}: {target}reached {} m (world){error}", arm.name, fmt3(&reached[a]))?;
+        }
+    }
+    if json {
+        writeln!(out, "{}", json!({"command": "move", "rig": rig.name, "solved_as": "one tree", "arms": arms}))?;
+    } else {
+        writeln!(out, "move: solved as one tree over {} arms' joints, {seconds:.2} s", rig.arms.len())?;
+    }
+    Ok(0)
 }
 
 /// Sends every arm its move (each decided as `armctl move` decides one), then waits for all.
@@ -247,11 +357,11 @@ fn move_arms(
     };
     let mut arms = serde_json::Map::new();
     for ((target, (start, switched)), status) in targets.iter().zip(starts).zip(ends) {
+        let reached = rig.tool_in_world(target.arm, &status.measured)?;
         let arm = &rig.arms[target.arm];
         if switched {
             writeln!(err, "{}: torque was off: switched it on", arm.name)?;
         }
-        let reached = arm.tool_in_world(&status.measured)?;
         let goal = target.position.map(f64::from);
         let error_mm = 1e3 * (0..3).map(|i| (reached[i] - goal[i]).powi(2)).sum::<f64>().sqrt();
         let took = f64::from(status.time - start.time);

@@ -10,6 +10,8 @@
 //! calibration = "left.json"     # with bus: LeRobot's calibration file, relative to this file
 //! xyz = [0.0, 0.15, 0.0]        # the base in the world frame (m)
 //! rpy_deg = [0.0, 0.0, 0.0]     # and its roll, pitch, yaw (degrees, fixed axes x, y, z)
+//! mount = "torso"               # optional: the base sits on this earlier arm's tool frame
+//!                               # instead (xyz and rpy_deg then relative to it): a shared joint
 //! [arm.leader]                  # optional: the leader arm that drives it in `armctl teleop --rig`
 //! port = "/dev/ttyUSB2"         # its USB adapter; or sim = true with script = "left.csv"
 //! arm = "so101"                 # and calibration, protocol, baud as `armctl teleop --leader-*`
@@ -58,6 +60,7 @@ struct ArmEntry {
     xyz: [f64; 3],
     #[serde(default)]
     rpy_deg: [f64; 3],
+    mount: Option<String>,
     leader: Option<LeaderEntry>,
 }
 
@@ -99,8 +102,11 @@ pub struct RigArmSpec {
     pub name: String,
     /// Where its core runs and which arm it drives, as the drive options say it for one arm.
     pub link: LinkArgs,
-    /// Its base in the world frame.
+    /// Its base in the world frame, or on the tool frame of the arm it is mounted on.
     pub base: Pose<f64>,
+    /// The earlier arm whose tool frame carries its base (`None`: the world): that arm's joints
+    /// move it too, and the rig is then a kinematic tree ([`super::tree`]).
+    pub mount: Option<usize>,
     /// The leader arm that drives it in `armctl teleop --rig`, if the file names one.
     pub leader: Option<LeaderSpec>,
 }
@@ -140,13 +146,33 @@ impl RigSpec {
         }
         let mut arms: Vec<RigArmSpec> = Vec::new();
         for entry in file.arms {
-            let arm = entry.check(dir).with_context(|| format!("arm {:?}", entry.name))?;
+            let mut arm = entry.check(dir).with_context(|| format!("arm {:?}", entry.name))?;
             if arms.iter().any(|a| a.name == arm.name) {
                 bail!("two arms are named {:?}: each needs a name of its own", arm.name);
+            }
+            if let Some(mount) = &entry.mount {
+                let Some(on) = arms.iter().position(|a| &a.name == mount) else {
+                    bail!("arm {:?}: mount {mount:?} is not an arm named before it", arm.name);
+                };
+                arm.mount = Some(on);
             }
             arms.push(arm);
         }
         Ok(Self { name: file.name, arms })
+    }
+
+    /// Refuses a rig with an arm mounted on another (a shared joint) for `what`, which places
+    /// every arm's base in the world once and for all.
+    pub fn refuse_mounts(&self, what: &str) -> Result<()> {
+        if let Some(arm) = self.arms.iter().find(|a| a.mount.is_some()) {
+            bail!(
+                "rig {}: arm {} is mounted on another arm (a shared joint), which {what} does not handle yet; \
+                 status, stop, torque, move and play with joint columns do",
+                self.name,
+                arm.name
+            );
+        }
+        Ok(())
     }
 
     /// The arm named `name`.
@@ -205,7 +231,7 @@ impl ArmEntry {
         link.target()?;
         let rpy = self.rpy_deg.map(f64::to_radians);
         let leader = self.leader.as_ref().map(|l| l.check(dir)).transpose().context("leader")?;
-        Ok(RigArmSpec { name: self.name.clone(), link, base: Pose::from_xyz_rpy(self.xyz, rpy), leader })
+        Ok(RigArmSpec { name: self.name.clone(), link, base: Pose::from_xyz_rpy(self.xyz, rpy), mount: None, leader })
     }
 }
 

@@ -7,11 +7,13 @@
 //!   clock ([`crate::places::sil::group`]), so their cores run in step as two boards would.
 //! - [`commands`]: `armctl --rig FILE status|stop|torque|move|play`.
 //! - [`columns`]: a keyframe file with every arm's columns, split into one file per arm.
+//! - [`tree`]: a rig whose arms are mounted on one another (a shared joint) as one kinematic tree.
 
 pub mod columns;
 pub mod commands;
 pub mod file;
 pub mod play;
+pub mod tree;
 
 use std::io::Write;
 
@@ -31,28 +33,12 @@ use crate::places::sil::Sil;
 pub struct RigArm {
     /// Its name in the rig.
     pub name: String,
-    /// Its base in the world frame.
+    /// Its base: in the world frame, or on the tool frame of the arm it is mounted on.
     pub base: Pose<f64>,
+    /// The earlier arm it is mounted on (`None`: its base is fixed in the world).
+    pub mount: Option<usize>,
     /// The connection to its core.
     pub driver: Driver,
-}
-
-impl RigArm {
-    /// A world-frame point in this arm's base frame.
-    pub fn to_base(&self, world: [f64; 3]) -> [f64; 3] {
-        let p = self.base.inverse().compose(&Pose::from_translation(world.into()));
-        p.translation.into()
-    }
-
-    /// A point of this arm's base frame in the world frame.
-    pub fn to_world(&self, local: [f64; 3]) -> [f64; 3] {
-        self.base.compose(&Pose::from_translation(local.into())).translation.into()
-    }
-
-    /// The tool's position in the world frame for joint values `q`.
-    pub fn tool_in_world(&self, q: &[f32]) -> Result<[f64; 3]> {
-        Ok(self.to_world(self.driver.tool_position(q)?))
-    }
 }
 
 /// The arms of a rig, connected.
@@ -97,9 +83,35 @@ impl Rig {
                 (target, _) => connection::open(target, name.as_deref(), err),
             }
             .with_context(|| format!("arm {}", arm.name))?;
-            arms.push(RigArm { name: arm.name.clone(), base: arm.base, driver: Driver::on(conn)? });
+            arms.push(RigArm { name: arm.name.clone(), base: arm.base, mount: arm.mount, driver: Driver::on(conn)? });
         }
         Ok(Self { name: spec.name.clone(), arms, sim: group })
+    }
+
+    /// Arm `i`'s base in the world frame now: fixed, or carried by the arm it is mounted on (whose
+    /// joints are read for it).
+    pub fn world_base(&mut self, i: usize) -> Result<Pose<f64>> {
+        let Some(m) = self.arms[i].mount else { return Ok(self.arms[i].base) };
+        let carrier = self.world_base(m)?;
+        let q = self.arms[m].driver.status()?.measured;
+        let tool = self.arms[m].driver.tool_pose(&q)?;
+        Ok(carrier.compose(&tool).compose(&self.arms[i].base))
+    }
+
+    /// Arm `i`'s tool position in the world frame at its joint values `q`.
+    pub fn tool_in_world(&mut self, i: usize, q: &[f32]) -> Result<[f64; 3]> {
+        let base = self.world_base(i)?;
+        Ok(base.compose(&self.arms[i].driver.tool_pose(q)?).translation.into())
+    }
+
+    /// The rig as one kinematic tree, if an arm is mounted on another (a shared joint).
+    pub fn tree(&self) -> Result<Option<tree::RigTree>> {
+        if self.arms.iter().all(|a| a.mount.is_none()) {
+            return Ok(None);
+        }
+        let arms: Vec<tree::TreeArm<'_>> =
+            self.arms.iter().map(|a| tree::TreeArm { arm: a.driver.arm(), base: a.base, mount: a.mount }).collect();
+        tree::RigTree::new(&arms).map(Some)
     }
 
     /// The arm named `name`.

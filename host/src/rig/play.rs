@@ -92,8 +92,8 @@ pub fn run(rig: &mut Rig, parts: Vec<ArmPart>, json: bool, out: &mut dyn Write, 
     };
     let mut arms_json = serde_json::Map::new();
     for a in &played.arms {
+        let tool = rig.tool_in_world(a.arm, &a.last.measured)?;
         let arm = &rig.arms[a.arm];
-        let tool = arm.tool_in_world(&a.last.measured)?;
         if json {
             arms_json.insert(
                 arm.name.clone(),

@@ -204,6 +204,7 @@ pub fn run(rig: &str, link: &LinkArgs, args: &RetargetArgs, out: &mut dyn Write,
         bail!("--timeout: {} s must be a positive number", args.timeout);
     }
     let spec = RigSpec::load(rig)?;
+    spec.refuse_mounts("retarget")?;
     let given = given_chains(&spec, &args.chain)?;
     let mut arms: Vec<Box<dyn DynArm>> = Vec::new();
     for a in &spec.arms {
