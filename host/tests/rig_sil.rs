@@ -276,12 +276,14 @@ fn a_shared_joint_makes_the_rig_one_tree_and_random_reachable_targets_are_reache
         assert_eq!(v["solved_as"], "one tree");
         for name in ["left", "right"] {
             let e = v["arms"][name]["error_mm"].as_f64().unwrap();
+            eprintln!("case {case}: {name} {e:.3} mm");
             assert!(e < 1.0, "case {case}: {name} {e} mm: {v}");
         }
         if v["arms"]["torso"]["joints"][0].as_f64().unwrap().abs() > 0.05 {
             torso_turned += 1;
         }
     }
+    eprintln!("the torso turned in {torso_turned} of 12 cases");
     assert!(torso_turned >= 6, "the torso turned in {torso_turned} of 12 cases");
     // A mounted arm's tool in the world: the torso's tool frame, the mount offset, the arm.
     let status = json_of(&["--rig", &torso_rig(), "status", "--json"]);
