@@ -1,10 +1,11 @@
 //! `armctl view` in a real browser: runs host/tests/view/e2e.mjs (node, playwright-core and
-//! Debian's headless Chromium), which starts `armctl view --sim`, loads its page and checks the
-//! 3D view, a joint slider, dragging the target gizmo, stopping a playing file, the API's refusals
+//! Debian's headless Chromium; helpers shared with rig.mjs in harness.mjs), which starts `armctl
+//! view --sim`, loads its page and checks the 3D view, a joint slider, dragging the target gizmo, stopping a playing file, the API's refusals
 //! of bad input, the token (out of the address bar; requests without it, or from a foreign Origin
 //! or Host, refused; a hostile page on another origin in the same browser moves nothing), and
 //! measures the cost (websocket messages per second, server CPU). Screenshots and cost.json go to
-//! target/view-e2e/ (CI keeps target/).
+//! target/view-e2e/ (CI keeps target/). Then host/tests/view/rig.mjs does the same for `armctl
+//! view --rig bimanual-so101`: both arms drawn, the second one driven, STOP stopping both.
 //!
 //! Skips with a message where node, Chromium or the npm packages are missing (`npm ci --prefix
 //! host/tests/view`; `apt-get install chromium`), and fails instead when the `CI` variable is set:
@@ -49,8 +50,29 @@ fn echo(pipe: impl Read + Send + 'static) -> thread::JoinHandle<String> {
     })
 }
 
+/// One browser test at a time: each runs Chromium's software WebGL and real-time simulated arms,
+/// and measures timing, on a shared machine.
+static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 #[test]
 fn the_page_shows_and_drives_the_simulated_arm() {
+    if let Some(stdout) = run_script("e2e.mjs") {
+        assert!(stdout.lines().any(|l| l.starts_with("cost: ")), "no cost line:\n{stdout}");
+    }
+}
+
+/// `armctl view --rig bimanual-so101`: host/tests/view/rig.mjs checks that the page draws both arms
+/// at their bases and lists their telemetry, drives the second arm once it is picked (a slider,
+/// a world-frame target), and that STOP stops both.
+#[test]
+fn the_rig_page_draws_both_arms_and_drives_the_second() {
+    run_script("rig.mjs");
+}
+
+/// Runs `script` (in host/tests/view) with node and asserts it passed; returns its stdout, or
+/// `None` where it was skipped.
+fn run_script(script: &str) -> Option<String> {
+    let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let host = Path::new(env!("CARGO_MANIFEST_DIR"));
     let script_dir = host.join("tests/view");
     let chromium = std::env::var_os("CHROMIUM").map_or_else(|| PathBuf::from("/usr/bin/chromium"), PathBuf::from);
@@ -58,14 +80,14 @@ fn the_page_shows_and_drives_the_simulated_arm() {
     if !missing.is_empty() {
         let missing = missing.join(", ");
         assert!(std::env::var_os("CI").is_none(), "missing {missing}, and CI is set: the browser tests must run");
-        eprintln!("SKIPPED: the browser tests of armctl view did not run; missing {missing}");
-        return;
+        eprintln!("SKIPPED: the browser test {script} of armctl view did not run; missing {missing}");
+        return None;
     }
     let out = host.join("../target/view-e2e");
     std::fs::create_dir_all(&out).expect("the output folder can be made");
 
     let mut child = Command::new("node")
-        .arg("e2e.mjs")
+        .arg(script)
         .current_dir(&script_dir)
         .env("ARMCTL", env!("CARGO_BIN_EXE_armctl"))
         .env("VIEW_E2E_OUT", &out)
@@ -85,7 +107,7 @@ fn the_page_shows_and_drives_the_simulated_arm() {
         if started.elapsed() > WATCHDOG {
             let _ = child.kill();
             let _ = child.wait();
-            panic!("e2e.mjs still ran after {} s: killed", WATCHDOG.as_secs());
+            panic!("{script} still ran after {} s: killed", WATCHDOG.as_secs());
         }
         thread::sleep(Duration::from_millis(100));
     };
@@ -94,9 +116,9 @@ fn the_page_shows_and_drives_the_simulated_arm() {
     let failed: Vec<&str> = stdout.lines().filter(|l| l.starts_with("not ok")).collect();
     assert!(
         status.success() && failed.is_empty(),
-        "e2e.mjs exited with {status}; screenshots in {}\n{}\n{stderr}",
+        "{script} exited with {status}; screenshots in {}\n{}\n{stderr}",
         out.display(),
         failed.join("\n")
     );
-    assert!(stdout.lines().any(|l| l.starts_with("cost: ")), "no cost line:\n{stdout}");
+    Some(stdout)
 }

@@ -59,7 +59,8 @@ pub struct LinkArgs {
     pub object_mm: Option<f64>,
     /// Drive every arm of a rig together (a rig file, or the built-in bimanual-so101): status,
     /// stop, torque, move (--to ARM=x,y,z in the world frame, once per arm) and play (a keyframe
-    /// file with each arm's columns, ARM.q1,...). Each arm's place is in the file.
+    /// file with each arm's columns, ARM.q1,...); `view --rig` shows and drives every arm in one
+    /// page. Each arm's place is in the file.
     #[arg(long, value_name = "FILE", conflicts_with_all = ["sim", "port", "bus"])]
     pub rig: Option<String>,
     /// Print the result as one line of JSON.

@@ -132,6 +132,9 @@ fn boolean(v: &Value, what: &str) -> Result<bool, ApiError> {
     v.as_bool().ok_or_else(|| ApiError::bad(format!("{what}: expected true or false, found {}", kind(v))))
 }
 
+/// The endpoints of `POST /api/<endpoint>` (`/api/arm/NAME/<endpoint>` in a rig's view).
+pub const ENDPOINTS: [&str; 6] = ["joints", "target", "stop", "torque", "gripper", "play"];
+
 /// Parses the body of `POST /api/<endpoint>`.
 pub fn parse(endpoint: &str, body: &[u8]) -> Result<Request, ApiError> {
     let map = object(body)?;

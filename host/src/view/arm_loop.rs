@@ -22,7 +22,7 @@ use serde_json::{json, Value};
 
 use super::api::{ApiError, Request};
 use super::jobs::{Answer, JobQueue};
-use super::telemetry::{self, Extras, LastSecond, Latest};
+use super::telemetry::{self, Extras, LastSecond, Latest, Placement};
 use crate::arm::dof::DynArm;
 use crate::arm::ArmSpec;
 use crate::drive::connection::Target;
@@ -65,6 +65,26 @@ impl Playing {
     }
 }
 
+/// Where a loop's arm sits in the view: the slot of [`Latest`] its telemetry goes to, its name in a
+/// rig (added to its telemetry as `"arm"`), and the frame the API speaks for it.
+pub struct Seat {
+    /// Where the telemetry goes.
+    pub latest: Arc<Latest>,
+    /// The arm's slot in `latest`.
+    pub slot: usize,
+    /// The arm's name in a rig; `None` in the one-arm view.
+    pub name: Option<String>,
+    /// The frame of the positions the API takes and gives for this arm.
+    pub placement: Placement,
+}
+
+impl Seat {
+    /// The one arm of the one-arm view: slot 0, no name, its base frame.
+    pub fn alone(latest: Arc<Latest>) -> Self {
+        Self { latest, slot: 0, name: None, placement: Placement::default() }
+    }
+}
+
 /// The running loop; dropping it ends the thread after it has stopped the arm.
 pub struct ArmLoop {
     jobs: Arc<JobQueue>,
@@ -81,6 +101,16 @@ impl ArmLoop {
         target: Target,
         arm: Option<String>,
         latest: Arc<Latest>,
+        err: &mut dyn std::io::Write,
+    ) -> Result<(Self, ArmSpec, usize)> {
+        Self::spawn_seated(target, arm, Seat::alone(latest), err)
+    }
+
+    /// [`Self::spawn`] for an arm seated as `seat` says (an arm of a rig).
+    pub fn spawn_seated(
+        target: Target,
+        arm: Option<String>,
+        seat: Seat,
         err: &mut dyn std::io::Write,
     ) -> Result<(Self, ArmSpec, usize)> {
         let jobs = Arc::new(JobQueue::default());
@@ -107,8 +137,7 @@ impl ArmLoop {
                 let capacity = driver.queue_capacity();
                 let _ = opened.send((said, Ok((driver.arm().clone(), capacity))));
                 let extras = Extras { queue_capacity: capacity, ..Extras::default() };
-                let state =
-                    LoopState { driver, fk, latest, extras, playing: None, seq: 0, rate: LastSecond::default() };
+                let state = LoopState { driver, fk, seat, extras, playing: None, seq: 0, rate: LastSecond::default() };
                 state.run(&inbox, &quit, &torque_off)
             })?
         };
@@ -164,7 +193,7 @@ impl Drop for ArmLoop {
 struct LoopState {
     driver: Driver,
     fk: Box<dyn DynArm>,
-    latest: Arc<Latest>,
+    seat: Seat,
     extras: Extras,
     playing: Option<Playing>,
     seq: u64,
@@ -286,8 +315,13 @@ impl LoopState {
         if let Some(p) = &self.playing {
             self.extras.play = p.json();
         }
-        match telemetry::telemetry(self.fk.as_ref(), self.seq, status, &self.extras, window) {
-            Ok(t) => self.latest.publish(self.seq, t.to_string()),
+        match telemetry::telemetry(self.fk.as_ref(), self.seq, status, &self.extras, window, &self.seat.placement) {
+            Ok(mut t) => {
+                if let Some(name) = &self.seat.name {
+                    t["arm"] = json!(name);
+                }
+                self.seat.latest.publish_arm(self.seat.slot, self.seq, t.to_string())
+            }
             Err(e) => self.extras.last_error = Some(format!("telemetry: {e:#}")),
         }
     }
@@ -338,7 +372,15 @@ impl LoopState {
             }
             Request::Target { position, orientation, go } => {
                 let seed = last.map(|s| s.measured.iter().map(|&x| f64::from(x)).collect());
-                let preview = super::preview::solve(self.fk.as_ref(), position, orientation, seed);
+                // The IK and the firmware know the base frame only (a rig's targets are in the world).
+                let placement = self.seat.placement;
+                let (local, local_orientation) = placement.to_base(position, orientation);
+                let reach = f64::from(firmware::link::message::MAX_REACH);
+                if let Some(x) = local.iter().find(|x| x.abs() > reach).filter(|_| placement.base().is_some()) {
+                    return Err(ApiError::bad(format!("position: {x} m is more than {reach} m from the arm's base")));
+                }
+                let preview =
+                    super::preview::solve(self.fk.as_ref(), local, local_orientation, seed, &self.seat.placement);
                 self.extras.target = json!({
                     "position": position, "orientation": orientation,
                     "reachable": preview.is_ok(), "reason": preview.as_ref().err().map(|e| e.message.clone()),
@@ -348,8 +390,8 @@ impl LoopState {
                     self.busy_playing()?;
                     self.ready()?;
                     let target = CartesianTarget {
-                        position: position.map(|x| x as f32),
-                        orientation: orientation.map(|q| q.map(|x| x as f32)),
+                        position: local.map(|x| x as f32),
+                        orientation: local_orientation.map(|q| q.map(|x| x as f32)),
                     };
                     // As `armctl move` decides: the straight line checked first, and a blocked one
                     // gone by joints from the start, saying so, rather than tracked into a limit.
@@ -389,6 +431,7 @@ impl LoopState {
                     .map_err(|e| ApiError::bad(format!("{e:#}")))?;
                 let messages = plan.messages(&self.driver).map_err(|e| ApiError::bad(format!("{e:#}")))?;
                 let path = plan.tool_path(&self.driver).map_err(|e| ApiError::bad(format!("{e:#}")))?;
+                let path: Vec<[f64; 3]> = path.into_iter().map(|p| self.seat.placement.point(p)).collect();
                 if messages.is_empty() {
                     return Err(ApiError::bad(format!("{name}: no keyframes")));
                 }

@@ -93,6 +93,12 @@ impl JobQueue {
 
     /// Queues `request` and waits for its answer (on the caller's thread).
     pub fn submit(&self, request: Request) -> Answer {
+        self.enqueue(request)?.wait()
+    }
+
+    /// Queues `request` without waiting: a rig's stop is queued on every arm before any answer is
+    /// awaited, so no arm's stop waits behind another arm's.
+    pub fn enqueue(&self, request: Request) -> Result<Pending, ApiError> {
         let (reply, answer) = mpsc::channel();
         let fate = Arc::new(AtomicU8::new(WAITING));
         {
@@ -110,19 +116,7 @@ impl JobQueue {
             queue.push_back(Job { request, reply, fate: fate.clone() });
         }
         self.arrived.notify_all();
-        match answer.recv_timeout(START_TIME) {
-            Ok(answer) => return answer,
-            Err(mpsc::RecvTimeoutError::Disconnected) => return Err(closed()),
-            Err(mpsc::RecvTimeoutError::Timeout) => {}
-        }
-        if fate.compare_exchange(WAITING, ABANDONED, Ordering::SeqCst, Ordering::SeqCst).is_ok() {
-            return Err(ApiError::new(
-                503,
-                format!("the arm loop did not take the request within {} s: dropped, not run", START_TIME.as_secs()),
-            ));
-        }
-        // Started: it will answer (or the loop has ended).
-        answer.recv_timeout(RUN_TIME).unwrap_or_else(|_| Err(closed()))
+        Ok(Pending { answer, fate })
     }
 
     /// The next job to run, urgent ones first; jobs their callers gave up on are dropped.
@@ -153,6 +147,32 @@ impl JobQueue {
         for job in urgent.drain(..).chain(normal.drain(..)) {
             job.answer(Err(closed()));
         }
+    }
+}
+
+/// A queued job's answer, to wait for.
+pub struct Pending {
+    answer: mpsc::Receiver<Answer>,
+    fate: Arc<AtomicU8>,
+}
+
+impl Pending {
+    /// Waits for the answer: a job not started within [`START_TIME`] is dropped, not run later.
+    pub fn wait(self) -> Answer {
+        let Self { answer, fate } = self;
+        match answer.recv_timeout(START_TIME) {
+            Ok(answer) => return answer,
+            Err(mpsc::RecvTimeoutError::Disconnected) => return Err(closed()),
+            Err(mpsc::RecvTimeoutError::Timeout) => {}
+        }
+        if fate.compare_exchange(WAITING, ABANDONED, Ordering::SeqCst, Ordering::SeqCst).is_ok() {
+            return Err(ApiError::new(
+                503,
+                format!("the arm loop did not take the request within {} s: dropped, not run", START_TIME.as_secs()),
+            ));
+        }
+        // Started: it will answer (or the loop has ended).
+        answer.recv_timeout(RUN_TIME).unwrap_or_else(|_| Err(closed()))
     }
 }
 

@@ -13,7 +13,8 @@
 //! - [`server`]: the connections, the API's routes and the websocket;
 //! - [`workers`]: the threads that serve connections;
 //! - [`assets`]: the page's files, embedded in the binary;
-//! - [`meshes`]: a URDF's visual meshes over the chain.
+//! - [`meshes`]: a URDF's visual meshes over the chain;
+//! - [`rig`]: `armctl view --rig RIG`, every arm of a rig in one page, each with its own arm loop.
 //!
 //! `--sim` (the default) runs the firmware core on this PC in real time against simulated servos
 //! on a pseudo-terminal, as `armctl serve --sim` does: the page shows motion as it happens, which
@@ -27,6 +28,7 @@ pub mod http;
 pub mod jobs;
 pub mod meshes;
 pub mod preview;
+pub mod rig;
 pub mod server;
 pub mod telemetry;
 pub mod workers;
@@ -45,7 +47,7 @@ use crate::arm::servos::servos_of;
 use crate::drive::args::LinkArgs;
 use crate::drive::interrupt;
 use arm_loop::ArmLoop;
-use server::{Served, ViewServer};
+use server::{Served, ServedArm, ViewServer};
 use telemetry::Latest;
 
 /// Where the page is served unless `--listen` says otherwise: this machine only.
@@ -79,32 +81,20 @@ pub struct ViewArgs {
 pub fn run(link: &LinkArgs, args: ViewArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
     // Everything the user typed is checked before anything is opened.
     let mut link = link.merged(&args.link)?;
+    if let Some(rig) = link.rig.clone() {
+        return rig::run(&rig, &link, &args, out, err);
+    }
     if link.port.is_none() && link.bus.is_none() {
         link.sim = true;
     }
     if link.object_mm.is_some() {
         bail!("--object-mm: the view's simulated arm has no object between its jaws");
     }
-    let listen: SocketAddr = args
-        .listen
-        .parse()
-        .with_context(|| format!("--listen {}: expected ADDR:PORT, e.g. 127.0.0.1:8765", args.listen))?;
-    let token = match &args.token {
-        Some(text) => Token::given(text)?,
-        None => Token::generate()?,
-    };
+    let (listen, token) = listen_and_token(&args)?;
     let urdf = args.urdf.as_deref().map(|file| meshes::Urdf::read(file, args.tip.as_deref())).transpose()?;
     let (target, arm) = link.target()?;
     let arm = arm.map(str::to_string);
-    if !listen.ip().is_loopback() {
-        writeln!(
-            err,
-            "warning: --listen {listen} is not this machine's loopback: anyone who has the URL can move the arm, and \
-             plain HTTP shows its token to the network; to reach the view from another machine, keep the default and \
-             use an SSH tunnel (ssh -L 8765:127.0.0.1:8765 this-machine)"
-        )?;
-        err.flush()?;
-    }
+    warn_if_open(listen, err)?;
     // The address is taken before connecting, so a port in use changes nothing on the arm.
     let listener = ViewServer::bind(listen)?;
     // --sim runs in real time here (see the module doc).
@@ -119,52 +109,138 @@ pub fn run(link: &LinkArgs, args: ViewArgs, out: &mut dyn Write, err: &mut dyn W
         writeln!(err, "warning: {line}")?;
     }
     let arm_json = meshes::arm_json(&spec, queue_capacity, &meshes)?;
-    let served = Served { arm: arm_json, meshes: meshes.iter().map(|m| m.file.clone()).collect(), latest };
-    let mut server = ViewServer::start(listener, served, arm_loop.jobs(), token)?;
+    let served = Served {
+        arms: vec![ServedArm { name: spec.name.clone(), arm: arm_json, jobs: arm_loop.jobs() }],
+        rig: None,
+        meshes: meshes.iter().map(|m| m.file.clone()).collect(),
+        latest,
+    };
+    let mut server = ViewServer::start(listener, served, token)?;
     writeln!(out, "{}", server.url())?;
     out.flush()?;
     writeln!(
         err,
-        "arm {} ({} joints{}): open {} in a browser (the token in it is what lets a page drive the arm: keep it to \
+        "arm {} ({}): open {} in a browser (the token in it is what lets a page drive the arm: keep it to \
          yourself); Ctrl-C stops the arm and exits",
         spec.name,
-        spec.dof(),
-        if servos_of(&spec).and_then(|s| s.gripper).is_some() { " and a gripper" } else { "" },
+        joints_and_gripper(&spec),
         server.url()
     )?;
     err.flush()?;
+    supervise(vec![Running { name: None, arm_loop, simulated }], &mut server, err)
+}
+
+/// `--listen` and `--token`, checked.
+fn listen_and_token(args: &ViewArgs) -> Result<(SocketAddr, Token)> {
+    let listen: SocketAddr = args
+        .listen
+        .parse()
+        .with_context(|| format!("--listen {}: expected ADDR:PORT, e.g. 127.0.0.1:8765", args.listen))?;
+    let token = match &args.token {
+        Some(text) => Token::given(text)?,
+        None => Token::generate()?,
+    };
+    Ok((listen, token))
+}
+
+/// Warns on `err` when `listen` is not this machine's loopback.
+fn warn_if_open(listen: SocketAddr, err: &mut dyn Write) -> Result<()> {
+    if !listen.ip().is_loopback() {
+        writeln!(
+            err,
+            "warning: --listen {listen} is not this machine's loopback: anyone who has the URL can move the arm, and \
+             plain HTTP shows its token to the network; to reach the view from another machine, keep the default and \
+             use an SSH tunnel (ssh -L 8765:127.0.0.1:8765 this-machine)"
+        )?;
+        err.flush()?;
+    }
+    Ok(())
+}
+
+/// "5 joints and a gripper".
+fn joints_and_gripper(spec: &crate::arm::ArmSpec) -> String {
+    let gripper = servos_of(spec).and_then(|s| s.gripper).is_some();
+    format!("{} joints{}", spec.dof(), if gripper { " and a gripper" } else { "" })
+}
+
+/// An arm loop, its name in a rig, and the simulated servos it drives (for `--sim` arms).
+struct Running {
+    name: Option<String>,
+    arm_loop: ArmLoop,
+    simulated: Option<crate::sim::PtyServer>,
+}
+
+impl Running {
+    /// What to put before a line about this arm: nothing in the one-arm view.
+    fn prefix(&self) -> String {
+        self.name.as_ref().map(|n| format!("arm {n}: ")).unwrap_or_default()
+    }
+}
+
+/// Serves until Ctrl-C or until an arm's link ends; then stops every arm (each decelerates within
+/// its limits and holds; a second Ctrl-C switches the torque off), closes the server, and says
+/// what each arm did. Returns the exit code.
+fn supervise(running: Vec<Running>, server: &mut ViewServer, err: &mut dyn Write) -> Result<i32> {
     interrupt::catch();
     while !interrupt::requested() {
         std::thread::sleep(Duration::from_millis(20));
-        if arm_loop.is_finished() {
+        if running.iter().any(|r| r.arm_loop.is_finished()) {
             break;
         }
-        if simulated.as_ref().is_some_and(crate::sim::PtyServer::is_finished) {
-            bail!("the simulated servos stopped");
+        if let Some(r) = running.iter().find(|r| r.simulated.as_ref().is_some_and(crate::sim::PtyServer::is_finished)) {
+            bail!("{}the simulated servos stopped", r.prefix());
         }
     }
     let interrupted = interrupt::requested();
     if interrupted {
-        // The arm first: stopped and holding (or limp, on a second signal) before the server
-        // closes, whatever its clients do; the server's threads never hold the arm loop.
-        writeln!(err, "stopping: the arm decelerates within its limits, then holds (Ctrl-C again: torque off)")?;
+        // The arms first: stopped and holding (or limp, on a second signal) before the server
+        // closes, whatever its clients do; the server's threads never hold an arm loop.
+        let which = if running.len() == 1 { "the arm decelerates" } else { "every arm decelerates" };
+        writeln!(err, "stopping: {which} within its limits, then holds (Ctrl-C again: torque off)")?;
         err.flush()?;
-        arm_loop.begin_stop();
-        while !arm_loop.is_finished() {
+        for r in &running {
+            r.arm_loop.begin_stop();
+        }
+        while !running.iter().all(|r| r.arm_loop.is_finished()) {
             if interrupt::count() >= 2 {
-                arm_loop.torque_off();
+                for r in &running {
+                    r.arm_loop.torque_off();
+                }
             }
             std::thread::sleep(Duration::from_millis(2));
         }
     }
     server.shutdown();
-    let said = arm_loop.finish().context("the arm loop")?;
-    err.write_all(said.as_bytes())?;
-    if let Some(report) = simulated.as_ref().and_then(crate::sim::PtyServer::monitor) {
-        writeln!(err, "safety monitor: {}", report.summary())?;
+    let mut failed = None;
+    let mut ended = None;
+    for r in running {
+        let prefix = r.prefix();
+        let finished = r.arm_loop.is_finished();
+        let said = match r.arm_loop.finish() {
+            Ok(said) => said,
+            Err(e) => {
+                failed.get_or_insert(e.context(format!("{prefix}the arm loop")));
+                continue;
+            }
+        };
+        for line in said.lines() {
+            writeln!(err, "{prefix}{line}")?;
+        }
+        if let Some(report) = r.simulated.as_ref().and_then(crate::sim::PtyServer::monitor) {
+            writeln!(err, "{prefix}safety monitor: {}", report.summary())?;
+        }
+        if finished && ended.is_none() {
+            ended = Some(prefix);
+        }
+    }
+    if let Some(e) = failed {
+        return Err(e);
     }
     if !interrupted {
-        bail!("the connection to the firmware ended");
+        match ended.filter(|p| !p.is_empty()) {
+            Some(prefix) => bail!("{prefix}the connection to the firmware ended"),
+            None => bail!("the connection to the firmware ended"),
+        }
     }
     Ok(if interrupt::count() >= 2 { interrupt::EXIT_CODE } else { 0 })
 }

@@ -7,16 +7,18 @@ use kinematics::ik::{IkConfig, IkStatus};
 use serde_json::{json, Value};
 
 use super::api::ApiError;
-use super::telemetry::frames;
+use super::telemetry::{frames, Placement};
 use crate::arm::dof::{DynArm, IkRequest, Scalar, SolverName};
 
-/// Solves for `position` (and `orientation`, w first) from `seed`: the joints and frames of the
-/// solution, or a 422 saying why there is none (with the closest joints found).
+/// Solves for `position` (and `orientation`, w first), both in the arm's base frame, from `seed`:
+/// the joints and frames (in `placement`'s frame) of the solution, or a 422 saying why there is
+/// none (with the closest joints found).
 pub fn solve(
     arm: &dyn DynArm,
     position: [f64; 3],
     orientation: Option<[f64; 4]>,
     seed: Option<Vec<f64>>,
+    placement: &Placement,
 ) -> Result<Value, ApiError> {
     if orientation.is_some() && arm.spec().dof() < 6 {
         return Err(ApiError::bad(format!(
@@ -35,7 +37,7 @@ pub fn solve(
         scalar: if closed_form { Scalar::F64 } else { Scalar::F32 },
     };
     let outcome = arm.solve(&request).map_err(|e| ApiError::bad(format!("{e:#}")))?;
-    let drawn = frames(arm, &outcome.q).map_err(|e| ApiError::new(500, format!("{e:#}")))?;
+    let drawn = frames(arm, &outcome.q, placement).map_err(|e| ApiError::new(500, format!("{e:#}")))?;
     let error_mm = outcome.position_error * 1e3;
     match outcome.status {
         IkStatus::Converged => {

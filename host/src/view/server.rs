@@ -9,6 +9,11 @@
 //!
 //! [`ViewServer::shutdown`] closes the listener and every open connection at once, so closing
 //! never waits on a client.
+//!
+//! A rig's view (`armctl view --rig`) serves every arm of the rig the same way, each request naming
+//! its arm by path: `/api/arm/NAME/status`, `POST /api/arm/NAME/joints`, ... (see [`rig_route`]);
+//! `POST /api/stop` stops every arm, `GET /api/rig` says what the rig is, and the websocket carries
+//! every arm's telemetry, each message naming its arm.
 
 use std::collections::HashMap;
 use std::net::{IpAddr, Ipv4Addr, Ipv6Addr, SocketAddr, TcpListener, TcpStream};
@@ -23,7 +28,7 @@ use tungstenite::protocol::Role;
 use tungstenite::{Message, WebSocket};
 
 use super::access::{self, Access, Token};
-use super::api::{self, ApiError, MAX_BODY};
+use super::api::{self, ApiError, Request, MAX_BODY};
 use super::assets;
 use super::http::{self, Answer, Head, SILENT};
 use super::jobs::JobQueue;
@@ -44,18 +49,38 @@ const CONNECTION_STACK: usize = 256 << 10;
 
 /// What the server serves besides the page.
 pub struct Served {
-    /// `GET /api/arm`.
-    pub arm: Value,
+    /// The arms, in the rig's order: one in the one-arm view.
+    pub arms: Vec<ServedArm>,
+    /// `GET /api/rig`: the rig's name and its arms with their bases; `None` in the one-arm view,
+    /// whose API has no arm names.
+    pub rig: Option<Rig>,
     /// `GET /api/mesh/K`: the files of the meshes.
     pub meshes: Vec<std::path::PathBuf>,
-    /// The newest telemetry.
+    /// The newest telemetry, one slot per arm.
     pub latest: Arc<Latest>,
+}
+
+/// One arm of the view.
+pub struct ServedArm {
+    /// Its name in the rig (the one-arm view's is not used).
+    pub name: String,
+    /// `GET /api/arm` (`/api/arm/NAME` in a rig's view).
+    pub arm: Value,
+    /// Its arm loop's queue.
+    pub jobs: Arc<JobQueue>,
+}
+
+/// The rig of a rig's view.
+pub struct Rig {
+    /// Its name.
+    pub name: String,
+    /// `GET /api/rig`.
+    pub json: Value,
 }
 
 /// What every connection's thread shares.
 struct Shared {
     served: Served,
-    jobs: Arc<JobQueue>,
     token: Token,
     access: Access,
     /// Open connections (websockets included), to close them all at shutdown.
@@ -80,7 +105,10 @@ impl ViewServer {
     }
 
     /// Starts answering on `listener`; requests to the API must carry `token`.
-    pub fn start(listener: TcpListener, served: Served, jobs: Arc<JobQueue>, token: Token) -> Result<Self> {
+    pub fn start(listener: TcpListener, served: Served, token: Token) -> Result<Self> {
+        if served.arms.is_empty() || (served.rig.is_none() && served.arms.len() > 1) {
+            return Err(anyhow!("a view serves one arm, or a rig's arms"));
+        }
         let bound = listener.local_addr()?;
         // The address a person types: the loopback one for a server on every address.
         let shown = match bound.ip() {
@@ -91,7 +119,6 @@ impl ViewServer {
         let url = format!("http://{shown}/?token={}", token.as_str());
         let shared = Arc::new(Shared {
             served,
-            jobs,
             token,
             access: Access::new(bound),
             open: Mutex::new(HashMap::new()),
@@ -200,8 +227,8 @@ fn connection(mut stream: TcpStream, guard: Counted) {
     };
     match route(&shared, &head, local) {
         Route::Answer(answer) => http::respond(&mut stream, &answer),
-        Route::Post(endpoint) => {
-            let answer = post(&shared, &mut stream, &head, early, &endpoint).unwrap_or_else(|e| Answer::error(&e));
+        Route::Post(arm, endpoint) => {
+            let answer = post(&shared, &mut stream, &head, early, arm, &endpoint).unwrap_or_else(|e| Answer::error(&e));
             http::respond(&mut stream, &answer);
         }
         Route::Websocket(key) => websocket(stream, &shared, &key, guard),
@@ -211,7 +238,8 @@ fn connection(mut stream: TcpStream, guard: Counted) {
 /// What to do with a request whose head is in.
 enum Route {
     Answer(Answer),
-    Post(String),
+    /// A POST to one arm (its index), or to every arm (`None`: a rig's stop).
+    Post(Option<usize>, String),
     Websocket(String),
 }
 
@@ -257,28 +285,92 @@ fn route(shared: &Shared, head: &Head, local: IpAddr) -> Route {
         );
     }
     let served = &shared.served;
-    match (method, endpoint) {
-        ("GET", "ws") => match head.header("sec-websocket-key") {
+    if let ("GET", "ws") = (method, endpoint) {
+        return match head.header("sec-websocket-key") {
             Some(key) if head.header("upgrade").is_some_and(|u| u.eq_ignore_ascii_case("websocket")) => {
                 Route::Websocket(key.to_string())
             }
             _ => refused(426, "/api/ws is a websocket: connect with one"),
-        },
-        ("GET", "arm") => Route::Answer(Answer::json(200, &served.arm)),
-        ("GET", "status") => {
-            let (seq, text) = served.latest.get();
-            match seq {
-                0 => refused(503, "no status from the firmware yet"),
-                _ => Route::Answer(Answer {
-                    status: 200,
-                    content_type: "application/json",
-                    body: text.as_bytes().to_vec(),
-                }),
-            }
-        }
+        };
+    }
+    if let Some(rig) = &served.rig {
+        return rig_route(served, rig, method, endpoint);
+    }
+    match (method, endpoint) {
+        ("GET", "arm") => Route::Answer(Answer::json(200, &served.arms[0].arm)),
+        // The page asks first: `null` says one arm, and the API names none.
+        ("GET", "rig") => Route::Answer(Answer::json(200, &Value::Null)),
+        ("GET", "status") => status(served, 0),
         ("GET", p) if p.starts_with("mesh/") => Route::Answer(mesh(&p["mesh/".len()..], served)),
-        ("POST", endpoint) => Route::Post(endpoint.to_string()),
+        ("POST", endpoint) => Route::Post(Some(0), endpoint.to_string()),
         _ => refused(405, format!("{method} {path}: not an endpoint (see the README's API list)")),
+    }
+}
+
+/// The newest telemetry of arm `arm`, as it was published.
+fn status(served: &Served, arm: usize) -> Route {
+    let (seq, text) = served.latest.get_arm(arm);
+    match seq {
+        0 => refused(503, "no status from the firmware yet"),
+        _ => Route::Answer(Answer { status: 200, content_type: "application/json", body: text.as_bytes().to_vec() }),
+    }
+}
+
+/// A rig's routes (after the checks of [`route`]): each arm's API under `/api/arm/NAME/`, as the
+/// one-arm view's is under `/api/`; `GET /api/rig`; `GET /api/status`, every arm's telemetry by
+/// name; `POST /api/stop`, every arm stopped. A request the one-arm view takes without a name is
+/// refused with the names to use.
+fn rig_route(served: &Served, rig: &Rig, method: &str, endpoint: &str) -> Route {
+    let names = || served.arms.iter().map(|a| a.name.as_str()).collect::<Vec<_>>().join(", ");
+    if let Some(rest) = endpoint.strip_prefix("arm/") {
+        let (name, what) = rest.split_once('/').unwrap_or((rest, ""));
+        let Some(index) = served.arms.iter().position(|a| a.name == name) else {
+            // The name as given, within bounds: it is echoed on one line.
+            let shown: String = name.chars().take(64).collect();
+            return refused(400, format!("no arm {shown:?} in the rig {} (its arms: {})", rig.name, names()));
+        };
+        return match (method, what) {
+            ("GET", "") => Route::Answer(Answer::json(200, &served.arms[index].arm)),
+            ("GET", "status") => status(served, index),
+            ("POST", what) if !what.is_empty() => Route::Post(Some(index), what.to_string()),
+            _ => refused(405, format!("{method} /api/arm/{name}/{what}: not an endpoint (see the README's API list)")),
+        };
+    }
+    match (method, endpoint) {
+        ("GET", "rig") => Route::Answer(Answer::json(200, &rig.json)),
+        ("GET", "status") => {
+            let mut body = format!("{{\"rig\":{},\"arms\":{{", Value::from(rig.name.as_str()));
+            for (i, arm) in served.arms.iter().enumerate() {
+                let (seq, text) = served.latest.get_arm(i);
+                if seq == 0 {
+                    return refused(503, format!("no status from the firmware of arm {} yet", arm.name));
+                }
+                let comma = if i > 0 { "," } else { "" };
+                body += &format!("{comma}{}:{text}", Value::from(arm.name.as_str()));
+            }
+            body += "}}";
+            Route::Answer(Answer { status: 200, content_type: "application/json", body: body.into_bytes() })
+        }
+        ("POST", "stop") => Route::Post(None, "stop".to_string()),
+        ("GET", "arm") => refused(
+            400,
+            format!(
+                "this view drives the rig {}: GET /api/rig for every arm, or /api/arm/NAME (its arms: {})",
+                rig.name,
+                names()
+            ),
+        ),
+        ("POST", endpoint) if api::ENDPOINTS.contains(&endpoint) => refused(
+            400,
+            format!(
+                "this view drives the rig {}: name the arm, POST /api/arm/NAME/{endpoint} (its arms: {})",
+                rig.name,
+                names()
+            ),
+        ),
+        ("GET", p) if p.starts_with("mesh/") => Route::Answer(mesh(&p["mesh/".len()..], served)),
+        ("POST", other) => refused(404, format!("no endpoint POST /api/{other}")),
+        _ => refused(405, format!("{method} /api/{endpoint}: not an endpoint (see the README's API list)")),
     }
 }
 
@@ -289,6 +381,7 @@ fn post(
     stream: &mut TcpStream,
     head: &Head,
     early: Vec<u8>,
+    arm: Option<usize>,
     endpoint: &str,
 ) -> Result<Answer, ApiError> {
     if !access::json_content_type(head.header("content-type")) {
@@ -304,7 +397,36 @@ fn post(
     }
     let body = http::read_body(stream, early, len)?;
     let request = api::parse(endpoint, &body)?;
-    shared.jobs.submit(request).map(|body| Answer::json(200, &body))
+    let arms = &shared.served.arms;
+    match arm {
+        Some(arm) => arms[arm].jobs.submit(request).map(|body| Answer::json(200, &body)),
+        None => stop_every_arm(arms, request),
+    }
+}
+
+/// A rig's stop: queued on every arm first (ahead of each arm's other jobs), then each answer
+/// awaited, so no arm's stop waits on another's. 200 when every arm took it; else the first
+/// refusal's status, naming the arm, with every arm's answer.
+fn stop_every_arm(arms: &[ServedArm], request: Request) -> Result<Answer, ApiError> {
+    let pending: Vec<_> = arms.iter().map(|arm| arm.jobs.enqueue(request.clone())).collect();
+    let mut each = serde_json::Map::new();
+    let mut first: Option<ApiError> = None;
+    for (arm, pending) in arms.iter().zip(pending) {
+        let answer = pending.and_then(|p| p.wait());
+        let body = match answer {
+            Ok(body) => body,
+            Err(e) => {
+                let body = e.body();
+                first.get_or_insert(ApiError::new(e.status, format!("arm {}: {}", arm.name, e.message)));
+                body
+            }
+        };
+        each.insert(arm.name.clone(), body);
+    }
+    match first {
+        None => Ok(Answer::json(200, &serde_json::json!({"ok": true, "arms": each}))),
+        Some(e) => Err(ApiError { detail: Some(serde_json::json!({"arms": each})), ..e }),
+    }
 }
 
 fn static_file(path: &str) -> Route {
@@ -348,19 +470,20 @@ fn websocket(mut stream: TcpStream, shared: &Shared, key: &str, mut guard: Count
         return;
     }
     let mut socket = WebSocket::from_raw_socket(stream, Role::Server, None);
-    let mut seen = 0;
+    // One number per arm: each arm's newest telemetry goes out as it comes.
+    let mut seen = vec![0; shared.served.arms.len()];
     while !shared.closing.load(Ordering::SeqCst) {
-        let message = match shared.served.latest.wait_newer(seen, Duration::from_secs(1)) {
-            Some((seq, text)) => {
-                seen = seq;
-                Message::text(text.as_str())
-            }
+        let newer = shared.served.latest.wait_any_newer(&mut seen, Duration::from_secs(1));
+        let messages: Vec<Message> = match newer.is_empty() {
+            false => newer.iter().map(|text| Message::text(text.as_str())).collect(),
             // No telemetry (the firmware is silent): a ping finds out whether the client is
             // still there.
-            None => Message::Ping(Vec::new().into()),
+            true => vec![Message::Ping(Vec::new().into())],
         };
-        if socket.send(message).is_err() {
-            return;
+        for message in messages {
+            if socket.send(message).is_err() {
+                return;
+            }
         }
     }
 }

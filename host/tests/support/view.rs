@@ -1,5 +1,5 @@
-//! A running `armctl view --sim` and plain HTTP requests to it, for the API and hostile-client
-//! tests (view_api.rs, view_guard.rs).
+//! A running `armctl view --sim` (or `--rig RIG`) and plain HTTP requests to it, for the API and
+//! hostile-client tests (view_api.rs, view_guard.rs, view_rig.rs).
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
@@ -23,6 +23,27 @@ impl View {
     /// Starts `armctl view --listen 127.0.0.1:0` with `extra`, reads the URL on its first line and
     /// waits for a first status.
     pub fn start(extra: &[&str]) -> Self {
+        let view = Self::spawn(extra);
+        view.wait_for(|s| s["seq"].as_u64().is_some(), "a first status", 5.0);
+        view
+    }
+
+    /// Starts `armctl view --rig rig --listen 127.0.0.1:0` and waits for a first status of every arm.
+    pub fn start_rig(rig: &str) -> Self {
+        let view = Self::spawn(&["--rig", rig]);
+        let started = Instant::now();
+        loop {
+            let (code, status) = view.call("GET", "/api/status", "");
+            if code == 200 && status["arms"].as_object().is_some_and(|arms| !arms.is_empty()) {
+                return view;
+            }
+            assert!(started.elapsed() < Duration::from_secs(10), "no status of every arm within 10 s: {status}");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// Starts `armctl view --listen 127.0.0.1:0` with `extra` and reads the URL on its first line.
+    fn spawn(extra: &[&str]) -> Self {
         let mut child = Command::new(env!("CARGO_BIN_EXE_armctl"))
             .args(["view", "--listen", "127.0.0.1:0"])
             .args(extra)
@@ -44,9 +65,7 @@ impl View {
             .strip_prefix("http://")
             .and_then(|rest| rest.split_once("/?token="))
             .unwrap_or_else(|| panic!("the first line is not the page's URL with its token: {line:?}"));
-        let view = Self { child, host: host.to_string(), token: token.to_string(), stderr: Some(stderr) };
-        view.wait_for(|s| s["seq"].as_u64().is_some(), "a first status", 5.0);
-        view
+        Self { child, host: host.to_string(), token: token.to_string(), stderr: Some(stderr) }
     }
 
     /// Sends `request` as it is on a new connection; returns the status code and the body (JSON
@@ -91,6 +110,34 @@ impl View {
                 return status;
             }
             assert!(started.elapsed().as_secs_f64() < seconds, "no {what} within {seconds} s; last status {status}");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// A request to one arm of a rig's view: `POST /api/arm/ARM/ENDPOINT`.
+    pub fn post_arm(&self, arm: &str, endpoint: &str, body: Value) -> (u16, Value) {
+        self.call("POST", &format!("/api/arm/{arm}/{endpoint}"), &body.to_string())
+    }
+
+    /// The telemetry of one arm of a rig's view.
+    pub fn arm_status(&self, arm: &str) -> Value {
+        let (code, body) = self.call("GET", &format!("/api/arm/{arm}/status"), "");
+        assert_eq!(code, 200, "{body}");
+        body
+    }
+
+    /// Polls one arm's telemetry until `done` holds; panics after `seconds`.
+    pub fn wait_arm(&self, arm: &str, done: impl Fn(&Value) -> bool, what: &str, seconds: f64) -> Value {
+        let started = Instant::now();
+        loop {
+            let (code, status) = self.call("GET", &format!("/api/arm/{arm}/status"), "");
+            if code == 200 && done(&status) {
+                return status;
+            }
+            assert!(
+                started.elapsed().as_secs_f64() < seconds,
+                "arm {arm}: no {what} within {seconds} s; last status {status}"
+            );
             std::thread::sleep(Duration::from_millis(20));
         }
     }

@@ -1,29 +1,41 @@
 // The page of `armctl view`: wiring between the server (api.js), the 3D view (scene.js),
 // the chart (chart.js) and the controls in index.html. The API it uses: the README's
-// "Seeing the arm".
+// "Seeing the arm". In a rig's view (`armctl view --rig`, GET /api/rig not null) every arm is
+// drawn at its base and listed with its telemetry; the controls drive the arm picked in the list
+// (its requests go to /api/arm/NAME/...), and STOP stops every arm.
 import { ArmScene } from './scene.js';
 import { Chart, JOINT_COLORS } from './chart.js';
 import { post, getJSON, connectTelemetry, onRequestError } from './api.js';
 
 const $ = (id) => document.getElementById(id);
 
-let arm = null;
+let rig = null;            // GET /api/rig: null in the one-arm view
+let arms = [];             // per arm: {name, arm, base, latest, fresh, chart, arrivals, lastServerError, row}
+let selected = 0;          // the arm the controls drive
+let arm = null;            // its GET /api/arm
 let scene = null;
-let chart = null;
-let latest = null;         // the newest telemetry object
-let fresh = false;         // `latest` has not been drawn yet
+let chart = null;          // its chart
+let latest = null;         // its newest telemetry object
 let connected = false;
-let lastServerError = null;
-const arrivals = [];       // receive times over the last second, for the rate seen by this page
 const sliders = [];        // per joint: {input, measured, setpoint, dragging, hold}
 let gripperDragging = false;
 let targetInitialised = false;
 
-// For the browser tests (host/tests/view/e2e.mjs): where to grab the gizmo, and where the target is.
+// For the browser tests (host/tests/view/e2e.mjs, rig.mjs): where to grab the gizmo, where the
+// target is, the arms and what is drawn of them.
 window.armView = {
   targetScreen: () => (scene && scene.targetShown() ? scene.targetScreen() : null),
   target: () => (scene && scene.targetShown() ? scene.targetPosition() : null),
+  rig: () => (rig ? rig.name : null),
+  arms: () => arms.map((a) => a.name),
+  selected: () => (arms[selected] ? arms[selected].name : null),
+  drawnArms: () => (scene ? scene.drawnArms() : []),
 };
+
+/** The path of an endpoint of the arm the controls drive. */
+function apiPath(endpoint) {
+  return rig ? `/api/arm/${encodeURIComponent(arms[selected].name)}/${endpoint}` : `/api/${endpoint}`;
+}
 
 function showError(text) {
   const el = $('error');
@@ -40,19 +52,29 @@ const fmt = (v, d = 3) => (typeof v === 'number' && isFinite(v) ? v.toFixed(d) :
 
 async function start() {
   for (;;) {
+    let asked = '/api/rig';
     try {
-      arm = await getJSON('/api/arm');
+      rig = await getJSON(asked);
+      if (rig) {
+        arms = rig.arms.map((a) => ({ name: a.name, arm: a.arm, base: a.base }));
+      } else {
+        asked = '/api/arm';
+        arms = [{ name: null, arm: await getJSON(asked), base: null }];
+      }
       break;
     } catch (e) {
-      showError(`cannot read the arm from the server (/api/arm): ${e.message}; retrying`);
+      showError(`cannot read the arm from the server (${asked}): ${e.message}; retrying`);
       await new Promise((r) => setTimeout(r, 1000));
     }
   }
-  setText($('arm-name'), `${arm.name} · ${arm.dof} joints`);
+  for (const a of arms) Object.assign(a, { latest: null, fresh: false, arrivals: [], lastServerError: null, row: null });
+  arm = arms[0].arm;
+  buildRig();
+  showArmName();
   buildJoints();
   buildGripper();
   try {
-    scene = new ArmScene($('view3d'), arm, {
+    scene = new ArmScene($('view3d'), arms.map((a) => ({ arm: a.arm, base: a.base })), {
       colors: JOINT_COLORS,
       onTargetChange: targetMovedByGizmo,
       onTargetRelease: () => scheduleTarget(),
@@ -63,8 +85,10 @@ async function start() {
     showError(`cannot draw the arm in 3D (WebGL): ${e.message}`);
     throw e;
   }
-  chart = new Chart($('chart'), arm.dof);
+  for (const a of arms) a.chart = new Chart($('chart'), a.arm.dof);
+  chart = arms[0].chart;
   buildLegend();
+  wireGripper();
   wireTarget();
   wireButtons();
   wirePlay();
@@ -79,6 +103,7 @@ function limit(v, fallback) { return typeof v === 'number' && isFinite(v) ? v : 
 function buildJoints() {
   const box = $('joints');
   box.textContent = '';
+  sliders.length = 0;
   arm.joints.forEach((j, i) => {
     const row = document.createElement('div');
     row.className = 'joint';
@@ -118,7 +143,7 @@ async function sendJoints() {
   // a half-done first joint.
   const until = performance.now() + 8000;
   sliders.forEach((s, i) => { s.hold = { value: q[i], until }; });
-  const r = await post('/api/joints', { q });
+  const r = await post(apiPath('joints'), { q });
   if (!r.ok) releaseSliders();
 }
 
@@ -141,17 +166,21 @@ function followSetpoints(t) {
 // ---- gripper -----------------------------------------------------------------------------
 
 function buildGripper() {
+  $('gripper-section').hidden = !arm.gripper;
   if (!arm.gripper) return;
-  $('gripper-section').hidden = false;
   const g = $('gripper');
   g.min = limit(arm.gripper.min_percent, 0);
   g.max = limit(arm.gripper.max_percent, 100);
+}
+
+function wireGripper() {
+  const g = $('gripper');
   g.addEventListener('pointerdown', () => { gripperDragging = true; });
   g.addEventListener('input', () => { gripperDragging = true; setText($('gripper-state'), `${g.value} %`); });
   g.addEventListener('pointerup', () => { gripperDragging = false; });
   g.addEventListener('change', () => {
     gripperDragging = false;
-    post('/api/gripper', { percent: parseFloat(g.value) });
+    post(apiPath('gripper'), { percent: parseFloat(g.value) });
   });
 }
 
@@ -198,7 +227,7 @@ async function pumpTarget() {
   targetLink.inFlight = true;
   targetLink.last = performance.now();
   const body = targetBody($('go-live').checked);
-  const r = await post('/api/target', body, { quiet: true });
+  const r = await post(apiPath('target'), body, { quiet: true });
   targetLink.inFlight = false;
   targetReply(r, body.go);
   pumpTarget();
@@ -206,7 +235,7 @@ async function pumpTarget() {
 
 async function sendTargetNow(go) {
   if (!scene.targetShown()) { showError('no target yet: waiting for the first telemetry'); return; }
-  const r = await post('/api/target', targetBody(go), { quiet: true });
+  const r = await post(apiPath('target'), targetBody(go), { quiet: true });
   targetReply(r, go);
 }
 
@@ -256,16 +285,23 @@ function wireTarget() {
   $('target-to-tool').addEventListener('click', () => {
     if (latest) { targetToTool(latest); scene.setPreview(null); scheduleTarget(); }
   });
-  if (arm.orientation) {
-    const b = $('target-mode');
-    b.hidden = false;
-    let mode = 'translate';
-    b.addEventListener('click', () => {
-      mode = mode === 'translate' ? 'rotate' : 'translate';
-      scene.setGizmoMode(mode);
-      b.textContent = mode === 'translate' ? 'Rotate' : 'Move';
-    });
-  }
+  const b = $('target-mode');
+  b.addEventListener('click', () => setGizmoMode(gizmoMode === 'translate' ? 'rotate' : 'translate'));
+  showTargetMode();
+}
+
+let gizmoMode = 'translate';
+
+function setGizmoMode(mode) {
+  gizmoMode = mode;
+  scene.setGizmoMode(mode);
+  $('target-mode').textContent = mode === 'translate' ? 'Rotate' : 'Move';
+}
+
+// Rotating the target is for an arm that can choose the tool's orientation.
+function showTargetMode() {
+  $('target-mode').hidden = !arm.orientation;
+  if (!arm.orientation && gizmoMode !== 'translate') setGizmoMode('translate');
 }
 
 // ---- buttons and playing -----------------------------------------------------------------
@@ -274,12 +310,13 @@ function wireTarget() {
 function releaseSliders() { sliders.forEach((s) => { s.hold = null; }); }
 
 function wireButtons() {
+  // In a rig's view /api/stop stops every arm.
   $('stop').addEventListener('click', () => {
     releaseSliders();
     post('/api/stop', {});
   });
-  $('torque-on').addEventListener('click', () => post('/api/torque', { on: true }));
-  $('torque-off').addEventListener('click', () => post('/api/torque', { on: false }));
+  $('torque-on').addEventListener('click', () => post(apiPath('torque'), { on: true }));
+  $('torque-off').addEventListener('click', () => post(apiPath('torque'), { on: false }));
 }
 
 function wirePlay() {
@@ -289,7 +326,7 @@ function wirePlay() {
     if (!file) { showError('choose a keyframe file first'); setText(detail, 'no file chosen'); return; }
     let csv;
     try { csv = await file.text(); } catch (e) { showError(`cannot read ${file.name}: ${e.message}`); return; }
-    const r = await post('/api/play', { name: file.name, csv });
+    const r = await post(apiPath('play'), { name: file.name, csv });
     if (!r.ok) { setText(detail, r.body.error); return; }
     releaseSliders();
     const b = r.body;
@@ -316,6 +353,11 @@ function showPlay(p) {
 function buildLegend() {
   const box = $('legend');
   box.textContent = '';
+  if (rig) {
+    const who = document.createElement('span');
+    who.textContent = `${arms[selected].name}:`;
+    box.appendChild(who);
+  }
   arm.joints.forEach((j, i) => {
     const item = document.createElement('span');
     const sw = document.createElement('span');
@@ -338,8 +380,13 @@ function onDisconnect() {
 }
 
 function onTelemetry(t) {
-  latest = t;
-  fresh = true;
+  // A rig's telemetry names its arm.
+  const index = rig ? arms.findIndex((a) => a.name === t.arm) : 0;
+  const a = arms[index];
+  if (!a) return;
+  a.latest = t;
+  a.fresh = true;
+  if (index === selected) latest = t;
   if (!connected) {
     connected = true;
     const c = $('connection');
@@ -347,18 +394,106 @@ function onTelemetry(t) {
     setText(c, 'connected');
   }
   const now = performance.now();
-  arrivals.push(now);
-  while (arrivals.length && arrivals[0] < now - 1000) arrivals.shift();
-  if (Array.isArray(t.measured) && Array.isArray(t.setpoints)) chart.push(t.time, t.measured, t.setpoints);
-  if (!targetInitialised && Array.isArray(t.frames) && t.frames.length > arm.dof) {
+  a.arrivals.push(now);
+  while (a.arrivals.length && a.arrivals[0] < now - 1000) a.arrivals.shift();
+  if (Array.isArray(t.measured) && Array.isArray(t.setpoints)) a.chart.push(t.time, t.measured, t.setpoints);
+  if (index === selected && !targetInitialised && Array.isArray(t.frames) && t.frames.length > arm.dof) {
     targetInitialised = true;
     targetToTool(t);
   }
   // Shown when it changes only, so an older server error does not hide a newer request's.
-  if (t.last_error !== lastServerError) {
-    lastServerError = t.last_error;
-    if (t.last_error) showError(t.last_error);
+  if (t.last_error !== a.lastServerError) {
+    a.lastServerError = t.last_error;
+    if (t.last_error) showError(rig ? `${a.name}: ${t.last_error}` : t.last_error);
   }
+}
+
+// ---- the rig's arms ----------------------------------------------------------------------
+
+function showArmName() {
+  const text = rig
+    ? `rig ${rig.name} · driving ${arms[selected].name} (${arm.name}, ${arm.dof} joints)`
+    : `${arm.name} · ${arm.dof} joints`;
+  setText($('arm-name'), text);
+}
+
+/** A rig's list: one row per arm with its telemetry, and the choice of the arm to drive. */
+function buildRig() {
+  if (!rig) return;
+  $('rig-section').hidden = false;
+  setText($('rig-name'), `${rig.name} · ${arms.length} arms, world frame`);
+  setText($('target-frame'), 'm, world frame');
+  const box = $('arms');
+  box.textContent = '';
+  arms.forEach((a, i) => {
+    const row = document.createElement('label');
+    row.className = 'arm-row';
+    row.id = `arm-row-${a.name}`;
+    const base = a.base && Array.isArray(a.base.p) ? a.base.p.map((x) => x.toFixed(2)).join(', ') : '—';
+    row.innerHTML = `
+      <input type="radio" name="arm-pick" id="arm-pick-${a.name}">
+      <span class="arm-title"><b class="n"></b> <span class="model"></span></span>
+      <span class="arm-state" id="arm-${a.name}-state">—</span>
+      <span class="arm-nums">tool <span id="arm-${a.name}-tool">—</span> m · error <span id="arm-${a.name}-error">—</span> mm
+        · loop max <span id="arm-${a.name}-loop">—</span> µs · bus errors <span id="arm-${a.name}-bus">—</span>
+        · queue <span id="arm-${a.name}-queue">—</span></span>
+      <span class="arm-base">base at ${base}</span>`;
+    row.querySelector('.n').textContent = a.name;
+    row.querySelector('.model').textContent = `${a.arm.name}, ${a.arm.dof} joints`;
+    const pick = row.querySelector('input');
+    pick.checked = i === selected;
+    pick.addEventListener('change', () => { if (pick.checked) select(i); });
+    box.appendChild(row);
+    a.row = {
+      state: row.querySelector(`#arm-${a.name}-state`),
+      tool: row.querySelector(`#arm-${a.name}-tool`),
+      error: row.querySelector(`#arm-${a.name}-error`),
+      loop: row.querySelector(`#arm-${a.name}-loop`),
+      bus: row.querySelector(`#arm-${a.name}-bus`),
+      queue: row.querySelector(`#arm-${a.name}-queue`),
+    };
+  });
+}
+
+function showArmRow(a) {
+  const t = a.latest;
+  if (!a.row || !t) return;
+  setText(a.row.state, `${t.state}${t.torque === false && t.state !== 'TorqueOff' ? ' · torque off' : ''}`);
+  setText(a.row.tool, Array.isArray(t.tool) ? t.tool.map((x) => fmt(x)).join(', ') : '—');
+  setText(a.row.error, fmt(t.tool_error_mm, 1));
+  setText(a.row.loop, fmt(t.loop && t.loop.max_us, 0));
+  setText(a.row.bus, `${(t.bus_errors && t.bus_errors.total) ?? '—'}`);
+  setText(a.row.queue, `${t.queue ? t.queue.queued : '—'} / ${t.queue ? t.queue.capacity : '—'}`);
+}
+
+/** The controls drive arm `index` from now on. */
+function select(index) {
+  if (index === selected || !arms[index]) return;
+  targetLink.pending = false;
+  selected = index;
+  arm = arms[index].arm;
+  latest = arms[index].latest;
+  chart = arms[index].chart;
+  chart.dirty = true;
+  arms[index].fresh = true;
+  showArmName();
+  buildJoints();
+  buildGripper();
+  buildLegend();
+  scene.select(index);
+  scene.setPreview(null);
+  scene.setPath(null);
+  showTargetMode();
+  for (const id of ['target-status', 'target-detail', 'play-detail']) setText($(id), id === 'target-status' ? '—' : '');
+  $('target-status').className = '';
+  // The target starts at this arm's tool.
+  targetInitialised = false;
+  if (latest && Array.isArray(latest.frames) && latest.frames.length > arm.dof) {
+    targetInitialised = true;
+    targetToTool(latest);
+  }
+  const pick = $(`arm-pick-${arms[index].name}`);
+  if (pick) pick.checked = true;
 }
 
 function showNumbers(t) {
@@ -372,7 +507,7 @@ function showNumbers(t) {
   setText($('bus-errors'), `${b.total ?? 0}${parts.length ? ` (${parts.join(', ')})` : ''}`);
   const q = t.queue || {};
   setText($('queue'), `${q.queued ?? '—'} / ${q.capacity ?? arm.queue_capacity ?? '—'}`);
-  setText($('rate'), `${fmt(t.rate_hz, 0)} Hz (${arrivals.length}/s here)`);
+  setText($('rate'), `${fmt(t.rate_hz, 0)} Hz (${arms[selected].arrivals.length}/s here)`);
   const g = t.gripper;
   const gtext = g ? `${fmt(g.percent, 0)} % (setpoint ${fmt(g.setpoint_percent, 0)} %)` : 'none';
   setText($('gripper-telemetry'), gtext);
@@ -386,13 +521,18 @@ function showNumbers(t) {
 }
 
 function frame() {
-  if (fresh && latest) {
-    fresh = false;
-    if (Array.isArray(latest.frames)) scene.setFrames(latest.frames);
-    scene.setToolSetpoint(Array.isArray(latest.tool_setpoint) ? latest.tool_setpoint : null);
-    followSetpoints(latest);
-    showNumbers(latest);
-  }
+  arms.forEach((a, i) => {
+    if (!a.fresh || !a.latest) return;
+    a.fresh = false;
+    const t = a.latest;
+    if (Array.isArray(t.frames)) scene.setFrames(t.frames, i);
+    scene.setToolSetpoint(Array.isArray(t.tool_setpoint) ? t.tool_setpoint : null, i);
+    showArmRow(a);
+    if (i === selected) {
+      followSetpoints(t);
+      showNumbers(t);
+    }
+  });
   chart.draw();
   scene.render();
   requestAnimationFrame(frame);

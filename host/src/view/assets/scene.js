@@ -1,5 +1,7 @@
 // The 3D view: the arm drawn from its telemetry frames, the IK preview, the target gizmo,
-// the planned path of a played file and the arm's meshes. Z is up, units are metres.
+// the planned path of a played file and the arm's meshes. Z is up, units are metres. A rig's view
+// draws every arm at its base in the world frame (the telemetry's frames are in it already); the
+// preview and the target belong to the arm the controls drive (`select`).
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 import { TransformControls } from 'three/addons/controls/TransformControls.js';
@@ -59,9 +61,10 @@ function makeTriad(length, radius, opacity = 1) {
 /**
  * A kinematic chain drawn from dof+1 frames (joint 1..dof, then the tool):
  * links from the base origin through every frame origin, each joint's axis, a tool triad.
+ * `base`: the base's {p, q} in the scene (a rig's arm), or null for the scene's origin.
  */
 class Chain {
-  constructor(arm, size, { colors, opacity = 1, linkColor = 0x59636e, axes = true }) {
+  constructor(arm, size, { colors, opacity = 1, linkColor = 0x59636e, axes = true, base = null }) {
     this.arm = arm;
     this.size = size;
     this.group = new THREE.Group();
@@ -70,7 +73,7 @@ class Chain {
       color, roughness: 0.55, metalness: 0.1, transparent, opacity, depthWrite: !transparent,
     });
     this.linkMaterial = mat(linkColor);
-    this.points = [new THREE.Vector3()];
+    this.points = [base ? new THREE.Vector3().fromArray(base.p) : new THREE.Vector3()];
     this.links = [];
     for (let i = 0; i <= arm.dof; i++) {
       this.points.push(new THREE.Vector3());
@@ -138,18 +141,27 @@ class Chain {
 
 export class ArmScene {
   /**
-   * canvas: the <canvas>; arm: GET /api/arm; colors: one CSS colour per joint;
+   * canvas: the <canvas>; arms: [{arm: GET /api/arm, base: {p, q} or null}], one for the one-arm
+   * view, each arm of a rig at its base otherwise; colors: one CSS colour per joint;
    * onTargetChange(): the gizmo moved (called on every change);
    * onTargetRelease(): the user let go of the gizmo; onError(text).
    */
-  constructor(canvas, arm, { colors, onTargetChange, onTargetRelease, onError }) {
+  constructor(canvas, arms, { colors, onTargetChange, onTargetRelease, onError }) {
     this.canvas = canvas;
-    this.arm = arm;
+    this.arms = arms;
+    this.selected = 0;
     this.dirty = true;
-    const reach = arm.reach > 0 ? arm.reach : 0.5;
+    const reaches = arms.map((a) => a.arm.reach).filter((r) => r > 0);
+    const reach = reaches.length ? Math.max(...reaches) : 0.5;
     // With meshes the links shrink to a skeleton inside them.
-    const meshes = (arm.meshes || []).length > 0;
+    const meshes = arms.some((a) => (a.arm.meshes || []).length > 0);
     this.size = { link: reach * 0.022, linkRadius: reach * (meshes ? 0.008 : 0.022), triad: reach * 0.14 };
+    // Where the bases are: the camera looks at their middle from far enough to see them all.
+    const bases = arms.map((a) => new THREE.Vector3().fromArray(a.base ? a.base.p : [0, 0, 0]));
+    const centre = bases.reduce((c, b) => c.add(b), new THREE.Vector3()).divideScalar(bases.length);
+    const spread = Math.max(...bases.map((b) => b.distanceTo(centre)));
+    const far = Math.max(...bases.map((b) => Math.hypot(b.x, b.y)));
+    const view = reach + spread;
 
     const renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
     renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
@@ -160,11 +172,11 @@ export class ArmScene {
     this.scene = scene;
     scene.add(new THREE.HemisphereLight(0xffffff, 0x9aa0a6, 2.2));
     const sun = new THREE.DirectionalLight(0xffffff, 1.6);
-    sun.position.set(reach * 2, -reach * 3, reach * 5);
+    sun.position.set(view * 2, -view * 3, view * 5);
     scene.add(sun);
 
     // GridHelper lies in XZ; rotated into the arm's XY floor. 0.1 m cells, at least 1 m across.
-    const half = Math.max(0.5, Math.ceil(reach * 1.25 * 10) / 10);
+    const half = Math.max(0.5, Math.ceil((reach * 1.25 + far) * 10) / 10);
     const grid = new THREE.GridHelper(2 * half, Math.round(20 * half), 0x8a9099, 0xc2c7cd);
     grid.rotation.x = Math.PI / 2;
     scene.add(grid);
@@ -172,48 +184,65 @@ export class ArmScene {
     worldAxes.position.z = 0.0005;
     scene.add(worldAxes);
 
-    const camera = new THREE.PerspectiveCamera(45, 1, reach * 0.01, reach * 100);
+    const camera = new THREE.PerspectiveCamera(45, 1, reach * 0.01, view * 100);
     camera.up.set(0, 0, 1);
-    camera.position.set(reach * 1.1, -reach * 1.4, reach * 0.9);
+    camera.position.set(centre.x + view * 1.1, centre.y - view * 1.4, centre.z + view * 0.9);
     this.camera = camera;
     const orbit = new OrbitControls(camera, canvas);
-    orbit.target.set(reach * 0.25, 0, reach * 0.2);
+    orbit.target.set(centre.x + reach * 0.25, centre.y, centre.z + reach * 0.2);
     orbit.enableDamping = false;
     orbit.update();
     orbit.addEventListener('change', () => { this.dirty = true; });
 
-    // The base: a flat disc, so the chain visibly stands on something.
-    const base = new THREE.Mesh(unitCylinder, new THREE.MeshStandardMaterial({ color: 0x3d4650, roughness: 0.7 }));
-    base.quaternion.setFromUnitVectors(Y, new THREE.Vector3(0, 0, 1));
-    base.scale.set(this.size.link * 3.5, this.size.link * 0.8, this.size.link * 3.5);
-    base.position.z = this.size.link * 0.4;
-    scene.add(base);
+    // Per arm: its base, its chain, its preview, its setpoints' tool, its meshes.
+    this.drawn = arms.map(({ arm, base }) => {
+      const placed = (object) => {
+        if (base) {
+          object.position.fromArray(base.p);
+          setQuat(object.quaternion, base.q);
+        }
+        return object;
+      };
+      // The base: a flat disc, so the chain visibly stands on something.
+      const disc = new THREE.Mesh(unitCylinder, new THREE.MeshStandardMaterial({ color: 0x3d4650, roughness: 0.7 }));
+      disc.quaternion.setFromUnitVectors(Y, new THREE.Vector3(0, 0, 1));
+      disc.scale.set(this.size.link * 3.5, this.size.link * 0.8, this.size.link * 3.5);
+      disc.position.z = this.size.link * 0.4;
+      const stand = placed(new THREE.Group());
+      stand.add(disc);
+      scene.add(stand);
 
-    this.chain = new Chain(arm, this.size, { colors });
-    scene.add(this.chain.group);
-    this.chain.group.visible = false;
+      const chain = new Chain(arm, this.size, { colors, base });
+      scene.add(chain.group);
+      chain.group.visible = false;
 
-    this.preview = new Chain(arm, this.size, { colors, opacity: 0.35, linkColor: 0x1f6feb, axes: false });
-    this.preview.group.visible = false;
-    scene.add(this.preview.group);
+      const preview = new Chain(arm, this.size, { colors, opacity: 0.35, linkColor: 0x1f6feb, axes: false, base });
+      preview.group.visible = false;
+      scene.add(preview.group);
 
-    // Where the setpoints put the tool: a faint ball (the server sends the setpoints' tool only).
-    this.setpointGhost = new THREE.Mesh(unitSphere, new THREE.MeshBasicMaterial({
-      color: 0x7b1fa2, transparent: true, opacity: 0.35, depthWrite: false,
-    }));
-    this.setpointGhost.scale.setScalar(this.size.link * 1.2);
-    this.setpointGhost.visible = false;
-    scene.add(this.setpointGhost);
+      // Where the setpoints put the tool: a faint ball (the server sends the setpoints' tool only).
+      const ghost = new THREE.Mesh(unitSphere, new THREE.MeshBasicMaterial({
+        color: 0x7b1fa2, transparent: true, opacity: 0.35, depthWrite: false,
+      }));
+      ghost.scale.setScalar(this.size.link * 1.2);
+      ghost.visible = false;
+      scene.add(ghost);
 
-    // Frame groups for the meshes: 0 is the base, k is telemetry frames[k-1].
-    this.meshFrames = [];
-    for (let k = 0; k <= arm.dof; k++) {
-      const g = new THREE.Group();
-      g.visible = k === 0;
-      this.meshFrames.push(g);
-      scene.add(g);
-    }
-    this.loadMeshes(arm.meshes || [], onError);
+      // Frame groups for the meshes: 0 is the base, k is telemetry frames[k-1].
+      const meshFrames = [];
+      for (let k = 0; k <= arm.dof; k++) {
+        const g = k === 0 ? placed(new THREE.Group()) : new THREE.Group();
+        g.visible = k === 0;
+        meshFrames.push(g);
+        scene.add(g);
+      }
+      return { arm, chain, preview, ghost, meshFrames, disc };
+    });
+    this.markSelected();
+    this.drawn.forEach((d) => this.loadMeshes(d, d.arm.meshes || [], onError));
+    // The one-arm view's names for the one arm.
+    this.chain = this.drawn[0].chain;
+    this.preview = this.drawn[0].preview;
 
     // The target the user drags; its gizmo is TransformControls.
     this.target = new THREE.Group();
@@ -221,7 +250,12 @@ export class ArmScene {
     const ball = new THREE.Mesh(unitSphere, this.targetMaterial);
     ball.scale.setScalar(this.size.link * 1.6);
     this.target.add(ball);
-    if (arm.orientation) this.target.add(makeTriad(this.size.triad * 0.8, this.size.link * 0.25, 0.8));
+    this.targetTriad = null;
+    if (arms.some((a) => a.arm.orientation)) {
+      this.targetTriad = makeTriad(this.size.triad * 0.8, this.size.link * 0.25, 0.8);
+      this.targetTriad.visible = !!arms[0].arm.orientation;
+      this.target.add(this.targetTriad);
+    }
     this.target.visible = false;
     scene.add(this.target);
 
@@ -254,13 +288,29 @@ export class ArmScene {
     resize();
   }
 
-  loadMeshes(meshes, onError) {
+  /** The arm the preview and the target belong to (a rig's view): its index in `arms`. */
+  select(index) {
+    if (!this.drawn[index]) return;
+    this.drawn[this.selected].preview.group.visible = false;
+    this.selected = index;
+    if (this.targetTriad) this.targetTriad.visible = !!this.arms[index].arm.orientation;
+    this.markSelected();
+    this.dirty = true;
+  }
+
+  /** Of several arms, the driven one stands on a base of the accent colour. */
+  markSelected() {
+    if (this.drawn.length < 2) return;
+    this.drawn.forEach((d, i) => d.disc.material.color.set(i === this.selected ? 0x1f6feb : 0x3d4650));
+  }
+
+  loadMeshes(drawn, meshes, onError) {
     if (meshes.length === 0) return;
     const loader = new STLLoader().setRequestHeader(authHeaders());
     const material = new THREE.MeshStandardMaterial({ color: 0xf2f2ee, roughness: 0.65, metalness: 0.05 });
     for (const m of meshes) {
-      const frame = this.meshFrames[m.frame];
-      if (!frame) { onError(`mesh ${m.url}: frame ${m.frame} is not in 0..${this.arm.dof}`); continue; }
+      const frame = drawn.meshFrames[m.frame];
+      if (!frame) { onError(`mesh ${m.url}: frame ${m.frame} is not in 0..${drawn.arm.dof}`); continue; }
       loader.load(m.url, (geometry) => {
         if (!geometry.hasAttribute('normal')) geometry.computeVertexNormals();
         const mesh = new THREE.Mesh(geometry, material);
@@ -273,12 +323,15 @@ export class ArmScene {
     }
   }
 
-  setFrames(frames) {
-    this.chain.group.visible = true;
-    this.chain.update(frames);
-    for (let k = 1; k < this.meshFrames.length; k++) {
+  /** frames: arm `index`'s telemetry frames. */
+  setFrames(frames, index = 0) {
+    const d = this.drawn[index];
+    if (!d) return;
+    d.chain.group.visible = true;
+    d.chain.update(frames);
+    for (let k = 1; k < d.meshFrames.length; k++) {
       const f = frames[k - 1];
-      const g = this.meshFrames[k];
+      const g = d.meshFrames[k];
       g.visible = !!f;
       if (!f) continue;
       g.position.fromArray(f.p);
@@ -287,18 +340,21 @@ export class ArmScene {
     this.dirty = true;
   }
 
-  setToolSetpoint(p) {
-    this.setpointGhost.visible = !!p;
-    if (p) this.setpointGhost.position.fromArray(p);
+  setToolSetpoint(p, index = 0) {
+    const ghost = this.drawn[index] && this.drawn[index].ghost;
+    if (!ghost) return;
+    ghost.visible = !!p;
+    if (p) ghost.position.fromArray(p);
     this.dirty = true;
   }
 
-  /** frames null hides the preview; reachable colours it blue, else red. */
+  /** The selected arm's preview: frames null hides it; reachable colours it blue, else red. */
   setPreview(frames, reachable) {
-    this.preview.group.visible = !!frames;
+    const preview = this.drawn[this.selected].preview;
+    preview.group.visible = !!frames;
     if (frames) {
-      this.preview.update(frames);
-      this.preview.setColor(reachable ? 0x1f6feb : 0xd32f2f);
+      preview.update(frames);
+      preview.setColor(reachable ? 0x1f6feb : 0xd32f2f);
     }
     this.dirty = true;
   }
@@ -348,13 +404,29 @@ export class ArmScene {
 
   /** The target's centre in page (CSS) pixels. */
   targetScreen() {
+    this.target.getWorldPosition(_a);
+    return this.screen(_a);
+  }
+
+  /** A point of the scene in page (CSS) pixels. */
+  screen(point) {
     this.camera.updateMatrixWorld();
-    this.target.getWorldPosition(_a).project(this.camera);
+    _a.copy(point).project(this.camera);
     const r = this.canvas.getBoundingClientRect();
     return {
       x: r.left + window.scrollX + (_a.x + 1) / 2 * r.width,
       y: r.top + window.scrollY + (1 - _a.y) / 2 * r.height,
     };
+  }
+
+  /** What is drawn of each arm (for the browser tests): whether its chain shows, where its
+   * base and frames are, and where on the page its first link is (the middle of frames 1 and 2). */
+  drawnArms() {
+    return this.drawn.map((d) => {
+      const points = d.chain.points.map((p) => p.toArray());
+      const middle = new THREE.Vector3().fromArray(points[1]).add(new THREE.Vector3().fromArray(points[2])).multiplyScalar(0.5);
+      return { shown: d.chain.group.visible, base: points[0], points, link: this.screen(middle) };
+    });
   }
 
   render() {
