@@ -22,6 +22,7 @@ use crate::mocap::skeleton::RootOffset;
 use crate::mocap::timing::Timing;
 
 pub mod rig;
+pub mod tree;
 
 /// `armctl retarget` options.
 #[derive(Args, Debug)]

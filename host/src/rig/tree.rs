@@ -126,25 +126,35 @@ impl RigTree {
     /// how far, if a target is out of reach within the joint limits.
     pub fn solve(&self, q: &[Vec<f64>], targets: &[Option<[f64; 3]>], names: &[&str]) -> Result<TreeMove> {
         let now = self.tools(q);
+        let held: Vec<Option<[f64; 3]>> = targets.iter().zip(&now).map(|(t, p)| Some(t.unwrap_or(*p))).collect();
+        let (solved, reached) = self.solve_free(q, &held);
+        let missed: Vec<String> = (0..targets.len())
+            .filter(|&a| !reached[a])
+            .map(|a| format!("{} {:.1} mm short", names[a], solved.errors[a] * 1e3))
+            .collect();
+        if !missed.is_empty() {
+            bail!("the tree's IK finds no joints within the limits that reach every target ({})", missed.join(", "));
+        }
+        Ok(solved)
+    }
+
+    /// Solves for `targets` from `q` as [`Self::solve`] does, except that an arm without a target
+    /// is free (its tool goes where the others need it: a carrier such as a torso), and that a
+    /// target out of reach is no error: the answer is the closest the solver came, with whether
+    /// each arm reached its target (an arm without one always has).
+    pub fn solve_free(&self, q: &[Vec<f64>], targets: &[Option<[f64; 3]>]) -> (TreeMove, Vec<bool>) {
         let mut problem = TreeProblem {
             targets: [None; MAX_EFFECTORS],
             seed: self.pack(q),
             config: IkConfig { position_tolerance: 1e-4, orientation_tolerance: 1e-3, ..IkConfig::default() },
         };
         for (a, target) in targets.iter().enumerate() {
-            let position = target.unwrap_or(now[a]);
             problem.targets[a] =
-                Some(EffectorTarget { position: position.into(), rotation: None, weight: 1.0, priority: 0 });
+                target.map(|p| EffectorTarget { position: p.into(), rotation: None, weight: 1.0, priority: 0 });
         }
         let solution = self.tree.solve(&problem);
         let errors: Vec<f64> = (0..targets.len()).map(|a| solution.effectors[a].position_error).collect();
-        let missed: Vec<String> = (0..targets.len())
-            .filter(|&a| !solution.effectors[a].reached)
-            .map(|a| format!("{} {:.1} mm short", names[a], errors[a] * 1e3))
-            .collect();
-        if !missed.is_empty() {
-            bail!("the tree's IK finds no joints within the limits that reach every target ({})", missed.join(", "));
-        }
-        Ok(TreeMove { q: self.unpack(&solution.q), errors })
+        let reached = (0..targets.len()).map(|a| targets[a].is_none() || solution.effectors[a].reached).collect();
+        (TreeMove { q: self.unpack(&solution.q), errors }, reached)
     }
 }

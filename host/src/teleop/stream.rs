@@ -353,7 +353,10 @@ impl Streamer {
     /// paused) first asks for a status: the player has then run out and holds, and the keyframe
     /// starts a new playback.
     fn due(&mut self, driver: &mut Driver, read_at: Instant) -> Result<f64> {
-        if self.playing && self.clock.at(read_at) > self.last_time + self.settings.period.as_secs_f64() {
+        // A full queue while playing is a player that stopped taking keyframes (it ran dry under
+        // a late host and holds): pushing would wait for a slot forever. Look first.
+        let full = driver.free_slots() == 0;
+        if self.playing && (full || self.clock.at(read_at) > self.last_time + self.settings.period.as_secs_f64()) {
             self.look(driver)?;
         }
         Ok((self.clock.at(read_at) + self.settings.lead.as_secs_f64()).max(self.last_time + 1e-3))
@@ -477,6 +480,11 @@ impl Streamer {
         match status.state {
             RunState::Moving => self.clock.observe(status.play_time, sent, Instant::now()),
             RunState::Idle => {
+                if status.queued > 0 {
+                    // Keyframes left from the playback that ran dry are timed on its clock; the
+                    // new playback starts its own at zero, so they go (the arm holds where it is).
+                    driver.request(&HostMessage::Stop)?;
+                }
                 self.figures.restarts += 1;
                 self.playing = false;
                 self.recorded += self.last_time + self.settings.period.as_secs_f64();

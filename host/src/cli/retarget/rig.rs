@@ -9,6 +9,12 @@
 //! one-arm retarget knows ([`crate::mocap::chain::Side`]). The arms share one scale and one time
 //! base ([`crate::mocap::retarget::timebase`]); each is placed in its own workspace, in its own base frame.
 //!
+//! A rig with a shared joint (arms mounted on a turning torso, `mount` in the rig file) is one
+//! tree: an arm that carries others and whose name says no side (and has no `--chain`) follows no
+//! human arm; each hand is retargeted with it at rest, then every keyframe is solved as one tree
+//! problem over every joint ([`super::tree`]). The carrier gets its own columns in the file, and
+//! the report its range of motion (`carriers`) and how the tree solves came out (`tree`).
+//!
 //! The report is one JSON line on stdout: the shared figures, and per arm those of the one-arm
 //! report. With `--play`, the play's report follows as a second line, with each simulated arm's
 //! safety monitor figures added; a violation makes the exit code 1.
@@ -27,9 +33,15 @@ use crate::arm::ArmSpec;
 use crate::drive::args::{calibrated, LinkArgs};
 use crate::mocap::bvh::Bvh;
 use crate::mocap::chain::{self, ArmChain, Side};
-use crate::mocap::retarget::timebase::{retarget_arms, Job, Retargets};
+use crate::mocap::retarget::timebase::{retarget_sharing, Job, Retargets, SharedJoints};
 use crate::mocap::retarget::{Retargeted, Scale};
 use crate::rig::{columns, Rig, RigSpec};
+
+/// Whether rig arm `i` follows no human arm: it carries another arm (a shared joint), no chain is
+/// given for it, and its name says no side.
+fn is_carrier(spec: &RigSpec, i: usize, chain: Option<&String>) -> bool {
+    chain.is_none() && Side::of_arm_name(&spec.arms[i].name).is_none() && spec.arms.iter().any(|b| b.mount == Some(i))
+}
 
 /// The `--chain ARM=...` options: per rig arm (in the rig's order), the chain text given.
 fn given_chains(spec: &RigSpec, given: &[String]) -> Result<Vec<Option<String>>> {
@@ -49,8 +61,8 @@ fn given_chains(spec: &RigSpec, given: &[String]) -> Result<Vec<Option<String>>>
         chains[arm] = Some(joints.trim().to_string());
     }
     // A rig arm whose name says no side needs its chain named: said before the file is read.
-    for (arm, chain) in spec.arms.iter().zip(&chains) {
-        if chain.is_none() && Side::of_arm_name(&arm.name).is_none() {
+    for (i, (arm, chain)) in spec.arms.iter().zip(&chains).enumerate() {
+        if chain.is_none() && Side::of_arm_name(&arm.name).is_none() && !is_carrier(spec, i, None) {
             bail!(
                 "rig arm {}: its name says neither left nor right, so it follows no human arm by default: give \
                  --chain {}=SHOULDER,ELBOW,WRIST",
@@ -137,20 +149,36 @@ fn arm_report(r: &Retargeted, arm: &dyn DynArm, base: &Pose<f64>) -> Value {
     })
 }
 
-fn notes(r: &Retargets, spec: &RigSpec, scale: Scale, err: &mut dyn Write) -> Result<()> {
-    for (a, arm) in spec.arms.iter().zip(&r.arms) {
-        writeln!(err, "note: {}: {}", a.name, chain_note(arm))?;
-        writeln!(err, "note: {}: {}", a.name, rest_note(arm))?;
+/// A carrier's part of the report: the range of each of its joints over the keyframes (rad), and
+/// the span used.
+fn carrier_report(q: &[Vec<f64>]) -> Value {
+    let joints = q.first().map_or(0, Vec::len);
+    let ranges: Vec<[f64; 2]> = (0..joints)
+        .map(|j| {
+            let values = q.iter().map(|row| row[j]);
+            [values.clone().fold(f64::INFINITY, f64::min), values.fold(f64::NEG_INFINITY, f64::max)]
+        })
+        .collect();
+    json!({
+        "joint_range_rad": ranges,
+        "joint_span_deg": ranges.iter().map(|[lo, hi]| (hi - lo).to_degrees()).collect::<Vec<_>>(),
+    })
+}
+
+/// The notes, `names` and `bases` (in the world) those of the arms that follow human arms.
+fn notes(r: &Retargets, names: &[&str], bases: &[Pose<f64>], scale: Scale, err: &mut dyn Write) -> Result<()> {
+    for (name, arm) in names.iter().zip(&r.arms) {
+        writeln!(err, "note: {name}: {}", chain_note(arm))?;
+        writeln!(err, "note: {name}: {}", rest_note(arm))?;
     }
     writeln!(err, "note: {AXES_NOTE}")?;
-    let own: Vec<String> = spec
-        .arms
+    let own: Vec<String> = names
         .iter()
         .zip(&r.arms)
-        .map(|(a, arm)| {
+        .map(|(name, arm)| {
             format!(
                 "{} {:.5}: reach {:.3} m over a human arm of {:.3} units",
-                a.name,
+                name,
                 arm.workspace.reach / arm.human_arm_length,
                 arm.workspace.reach,
                 arm.human_arm_length
@@ -167,13 +195,13 @@ fn notes(r: &Retargets, spec: &RigSpec, scale: Scale, err: &mut dyn Write) -> Re
         )?,
         Scale::Factor(_) => writeln!(err, "note: scale {:.5} m per file unit for every arm (--scale)", r.scale)?,
     }
-    for (a, arm) in spec.arms.iter().zip(&r.arms) {
-        let w = to_world(&a.base, arm.placed_at);
+    for ((name, base), arm) in names.iter().zip(bases).zip(&r.arms) {
+        let w = to_world(base, arm.placed_at);
         writeln!(
             err,
             "note: {}: the path's middle placed at ({:.3}, {:.3}, {:.3}) m in its base frame ({:.3}, {:.3}, {:.3} m \
              in the world), where {:.0} % of it lies in the arm's sampled workspace above its base",
-            a.name,
+            name,
             arm.placed_at[0],
             arm.placed_at[1],
             arm.placed_at[2],
@@ -204,8 +232,9 @@ pub fn run(rig: &str, link: &LinkArgs, args: &RetargetArgs, out: &mut dyn Write,
         bail!("--timeout: {} s must be a positive number", args.timeout);
     }
     let spec = RigSpec::load(rig)?;
-    spec.refuse_mounts("retarget")?;
     let given = given_chains(&spec, &args.chain)?;
+    let carriers: Vec<bool> = (0..spec.arms.len()).map(|i| is_carrier(&spec, i, given[i].as_ref())).collect();
+    let followers: Vec<usize> = (0..spec.arms.len()).filter(|&i| !carriers[i]).collect();
     let mut arms: Vec<Box<dyn DynArm>> = Vec::new();
     for a in &spec.arms {
         let name = a.link.arm.as_deref().expect("a rig arm names its arm");
@@ -220,16 +249,37 @@ pub fn run(rig: &str, link: &LinkArgs, args: &RetargetArgs, out: &mut dyn Write,
     for warning in &bvh.warnings {
         writeln!(err, "warning: {shown}: {warning}")?;
     }
+    // A shared joint: the rig is one tree, solved at every keyframe (see [`super::tree`]).
+    let shared = if spec.arms.iter().any(|a| a.mount.is_some()) {
+        Some(super::tree::RigShared::new(&spec, &arms, &carriers)?)
+    } else {
+        None
+    };
     let mut jobs = Vec::new();
-    for ((a, arm), text) in spec.arms.iter().zip(&arms).zip(&given) {
-        let chain = chain_for(&bvh, &a.name, text.as_deref()).with_context(|| shown.clone())?;
+    for &i in &followers {
+        let (a, arm) = (&spec.arms[i], &arms[i]);
+        let chain = chain_for(&bvh, &a.name, given[i].as_deref()).with_context(|| shown.clone())?;
         jobs.push(Job { name: a.name.clone(), arm: arm.as_ref(), chain });
     }
-    let r = retarget_arms(&bvh, jobs, &options).with_context(|| shown.clone())?;
-    notes(&r, &spec, options.scale, err)?;
+    let r = retarget_sharing(&bvh, jobs, shared.as_ref().map(|s| s as &dyn SharedJoints), &options)
+        .with_context(|| shown.clone())?;
 
-    let names: Vec<&str> = spec.arms.iter().map(|a| a.name.as_str()).collect();
-    let bases: Vec<Pose<f64>> = spec.arms.iter().map(|a| a.base).collect();
+    // The followers' names and bases in the world (with the carriers at rest).
+    let names: Vec<&str> = followers.iter().map(|&i| spec.arms[i].name.as_str()).collect();
+    let bases: Vec<Pose<f64>> = match &shared {
+        Some(s) => followers.iter().map(|&i| s.rest_bases()[i]).collect(),
+        None => followers.iter().map(|&i| spec.arms[i].base).collect(),
+    };
+    notes(&r, &names, &bases, options.scale, err)?;
+    if let Some(tree) = &r.tree {
+        writeln!(
+            err,
+            "note: a shared joint: every keyframe solved as one tree over every joint of the rig, seeded from the \
+             keyframe before; {} solved again from the arms' own joints with the carriers at rest, {} still short of \
+             a target the arm alone reached",
+            tree.reseeded, tree.missed
+        )?;
+    }
     let keyframes = match (&args.out, args.play) {
         (Some(path), _) => Some(path.clone()),
         (None, true) => Some(std::env::temp_dir().join(format!("armctl-retarget-rig-{}.csv", std::process::id()))),
@@ -237,11 +287,23 @@ pub fn run(rig: &str, link: &LinkArgs, args: &RetargetArgs, out: &mut dyn Write,
     };
     if let Some(path) = &keyframes {
         let mut file = std::fs::File::create(path).with_context(|| format!("cannot write {}", path.display()))?;
-        r.write_csv(&names, &mut file)?;
+        // Every rig arm's columns in the rig's order: a carrier's from the tree, a follower's.
+        let (mut c, mut f) = (0, 0);
+        let mut columns: Vec<(&str, &[Vec<f64>])> = Vec::new();
+        for (i, a) in spec.arms.iter().enumerate() {
+            if carriers[i] {
+                columns.push((a.name.as_str(), &r.carriers[c][..]));
+                c += 1;
+            } else {
+                columns.push((a.name.as_str(), &r.arms[f].q[..]));
+                f += 1;
+            }
+        }
+        r.write_columns(&columns, &mut file)?;
     }
     let mut plots = serde_json::Map::new();
     if let Some(plot) = &args.plot {
-        for ((name, arm), robot) in names.iter().zip(&r.arms).zip(&arms) {
+        for ((name, arm), robot) in names.iter().zip(&r.arms).zip(followers.iter().map(|&i| &arms[i])) {
             let path = plot_path(plot, name);
             let title = format!("{shown} onto {name} ({}): human hand (scaled) and tool", robot.spec().name);
             crate::mocap::plot::draw(&path, arm, &title).with_context(|| format!("plot {}", path.display()))?;
@@ -249,9 +311,14 @@ pub fn run(rig: &str, link: &LinkArgs, args: &RetargetArgs, out: &mut dyn Write,
         }
     }
     let mut per_arm = serde_json::Map::new();
-    for (((name, arm), robot), base) in names.iter().zip(&r.arms).zip(&arms).zip(&bases) {
-        per_arm.insert(name.to_string(), arm_report(arm, robot.as_ref(), base));
+    for ((&i, arm), base) in followers.iter().zip(&r.arms).zip(&bases) {
+        per_arm.insert(spec.arms[i].name.clone(), arm_report(arm, arms[i].as_ref(), base));
     }
+    let carried: serde_json::Map<String, Value> = (0..spec.arms.len())
+        .filter(|&i| carriers[i])
+        .zip(&r.carriers)
+        .map(|(i, q)| (spec.arms[i].name.clone(), carrier_report(q)))
+        .collect();
     let closest = closest_tools(&r, &names, &bases)
         .map(|(a, b, d, t)| json!({"arms": [a, b], "distance_m": d, "t_s": t, "what": "tool points, not links"}));
     let last = r.times.len() - 1;
@@ -275,6 +342,8 @@ pub fn run(rig: &str, link: &LinkArgs, args: &RetargetArgs, out: &mut dyn Write,
             "velocity_limited_steps": r.velocity_limited,
             "closest_tools": closest,
             "arms": per_arm,
+            "carriers": (!carried.is_empty()).then_some(carried),
+            "tree": r.tree.as_ref().map(|t| json!({"reseeded": t.reseeded, "missed": t.missed})),
             "out": args.out.as_ref().map(|p| p.display().to_string()),
             "plot": (!plots.is_empty()).then_some(plots),
             "wall_s": started.elapsed().as_secs_f64(),
@@ -283,7 +352,9 @@ pub fn run(rig: &str, link: &LinkArgs, args: &RetargetArgs, out: &mut dyn Write,
     let Some(path) = keyframes.filter(|_| args.play) else {
         return Ok(0);
     };
-    let played = play(&spec, &path, &names, &bases, args.timeout, out, err);
+    let all_names: Vec<&str> = spec.arms.iter().map(|a| a.name.as_str()).collect();
+    let all_bases: Vec<Pose<f64>> = spec.arms.iter().map(|a| a.base).collect();
+    let played = play(&spec, &path, &all_names, &all_bases, args.timeout, out, err);
     if args.out.is_none() {
         let _ = std::fs::remove_file(&path);
     }

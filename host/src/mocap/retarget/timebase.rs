@@ -19,9 +19,12 @@
 //!   are cut to its own limits. The lead-in (the way to the first pose) is the longest any arm
 //!   needs.
 //!
-//! The arms are separate problems: each has its own core and its own joints, as in the rigs so far.
-//! Arms that share a joint (a turning torso under both) would make one tree IK problem per
-//! keyframe (`kinematics::tree`); that is not done here.
+//! Arms that share a joint (a turning torso under both, [`SharedJoints`]): each arm is first
+//! retargeted alone with the carrier at rest, which gives each keyframe its tool targets; then
+//! every keyframe is solved again as one tree problem over every joint, the carrier's included,
+//! seeded from the keyframe before, so the shared joint serves every hand. The carrier follows no
+//! human arm: its joints are where the tree puts them, and they are timed with the others, each
+//! with its own arm's limits.
 
 use super::{
     check_rate, follow, Followed, Options, Retargeted, Scale, DEFAULT_MAX_ACCELERATION, DEFAULT_MAX_VELOCITY,
@@ -38,6 +41,11 @@ use crate::mocap::timing::{time_joints, time_keyframes, Limits, Timing};
 use crate::mocap::workspace::{self, Workspace};
 use anyhow::{bail, Result};
 
+/// The fraction of the way back to rest each keyframe's seed moves a carrier's joints (a torso).
+/// Measured on 01_01's first 8 s: the torso over -87.2 to +34.6 degrees, against -90 (its limit)
+/// to +34.6 without it.
+const TOWARD_REST: f64 = 0.3;
+
 /// One arm to retarget onto.
 pub struct Job<'a> {
     /// Its name, for messages (the rig's arm name).
@@ -46,6 +54,31 @@ pub struct Job<'a> {
     pub arm: &'a dyn DynArm,
     /// The human arm it follows.
     pub chain: ArmChain,
+}
+
+/// Arms that carry the retargeted ones (a turning torso): one tree IK problem per keyframe over
+/// every joint. The followers are the jobs, in their order; the carriers are arms without a human
+/// arm of their own. "At rest" is each carrier at the middle of its limits: the followers' frames
+/// (their targets, tools and placement) are their base frames with the carriers there.
+pub trait SharedJoints {
+    /// The carriers, in order.
+    fn carriers(&self) -> Vec<&dyn DynArm>;
+    /// Solves one keyframe: `targets` are the followers' tool targets (each in its frame at rest),
+    /// `seed` the joints to start from (every carrier's, then every follower's). Returns the
+    /// joints (in the same order) and, per follower, whether its target was reached.
+    fn solve(&self, seed: &[Vec<f64>], targets: &[[f64; 3]]) -> (Vec<Vec<f64>>, Vec<bool>);
+    /// The followers' tools at joints `q` (as [`Self::solve`] orders them), each in its frame at rest.
+    fn tools(&self, q: &[Vec<f64>]) -> Vec<[f64; 3]>;
+}
+
+/// How the tree solves of [`SharedJoints`] came out.
+#[derive(Clone, Debug, Default)]
+pub struct TreeFigures {
+    /// Keyframes solved again from the arms' own joints with the carriers at rest, because the
+    /// solve from the keyframe before missed a target the arm's own solve reached.
+    pub reseeded: usize,
+    /// Keyframes where even that missed such a target (the tracking figures include them).
+    pub missed: usize,
 }
 
 /// Several arms retargeted on one time base.
@@ -73,6 +106,10 @@ pub struct Retargets {
     pub velocity_limited: usize,
     /// Things the caller should print as notes.
     pub notes: Vec<String>,
+    /// With [`SharedJoints`]: each carrier's joints at every keyframe (else empty).
+    pub carriers: Vec<Vec<Vec<f64>>>,
+    /// With [`SharedJoints`]: how the tree solves came out.
+    pub tree: Option<TreeFigures>,
 }
 
 impl Retargets {
@@ -88,11 +125,18 @@ impl Retargets {
     /// one row per shared keyframe time, as `armctl --rig RIG play` reads it
     /// ([`crate::rig::columns`]).
     pub fn write_csv(&self, names: &[&str], out: &mut dyn std::io::Write) -> Result<()> {
-        use std::fmt::Write;
         assert_eq!(names.len(), self.arms.len(), "one name per arm");
+        let columns: Vec<(&str, &[Vec<f64>])> = names.iter().zip(&self.arms).map(|(n, r)| (*n, &r.q[..])).collect();
+        self.write_columns(&columns, out)
+    }
+
+    /// The rig keyframe file with `columns` in the order given: each an arm's name and its joints
+    /// at every keyframe (a follower's `q` or a carrier's from [`Self::carriers`]).
+    pub fn write_columns(&self, columns: &[(&str, &[Vec<f64>])], out: &mut dyn std::io::Write) -> Result<()> {
+        use std::fmt::Write;
         let mut text = String::from("t");
-        for (name, r) in names.iter().zip(&self.arms) {
-            for j in 1..=r.q.first().map_or(0, Vec::len) {
+        for (name, q) in columns {
+            for j in 1..=q.first().map_or(0, Vec::len) {
                 write!(text, ",{name}.q{j}")?;
             }
         }
@@ -100,8 +144,8 @@ impl Retargets {
         for (k, t) in self.times.iter().enumerate() {
             write!(text, "{t:.6}")?;
             // In full, as the one-arm file (see [`Retargeted::write_csv`]).
-            for r in &self.arms {
-                for v in &r.q[k] {
+            for (_, q) in columns {
+                for v in &q[k] {
                     write!(text, ",{v}")?;
                 }
             }
@@ -124,6 +168,17 @@ fn limits_of(arm: &dyn DynArm) -> (f64, f64) {
 /// Retargets `bvh` onto every job's arm, each following its chain, on one time base (see the
 /// module's documentation). With several jobs, errors name the arm.
 pub fn retarget_arms(bvh: &Bvh, jobs: Vec<Job<'_>>, options: &Options) -> Result<Retargets> {
+    retarget_sharing(bvh, jobs, None, options)
+}
+
+/// [`retarget_arms`], with the arms on carriers that `shared` solves with them as one tree at
+/// every keyframe (see the module's documentation).
+pub fn retarget_sharing(
+    bvh: &Bvh,
+    jobs: Vec<Job<'_>>,
+    shared: Option<&dyn SharedJoints>,
+    options: &Options,
+) -> Result<Retargets> {
     check_rate(options.rate)?;
     if jobs.is_empty() {
         bail!("no arm to retarget onto");
@@ -224,11 +279,75 @@ pub fn retarget_arms(bvh: &Bvh, jobs: Vec<Job<'_>>, options: &Options) -> Result
     let keyframes = followed[0].track.q.len();
     let steps = followed[0].track.steps.clone();
 
+    // Arms that share a joint: every keyframe one tree problem, seeded from the keyframe before.
+    let carrier_arms: Vec<&dyn DynArm> = shared.map_or_else(Vec::new, |s| s.carriers());
+    let mut carried: Vec<Vec<Vec<f64>>> = Vec::new();
+    let mut tree = None;
+    if let Some(shared) = shared {
+        let mut figures = TreeFigures::default();
+        let at_rest: Vec<Vec<f64>> = carrier_arms.iter().map(|a| a.middle()).collect();
+        let mut previous: Option<Vec<Vec<f64>>> = None;
+        for k in 0..keyframes {
+            let own: Vec<Vec<f64>> = followed.iter().map(|f| f.track.q[k].clone()).collect();
+            // Where an arm's own solve fell short, its own tool is the target: reachable, and the
+            // closest to the hand it found.
+            let mut targets = Vec::with_capacity(jobs.len());
+            for (job, f) in jobs.iter().zip(&followed) {
+                targets.push(if f.track.reachable[k] {
+                    f.track.targets[k].into()
+                } else {
+                    job.arm.tool_pose(&f.track.q[k])?.translation.into()
+                });
+            }
+            let from_rest: Vec<Vec<f64>> = at_rest.iter().chain(&own).cloned().collect();
+            let missed = |reached: &[bool]| followed.iter().zip(reached).any(|(f, r)| f.track.reachable[k] && !r);
+            // The seed: the keyframe before, with the carriers' joints drawn back toward rest by
+            // TOWARD_REST, so the smallest step from there uses the shared joint but leans it
+            // back to its middle. (Seeded from each arm's own solution instead, the torso never
+            // moves: those reach every target with it at rest. Seeded from the keyframe before
+            // alone, it went to its limit on 01_01; with the lean it stops 2.7 degrees short.)
+            let seed: Vec<Vec<f64>> = match &previous {
+                None => from_rest.clone(),
+                Some(previous) => at_rest
+                    .iter()
+                    .zip(previous)
+                    .map(|(rest, q)| q.iter().zip(rest).map(|(x, r)| x + TOWARD_REST * (r - x)).collect())
+                    .chain(previous[at_rest.len()..].iter().cloned())
+                    .collect(),
+            };
+            let (mut q, reached) = shared.solve(&seed, &targets);
+            if previous.is_some() && missed(&reached) {
+                figures.reseeded += 1;
+                let (again, reached) = shared.solve(&from_rest, &targets);
+                q = again;
+                if missed(&reached) {
+                    figures.missed += 1;
+                }
+            } else if missed(&reached) {
+                figures.missed += 1;
+            }
+            for (i, f) in followed.iter_mut().enumerate() {
+                f.track.q[k] = q[carrier_arms.len() + i].clone();
+            }
+            carried.push(q[..carrier_arms.len()].to_vec());
+            previous = Some(q);
+        }
+        tree = Some(figures);
+    }
+
     // Time for every arm to come to its first pose: from the middle of its limits at half its
     // velocity limit, plus a second to settle; the longest of them.
     let mut lead_in = 0.0f64;
     let mut limits: Vec<Limits> = Vec::new();
     let mut alone = Vec::with_capacity(jobs.len());
+    for (c, arm) in carrier_arms.iter().enumerate() {
+        let (v_max, a_max) = limits_of(*arm);
+        let middle = arm.middle();
+        let far = carried[0][c].iter().zip(&middle).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        lead_in = lead_in.max(1.0 + far / (0.5 * v_max));
+        let arm_limits = Limits { velocity: VELOCITY_MARGIN * v_max, acceleration: VELOCITY_MARGIN * a_max };
+        limits.extend(std::iter::repeat_n(arm_limits, arm.spec().dof()));
+    }
     for (job, f) in jobs.iter().zip(&followed) {
         let (v_max, a_max) = limits_of(job.arm);
         let middle = job.arm.middle();
@@ -240,16 +359,21 @@ pub fn retarget_arms(bvh: &Bvh, jobs: Vec<Job<'_>>, options: &Options) -> Result
         alone.push(time_keyframes(&mut f.track.q.clone(), &steps, &arm_limits, options.timing).limited);
     }
     // All the arms' joints as one vector: one time warp.
-    let mut all: Vec<Vec<f64>> =
-        (0..keyframes).map(|k| followed.iter().flat_map(|f| f.track.q[k].iter().copied()).collect()).collect();
+    // Every carrier's joints first, then every follower's.
+    let mut all: Vec<Vec<f64>> = (0..keyframes)
+        .map(|k| {
+            let carriers = carried.get(k).into_iter().flatten().flat_map(|q| q.iter().copied());
+            carriers.chain(followed.iter().flat_map(|f| f.track.q[k].iter().copied())).collect()
+        })
+        .collect();
     let timed = time_joints(&mut all, &steps, &limits, options.timing);
     let times: Vec<f64> = timed.offsets.iter().map(|t| lead_in + t).collect();
     if timed.limited > 0 {
         // Each arm's limits once (the same arms' once in all): velocity and acceleration for
         // fit, velocity for captured, which cuts joint steps to it.
         let mut limits_texts: Vec<String> = Vec::new();
-        for job in &jobs {
-            let (v, a) = limits_of(job.arm);
+        for arm in carrier_arms.iter().copied().chain(jobs.iter().map(|j| j.arm)) {
+            let (v, a) = limits_of(arm);
             let text = match options.timing {
                 Timing::Fit => format!("{v} rad/s, {a} rad/s²"),
                 Timing::Captured => format!("{v} rad/s"),
@@ -280,17 +404,39 @@ pub fn retarget_arms(bvh: &Bvh, jobs: Vec<Job<'_>>, options: &Options) -> Result
         });
     }
 
-    let mut arms = Vec::with_capacity(jobs.len());
+    // The carriers' joints, and every keyframe's joints split per arm, as timed.
     let mut column = 0;
+    let mut carriers = Vec::with_capacity(carrier_arms.len());
+    for arm in &carrier_arms {
+        let dof = arm.spec().dof();
+        carriers.push(all.iter().map(|row| row[column..column + dof].to_vec()).collect::<Vec<_>>());
+        column += dof;
+    }
+    let split = |row: &[f64]| -> Vec<Vec<f64>> {
+        let mut at = 0;
+        let mut parts = Vec::new();
+        for arm in carrier_arms.iter().copied().chain(jobs.iter().map(|j| j.arm)) {
+            let dof = arm.spec().dof();
+            parts.push(row[at..at + dof].to_vec());
+            at += dof;
+        }
+        parts
+    };
+    // With a tree, each follower's tool in its frame at rest, from the tree's forward kinematics.
+    let tree_tools: Option<Vec<Vec<[f64; 3]>>> = shared.map(|s| all.iter().map(|row| s.tools(&split(row))).collect());
+    let mut arms = Vec::with_capacity(jobs.len());
     let arms_data = jobs.into_iter().zip(readings).zip(lengths).zip(workspaces).zip(followed).zip(alone);
-    for (((((job, reading), length), workspace), f), alone) in arms_data {
+    for (i, (((((job, reading), length), workspace), f), alone)) in arms_data.enumerate() {
         let dof = job.arm.spec().dof();
         let q: Vec<Vec<f64>> = all.iter().map(|row| row[column..column + dof].to_vec()).collect();
         column += dof;
-        let tool = q
-            .iter()
-            .map(|qk| job.arm.tool_pose(qk).map(|p| p.translation.into()))
-            .collect::<Result<Vec<[f64; 3]>>>()?;
+        let tool = match &tree_tools {
+            Some(tools) => tools.iter().map(|t| t[i]).collect(),
+            None => q
+                .iter()
+                .map(|qk| job.arm.tool_pose(qk).map(|p| p.translation.into()))
+                .collect::<Result<Vec<[f64; 3]>>>()?,
+        };
         let Track { targets, reachable, reconfigured, .. } = f.track;
         arms.push(Retargeted {
             rest: options.reference.unwrap_or(reading.rest),
@@ -329,5 +475,7 @@ pub fn retarget_arms(bvh: &Bvh, jobs: Vec<Job<'_>>, options: &Options) -> Result
         keyframes_sampled: count,
         velocity_limited: timed.limited,
         notes,
+        carriers,
+        tree,
     })
 }
