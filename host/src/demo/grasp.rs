@@ -60,6 +60,21 @@ fn distance_mm(a: [f64; 3], b: [f32; 3]) -> f64 {
     distance(a, b) * 1e3
 }
 
+/// The carry in `ticks`: from the first tick on which the firmware reports holding to the tick on
+/// which the gripper is told to open (exclusive; the end of `ticks` if it never is). It is told
+/// to open when its goal rises past where it stopped by more than the squeeze, which is when the
+/// firmware lets go; until then it must hold on every tick. `None`: it never held.
+pub fn carry(ticks: &[TraceSample]) -> Option<(usize, usize)> {
+    let first = ticks.iter().position(|s| s.gripper.is_some_and(|g| g.holding))?;
+    let stopped = ticks[first].gripper.map_or(0.0, |g| f64::from(g.opening));
+    let let_go = stopped + f64::from(SQUEEZE) * 100.0;
+    let release = ticks[first..]
+        .iter()
+        .position(|s| s.gripper.is_some_and(|g| f64::from(g.goal) > let_go))
+        .map_or(ticks.len(), |i| first + i);
+    Some((first, release))
+}
+
 /// Reads the grasp from `ticks` (the path's, in order), starting at `start_s`; the object ended
 /// at `object`.
 pub fn measure(
@@ -72,7 +87,7 @@ pub fn measure(
 ) -> Result<Grasp> {
     let holding = |s: &TraceSample| s.gripper.is_some_and(|g| g.holding);
     let object_to_place_mm = distance_mm(object, scenario.place);
-    let Some(first) = ticks.iter().position(holding) else {
+    let Some((first, release)) = carry(ticks) else {
         return Ok(Grasp {
             at_s: None,
             tool_to_pick_mm: f64::NAN,
@@ -88,15 +103,7 @@ pub fn measure(
             object_to_place_mm,
         });
     };
-    // The carry ends when the gripper is told to open: its goal rises past where it stopped by
-    // more than the squeeze, which is when the firmware lets go. Until then it must hold on
-    // every tick.
     let stopped = ticks[first].gripper.map_or(0.0, |g| f64::from(g.opening));
-    let let_go = stopped + f64::from(SQUEEZE) * 100.0;
-    let release = ticks[first..]
-        .iter()
-        .position(|s| s.gripper.is_some_and(|g| f64::from(g.goal) > let_go))
-        .map_or(ticks.len(), |i| first + i);
     let carried = &ticks[first..release];
     let last = &ticks[release.saturating_sub(1).max(first)];
     let jaw_percent = stopped;

@@ -150,15 +150,10 @@ struct Hold {
 impl Hold {
     fn measure(trace: &[TraceSample]) -> Hold {
         let holding = |s: &TraceSample| s.gripper.is_some_and(|g| g.holding);
-        let Some(first) = trace.iter().position(holding) else {
+        let Some((first, release)) = crate::demo::grasp::carry(trace) else {
             return Hold { from_s: None, until_s: f64::NAN, jaw_percent: f64::NAN, load: 0.0, ticks: 0, held: 0 };
         };
         let stopped = trace[first].gripper.map_or(0.0, |g| f64::from(g.opening));
-        let let_go = stopped + f64::from(firmware::controller::gripper::SQUEEZE) * 100.0;
-        let release = trace[first..]
-            .iter()
-            .position(|s| s.gripper.is_some_and(|g| f64::from(g.goal) > let_go))
-            .map_or(trace.len(), |i| first + i);
         let carried = &trace[first..release];
         Hold {
             from_s: Some(trace[first].time),

@@ -92,9 +92,9 @@ impl LinkArgs {
         })
     }
 
-    /// Refuses these options for a command that does not drive an arm.
-    pub fn refuse_for_other_commands(&self) -> Result<()> {
-        let given: Vec<&str> = [
+    /// The options of one arm's place and model that are given, by name.
+    pub fn one_arm_options(&self) -> Vec<&'static str> {
+        [
             (self.port.is_some(), "--port"),
             (self.bus.is_some(), "--bus"),
             (self.protocol.is_some(), "--protocol"),
@@ -103,12 +103,28 @@ impl LinkArgs {
             (self.arm.is_some(), "--arm"),
             (self.calibration.is_some(), "--calibration"),
             (self.object_mm.is_some(), "--object-mm"),
-            (self.rig.is_some(), "--rig"),
-            (self.json, "--json"),
         ]
         .into_iter()
         .filter_map(|(given, name)| given.then_some(name))
-        .collect();
+        .collect()
+    }
+
+    /// Refuses the options of one arm's place and model beside `--rig`, whose file holds every
+    /// arm's.
+    pub fn refuse_beside_rig(&self) -> Result<()> {
+        let given = self.one_arm_options();
+        if !given.is_empty() {
+            bail!("with --rig, each arm's place and arm are in the rig file: give no {}", given.join(", "));
+        }
+        Ok(())
+    }
+
+    /// Refuses these options for a command that does not drive an arm.
+    pub fn refuse_for_other_commands(&self) -> Result<()> {
+        let mut given = self.one_arm_options();
+        given.extend(
+            [(self.rig.is_some(), "--rig"), (self.json, "--json")].into_iter().filter_map(|(g, n)| g.then_some(n)),
+        );
         if !given.is_empty() {
             bail!(
                 "{} before the command: only for move, joints, play, status, stop, torque and gripper (other commands take \

@@ -202,7 +202,7 @@ impl Plan {
 }
 
 /// Pushes one keyframe; fails unless it was acknowledged.
-fn push(driver: &mut Driver, message: &HostMessage) -> Result<()> {
+pub(crate) fn push(driver: &mut Driver, message: &HostMessage) -> Result<()> {
     match driver.push(message)? {
         FirmwareMessage::Ack { .. } => Ok(()),
         other => bail!("unexpected reply {other:?} to a keyframe push"),

@@ -43,12 +43,7 @@ pub fn run(
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> Result<i32> {
-    let per_arm = LinkArgs { rig: None, json: false, ..link.clone() };
-    if per_arm != LinkArgs::default() {
-        bail!(
-            "with --rig, each arm's place and arm are in the rig file: give no --port, --bus, --sim, --arm or the like"
-        );
-    }
+    link.refuse_beside_rig()?;
     let spec = RigSpec::load(file)?;
     let request = parse(&spec, &command)?;
     let mut rig = Rig::open(&spec, err)?;

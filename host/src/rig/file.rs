@@ -77,8 +77,8 @@ struct LeaderEntry {
     baud: Option<u32>,
 }
 
-/// The leader arm of a rig arm, for `armctl teleop --rig`: what `armctl teleop`'s `--leader*`
-/// options say for one follower.
+/// A leader arm, as `armctl teleop`'s `--leader*` options name it for one follower, or a rig
+/// file's `[arm.leader]` for each rig arm (`armctl teleop --rig`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct LeaderSpec {
     /// Its serial port, or `sim` (simulated leader servos turned by `script`).

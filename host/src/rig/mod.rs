@@ -114,14 +114,6 @@ impl Rig {
         tree::RigTree::new(&arms).map(Some)
     }
 
-    /// The arm named `name`.
-    pub fn arm_index(&self, name: &str) -> Result<usize> {
-        self.arms.iter().position(|a| a.name == name).ok_or_else(|| {
-            let names: Vec<&str> = self.arms.iter().map(|a| a.name.as_str()).collect();
-            anyhow::anyhow!("the rig {} has no arm {name:?} (its arms: {})", self.name, names.join(", "))
-        })
-    }
-
     /// Polls every arm of `arms` until all are at rest, then lets each settle
     /// ([`Driver::settle`]). Every moving arm hears from the host at each poll, so none stops on
     /// its link watchdog while the host waits on another. Gives up after `timeout` controller

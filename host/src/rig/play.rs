@@ -13,7 +13,7 @@ use std::io::Write;
 use std::time::Instant;
 
 use anyhow::{bail, Result};
-use firmware::link::message::{FirmwareMessage, HostMessage, RunState, Status};
+use firmware::link::message::{HostMessage, RunState, Status};
 use serde_json::json;
 
 use super::columns::ArmPart;
@@ -33,12 +33,9 @@ struct Track {
     restarts: u32,
 }
 
-/// Pushes one keyframe; fails unless it was acknowledged.
+/// Pushes one keyframe to arm `arm`; fails unless it was acknowledged.
 fn push(rig: &mut Rig, arm: usize, message: &HostMessage) -> Result<()> {
-    match rig.arms[arm].driver.push(message)? {
-        FirmwareMessage::Ack { .. } => Ok(()),
-        other => bail!("unexpected reply {other:?} to a keyframe push"),
-    }
+    crate::drive::play::push(&mut rig.arms[arm].driver, message)
 }
 
 /// Stops every arm (each stop sent before waiting for any); words for an error message.

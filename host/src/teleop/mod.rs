@@ -34,6 +34,7 @@ use crate::drive::args::{calibrated, LinkArgs};
 use crate::drive::connection::{Target, SIM_ADAPTER_LATENCY};
 use crate::drive::interrupt;
 use crate::drive::session::{Driver, Waited};
+use crate::rig::file::LeaderSpec;
 use crate::sim::PtyServer;
 use stream::{quantile, Figures, Settings};
 
@@ -113,7 +114,7 @@ impl TeleopArgs {
     }
 
     /// The leader the options name, checked.
-    fn leader(&self) -> Result<LeaderSource> {
+    fn leader(&self) -> Result<LeaderSpec> {
         let Some(port) = self.leader.clone() else {
             bail!("--leader PORT|sim is missing: the leader arm's serial port, or sim with --leader-script");
         };
@@ -124,7 +125,7 @@ impl TeleopArgs {
             (false, Some(_)) => bail!("--leader-script moves a simulated leader: it needs --leader sim"),
             _ => {}
         }
-        Ok(LeaderSource {
+        Ok(LeaderSpec {
             port,
             protocol: self.leader_protocol,
             arm: self.leader_arm.clone(),
@@ -133,23 +134,6 @@ impl TeleopArgs {
             script: self.leader_script.clone(),
         })
     }
-}
-
-/// A leader arm, as `armctl teleop`'s `--leader*` options or a rig file's `[arm.leader]` name it.
-#[derive(Clone, Debug)]
-pub struct LeaderSource {
-    /// Its serial port, or `sim`.
-    pub port: String,
-    /// Its servo protocol [default: its servos'].
-    pub protocol: Option<ProtocolArg>,
-    /// The leader arm: a preset or an arm file.
-    pub arm: String,
-    /// Its LeRobot calibration file.
-    pub calibration: Option<PathBuf>,
-    /// Its bus's baud rate.
-    pub baud: Option<u32>,
-    /// With `sim`: the simulated hand's path.
-    pub script: Option<PathBuf>,
 }
 
 /// The loop's settings every follower of a session shares.
@@ -192,10 +176,7 @@ pub fn run(link: &LinkArgs, args: TeleopArgs, out: &mut dyn Write, err: &mut dyn
 /// `armctl teleop --rig RIG`: every rig arm's leader (its `[arm.leader]`) drives it, each pair in
 /// a loop of its own on a thread of its own, all on the PC's clock; the figures per arm.
 fn run_rig(rig: &str, link: &LinkArgs, args: &TeleopArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
-    let per_arm = LinkArgs { rig: None, json: false, ..link.clone() };
-    if per_arm != LinkArgs::default() {
-        bail!("with --rig, each arm's place is in the rig file: give no --port, --bus, --sim, --arm or the like");
-    }
+    link.refuse_beside_rig()?;
     let given_leader = args.leader.is_some()
         || args.leader_protocol.is_some()
         || args.leader_calibration.is_some()
@@ -219,15 +200,7 @@ fn run_rig(rig: &str, link: &LinkArgs, args: &TeleopArgs, out: &mut dyn Write, e
             );
         };
         let (target, follower) = arm.link.target()?;
-        let source = LeaderSource {
-            port: leader.port.clone(),
-            protocol: leader.protocol,
-            arm: leader.arm.clone(),
-            calibration: leader.calibration.clone(),
-            baud: leader.baud,
-            script: leader.script.clone(),
-        };
-        pairs.push((arm.name.clone(), target, follower.map(str::to_string), source));
+        pairs.push((arm.name.clone(), target, follower.map(str::to_string), leader.clone()));
     }
     let settings = LoopSettings { rate: args.rate, period, lead, max_step: args.max_step, duration: args.duration };
     interrupt::catch();
@@ -280,7 +253,7 @@ fn run_rig(rig: &str, link: &LinkArgs, args: &TeleopArgs, out: &mut dyn Write, e
 fn session(
     target: Target,
     arm: Option<String>,
-    source: &LeaderSource,
+    source: &LeaderSpec,
     settings: &LoopSettings,
     record: Option<&std::path::Path>,
     err: &mut dyn Write,

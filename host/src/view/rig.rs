@@ -23,18 +23,12 @@ use crate::rig::RigSpec;
 
 /// Refuses the options that name one arm's place or drawing: a rig's arms are in its file.
 fn refuse_one_arm_options(link: &LinkArgs, args: &ViewArgs) -> Result<()> {
-    let given: Vec<&str> = [
-        (link.arm.is_some(), "--arm"),
-        (link.protocol.is_some(), "--protocol"),
-        (link.baud.is_some(), "--baud"),
-        (link.calibration.is_some(), "--calibration"),
-        (link.object_mm.is_some(), "--object-mm"),
-        (args.urdf.is_some(), "--urdf"),
-        (args.tip.is_some(), "--tip"),
-    ]
-    .into_iter()
-    .filter_map(|(given, name)| given.then_some(name))
-    .collect();
+    let mut given = link.one_arm_options();
+    given.extend(
+        [(args.urdf.is_some(), "--urdf"), (args.tip.is_some(), "--tip")]
+            .into_iter()
+            .filter_map(|(g, n)| g.then_some(n)),
+    );
     if !given.is_empty() {
         bail!(
             "{} with --rig: each arm's place and model are in the rig file; `armctl view --rig RIG` takes --listen \

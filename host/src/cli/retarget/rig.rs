@@ -221,12 +221,7 @@ fn notes(r: &Retargets, names: &[&str], bases: &[Pose<f64>], scale: Scale, err: 
 /// after the command.
 pub fn run(rig: &str, link: &LinkArgs, args: &RetargetArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
     let started = Instant::now();
-    let per_arm = LinkArgs { rig: None, json: false, ..link.clone() };
-    if per_arm != LinkArgs::default() {
-        bail!(
-            "with --rig, each arm's place and arm are in the rig file: give no --port, --bus, --sim, --arm or the like"
-        );
-    }
+    link.refuse_beside_rig()?;
     let options = options(args)?;
     if args.play && !(args.timeout.is_finite() && args.timeout > 0.0) {
         bail!("--timeout: {} s must be a positive number", args.timeout);
