@@ -3,9 +3,11 @@
 //! - [`rx_ring`]: the ring the host link's receive interrupt fills, byte by byte, so that no byte
 //!   is lost while the loop is busy with the servo bus;
 //! - [`main_loop`]: the loop that hands those bytes to the firmware and runs the control tick on
-//!   its schedule, and switches the servo bus when the host sends an arm on another one.
+//!   its schedule, and switches the servo bus when the host sends an arm on another one;
+//! - [`reset`]: what each cause of a reset does to the servos' torque.
 
 pub mod main_loop;
+pub mod reset;
 pub mod rx_ring;
 
 pub use main_loop::MainLoop;
