@@ -18,6 +18,7 @@ pub use armctl_arm as arm;
 pub mod bench;
 pub mod cli;
 pub mod demo;
+pub mod doctor;
 pub mod drive;
 pub mod footprint;
 pub mod link;

@@ -77,6 +77,12 @@ enum Command {
     Serve(serve::ServeArgs),
     /// Serial bus servo set-up on a real port: scan, read, write, set-id, set-baud, torque.
     Servo(crate::servo::cli::ServoArgs),
+    /// What is wrong with a servo bus (--bus PORT): ids, models, firmware, supply, temperature,
+    /// error flags, return delay, the adapter's echo and latency, lost replies, stale goals, the
+    /// calibration, whether a control cycle fits. One line per finding, OK, WARN or FAIL with the
+    /// fix; writes nothing unless --fix. Scans both protocols at the usual baud rates when
+    /// --protocol and --baud are not given.
+    Doctor(crate::doctor::DoctorArgs),
     /// Calibrate an arm's servos as LeRobot does (homing offsets at the middle of each joint's
     /// range, the ranges moved through by hand as position limits), answering each step with a
     /// line on stdin; writes the servos, an arm file (--out) and LeRobot's file (--lerobot-json).
@@ -197,7 +203,7 @@ pub(crate) fn load(arm: &ArmArgs) -> Result<Box<dyn DynArm>> {
 
 fn run(link: &crate::drive::args::LinkArgs, command: Command, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
     // `retarget --play` drives an arm too: it takes the drive options; `retarget --rig` takes the rig.
-    if !matches!(&command, Command::Drive(_) | Command::Teleop(_) | Command::View(_))
+    if !matches!(&command, Command::Drive(_) | Command::Teleop(_) | Command::View(_) | Command::Doctor(_))
         && !matches!(&command, Command::Retarget(a) if a.plays() || link.rig.is_some())
     {
         link.refuse_for_other_commands()?;
@@ -249,6 +255,7 @@ fn run(link: &crate::drive::args::LinkArgs, command: Command, out: &mut dyn Writ
         Command::Bench { what: BenchCommand::Mcu(args) } => return crate::bench::mcu::run(&args, out),
         Command::Bench { what: BenchCommand::Pc(args) } => return crate::bench::pc::run(&args, out, err),
         Command::Servo(args) => return crate::servo::cli::run(args, out, err),
+        Command::Doctor(args) => return crate::doctor::run(link, args, out, err),
         Command::Calibrate(args) => return crate::servo::calibrate::run(args, out, err),
         Command::Ports { json } => {
             let ports = crate::servo::ports::usb_ports(std::path::Path::new("/sys"), std::path::Path::new("/dev"));

@@ -36,7 +36,7 @@ pub struct Difference {
 }
 
 /// Reads every motor's registers and lists those that differ from `calibration`.
-fn differences<P: Port, C: Clock>(
+pub fn differences<P: Port, C: Clock>(
     session: &mut Session<P, C>,
     calibration: &Calibration,
 ) -> Result<Vec<(Difference, Register, &'static Model)>> {

@@ -96,7 +96,7 @@ pub fn scan(
 
 /// Two servos with one id answer a ping with the same bytes at the same time, which add up to one
 /// valid reply; their present positions differ, so a read of it collides into a bad checksum.
-fn duplicate_check<P: Port, C: Clock>(session: &mut Session<P, C>, servo: &Servo) -> Option<String> {
+pub fn duplicate_check<P: Port, C: Clock>(session: &mut Session<P, C>, servo: &Servo) -> Option<String> {
     let item = servo.model?.items.present_position;
     let mut bytes = [0u8; 4];
     match session.read(servo.id, item.address, &mut bytes[..item.len()]) {

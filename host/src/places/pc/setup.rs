@@ -313,7 +313,7 @@ fn hold_present<P: Port, C: Clock>(
 /// Runs `writes` with a Feetech servo's EEPROM unlocked (`lock` 0), then locks it again (`lock` 1),
 /// also when a write failed (best effort: the write's error is the one returned). Dynamixel has
 /// no lock: torque off is what opens its EEPROM.
-fn unlocked<P: Port, C: Clock>(
+pub fn unlocked<P: Port, C: Clock>(
     bus: &mut Bus<P, C>,
     model: &'static Model,
     id: Id,
@@ -337,7 +337,8 @@ fn write<P: Port, C: Clock>(bus: &mut Bus<P, C>, model: &Model, change: &Change)
     write_value(bus, model, change.id, change.item, change.to)
 }
 
-fn write_value<P: Port, C: Clock>(
+/// Writes one item's value (encoded in the model's byte order) and waits for the status.
+pub fn write_value<P: Port, C: Clock>(
     bus: &mut Bus<P, C>,
     model: &Model,
     id: Id,
