@@ -101,10 +101,16 @@ pub fn ids(readings: &[Reading], garbled: &[Id], expected: Option<&Expected>) ->
             ));
         }
         if missing.is_empty() && colliding.is_empty() && extra.is_empty() {
-            findings.push(Finding::ok("ids", format!("{}'s {} servos answer, ids {}", e.arm, wanted.len(), id_list(&wanted))));
+            findings.push(Finding::ok(
+                "ids",
+                format!("{}'s {} servos answer, ids {}", e.arm, wanted.len(), id_list(&wanted)),
+            ));
         }
     } else if colliding.is_empty() {
-        findings.push(Finding::ok("ids", format!("{} servos answer, ids {} (no arm given to compare)", found.len(), id_list(&found))));
+        findings.push(Finding::ok(
+            "ids",
+            format!("{} servos answer, ids {} (no arm given to compare)", found.len(), id_list(&found)),
+        ));
     }
     findings
 }
@@ -191,7 +197,11 @@ pub fn power(readings: &[Reading], names: &[(Id, String)]) -> Vec<Finding> {
             let message = format!("{reads}, above {whose} {range}{hint}");
             let fix = "switch the power off and use the supply the servos are rated for (SO-101 kits: 7.4 V for the \
                        7.4 V servos, 12 V for the 12 V ones)";
-            findings.push(if level_fail { Finding::fail("power", message, fix) } else { Finding::warn("power", message, fix) });
+            findings.push(if level_fail {
+                Finding::fail("power", message, fix)
+            } else {
+                Finding::warn("power", message, fix)
+            });
         } else if v < lo {
             findings.push(Finding::fail(
                 "power",
@@ -210,7 +220,9 @@ pub fn power(readings: &[Reading], names: &[(Id, String)]) -> Vec<Finding> {
             } else if t >= limit - TEMPERATURE_MARGIN_C {
                 findings.push(Finding::warn(
                     "power",
-                    format!("{name} is at {t} °C, within {TEMPERATURE_MARGIN_C} °C of its overheating limit {limit} °C"),
+                    format!(
+                        "{name} is at {t} °C, within {TEMPERATURE_MARGIN_C} °C of its overheating limit {limit} °C"
+                    ),
                     "let it cool, and look for a joint that holds a load all the time",
                 ));
             }
@@ -221,8 +233,12 @@ pub fn power(readings: &[Reading], names: &[(Id, String)]) -> Vec<Finding> {
                 "power",
                 format!("{name} reports a hardware error: {}", hardware_error_text(protocol, bits)),
                 match protocol {
-                    Protocol::Dxl2 => "remove the cause (supply, load, heat), then reboot the servo (power cycle) to clear it",
-                    Protocol::Feetech => "remove the cause (supply, load, heat); the flag clears when the condition does",
+                    Protocol::Dxl2 => {
+                        "remove the cause (supply, load, heat), then reboot the servo (power cycle) to clear it"
+                    }
+                    Protocol::Feetech => {
+                        "remove the cause (supply, load, heat); the flag clears when the condition does"
+                    }
                 },
             ));
         }
@@ -231,7 +247,11 @@ pub fn power(readings: &[Reading], names: &[(Id, String)]) -> Vec<Finding> {
         if hi - lo > 10 {
             findings.push(Finding::warn(
                 "power",
-                format!("the servos read {:.1} to {:.1} V: more than 1 V apart on one supply", *lo as f64 / 10.0, *hi as f64 / 10.0),
+                format!(
+                    "the servos read {:.1} to {:.1} V: more than 1 V apart on one supply",
+                    *lo as f64 / 10.0,
+                    *hi as f64 / 10.0
+                ),
                 "a loose power connector or a thin wire drops the voltage along the chain: reseat and check them",
             ));
         }
@@ -252,9 +272,21 @@ pub fn power(readings: &[Reading], names: &[(Id, String)]) -> Vec<Finding> {
 pub fn hardware_error_text(protocol: Protocol, bits: u8) -> String {
     let names: &[(u8, &str)] = match protocol {
         // X-series Hardware Error Status (address 70).
-        Protocol::Dxl2 => &[(0x01, "input voltage"), (0x04, "overheating"), (0x08, "motor encoder"), (0x10, "electrical shock"), (0x20, "overload")],
+        Protocol::Dxl2 => &[
+            (0x01, "input voltage"),
+            (0x04, "overheating"),
+            (0x08, "motor encoder"),
+            (0x10, "electrical shock"),
+            (0x20, "overload"),
+        ],
         // Feetech's status error byte.
-        Protocol::Feetech => &[(0x01, "input voltage"), (0x02, "angle sensor"), (0x04, "overheating"), (0x08, "overcurrent"), (0x20, "overload")],
+        Protocol::Feetech => &[
+            (0x01, "input voltage"),
+            (0x02, "angle sensor"),
+            (0x04, "overheating"),
+            (0x08, "overcurrent"),
+            (0x20, "overload"),
+        ],
     };
     let found: Vec<&str> = names.iter().filter(|(b, _)| bits & b != 0).map(|(_, n)| *n).collect();
     if found.is_empty() {
@@ -341,12 +373,46 @@ pub fn goals(readings: &[Reading], names: &[(Id, String)]) -> Vec<Finding> {
     findings
 }
 
+/// `calibration`: the servos hold the calibration file's homing offsets and limits, and the file's
+/// values fit the registers (LeRobot's "Magnitude 2114 exceeds 2047": an offset taken with a
+/// joint far from the middle of its range).
+pub fn calibration(
+    file: &std::path::Path,
+    differences: &[(crate::servo::calibration::Difference, crate::arm::calibration::Register, &'static Model)],
+    motors: usize,
+) -> Vec<Finding> {
+    let mut findings = Vec::new();
+    for (d, register, model) in differences {
+        let mut bytes = [0u8; 4];
+        if let Err(e) = register.item.encode(d.file, model.endian, &mut bytes) {
+            findings.push(Finding::fail(
+                "calibration",
+                format!("{}: {} {} in {} does not fit the {}'s register ({e})", d.motor, d.field, d.file, file.display(), model.name),
+                "calibrate again, with every joint in the middle of its range when the offsets are taken (armctl calibrate)",
+            ));
+        } else {
+            findings.push(Finding::fail(
+                "calibration",
+                format!("servo {} ({}): {} is {} on the servo but {} in {}", d.id, d.motor, d.field, d.servo, d.file, file.display()),
+                format!(
+                    "write the file's values with torque off (armctl servo calibration write --file {}), or calibrate again",
+                    file.display()
+                ),
+            ));
+        }
+    }
+    if findings.is_empty() {
+        findings.push(Finding::ok("calibration", format!("the servos hold {} ({motors} motors)", file.display())));
+    }
+    findings
+}
+
 #[cfg(test)]
 mod tests {
+    use super::super::finding::Level;
     use super::*;
     use crate::servo::session::Servo;
     use firmware::bus::table::{STS3215, XL430_W250};
-    use super::super::finding::Level;
 
     fn reading(id: Id, model: &'static Model) -> Reading {
         Reading {
@@ -380,7 +446,14 @@ mod tests {
     fn a_clean_arm_is_ok_everywhere() {
         let rs: Vec<Reading> = (1..=6).map(|i| reading(i, &STS3215)).collect();
         let e = so101();
-        for f in [ids(&rs, &[], Some(&e)), models(&rs, Some(&e)), firmware(&rs), power(&rs, &e.servos), settings(&rs), goals(&rs, &e.servos)] {
+        for f in [
+            ids(&rs, &[], Some(&e)),
+            models(&rs, Some(&e)),
+            firmware(&rs),
+            power(&rs, &e.servos),
+            settings(&rs),
+            goals(&rs, &e.servos),
+        ] {
             assert_eq!(levels(&f), [Level::Ok], "{f:?}");
         }
     }
@@ -457,38 +530,4 @@ mod tests {
         assert_eq!(levels(&f), [Level::Warn]);
         assert!(f[0].message.contains("3.10 on id 1, 3.9 on id 4"), "{}", f[0].message);
     }
-}
-
-/// `calibration`: the servos hold the calibration file's homing offsets and limits, and the file's
-/// values fit the registers (LeRobot's "Magnitude 2114 exceeds 2047": an offset taken with a
-/// joint far from the middle of its range).
-pub fn calibration(
-    file: &std::path::Path,
-    differences: &[(crate::servo::calibration::Difference, crate::arm::calibration::Register, &'static Model)],
-    motors: usize,
-) -> Vec<Finding> {
-    let mut findings = Vec::new();
-    for (d, register, model) in differences {
-        let mut bytes = [0u8; 4];
-        if let Err(e) = register.item.encode(d.file, model.endian, &mut bytes) {
-            findings.push(Finding::fail(
-                "calibration",
-                format!("{}: {} {} in {} does not fit the {}'s register ({e})", d.motor, d.field, d.file, file.display(), model.name),
-                "calibrate again, with every joint in the middle of its range when the offsets are taken (armctl calibrate)",
-            ));
-        } else {
-            findings.push(Finding::fail(
-                "calibration",
-                format!("servo {} ({}): {} is {} on the servo but {} in {}", d.id, d.motor, d.field, d.servo, d.file, file.display()),
-                format!(
-                    "write the file's values with torque off (armctl servo calibration write --file {}), or calibrate again",
-                    file.display()
-                ),
-            ));
-        }
-    }
-    if findings.is_empty() {
-        findings.push(Finding::ok("calibration", format!("the servos hold {} ({motors} motors)", file.display())));
-    }
-    findings
 }

@@ -21,8 +21,10 @@ use crate::servo::session::{BusFailure, Servo, Session};
 
 /// The rates tried when none is given, most likely first: both protocols' factory rates, then
 /// the common ones. Each protocol tries those its models have.
-pub const SCAN_BAUDS: [u32; 13] =
-    [1_000_000, 57_600, 115_200, 500_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000, 250_000, 128_000, 76_800, 38_400, 9_600];
+pub const SCAN_BAUDS: [u32; 13] = [
+    1_000_000, 57_600, 115_200, 500_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000, 250_000, 128_000, 76_800, 38_400,
+    9_600,
+];
 
 /// The ids pinged when no arm says which: the factory id and the ids of the usual arms (SO-101
 /// and Koch 1-6, OpenManipulator-X 11-15).
@@ -30,6 +32,9 @@ pub const SCAN_IDS: std::ops::RangeInclusive<u8> = 0..=20;
 
 /// The adapter latency the scan allows for: an FTDI chip's factory 16 ms latency timer, and some.
 pub const SCAN_LATENCY_US: u64 = 20_000;
+
+/// Extra attempts for an id whose reply came garbled in the scan.
+pub const GARBLED_RETRIES: u8 = 4;
 
 /// What answered where.
 #[derive(Debug)]
@@ -48,7 +53,11 @@ pub struct Found {
 
 /// The (protocol, baud) pairs to try: the given ones, else every usual rate of both protocols,
 /// the arm's protocol and rate first.
-pub fn candidates(protocol: Option<Protocol>, baud: Option<u32>, preferred: Option<(Protocol, u32)>) -> Vec<(Protocol, u32)> {
+pub fn candidates(
+    protocol: Option<Protocol>,
+    baud: Option<u32>,
+    preferred: Option<(Protocol, u32)>,
+) -> Vec<(Protocol, u32)> {
     let protocols: Vec<Protocol> = match (protocol, preferred) {
         (Some(p), _) => vec![p],
         (None, Some((p, _))) => vec![p, other(p)],
@@ -114,6 +123,21 @@ pub fn scan(
                 Err(e) => return Err(e).with_context(|| format!("{path}: scanning at {baud} baud")),
             }
         }
+        // A garbled reply may be noise on the line rather than two servos answering at once:
+        // those ids are asked again with retries, and only a servo that never answers cleanly
+        // stays garbled (two servos with one id collide on every attempt).
+        if !garbled.is_empty() {
+            session.set_config(BusConfig { retries: GARBLED_RETRIES, ..session.config() });
+            let mut still = Vec::new();
+            for id in garbled {
+                match session.identify(id) {
+                    Ok(servo) => servos.push(servo),
+                    Err(_) => still.push(id),
+                }
+            }
+            garbled = still;
+            servos.sort_by_key(|s| s.id);
+        }
         if !servos.is_empty() || !garbled.is_empty() {
             return Ok(Some(Found { protocol, baud, servos, garbled, tried }));
         }
@@ -177,7 +201,10 @@ mod tests {
     #[test]
     fn the_scan_tries_the_arms_rate_first_then_the_factory_rates_of_both_protocols() {
         let pairs = candidates(None, None, Some((Protocol::Dxl2, 1_000_000)));
-        assert_eq!(&pairs[..3], &[(Protocol::Dxl2, 1_000_000), (Protocol::Feetech, 1_000_000), (Protocol::Dxl2, 57_600)]);
+        assert_eq!(
+            &pairs[..3],
+            &[(Protocol::Dxl2, 1_000_000), (Protocol::Feetech, 1_000_000), (Protocol::Dxl2, 57_600)]
+        );
         // Feetech has no 57600... it does (index 6); but no 2 Mbps.
         assert!(pairs.contains(&(Protocol::Feetech, 57_600)));
         assert!(!pairs.contains(&(Protocol::Feetech, 2_000_000)));

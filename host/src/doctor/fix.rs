@@ -15,7 +15,7 @@ use std::io::{BufRead, Write};
 use std::path::PathBuf;
 
 use anyhow::{anyhow, Result};
-use firmware::bus::master::Clock;
+use firmware::bus::master::{BusConfig, Clock, Replies};
 use firmware::bus::table::{Item, Model};
 use firmware::bus::Id;
 
@@ -100,13 +100,30 @@ pub fn apply<P: Port, C: Clock>(session: &mut Session<P, C>, fix: &Fix) -> Resul
     match fix {
         Fix::Item { id, model, item, to, .. } => {
             let (id, item, to) = (*id, *item, *to);
+            // A servo whose status return level is being fixed does not answer writes yet: they
+            // are sent without waiting for a status, and the value is read back instead.
+            let silent_writes = item == model.items.status_return_level;
+            let config = session.config();
+            if silent_writes {
+                session.set_config(BusConfig { replies: Replies::PingOnly, ..config });
+            }
             let bus = session.master_mut();
             let result = if item.address < model.eeprom_end {
                 unlocked(bus, model, id, |bus| write_value(bus, model, id, item, to))
             } else {
                 write_value(bus, model, id, item, to)
             };
-            result.map_err(|e| anyhow!("{e}"))
+            session.set_config(config);
+            result.map_err(|e| anyhow!("{e}"))?;
+            if silent_writes {
+                // A status the servo sent after all is stale input for this read, which drops it.
+                std::thread::sleep(std::time::Duration::from_micros(session.master_mut().reply_timeout_us(1, 0)));
+                let now = session.read_item(id, model, item)?;
+                if now != to {
+                    anyhow::bail!("servo {id}: {} reads {now} after writing {to}", item.name);
+                }
+            }
+            Ok(())
         }
         Fix::LatencyTimer { file, .. } => std::fs::write(file, format!("{ADVISED_MS}\n")).map_err(|e| {
             anyhow!("{}: {e} (write it as root: echo {ADVISED_MS} | sudo tee {})", file.display(), file.display())

@@ -79,7 +79,12 @@ pub fn measure<P: Port, C: Clock>(
         echo,
         latency_timer: latency_timer(Path::new("/sys"), path),
         servos: ids.len(),
-        bus: Some(session.config()),
+        // The configuration `armctl --bus` starts from (its margins follow the latency measured),
+        // not the doctor's own long scan timeouts.
+        bus: Some({
+            let c = session.config();
+            BusConfig { return_delay_us: c.return_delay_us, echo: c.echo, ..BusConfig::new(c.protocol, c.baud) }
+        }),
         ..LineReport::default()
     };
     // The wire times come from the PC place's own timing; the reads it times are replaced by the
@@ -200,7 +205,11 @@ pub fn cycle(line: &LineReport, model: &Model) -> Vec<Finding> {
             Some(Err(e)) => e.clone(),
             _ => "the bus could not be timed".to_string(),
         };
-        return vec![Finding::fail("cycle", format!("the control cycle could not be timed: {why}"), "fix the findings above first")];
+        return vec![Finding::fail(
+            "cycle",
+            format!("the control cycle could not be timed: {why}"),
+            "fix the findings above first",
+        )];
     };
     // The period is chosen as `armctl --bus` chooses it, from the reads up to the quantile.
     let read_us = quantile_us(m, CYCLE_QUANTILE);
@@ -235,8 +244,8 @@ pub fn cycle(line: &LineReport, model: &Model) -> Vec<Finding> {
 
 #[cfg(test)]
 mod tests {
-    use super::*;
     use super::super::finding::Level;
+    use super::*;
     use firmware::bus::table::STS3215;
     use firmware::bus::Protocol;
 

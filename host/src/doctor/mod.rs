@@ -67,10 +67,15 @@ struct Look {
 /// Runs the doctor; exit code 1 when a finding is FAIL.
 pub fn run(before: &LinkArgs, args: DoctorArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
     let link = before.merged(&args.link)?;
-    let refused: Vec<&str> = [(link.port.is_some(), "--port"), (link.sim, "--sim"), (link.rig.is_some(), "--rig"), (link.object_mm.is_some(), "--object-mm")]
-        .into_iter()
-        .filter_map(|(given, name)| given.then_some(name))
-        .collect();
+    let refused: Vec<&str> = [
+        (link.port.is_some(), "--port"),
+        (link.sim, "--sim"),
+        (link.rig.is_some(), "--rig"),
+        (link.object_mm.is_some(), "--object-mm"),
+    ]
+    .into_iter()
+    .filter_map(|(given, name)| given.then_some(name))
+    .collect();
     if !refused.is_empty() {
         bail!("doctor looks at servos on a USB adapter (--bus PORT): {} is not for it", refused.join(", "));
     }
@@ -120,7 +125,13 @@ pub fn run(before: &LinkArgs, args: DoctorArgs, out: &mut dyn Write, err: &mut d
         findings.extend(line::adapter(&LineReport { echo, ..LineReport::default() }));
         return report(&path, None, None, &[], &findings, &[], link.json, out);
     };
-    writeln!(err, "found {} servo(s) on {} at {} baud; checking", found.servos.len(), found.protocol.name(), found.baud)?;
+    writeln!(
+        err,
+        "found {} servo(s) on {} at {} baud; checking",
+        found.servos.len(),
+        found.protocol.name(),
+        found.baud
+    )?;
     let config = BusConfig { echo, ..margins(BusConfig::new(found.protocol, found.baud), discover::SCAN_LATENCY_US) };
     let mut session = Session::open(&path, config)?;
     let names = expected.as_ref().map(|e| e.expected.servos.clone()).unwrap_or_default();
@@ -129,16 +140,15 @@ pub fn run(before: &LinkArgs, args: DoctorArgs, out: &mut dyn Write, err: &mut d
         let readings = survey::survey(session, &found.servos);
         let delay = readings.iter().filter_map(Reading::return_delay_us).max().unwrap_or(0);
         session.set_config(BusConfig { return_delay_us: u32::try_from(delay).unwrap_or(u32::MAX), ..session.config() });
-        let clean: Vec<Id> = readings.iter().filter(|r| r.collision.is_none() && r.model().is_some()).map(|r| r.servo.id).collect();
+        let clean: Vec<Id> =
+            readings.iter().filter(|r| r.collision.is_none() && r.model().is_some()).map(|r| r.servo.id).collect();
         let model = readings.iter().find_map(Reading::model);
         let line = match model {
             Some(model) if !clean.is_empty() => line::measure(session, Path::new(&path), model, &clean, reads, echo),
             _ => LineReport { echo, ..LineReport::default() },
         };
-        let mut findings = vec![Finding::ok(
-            "bus",
-            format!("{} at {} baud on {path}", protocol_text(found.protocol), found.baud),
-        )];
+        let mut findings =
+            vec![Finding::ok("bus", format!("{} at {} baud on {path}", protocol_text(found.protocol), found.baud))];
         findings.extend(checks::ids(&readings, &found.garbled, exp));
         findings.extend(checks::models(&readings, exp));
         findings.extend(checks::firmware(&readings));
@@ -147,7 +157,11 @@ pub fn run(before: &LinkArgs, args: DoctorArgs, out: &mut dyn Write, err: &mut d
         findings.extend(checks::goals(&readings, &names));
         for r in &readings {
             for failed in &r.failed {
-                findings.push(Finding::warn("survey", format!("servo {}: {failed}", r.servo.id), "see the line findings"));
+                findings.push(Finding::warn(
+                    "survey",
+                    format!("servo {}: {failed}", r.servo.id),
+                    "see the line findings",
+                ));
             }
         }
         if let Some((file, calibration)) = &calibration {
