@@ -258,13 +258,13 @@ fn run(link: &crate::drive::args::LinkArgs, command: Command, out: &mut dyn Writ
         Command::Doctor(args) => return crate::doctor::run(link, args, out, err),
         Command::Calibrate(args) => return crate::servo::calibrate::run(args, out, err),
         Command::Ports { json } => {
-            let ports = crate::servo::ports::usb_ports(std::path::Path::new("/sys"), std::path::Path::new("/dev"));
+            let ports = crate::servo::ports::usb_ports(std::path::Path::new("/dev"));
             if json {
                 print_json(out, &ports)?;
             } else if ports.is_empty() {
                 writeln!(
                     out,
-                    "no USB serial port found (is the adapter plugged in? `dmesg | tail` shows what the kernel saw)"
+                    "no USB serial port found (is the adapter plugged in? on Linux `dmesg | tail` shows what the kernel saw)"
                 )?;
             } else {
                 for port in &ports {

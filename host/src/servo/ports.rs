@@ -1,19 +1,20 @@
 //! `armctl ports`: the serial ports of this machine with the USB device behind each, so a person
 //! finds which one is the arm's adapter (LeRobot ships `lerobot-find-port` for this).
 //!
-//! Linux only, and without libudev: the kernel's sysfs says it all. `/sys/class/tty/NAME/device`
-//! leads to the USB interface (CDC-ACM) or the usb-serial port (FTDI, CH340, CP210x), whose
-//! ancestor USB device holds `idVendor`, `idProduct`, `manufacturer`, `product` and `serial`.
-//! `/dev/serial/by-id` gives the stable names udev made, when it runs.
+//! The ports come from the serialport crate's enumeration, so the command works wherever it does:
+//! on Linux it reads sysfs (this build has no libudev), on macOS it asks IOKit, on Windows the
+//! SetupAPI. Each USB port carries its vendor and product ids, maker, product and serial number.
+//! On Linux, `/dev/serial/by-id` adds the stable names udev made, when it runs.
 
 use std::path::{Path, PathBuf};
 
 use serde::Serialize;
+use serialport::{SerialPortInfo, SerialPortType};
 
 /// A serial port backed by a USB device.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize)]
 pub struct UsbPort {
-    /// The device node (`/dev/ttyUSB0`).
+    /// The device node (`/dev/ttyUSB0`, `/dev/cu.usbserial-A10K`, `COM3`).
     pub path: String,
     /// USB vendor id, 4 hex digits.
     pub vendor_id: String,
@@ -25,36 +26,24 @@ pub struct UsbPort {
     pub product: Option<String>,
     /// The serial number string.
     pub serial_number: Option<String>,
-    /// Its stable names under `/dev/serial/by-id`.
+    /// Its stable names under `/dev/serial/by-id` (Linux with udev).
     pub by_id: Vec<String>,
 }
 
-/// Reads a sysfs attribute, trimmed; `None` when absent or empty.
-fn attribute(dir: &Path, name: &str) -> Option<String> {
-    let text = std::fs::read_to_string(dir.join(name)).ok()?;
-    Some(text.trim().to_string()).filter(|t| !t.is_empty())
-}
-
-/// The USB device above a tty's `device` link: the first ancestor (at most a few levels up) that
-/// has an `idVendor`.
-fn usb_device(tty: &Path) -> Option<PathBuf> {
-    let mut dir = std::fs::canonicalize(tty.join("device")).ok()?;
-    for _ in 0..4 {
-        if dir.join("idVendor").is_file() {
-            return Some(dir);
-        }
-        dir = dir.parent()?.to_path_buf();
-    }
-    None
-}
-
-/// The USB serial ports, by reading `sys` (normally `/sys`) and `dev` (normally `/dev`), sorted by
-/// path. Ports with no USB device behind them (the built-in `ttyS*`) are left out.
-pub fn usb_ports(sys: &Path, dev: &Path) -> Vec<UsbPort> {
-    let Ok(entries) = std::fs::read_dir(sys.join("class/tty")) else {
+/// The USB serial ports of this machine, sorted by path; `dev` is where the `serial/by-id`
+/// links are looked for (`/dev`). Built-in UARTs and Bluetooth ports are left out. An
+/// enumeration that fails (no `/sys/class/tty` in a container) lists nothing.
+pub fn usb_ports(dev: &Path) -> Vec<UsbPort> {
+    // serialport's sysfs scan panics when /sys/class/tty is missing: look first.
+    if cfg!(target_os = "linux") && !Path::new("/sys/class/tty").is_dir() {
         return Vec::new();
-    };
-    let by_id: Vec<(PathBuf, String)> = std::fs::read_dir(dev.join("serial/by-id"))
+    }
+    from_infos(serialport::available_ports().unwrap_or_default(), &by_id_links(dev))
+}
+
+/// The `/dev/serial/by-id` links under `dev`: (the device they point at, the link's path).
+fn by_id_links(dev: &Path) -> Vec<(PathBuf, String)> {
+    std::fs::read_dir(dev.join("serial/by-id"))
         .map(|links| {
             links
                 .flatten()
@@ -64,23 +53,27 @@ pub fn usb_ports(sys: &Path, dev: &Path) -> Vec<UsbPort> {
                 })
                 .collect()
         })
-        .unwrap_or_default();
-    let mut ports: Vec<UsbPort> = entries
-        .flatten()
-        .filter_map(|entry| {
-            let usb = usb_device(&entry.path())?;
-            let node = dev.join(entry.file_name());
+        .unwrap_or_default()
+}
+
+/// The USB ports among `infos`, each with the `by_id` names that point at it, sorted by path.
+pub fn from_infos(infos: Vec<SerialPortInfo>, by_id: &[(PathBuf, String)]) -> Vec<UsbPort> {
+    let mut ports: Vec<UsbPort> = infos
+        .into_iter()
+        .filter_map(|info| {
+            let SerialPortType::UsbPort(usb) = info.port_type else { return None };
+            let node = PathBuf::from(&info.port_name);
             let canonical = std::fs::canonicalize(&node).unwrap_or_else(|_| node.clone());
             let mut names: Vec<String> =
                 by_id.iter().filter(|(target, _)| *target == canonical).map(|(_, name)| name.clone()).collect();
             names.sort();
             Some(UsbPort {
-                path: node.display().to_string(),
-                vendor_id: attribute(&usb, "idVendor")?,
-                product_id: attribute(&usb, "idProduct").unwrap_or_default(),
-                manufacturer: attribute(&usb, "manufacturer"),
-                product: attribute(&usb, "product"),
-                serial_number: attribute(&usb, "serial"),
+                path: info.port_name,
+                vendor_id: format!("{:04x}", usb.vid),
+                product_id: format!("{:04x}", usb.pid),
+                manufacturer: usb.manufacturer.filter(|t| !t.is_empty()),
+                product: usb.product.filter(|t| !t.is_empty()),
+                serial_number: usb.serial_number.filter(|t| !t.is_empty()),
                 by_id: names,
             })
         })
@@ -108,55 +101,52 @@ pub fn describe(port: &UsbPort) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use serialport::UsbPortInfo;
     use std::os::unix::fs::symlink;
 
-    /// A sysfs and /dev tree as Linux lays them out for an FTDI adapter (usb-serial) and a CDC-ACM
-    /// board, plus a built-in UART with no USB device.
-    fn fake_tree() -> PathBuf {
+    fn usb(
+        name: &str,
+        vid: u16,
+        pid: u16,
+        manufacturer: Option<&str>,
+        product: Option<&str>,
+        serial: Option<&str>,
+    ) -> SerialPortInfo {
+        SerialPortInfo {
+            port_name: name.to_string(),
+            port_type: SerialPortType::UsbPort(UsbPortInfo {
+                vid,
+                pid,
+                serial_number: serial.map(str::to_string),
+                manufacturer: manufacturer.map(str::to_string),
+                product: product.map(str::to_string),
+            }),
+        }
+    }
+
+    #[test]
+    fn usb_ports_with_their_device_and_by_id_name_built_in_ones_left_out() {
         let root = std::env::temp_dir().join(format!("armctl-ports-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&root);
-        let sys = root.join("sys");
-        let usb = sys.join("devices/pci0000:00/0000:00:14.0/usb1");
-        let write = |dir: &Path, attributes: &[(&str, &str)]| {
-            std::fs::create_dir_all(dir).unwrap();
-            for (name, value) in attributes {
-                std::fs::write(dir.join(name), format!("{value}\n")).unwrap();
-            }
-        };
-        let ftdi = usb.join("1-1");
-        write(&ftdi, &[("idVendor", "0403"), ("idProduct", "6014"), ("manufacturer", "FTDI"), ("serial", "FT8ABC")]);
-        write(&ftdi.join("1-1:1.0/ttyUSB0"), &[]);
-        let acm = usb.join("1-2");
-        write(&acm, &[("idVendor", "1a86"), ("idProduct", "55d3"), ("product", "USB Single Serial")]);
-        write(&acm.join("1-2:1.0"), &[]);
-        let uart = sys.join("devices/platform/serial8250/tty/ttyS0");
-        write(&uart, &[]);
-        let class = sys.join("class/tty");
-        for (name, device) in
-            [("ttyUSB0", ftdi.join("1-1:1.0/ttyUSB0")), ("ttyACM0", acm.join("1-2:1.0")), ("ttyS0", uart.clone())]
-        {
-            write(&class.join(name), &[]);
-            symlink(device, class.join(name).join("device")).unwrap();
-        }
         let dev = root.join("dev");
-        write(&dev.join("serial/by-id"), &[]);
+        std::fs::create_dir_all(dev.join("serial/by-id")).unwrap();
         for node in ["ttyUSB0", "ttyACM0", "ttyS0"] {
             std::fs::write(dev.join(node), b"").unwrap();
         }
         symlink("../../ttyUSB0", dev.join("serial/by-id/usb-FTDI_FT232H_FT8ABC-if00-port0")).unwrap();
-        root
-    }
-
-    #[test]
-    fn lists_usb_ports_with_their_device_and_leaves_built_in_ones_out() {
-        let root = fake_tree();
-        let ports = usb_ports(&root.join("sys"), &root.join("dev"));
-        let dev = root.join("dev");
+        let node = |n: &str| dev.join(n).display().to_string();
+        let infos = vec![
+            usb(&node("ttyUSB0"), 0x0403, 0x6014, Some("FTDI"), None, Some("FT8ABC")),
+            usb(&node("ttyACM0"), 0x1a86, 0x55d3, None, Some("USB Single Serial"), Some("")),
+            SerialPortInfo { port_name: node("ttyS0"), port_type: SerialPortType::PciPort },
+            SerialPortInfo { port_name: "/dev/rfcomm0".into(), port_type: SerialPortType::BluetoothPort },
+        ];
+        let ports = from_infos(infos, &by_id_links(&dev));
         assert_eq!(ports.len(), 2, "{ports:?}");
-        assert_eq!(ports[0].path, dev.join("ttyACM0").display().to_string());
+        assert_eq!(ports[0].path, node("ttyACM0"));
         assert_eq!((ports[0].vendor_id.as_str(), ports[0].product_id.as_str()), ("1a86", "55d3"));
         assert_eq!(ports[0].product.as_deref(), Some("USB Single Serial"));
-        assert_eq!(ports[0].manufacturer, None);
+        assert_eq!((ports[0].manufacturer.as_deref(), ports[0].serial_number.as_deref()), (None, None));
         assert!(ports[0].by_id.is_empty());
         assert_eq!(ports[1].serial_number.as_deref(), Some("FT8ABC"));
         assert_eq!(ports[1].by_id, [dev.join("serial/by-id/usb-FTDI_FT232H_FT8ABC-if00-port0").display().to_string()]);
@@ -166,7 +156,16 @@ mod tests {
     }
 
     #[test]
-    fn no_sysfs_means_no_ports() {
-        assert!(usb_ports(Path::new("/nonexistent-sys"), Path::new("/nonexistent-dev")).is_empty());
+    fn a_mac_port_keeps_its_name() {
+        let ports = from_infos(vec![usb("/dev/cu.usbmodem58FA0", 0x1a86, 0x55d3, None, None, None)], &[]);
+        assert_eq!(ports[0].path, "/dev/cu.usbmodem58FA0");
+        assert_eq!(describe(&ports[0]), "/dev/cu.usbmodem58FA0  1a86:55d3");
+    }
+
+    #[test]
+    fn this_machine_lists_without_panicking() {
+        // Whatever the machine has (a container may have no USB port at all).
+        let ports = usb_ports(Path::new("/dev"));
+        assert!(ports.windows(2).all(|w| w[0].path <= w[1].path));
     }
 }
