@@ -182,6 +182,37 @@ fn every_drive_command_drives_the_servos_through_bus_on_both_protocols() {
 
 /// A missing port, a port another program holds and the wrong protocol: one line each, and the
 /// servos are left as they were.
+/// Fresh simulated servos answer the factory's return delay (250, 500 µs) on both protocols; the
+/// first `--bus` connection's set-up writes 0 to every one, which then reads back 0 through the
+/// port, and a second connection writes nothing.
+#[test]
+fn a_fresh_bus_gets_its_return_delay_rewritten_and_it_reads_back() {
+    let _one = one_at_a_time();
+    for (arm, protocol, _) in ARMS {
+        let server = servos(arm, Faults::default(), None);
+        let ids = servos_of(&ArmSpec::load(arm, None).unwrap()).unwrap().bus_ids();
+        let read = |id: u8| {
+            let id = id.to_string();
+            let args =
+                ["servo", "read", "--port", server.path(), "--protocol", protocol, "--baud", "1000000", "--id", &id];
+            let run = armctl(&[&args[..], &["--item", "return_delay_time"]].concat());
+            run.ok("servo read").stdout.lines().last().unwrap_or_default().to_string()
+        };
+        for &id in &ids {
+            assert_eq!(read(id), "return_delay_time = 250", "{arm}: servo {id} from the factory");
+        }
+        let first = armctl(&["--bus", server.path(), "--protocol", protocol, "status", "--json"]);
+        first.ok("first connection");
+        for &id in &ids {
+            let line = format!("set-up: servo {id}: return delay 500 µs -> 0 µs (EEPROM)");
+            assert!(first.stderr.contains(&line), "{arm}: {line:?} not in {}", first.stderr);
+            assert_eq!(read(id), "return_delay_time = 0", "{arm}: servo {id} after the set-up");
+        }
+        let second = armctl(&["--bus", server.path(), "--protocol", protocol, "status", "--json"]);
+        assert!(!second.ok("second connection").stderr.contains("return delay"), "{arm}: {}", second.stderr);
+    }
+}
+
 #[test]
 fn bad_ports_and_the_wrong_protocol_are_one_line_and_move_nothing() {
     let _one = one_at_a_time();

@@ -162,8 +162,10 @@ fn feetech_answers_every_instruction() {
     assert_eq!(r.read_item(1, items.model_number), 777);
     assert_eq!(r.read_item(1, items.present_position), 2048);
 
-    // EEPROM writes take effect whatever the lock says (the lock only decides persistence).
-    assert_eq!(r.table(1, items.lock.unwrap()), 1);
+    // EEPROM writes take effect whatever the lock says (the lock only decides persistence); the
+    // factory's lock is 0 (Feetech's memory table).
+    assert_eq!(r.table(1, items.lock.unwrap()), 0);
+    r.write_item(1, items.lock.unwrap(), 1);
     r.write_item(1, items.max_position, 3000);
     assert_eq!(r.table(1, items.max_position), 3000);
     r.write_item(1, items.torque_enable, 1);

@@ -61,6 +61,9 @@ pub enum Replies {
     PingOnly,
 }
 
+/// The return delay both protocols' servos leave the factory with: 250 units of 2 µs.
+pub const FACTORY_RETURN_DELAY_US: u32 = 500;
+
 /// How the bus is run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct BusConfig {
@@ -87,15 +90,14 @@ pub struct BusConfig {
 }
 
 impl BusConfig {
-    /// The factory settings of the protocol's servos (return delay 500 µs on Dynamixel, 0 on
-    /// Feetech; replies to everything), a 1 ms margin, 2 retries, and an idle gap of three byte
-    /// times (at least 100 µs): the figures of a microcontroller's own UART. On a PC raise
-    /// `margin_us` and `idle_gap_us` to the USB adapter's latency.
+    /// The factory settings of the protocol's servos (return delay 500 µs on both: Dynamixel X
+    /// and Feetech STS3215 ship with 250 units of 2 µs, see the models' `DEFAULTS`; replies to
+    /// everything), a 1 ms margin, 2 retries, and an idle gap of three byte times (at least
+    /// 100 µs): the figures of a microcontroller's own UART, whose firmware writes no set-up to the
+    /// servos. On a PC raise `margin_us` and `idle_gap_us` to the USB adapter's latency, and lower
+    /// `return_delay_us` once the servos are set up.
     pub fn new(protocol: Protocol, baud: u32) -> Self {
-        let return_delay_us = match protocol {
-            Protocol::Dxl2 => 500,
-            Protocol::Feetech => 0,
-        };
+        let return_delay_us = FACTORY_RETURN_DELAY_US;
         let idle_gap_us = wire_time_us(3, baud).max(100) as u32;
         Self {
             protocol,

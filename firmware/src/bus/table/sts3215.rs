@@ -16,7 +16,7 @@ pub const MODEL_NUMBER: Item = Item::new("model_number", 3, 2, Read, Unsigned);
 pub const ID: Item = Item::new("id", 5, 1, ReadWrite, Unsigned);
 /// Baud rate index: 0 1M, 1 500k, 2 250k, 3 128k, 4 115200, 5 76800, 6 57600, 7 38400.
 pub const BAUD_RATE: Item = Item::new("baud_rate", 6, 1, ReadWrite, Unsigned);
-/// Return delay in 2 µs units (factory 0).
+/// Return delay in 2 µs units (factory 250 = 500 µs, see [`DEFAULTS`]).
 pub const RETURN_DELAY_TIME: Item = Item::new("return_delay_time", 7, 1, ReadWrite, Unsigned);
 /// Response status level: 0 replies only to ping and read, 1 to everything.
 pub const RESPONSE_STATUS_LEVEL: Item = Item::new("response_status_level", 8, 1, ReadWrite, Unsigned);
@@ -29,10 +29,11 @@ pub const HOMING_OFFSET: Item = Item::new("homing_offset", 31, 2, ReadWrite, Sig
 /// The ceiling of the torque limit, 0.1 % of the stall torque (factory 1000); LeRobot sets 500 on
 /// the SO follower's gripper.
 pub const MAX_TORQUE_LIMIT: Item = Item::new("max_torque_limit", 16, 2, ReadWrite, Unsigned);
-/// Protection current in 6.5 mA (LeRobot sets 250 on the gripper).
+/// Protection current in 6.5 mA (factory 500; LeRobot sets 250 on the gripper).
 pub const PROTECTION_CURRENT: Item = Item::new("protection_current", 28, 2, ReadWrite, Unsigned);
-/// Overload torque, percent: the output the servo falls back to when overload protection trips
-/// (LeRobot sets 25 on the gripper).
+/// Overload torque, percent of the maximum torque: the output above which the servo's overload
+/// protection timer runs (Feetech's memory table, factory 80; the output it falls back to once
+/// protection trips is the "protective torque" at 34, not modelled). LeRobot sets 25 on the gripper.
 pub const OVERLOAD_TORQUE: Item = Item::new("overload_torque", 36, 1, ReadWrite, Unsigned);
 /// Torque limit (RAM), 0.1 % of the stall torque; at power-on it takes the max torque limit.
 pub const TORQUE_LIMIT: Item = Item::new("torque_limit", 48, 2, ReadWrite, Unsigned);
@@ -54,7 +55,7 @@ pub const GOAL_POSITION: Item = Item::new("goal_position", 42, 2, ReadWrite, Sig
 pub const GOAL_TIME: Item = Item::new("goal_time", 44, 2, ReadWrite, Unsigned);
 /// Goal velocity in steps/s (0: as fast as the motor goes).
 pub const GOAL_VELOCITY: Item = Item::new("goal_velocity", 46, 2, ReadWrite, SignMagnitude(15));
-/// EEPROM lock: 0 unlocked (EEPROM writes are kept), 1 locked.
+/// EEPROM lock: 0 unlocked (EEPROM writes are kept), 1 locked (factory 0).
 pub const LOCK: Item = Item::new("lock", 55, 1, ReadWrite, Unsigned);
 /// Present position in steps.
 pub const PRESENT_POSITION: Item = Item::new("present_position", 56, 2, Read, SignMagnitude(15));
@@ -77,24 +78,58 @@ pub const MAXIMUM_ACCELERATION: Item = Item::new("maximum_acceleration", 85, 1, 
 const BAUDS: [(u8, u32); 8] =
     [(0, 1_000_000), (1, 500_000), (2, 250_000), (3, 128_000), (4, 115_200), (5, 76_800), (6, 57_600), (7, 38_400)];
 
-const DEFAULTS: [(Item, i64); 17] = [
-    (MAX_TORQUE_LIMIT, 1000),
-    (TORQUE_LIMIT, 1000),
+/// Factory values, from Feetech's STS3215 memory table (the "st3215_memory_table" spreadsheet, its
+/// "Initial value" column, as exported to TSV in the `st3215` crate's `build.rs`, docs.rs), except
+/// where a line says otherwise:
+/// - return delay 250 (500 µs): LeRobot `motors/feetech/feetech.py` `configure_motors` ("By default,
+///   Feetech motors have a 500µs delay response time (corresponding to a value of 250 on the
+///   'Return_Delay_Time' address)"), which is what servos as shipped answer. Feetech's spreadsheet
+///   says 0 there, and a later Feetech STS table (wiki.aifitlab.com, "STS Servo – Memory Table
+///   Analysis") marks address 7 reserved with no initial value: the published tables and the
+///   servos disagree, and the simulator follows the servos;
+/// - firmware 3.10: the version of the servos LeRobot's users report; the spreadsheet's column
+///   shows 3.6 (the version when it was written). Servos of different batches differ, which is
+///   what `--register ID:firmware_minor_version=N` shows;
+/// - maximum acceleration (85): no table gives its factory value (Feetech's leaves the item out;
+///   LeRobot's `tables.py` lists no values), so it stays 0 here;
+/// - present voltage and temperature are readings, not factory values: 7.4 V (the SO-101's
+///   supply) and 30 °C.
+///
+/// Items the project reads or writes whose spreadsheet value is 0 (homing offset, operating mode,
+/// torque enable, acceleration, goal time and velocity) are listed too, so that the list is the
+/// whole of it.
+const DEFAULTS: [(Item, i64); 26] = [
     (FIRMWARE_MAJOR_VERSION, 3),
     (FIRMWARE_MINOR_VERSION, 10),
     (MODEL_NUMBER, 777),
     (ID, 1),
     (BAUD_RATE, 0),
-    (RETURN_DELAY_TIME, 0),
+    (RETURN_DELAY_TIME, 250),
     (RESPONSE_STATUS_LEVEL, 1),
     (MIN_POSITION_LIMIT, 0),
     (MAX_POSITION_LIMIT, 4095),
+    // "Maximum torque" 1000 (100 % of the stall torque), copied to the torque limit (48) at power-on.
+    (MAX_TORQUE_LIMIT, 1000),
     (P_COEFFICIENT, 32),
     (D_COEFFICIENT, 32),
-    (LOCK, 1),
+    (I_COEFFICIENT, 0),
+    // 500 x 6.5 mA = 3.25 A.
+    (PROTECTION_CURRENT, 500),
+    (HOMING_OFFSET, 0),
+    (OPERATING_MODE, 0),
+    // 80 % of the maximum torque starts the overload timer.
+    (OVERLOAD_TORQUE, 80),
+    (TORQUE_ENABLE, 0),
+    (ACCELERATION, 0),
+    (GOAL_TIME, 0),
+    (GOAL_VELOCITY, 0),
+    (TORQUE_LIMIT, 1000),
+    // 0: EEPROM writes are kept (the spreadsheet's initial value; LeRobot writes 0 before its
+    // EEPROM writes and 1 after them anyway).
+    (LOCK, 0),
     (PRESENT_VOLTAGE, 74),
     (PRESENT_TEMPERATURE, 30),
-    (OPERATING_MODE, 0),
+    (MAXIMUM_ACCELERATION, 0),
 ];
 
 /// STS3215 (model 777): 4096 steps per revolution, 1 Mbps from the factory, about 45 rev/min

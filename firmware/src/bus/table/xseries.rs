@@ -99,27 +99,47 @@ const VELOCITY_UNIT: f32 = 0.229 * 4096.0 / 60.0;
 /// 214.577 rev/min² in ticks per second squared.
 const ACCELERATION_UNIT: f32 = 214.577 * 4096.0 / 3600.0;
 
-/// Factory values shared by the three models (e-manual "Default Value" column); the id is 1.
-const fn defaults(baud_index: i64, velocity_limit: i64, current_limit: i64) -> [(Item, i64); 12] {
+/// Factory values of the three models: the "Initial Value" (or "Default Value") column of the
+/// ROBOTIS e-manual's control tables, "XL430-W250-T", "XM430-W350" and "XL330-M288-T" (EEPROM and
+/// RAM areas): id 1, baud index 1 (57600), return delay 250 (500 µs), drive mode 0, operating mode
+/// 3 (position), homing offset 0, position limits 0 and 4095, torque off, LED off, status return
+/// level 2 (all), profile acceleration and velocity 0 (unlimited), and per model the velocity
+/// limit (XL430-W250 265, XM430-W350 200, XL330-M288 445) and the current limit (XM430-W350 1193,
+/// XL330-M288 1750; the XL430-W250 has none). The position gains, which the project neither
+/// reads nor writes on Dynamixel, are not held here.
+///
+/// Not factory values:
+/// - goal current: the e-manual gives none ("-"); it starts at the current limit here, so that a
+///   current-based position mode is not capped before anyone writes it;
+/// - present input voltage and temperature are readings: each model at the supply its speed below
+///   is given at (12 V for the XL430 and XM430, 5 V for the XL330: a 12 V reading there would be
+///   an XL330 on the wrong supply) and 30 °C.
+const fn defaults(velocity_limit: i64, current_limit: i64, volts_x10: i64) -> [(Item, i64); 18] {
     [
-        (CURRENT_LIMIT, current_limit),
-        (GOAL_CURRENT, current_limit),
         (ID, 1),
-        (BAUD_RATE, baud_index),
+        (BAUD_RATE, 1),
         (RETURN_DELAY_TIME, 250),
+        (DRIVE_MODE, 0),
         (OPERATING_MODE, 3),
+        (HOMING_OFFSET, 0),
+        (CURRENT_LIMIT, current_limit),
         (VELOCITY_LIMIT, velocity_limit),
         (MAX_POSITION_LIMIT, 4095),
         (MIN_POSITION_LIMIT, 0),
+        (TORQUE_ENABLE, 0),
+        (LED, 0),
         (STATUS_RETURN_LEVEL, 2),
-        (PRESENT_INPUT_VOLTAGE, 120),
+        (GOAL_CURRENT, current_limit),
+        (PROFILE_ACCELERATION, 0),
+        (PROFILE_VELOCITY, 0),
+        (PRESENT_INPUT_VOLTAGE, volts_x10),
         (PRESENT_TEMPERATURE, 30),
     ]
 }
 
-const XL430_DEFAULTS: [(Item, i64); 12] = defaults(1, 265, 0);
-const XM430_DEFAULTS: [(Item, i64); 12] = defaults(1, 200, 1193);
-const XL330_DEFAULTS: [(Item, i64); 12] = defaults(1, 445, 1750);
+const XL430_DEFAULTS: [(Item, i64); 18] = defaults(265, 0, 120);
+const XM430_DEFAULTS: [(Item, i64); 18] = defaults(200, 1193, 120);
+const XL330_DEFAULTS: [(Item, i64); 18] = defaults(445, 1750, 50);
 
 /// The effort of a model with current sensing: the goal current caps it (in current-based
 /// position mode), the present current reports it; full is the factory current limit.

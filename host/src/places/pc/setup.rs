@@ -449,13 +449,12 @@ mod tests {
         model: &'static Model,
     }
 
-    /// Servos 1 to 3 of `model` as they leave the factory. The STS3215 table of the firmware
-    /// says return delay 0, LeRobot says the factory value is 250 (500 µs): the servos get 250, so
-    /// that there is something to write on both protocols.
+    /// Servos 1 to 3 of `model` as they leave the factory (return delay 250, 500 µs, on both
+    /// protocols: the simulator starts from the models' factory tables).
     fn rig(model: &'static Model, faults: Faults) -> Rig {
         let (sim, port, clock) = connect(SimBus::new(model.protocol, model, &IDS, BAUD).with_faults(faults));
-        for servo in sim.borrow_mut().servos_mut() {
-            servo.set(model.items.return_delay, 250);
+        for servo in sim.borrow().servos() {
+            assert_eq!(servo.get(model.items.return_delay), 250, "{}: the factory's return delay", model.name);
         }
         let sent = Rc::new(RefCell::new(Vec::new()));
         let port = Recorder { port, sent: sent.clone() };
