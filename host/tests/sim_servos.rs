@@ -1043,3 +1043,226 @@ fn armctl_sim_servos_puts_an_object_between_the_jaws() {
         assert!(out.is_empty());
     }
 }
+
+/// `armctl servo read --item ITEM` of servo `id` on the pty at `path`: the item's line, or the
+/// error it printed.
+fn read_on(path: &str, protocol: &str, id: u8, item: &str) -> Result<String, String> {
+    let id = id.to_string();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_armctl"))
+        .args(["servo", "read", "--port", path, "--protocol", protocol, "--baud", "1000000", "--timeout-ms", "200"])
+        .args(["--id", &id, "--item", item])
+        .output()
+        .unwrap();
+    let text = |b: &[u8]| String::from_utf8_lossy(b).trim().to_string();
+    match out.status.success() {
+        true => Ok(text(&out.stdout).lines().last().unwrap_or_default().to_string()),
+        false => Err(text(&out.stderr)),
+    }
+}
+
+/// Runs `check` on the pty of `armctl sim servos --pty ARGS`, then stops the server (also when
+/// `check` panics).
+fn with_sim_servos(args: &[&str], check: impl FnOnce(&str)) {
+    let args: Vec<&str> = ["--pty"].iter().chain(args).copied().collect();
+    let (mut child, path) = serve_sim(&args, std::process::Stdio::null());
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| check(&path)));
+    child.kill().unwrap();
+    child.wait().unwrap();
+    if let Err(panic) = result {
+        std::panic::resume_unwind(panic);
+    }
+}
+
+/// `--register`: a 12 V supply and a hot servo, mixed firmware, a stale goal, a wrong status
+/// return level, read back by a client; the readings stay on later reads, and the stale goal moves
+/// nothing.
+#[test]
+fn armctl_sim_servos_sets_registers_a_client_reads() {
+    let _one = one_at_a_time();
+    let args = [
+        "--protocol",
+        "sts",
+        "--ids",
+        "1-3",
+        "--register",
+        "1:present_voltage=120",
+        "--register",
+        "2:present_temperature=75",
+        "--register",
+        "all:firmware_minor_version=9",
+        "--register",
+        "3:firmware_minor_version=10",
+        "--register",
+        "2:goal_position=100",
+        "--register",
+        "3:homing_offset=-2100",
+    ];
+    // -2100 does not fit the STS3215's sign-magnitude offset (bit 11): refused in one line.
+    let (mut out, mut err) = (Vec::new(), Vec::new());
+    let argv = ["armctl", "sim", "servos", "--pty"].iter().chain(&args);
+    assert_eq!(armctl::cli::main(argv, &mut out, &mut err), 2);
+    let err = String::from_utf8(err).unwrap();
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.contains("-2100 does not fit homing_offset (it holds -2047 to 2047)"), "{err}");
+
+    let args: Vec<&str> =
+        args[..args.len() - 2].iter().copied().chain(["--register", "3:homing_offset=-900"]).collect();
+    with_sim_servos(&args, |path| {
+        let read = |id, item| read_on(path, "sts", id, item).unwrap();
+        for _ in 0..2 {
+            assert_eq!(read(1, "present_voltage"), "present_voltage = 120");
+            assert_eq!(read(2, "present_voltage"), "present_voltage = 74", "the others at 7.4 V");
+            assert_eq!(read(2, "present_temperature"), "present_temperature = 75");
+            assert_eq!(read(1, "firmware_minor_version"), "firmware_minor_version = 9");
+            assert_eq!(read(3, "firmware_minor_version"), "firmware_minor_version = 10");
+            assert_eq!(read(3, "homing_offset"), "homing_offset = -900");
+            assert_eq!(read(2, "goal_position"), "goal_position = 100", "a stale goal");
+            assert_eq!(read(2, "present_position"), "present_position = 2048", "torque off: nothing moved");
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    });
+    // A status return level that makes writes go unanswered (Dynamixel 1: pings and reads only).
+    with_sim_servos(&["--protocol", "dxl2", "--ids", "1", "--register", "1:status_return_level=1"], |path| {
+        assert_eq!(read_on(path, "dxl2", 1, "status_return_level").unwrap(), "status_return_level = 1");
+    });
+    // The other protocol's name of the same item is taken too.
+    with_sim_servos(&["--protocol", "sts", "--ids", "1", "--register", "1:status_return_level=0"], |path| {
+        assert_eq!(read_on(path, "sts", 1, "response_status_level").unwrap(), "response_status_level = 0");
+    });
+}
+
+/// `--register` refuses what it cannot set in one line each: an id not served, an unknown item, a
+/// value that does not fit, `moving`, and text that is not ID:ITEM=VALUE; so do bad
+/// `--hardware-error`s and bit-flip rates.
+#[test]
+fn armctl_sim_servos_refuses_bad_registers_and_errors() {
+    for (extra, needle) in [
+        (&["--register", "9:present_voltage=120"][..], "names servo 9, which is not served"),
+        (&["--register", "1:present_voltag=120"], "STS3215 has no item \"present_voltag\""),
+        (&["--register", "1:present_voltage=300"], "300 does not fit present_voltage (it holds 0 to 255)"),
+        (&["--register", "1:present_voltage=1.5"], "\"1.5\" is not a whole number"),
+        (&["--register", "1:moving=1"], "moving is the servo's own"),
+        (&["--register", "present_voltage=120"], "is not ID:ITEM=VALUE"),
+        (&["--register", "x:present_voltage=120"], "\"x\" is not a servo id or `all`"),
+        (&["--hardware-error", "1"], "is not ID=BITS"),
+        (&["--hardware-error", "1=0"], "the bits are a number from 1 to 255"),
+        (&["--hardware-error", "1=0x100"], "the bits are a number from 1 to 255"),
+        (&["--hardware-error", "4=1"], "names servo 4, which is not served"),
+        (&["--bit-flip-rate", "1.5"], "--bit-flip-rate must be a probability"),
+    ] {
+        let (mut out, mut err) = (Vec::new(), Vec::new());
+        let argv = ["armctl", "sim", "servos", "--pty", "--protocol", "sts", "--ids", "1-3"].iter().chain(extra);
+        let code = armctl::cli::main(argv, &mut out, &mut err);
+        let err = String::from_utf8(err).unwrap();
+        assert_eq!(code, 2, "{extra:?}: {err}");
+        assert!(err.starts_with("error: ") && err.lines().count() == 1, "{extra:?}: {err}");
+        assert!(err.contains(needle), "{extra:?}: {needle:?} not in {err}");
+    }
+}
+
+/// `--hardware-error`: a Dynamixel's status carries the alert bit and its hardware error status
+/// says which; torque cannot be switched on. On Feetech the status error byte carries the bits.
+#[test]
+fn armctl_sim_servos_raises_hardware_errors_a_client_sees() {
+    let _one = one_at_a_time();
+    with_sim_servos(&["--protocol", "dxl2", "--ids", "1-2", "--hardware-error", "1=0x04"], |path| {
+        let mut master = pty_master_for(path, Protocol::Dxl2);
+        let mut b = [0u8; 1];
+        let answer = master.read(1, 70, &mut b).unwrap();
+        assert_eq!((b[0], answer.alert.is_some()), (4, true), "overheating, and the alert bit");
+        assert!(master.read(2, 70, &mut b).unwrap().alert.is_none(), "servo 2 is well");
+        let _ = master.write(1, 64, &[1]);
+        master.read(1, 64, &mut b).unwrap();
+        assert_eq!(b[0], 0, "protection keeps torque off");
+    });
+    with_sim_servos(&["--protocol", "sts", "--ids", "1", "--hardware-error", "all=0x20"], |path| {
+        let mut master = pty_master_for(path, Protocol::Feetech);
+        let mut b = [0u8; 2];
+        assert_eq!(master.read(1, 56, &mut b).unwrap().alert, Some(0x20), "overload in the status byte");
+    });
+}
+
+/// `--bit-flip-rate`: on a noisy line some of a few hundred reads fail (corrupt or unanswered
+/// instructions) and most get through; without it none fail.
+#[test]
+fn armctl_sim_servos_flips_bits_on_a_noisy_line() {
+    let _one = one_at_a_time();
+    let failures = |args: &[&str]| {
+        let mut failed = 0;
+        with_sim_servos(args, |path| {
+            let mut master = pty_master_for(path, Protocol::Feetech);
+            let mut b = [0u8; 2];
+            for _ in 0..200 {
+                failed += usize::from(master.read(1, 56, &mut b).is_err());
+            }
+        });
+        failed
+    };
+    let noisy = failures(&["--protocol", "sts", "--ids", "1", "--bit-flip-rate", "0.01"]);
+    assert!((5..150).contains(&noisy), "{noisy} of 200 reads failed at 1 % per byte");
+    assert_eq!(failures(&["--protocol", "sts", "--ids", "1"]), 0);
+}
+
+/// `--echo`: the ping's own bytes come back first, then its reply.
+#[test]
+fn armctl_sim_servos_echoes_what_the_adapter_sends() {
+    let _one = one_at_a_time();
+    let ping = [0xFF, 0xFF, 0x01, 0x02, 0x01, 0xFB];
+    let reply = ping_reply(Protocol::Feetech, 1, &[]);
+    with_sim_servos(&["--protocol", "sts", "--ids", "1", "--echo"], |path| {
+        assert_eq!(exchange(path, &ping, ping.len() + reply.len()), [&ping[..], &reply].concat());
+    });
+    with_sim_servos(&["--protocol", "sts", "--ids", "1", "--echo", "--burst-ms", "16"], |path| {
+        assert_eq!(exchange(path, &ping, ping.len() + reply.len()), [&ping[..], &reply].concat());
+    });
+}
+
+/// What a doctor meets with flags that were there before: every servo still at id 1 (a ping
+/// passes, a position read collides), the FTDI latency timer (replies wait most of 16 ms), and a
+/// model other than the arm file's (`--model` over `--arm`'s).
+#[test]
+fn armctl_sim_servos_shows_duplicates_latency_and_another_model() {
+    let _one = one_at_a_time();
+    with_sim_servos(&["--protocol", "sts", "--ids", "1", "--duplicate", "1"], |path| {
+        let mut master = pty_master_for(path, Protocol::Feetech);
+        assert!(master.ping(1).is_ok(), "alike replies AND into a valid one");
+        let mut b = [0u8; 2];
+        let err = master.read(1, 56, &mut b).unwrap_err();
+        assert!(matches!(err, MasterError::NoReply { id: 1, corrupt, .. } if corrupt > 0), "{err:?}");
+    });
+    with_sim_servos(&["--protocol", "sts", "--ids", "1", "--burst-ms", "16"], |path| {
+        let waits = ping_waits_on(path, 8);
+        assert!(waits[waits.len() / 2] >= Duration::from_millis(6), "{waits:?}");
+    });
+    with_sim_servos(&["--arm", "open-manipulator-x", "--model", "xl430-w250"], |path| {
+        assert_eq!(read_on(path, "dxl2", 11, "model_number").unwrap(), "model_number = 1060", "not the XM430's 1020");
+        let mut master = pty_master_for(path, Protocol::Dxl2);
+        assert_eq!(master.ping(15).unwrap().model, Some(1060), "the gripper's servo too");
+    });
+}
+
+/// The firmware's master on the pty at `path`, as [`pty_master`] for either protocol.
+fn pty_master_for(path: &str, protocol: Protocol) -> Master<SerialTransport, NoDirectionPin, StdClock> {
+    let mut config = BusConfig::new(protocol, BAUD);
+    config.margin_us = 500_000;
+    config.idle_gap_us = 50_000;
+    config.retries = 0;
+    Master::new(SerialTransport::open(path, BAUD).expect("open pty"), NoDirectionPin, StdClock::new(), config)
+}
+
+/// As [`ping_waits`], on the pty at `path`.
+fn ping_waits_on(path: &str, rounds: usize) -> Vec<Duration> {
+    let mut port = serialport::new(path, BAUD).timeout(Duration::from_secs(5)).open().expect("open pty");
+    let ping = [0xFF, 0xFF, 0x01, 0x02, 0x01, 0xFB];
+    let mut reply = vec![0u8; ping_reply(Protocol::Feetech, 1, &[]).len()];
+    let mut waits = Vec::new();
+    for _ in 0..=rounds {
+        let sent = Instant::now();
+        port.write_all(&ping).unwrap();
+        port.read_exact(&mut reply).expect("ping reply");
+        waits.push(sent.elapsed());
+    }
+    waits.remove(0);
+    waits.sort();
+    waits
+}

@@ -53,6 +53,11 @@ pub struct FaultArgs {
     /// Probability per byte, both directions, that it is lost.
     #[arg(long, default_value_t = 0.0)]
     pub drop_rate: f64,
+    /// Probability per byte, both directions, that one of its bits flips: a noisy line (a loose
+    /// cable, a long unshielded one). Replies whose checksum then fails are corrupt replies;
+    /// instructions whose checksum fails are not carried out.
+    #[arg(long, default_value_t = 0.0, value_name = "P")]
+    pub bit_flip_rate: f64,
     /// Seed of the random faults.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -61,7 +66,12 @@ pub struct FaultArgs {
 impl FaultArgs {
     /// The faults, once the probabilities are checked.
     pub fn faults(&self) -> Result<Faults> {
-        for (name, p) in [("--corrupt-rate", self.corrupt_rate), ("--drop-rate", self.drop_rate)] {
+        let rates = [
+            ("--corrupt-rate", self.corrupt_rate),
+            ("--drop-rate", self.drop_rate),
+            ("--bit-flip-rate", self.bit_flip_rate),
+        ];
+        for (name, p) in rates {
             if !(0.0..=1.0).contains(&p) {
                 bail!("{name} must be a probability between 0 and 1");
             }
@@ -71,7 +81,7 @@ impl FaultArgs {
             silent: self.silent.clone(),
             corrupt_rate: self.corrupt_rate,
             drop_rate: self.drop_rate,
-            bit_flip_rate: 0.0,
+            bit_flip_rate: self.bit_flip_rate,
         })
     }
 }
@@ -122,9 +132,36 @@ pub struct SimServosArgs {
     /// Faults.
     #[command(flatten)]
     pub faults: FaultArgs,
-    /// An id that gets a second servo (their replies collide).
+    /// An id that gets a second servo (their replies collide). `--ids 1 --duplicate 1` is two
+    /// servos both still at the factory's id 1: a ping's replies are alike and pass, a read of
+    /// their positions (100 ticks apart) garbles.
     #[arg(long)]
     pub duplicate: Vec<u8>,
+    /// Set an item of the servos' control table before anything is served, after --start,
+    /// bypassing the bus rules (read-only items and EEPROM with torque on too): ID is a served id
+    /// or `all`, ITEM a name as `armctl servo read --item` takes it for the model
+    /// (`present_voltage`, `present_temperature`, `firmware_minor_version`, `return_delay_time`,
+    /// `status_return_level`, `homing_offset`, `min_position_limit`, `goal_position`,
+    /// `torque_enable`...), VALUE a whole number that fits it. Readings and versions stay as set
+    /// (a reboot keeps them); `present_position` places the horn there; `goal_position` with
+    /// torque off moves nothing (a stale goal); `torque_enable=1` switches torque on without
+    /// holding the present position: the servo drives to its goal register, as a real one does.
+    /// E.g. `1:present_voltage=120` is a 12 V supply on a 7.4 V STS3215. Repeatable, applied in
+    /// order.
+    #[arg(long, value_name = "ID:ITEM=VALUE")]
+    pub register: Vec<String>,
+    /// Raise a hardware error on servo ID (or `all`) from the start: BITS (decimal or 0x..) go to
+    /// Dynamixel's hardware error status (bit 0 input voltage, 2 overheating, 3 motor encoder, 4
+    /// electrical shock, 5 overload; every status then has the alert bit) or are Feetech's status
+    /// error bits (0 voltage, 1 sensor, 2 temperature, 3 current, 5 overload). Torque goes off and
+    /// stays off, as the servo's protection does. Applied after --register. Repeatable.
+    #[arg(long, value_name = "ID=BITS")]
+    pub hardware_error: Vec<String>,
+    /// The adapter hears its own transmission: every byte written to the pty comes back first,
+    /// before any reply (a half-duplex adapter without echo suppression). With --burst-ms the
+    /// echo waits for the latency timer with the replies.
+    #[arg(long)]
+    pub echo: bool,
     /// Deliver the replies in bursts, as a USB serial adapter does: held until its latency timer
     /// next expires, every MS milliseconds from the start (FTDI: 16 by default, 1 when tuned;
     /// more than 0, at most 100). Bytes to the servos still arrive at once.
@@ -181,6 +218,85 @@ fn start_positions(text: Option<&str>, ids: &[u8], model: &Model) -> Result<Vec<
         start.push((id, ticks));
     }
     Ok(start)
+}
+
+/// A servo id of `--register` or `--hardware-error`: a served one, or `all` (`None`).
+fn served_id(text: &str, ids: &[u8], flag: &str, part: &str) -> Result<Option<u8>> {
+    let text = text.trim();
+    if text == "all" {
+        return Ok(None);
+    }
+    let Ok(id) = text.parse::<u8>() else {
+        bail!("{flag} {part:?}: {text:?} is not a servo id or `all`");
+    };
+    if !ids.contains(&id) {
+        bail!("{flag} {part:?} names servo {id}, which is not served (--ids)");
+    }
+    Ok(Some(id))
+}
+
+/// The item `name` of `model`: its own name, or the other protocol's name of the same role
+/// (`status_return_level` and `response_status_level`, `present_voltage` and
+/// `present_input_voltage`), so that one set of fault names serves both.
+fn item_named(model: &Model, name: &str) -> Option<firmware::bus::table::Item> {
+    if let Some(item) = crate::servo::items::named(model, name) {
+        return Some(item);
+    }
+    match name {
+        "status_return_level" | "response_status_level" => Some(model.items.status_return_level),
+        "present_voltage" | "present_input_voltage" => {
+            ["present_voltage", "present_input_voltage"].iter().find_map(|n| crate::servo::items::named(model, n))
+        }
+        _ => None,
+    }
+}
+
+/// `--register ID:ITEM=VALUE`s, parsed and checked against `model` (whether each value fits, and
+/// what a servo refuses, is checked when the servos are set up).
+fn registers(texts: &[String], ids: &[u8], model: &Model) -> Result<Vec<crate::sim::Register>> {
+    let mut out = Vec::new();
+    for part in texts.iter().map(|t| t.trim()) {
+        let parsed = part.split_once(':').and_then(|(id, rest)| Some((id, rest.split_once('=')?)));
+        let Some((id, (name, value))) = parsed else {
+            bail!("--register {part:?} is not ID:ITEM=VALUE (e.g. 1:present_voltage=120)");
+        };
+        let id = served_id(id, ids, "--register", part)?;
+        let name = name.trim();
+        let Some(item) = item_named(model, name) else {
+            let known: Vec<&str> = crate::servo::items::all(model).iter().map(|i| i.name).collect();
+            bail!("--register {part:?}: {} has no item {name:?} (it has {})", model.name, known.join(", "));
+        };
+        let Ok(value) = value.trim().parse::<i64>() else {
+            bail!("--register {part:?}: {:?} is not a whole number", value.trim());
+        };
+        let (lo, hi) = item.range();
+        if value < lo || value > hi {
+            bail!("--register {part:?}: {value} does not fit {} (it holds {lo} to {hi})", item.name);
+        }
+        out.push(crate::sim::Register { id, item, value });
+    }
+    Ok(out)
+}
+
+/// `--hardware-error ID=BITS`s: (servo or every servo, bits 1 to 255).
+fn hardware_errors(texts: &[String], ids: &[u8]) -> Result<Vec<(Option<u8>, u8)>> {
+    let mut out = Vec::new();
+    for part in texts.iter().map(|t| t.trim()) {
+        let Some((id, bits)) = part.split_once('=') else {
+            bail!("--hardware-error {part:?} is not ID=BITS (e.g. 1=0x04, overheating)");
+        };
+        let id = served_id(id, ids, "--hardware-error", part)?;
+        let bits = bits.trim();
+        let parsed = match bits.strip_prefix("0x").or_else(|| bits.strip_prefix("0X")) {
+            Some(hex) => u8::from_str_radix(hex, 16).ok(),
+            None => bits.parse::<u8>().ok(),
+        };
+        match parsed {
+            Some(b) if b != 0 => out.push((id, b)),
+            _ => bail!("--hardware-error {part:?}: the bits are a number from 1 to 255 (decimal or 0x..)"),
+        }
+    }
+    Ok(out)
 }
 
 /// The latency timer of `--burst-ms`.
@@ -266,6 +382,8 @@ fn prepare(args: &SimServosArgs) -> Result<(SimConfig, ServeOptions)> {
     let limits = limits(spec.as_ref(), &ids)?;
     let place = start_positions(args.start.as_deref(), &ids, model)?;
     let objects = object(args, arm.as_ref())?.into_iter().collect();
+    let registers = registers(&args.register, &ids, model)?;
+    let hardware_errors = hardware_errors(&args.hardware_error, &ids)?;
     let config = SimConfig {
         protocol,
         model,
@@ -277,7 +395,10 @@ fn prepare(args: &SimServosArgs) -> Result<(SimConfig, ServeOptions)> {
         burst,
         limits,
     };
-    Ok((config, ServeOptions { place, objects, record: None }))
+    let options = ServeOptions { place, objects, record: None, registers, hardware_errors, echo: args.echo };
+    // What a servo refuses (`moving`), before anything is served.
+    options.set_up(&mut config.build()).map_err(|e| anyhow::anyhow!("--register: {e}"))?;
+    Ok((config, options))
 }
 
 /// Runs a `sim` command. Bad arguments are one `error:` line on `err` and exit code 2.
@@ -398,6 +519,15 @@ fn run_servos(args: SimServosArgs, out: &mut dyn Write, err: &mut dyn Write) -> 
     }
     if let Some(file) = &args.record {
         extras.push_str(&format!(", positions recorded to {} every 2 ms", file.display()));
+    }
+    if !args.register.is_empty() {
+        extras.push_str(&format!(", registers set: {}", args.register.join(" ")));
+    }
+    if !args.hardware_error.is_empty() {
+        extras.push_str(&format!(", hardware errors: {}", args.hardware_error.join(" ")));
+    }
+    if args.echo {
+        extras.push_str(", the adapter echoes what it sends");
     }
     writeln!(
         err,

@@ -107,3 +107,23 @@ impl FaultState {
         Some(byte)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bit_flips_change_one_bit_of_a_byte_at_their_rate() {
+        let mut every = FaultState::new(Faults { bit_flip_rate: 1.0, ..Faults::default() });
+        for b in 0..=255u8 {
+            let flipped = every.on_byte(b).expect("flipped, not lost");
+            assert_eq!((flipped ^ b).count_ones(), 1, "{b:#04x} -> {flipped:#04x}");
+        }
+        assert_eq!(every.stats().flipped, 256);
+        let mut some = FaultState::new(Faults { seed: 7, bit_flip_rate: 0.1, ..Faults::default() });
+        let flipped = (0..10_000).filter(|_| some.on_byte(0x55) != Some(0x55)).count();
+        assert!((800..1200).contains(&flipped), "{flipped} of 10000 at 10 %");
+        let mut none = FaultState::new(Faults::default());
+        assert!((0..1000).all(|_| none.on_byte(0xA5) == Some(0xA5)));
+    }
+}

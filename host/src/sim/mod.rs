@@ -33,7 +33,7 @@ pub use clock::VirtualClock;
 pub use faults::{FaultStats, Faults};
 pub use monitor::{limits_of, GoalLimit, MonitorReport, RealTimeMonitor};
 pub use port::{PortStats, SharedBus, SimPort};
-pub use pty::{arm_bus, serve_arm, so101_bus, HandHandle, PtyServer, ServeOptions, SimConfig};
+pub use pty::{arm_bus, serve_arm, so101_bus, HandHandle, PtyServer, Register, ServeOptions, SimConfig};
 pub use recording::Recorder;
 pub use scene::Scene;
 pub use servo::{Jaw, SimServo};

@@ -24,6 +24,12 @@
 //! the server's first instant, and can record the servos' positions on a grid of real time
 //! ([`super::recording`]): the serving thread writes the grid points up to each wake before it
 //! carries out what woke it, and flushes the file when it stops.
+//!
+//! Faults a first connection meets ([`ServeOptions`]): control-table values set bypassing the bus
+//! rules ([`super::SimServo::set_register`]: a 12 V supply on 7.4 V servos, heat, mixed firmware,
+//! a stale goal...), hardware errors raised from the start, and an adapter that hears its own
+//! transmission ([`ServeOptions::echo`]): every byte the master writes comes back to it before any
+//! reply, as from a half-duplex adapter whose receiver is not gated while it transmits.
 
 use std::collections::VecDeque;
 use std::io::{Read, Write};
@@ -41,7 +47,8 @@ use super::faults::{FaultState, Faults};
 use super::latency::LatencyTimer;
 use super::monitor::{GoalLimit, MonitorReport, RealTimeMonitor};
 use super::recording::Recorder;
-use super::servo::Jaw;
+use super::servo::{Jaw, SimServo};
+use firmware::bus::table::Item;
 
 /// Ticks between a duplicate servo's position and its twin's, so that their replies to a position
 /// read differ and collide visibly (two real servos never stand at the same tick).
@@ -166,11 +173,37 @@ pub struct ServeOptions {
     /// when the server stops. Its columns are the bus's first servos, those of
     /// [`SimConfig::ids`] in order.
     pub record: Option<Recorder>,
+    /// Control-table values set at time 0, after the horns are placed, in order, bypassing the bus
+    /// rules ([`SimServo::set_register`]).
+    pub registers: Vec<Register>,
+    /// Hardware errors raised at time 0, after the registers: (servo, bits), `None` for every
+    /// servo ([`SimServo::set_hardware_error`]: torque goes off and stays off).
+    pub hardware_errors: Vec<(Option<u8>, u8)>,
+    /// The adapter hears its own transmission: every byte from the pty goes back to it first, before
+    /// the replies it causes (and through the latency timer with them, when there is one).
+    pub echo: bool,
+}
+
+/// A control-table value of [`ServeOptions::registers`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Register {
+    /// The servo (twins included), `None` for every servo.
+    pub id: Option<u8>,
+    /// The item.
+    pub item: Item,
+    /// Its value.
+    pub value: i64,
+}
+
+/// The servos `id` names (`None`: all), twins included.
+fn servos_of(bus: &mut SimBus, id: Option<u8>) -> impl Iterator<Item = &mut SimServo> {
+    bus.servos_mut().iter_mut().filter(move |s| id.is_none_or(|id| s.id() == id))
 }
 
 impl ServeOptions {
-    /// Places the horns and puts the objects, at time 0.
-    fn set_up(&self, bus: &mut SimBus) {
+    /// Places the horns and puts the objects, then sets the registers and raises the hardware
+    /// errors, at time 0. Fails with the first register a servo refuses, or one naming no servo.
+    pub fn set_up(&self, bus: &mut SimBus) -> Result<(), String> {
         for &(id, ticks) in &self.place {
             if let Some(servo) = bus.servo_mut(id) {
                 servo.set_position(ticks, 0);
@@ -181,6 +214,22 @@ impl ServeOptions {
                 servo.set_jaw(Some(jaw), 0);
             }
         }
+        for r in &self.registers {
+            let mut found = false;
+            for servo in servos_of(bus, r.id) {
+                found = true;
+                servo.set_register(r.item, r.value, 0).map_err(|e| format!("servo {}: {e}", servo.id()))?;
+            }
+            if let (false, Some(id)) = (found, r.id) {
+                return Err(format!("no servo {id} on this bus"));
+            }
+        }
+        for &(id, bits) in &self.hardware_errors {
+            for servo in servos_of(bus, id) {
+                servo.set_hardware_error(bits, 0);
+            }
+        }
+        Ok(())
     }
 }
 
@@ -211,6 +260,9 @@ impl PtyServer {
         if config.burst.is_some_and(|b| b.is_zero()) {
             return Err(std::io::Error::new(std::io::ErrorKind::InvalidInput, "the burst period must be positive"));
         }
+        // The servos' set-up is tried on a bus of its own first, so that a refused register is an
+        // error here rather than in the serving thread.
+        options.set_up(&mut config.build()).map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidInput, e))?;
         let (mut master, slave) = TTYPort::pair().map_err(std::io::Error::from)?;
         let path = slave.name().ok_or_else(|| std::io::Error::other("the pty has no path"))?;
         // The servos take commands through it: its owner's alone before anyone learns its path.
@@ -229,9 +281,10 @@ impl PtyServer {
             recorder: options.record.take(),
         };
         let thread = std::thread::Builder::new().name("sim-servos".into()).spawn(move || {
-            let outbox = Outbox { timer: config.burst.map(LatencyTimer::new) };
+            let outbox = Outbox { timer: config.burst.map(LatencyTimer::new), echo: options.echo };
             let mut bus = config.build_for_pty();
-            options.set_up(&mut bus);
+            // Tried above on the same bus: it cannot fail here.
+            let _ = options.set_up(&mut bus);
             serve(&mut master, &slave, bus, !config.fixed_baud, control, outbox)
         })?;
         Ok(PtyServer { path, stop, new_faults, hand, monitor, thread: Some(thread) })
@@ -404,6 +457,8 @@ impl Control {
 /// Where replies go: to the master end at once, or through the adapter's latency timer.
 struct Outbox {
     timer: Option<LatencyTimer>,
+    /// Whether the master's own bytes come back to it ([`ServeOptions::echo`]).
+    echo: bool,
 }
 
 impl Outbox {
@@ -503,6 +558,11 @@ fn serve(
         last_rx_ns = now_ns;
         let replies = bus.receive(&buf[..n], now_ns);
         control.observe(&bus, now_ns);
+        if outbox.echo {
+            // The adapter hears what it sent before anything the servos answer.
+            let echo: Vec<WireByte> = buf[..n].iter().map(|&b| (now_ns, b)).collect();
+            outbox.send(master, &echo, now_ns)?;
+        }
         outbox.send(master, &replies, now_ns)?;
     }
     control.finish(&bus, elapsed_ns(start))
@@ -551,5 +611,67 @@ pub fn so101_bus(faults: super::Faults) -> SimConfig {
         fixed_baud: true,
         burst: None,
         limits: None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::io::{Read, Write};
+
+    use firmware::bus::table::{sts3215, STS3215};
+
+    use super::*;
+
+    fn sts(ids: &[u8], duplicates: &[u8]) -> SimConfig {
+        SimConfig {
+            protocol: Protocol::Feetech,
+            model: &STS3215,
+            ids: ids.to_vec(),
+            baud: 1_000_000,
+            faults: Faults::default(),
+            duplicates: duplicates.to_vec(),
+            fixed_baud: false,
+            burst: None,
+            limits: None,
+        }
+    }
+
+    #[test]
+    fn registers_reach_twins_and_all_then_hardware_errors_switch_torque_off() {
+        let config = sts(&[1, 2], &[1]);
+        let register = |id, item, value| Register { id, item, value };
+        let options = ServeOptions {
+            registers: vec![
+                register(Some(1), sts3215::PRESENT_VOLTAGE, 120),
+                register(None, sts3215::TORQUE_ENABLE, 1),
+                register(Some(2), sts3215::PRESENT_TEMPERATURE, 80),
+            ],
+            hardware_errors: vec![(Some(2), 0x04)],
+            ..ServeOptions::default()
+        };
+        let mut bus = config.build();
+        options.set_up(&mut bus).unwrap();
+        let of = |id: u8, item| bus.servos().iter().filter(|s| s.id() == id).map(|s| s.get(item)).collect::<Vec<_>>();
+        assert_eq!(of(1, sts3215::PRESENT_VOLTAGE), [120, 120], "both servos at id 1");
+        assert_eq!(of(2, sts3215::PRESENT_VOLTAGE), [74]);
+        assert_eq!(of(1, sts3215::TORQUE_ENABLE), [1, 1]);
+        assert_eq!(of(2, sts3215::TORQUE_ENABLE), [0], "the hardware error came after and won");
+        let missing = ServeOptions { registers: vec![register(Some(7), sts3215::ID, 3)], ..ServeOptions::default() };
+        assert_eq!(missing.set_up(&mut config.build()), Err("no servo 7 on this bus".to_string()));
+        let refused = ServeOptions { registers: vec![register(None, sts3215::MOVING, 1)], ..ServeOptions::default() };
+        assert!(PtyServer::spawn_with(config, refused).is_err(), "refused before anything is served");
+    }
+
+    #[test]
+    fn an_echoing_adapter_hears_its_bytes_before_the_reply() {
+        let server =
+            PtyServer::spawn_with(sts(&[1], &[]), ServeOptions { echo: true, ..ServeOptions::default() }).unwrap();
+        let mut port = serialport::new(server.path(), 1_000_000).timeout(Duration::from_secs(5)).open().unwrap();
+        let ping = [0xFF, 0xFF, 0x01, 0x02, 0x01, 0xFB];
+        port.write_all(&ping).unwrap();
+        let mut heard = [0u8; 12];
+        port.read_exact(&mut heard).unwrap();
+        assert_eq!(heard, [0xFF, 0xFF, 0x01, 0x02, 0x01, 0xFB, 0xFF, 0xFF, 0x01, 0x02, 0x00, 0xFC]);
+        server.stop().unwrap();
     }
 }

@@ -33,6 +33,25 @@
 //!   steady speed; the present position follows it.
 //! - A servo whose baud item does not match the bus's baud rate hears nothing (after changing it,
 //!   or after a factory reset that restores it).
+//!
+//! [`SimServo::set_register`] sets any item as a fault would leave it (`armctl sim servos
+//! --register`), bypassing the bus rules (read-only items too, EEPROM with torque on):
+//! - readings and versions (the read-only items: voltage, temperature, firmware version, model
+//!   number, load) stay as set: the simulation never recomputes them (except the load of a
+//!   gripper's servo closing on an object), and a reboot or factory reset keeps them, as a supply,
+//!   a heat or a firmware outlives a restart. The ping's reply carries the model number and
+//!   firmware version of the table;
+//! - the present position places the horn where the servo reports that value (as a hand would;
+//!   the goal follows, so a torqued servo holds it there); `moving` is the servo's own and cannot
+//!   be set;
+//! - the hardware error status raises that hardware error ([`SimServo::set_hardware_error`]);
+//! - a goal position with torque off moves nothing (a stale goal); torque enable 1 switches torque
+//!   on without the bus write's side effect (goal := present position): the servo then drives to
+//!   the goal its register holds, as a real one whose torque is on does, whichever of the two was
+//!   set first; torque enable 0 stops it where it is. A servo with a hardware error keeps torque
+//!   off (its protection);
+//! - every other item takes the value as stored: a reboot brings RAM items back to their factory
+//!   values and keeps EEPROM ones, as on the real servo.
 
 use firmware::bus::table::{xseries, Access, Item, Model};
 use firmware::bus::{Instruction, Protocol};
@@ -90,6 +109,8 @@ pub struct SimServo {
     /// When the present position was last read (a read, sync read, bulk read or fast sync read
     /// covering it), virtual ns.
     position_read_ns: Option<u64>,
+    /// Read-only items set by [`SimServo::set_register`], kept through reboots and factory resets.
+    pinned: Vec<(Item, i64)>,
 }
 
 /// An object between a gripper's jaws: the horn cannot pass `contact` going toward `closed`, and
@@ -153,6 +174,7 @@ impl SimServo {
             last_goal_corrupted: false,
             jaw: None,
             position_read_ns: None,
+            pinned: Vec::new(),
         };
         servo.set(model.items.id, i64::from(id));
         if let Some(index) = model.baud_index(baud) {
@@ -433,8 +455,10 @@ impl SimServo {
     pub fn ping_params(&self) -> Vec<u8> {
         match self.model.protocol {
             Protocol::Dxl2 => {
-                let [lo, hi] = self.model.number.to_le_bytes();
-                vec![lo, hi, self.model.firmware]
+                // The table's, which a `--register` may have changed.
+                let number = u16::try_from(self.get(self.model.items.model_number)).unwrap_or(self.model.number);
+                let [lo, hi] = number.to_le_bytes();
+                vec![lo, hi, u8::try_from(self.get(self.model.items.firmware)).unwrap_or(self.model.firmware)]
             }
             Protocol::Feetech => Vec::new(),
         }
@@ -607,6 +631,7 @@ impl SimServo {
         self.table = table;
         self.registered = None;
         self.clear_hardware_error();
+        self.reapply_pinned();
         self.set_position(actual, t_ns);
     }
 
@@ -626,7 +651,66 @@ impl SimServo {
         }
         self.registered = None;
         self.clear_hardware_error();
+        self.reapply_pinned();
         self.set_position(actual, t_ns);
+    }
+
+    fn reapply_pinned(&mut self) {
+        for (item, value) in self.pinned.clone() {
+            self.set(item, value);
+        }
+    }
+
+    /// Sets `item` to `value` at `t_ns` as a fault or a past would leave it, bypassing the bus
+    /// rules (the module doc says what each kind of item does). Refused, with the reason, when the
+    /// value does not fit the item, the item lies outside the table, or it is `moving`.
+    pub fn set_register(&mut self, item: Item, value: i64, t_ns: u64) -> Result<(), String> {
+        let model = self.model;
+        let items = model.items;
+        if usize::from(item.address) + item.len() > self.table.len() {
+            return Err(format!("{} has no {} in its table", model.name, item.name));
+        }
+        let mut bytes = [0u8; 4];
+        if let Err(e) = item.encode(value, model.endian, &mut bytes) {
+            let (lo, hi) = item.range();
+            return Err(format!("{e} (it holds {lo} to {hi})"));
+        }
+        if item == items.moving {
+            return Err("moving is the servo's own (1 while its profile runs): it cannot be set".to_string());
+        }
+        self.update(t_ns);
+        if item == items.present_position {
+            // The horn where the servo reports `value`, the goal with it.
+            let actual = match model.protocol {
+                Protocol::Feetech => value + self.homing_offset(),
+                Protocol::Dxl2 => value - self.homing_offset(),
+            };
+            self.set_position(actual, t_ns);
+            return Ok(());
+        }
+        if Some(item) == items.hardware_error {
+            self.set_hardware_error(value as u8, t_ns);
+            return Ok(());
+        }
+        let was_on = self.torque();
+        self.set(item, value);
+        if item.access == Access::Read {
+            self.pinned.retain(|(pinned, _)| pinned.address != item.address);
+            self.pinned.push((item, value));
+        }
+        let on = self.torque();
+        if on && self.status_error(0) != 0 {
+            // Protection holds torque off until the fault is cleared.
+            self.set(items.torque_enable, 0);
+        } else if was_on && !on {
+            self.set(items.torque_enable, 1);
+            self.torque_off(t_ns);
+        } else if on && (item == items.torque_enable || item == items.goal_position) {
+            self.start_move(t_ns);
+        }
+        // A new offset or operating mode changes what the servo reports at once.
+        self.update(t_ns);
+        Ok(())
     }
 }
 
@@ -768,5 +852,65 @@ mod tests {
         s.execute(&Instruction::Read { address: 56, length: 2 }, end).unwrap();
         s.note_read(40, 1, end + 5);
         assert_eq!(s.position_read_ns(), Some(end), "a read of another item does not count");
+    }
+
+    #[test]
+    fn registers_set_readings_that_stay_through_ticks_and_reboots() {
+        let mut s = SimServo::new(&STS3215, 1, 1_000_000);
+        s.set_register(sts3215::PRESENT_VOLTAGE, 120, T0).unwrap();
+        s.set_register(sts3215::PRESENT_TEMPERATURE, 75, T0).unwrap();
+        s.set_register(sts3215::FIRMWARE_MINOR_VERSION, 9, T0).unwrap();
+        s.set_register(sts3215::RETURN_DELAY_TIME, 0, T0).unwrap();
+        s.update(1_000_000_000);
+        assert_eq!((s.get(sts3215::PRESENT_VOLTAGE), s.get(sts3215::PRESENT_TEMPERATURE)), (120, 75));
+        s.reboot(2_000_000_000);
+        assert_eq!(s.get(sts3215::PRESENT_VOLTAGE), 120, "a 12 V supply outlives a reboot");
+        assert_eq!(s.get(sts3215::FIRMWARE_MINOR_VERSION), 9);
+        assert_eq!(s.get(sts3215::RETURN_DELAY_TIME), 0, "EEPROM kept by a reboot");
+        s.factory_reset(0xFF, 3_000_000_000);
+        assert_eq!((s.get(sts3215::PRESENT_TEMPERATURE), s.get(sts3215::RETURN_DELAY_TIME)), (75, 250));
+        // Dynamixel's ping carries the table's model number and firmware.
+        let mut d = SimServo::new(&XL430_W250, 1, 57_600);
+        d.set_register(xseries::FIRMWARE_VERSION, 38, T0).unwrap();
+        d.set_register(xseries::MODEL_NUMBER, 1020, T0).unwrap();
+        assert_eq!(d.ping_params(), [0xFC, 0x03, 38]);
+    }
+
+    #[test]
+    fn a_registered_goal_moves_nothing_until_torque_comes_on_and_then_is_driven_to() {
+        let mut s = SimServo::new(&STS3215, 1, 1_000_000);
+        s.set_register(sts3215::GOAL_POSITION, 100, T0).unwrap();
+        assert_eq!((present(&mut s, 1_000_000_000), s.get(sts3215::GOAL_POSITION)), (2048, 100), "a stale goal");
+        assert_eq!(s.goal_writes(), 0, "not a write from the bus");
+        // Torque on by register: no goal := present, the servo drives to its goal.
+        s.set_register(sts3215::TORQUE_ENABLE, 1, 1_000_000_000).unwrap();
+        let end = s.move_end_ns().expect("driving to the stale goal");
+        assert_eq!((present(&mut s, end), s.get(sts3215::GOAL_POSITION)), (100, 100));
+        // The other order gives the same: torque first, then the goal.
+        let mut s = SimServo::new(&XL430_W250, 1, 57_600);
+        s.set_register(xseries::TORQUE_ENABLE, 1, T0).unwrap();
+        assert!(s.move_end_ns().is_none(), "holding: its goal is where it stands");
+        s.set_register(xseries::GOAL_POSITION, 3000, T0).unwrap();
+        let end = s.move_end_ns().expect("moving");
+        assert_eq!(present(&mut s, end), 3000);
+        s.set_register(xseries::TORQUE_ENABLE, 0, end).unwrap();
+        assert!(!s.torque());
+    }
+
+    #[test]
+    fn registers_place_horns_raise_errors_and_refuse_what_they_cannot_set() {
+        let mut s = SimServo::new(&XL430_W250, 1, 57_600);
+        s.set_register(xseries::HOMING_OFFSET, 100, T0).unwrap();
+        s.set_register(xseries::PRESENT_POSITION, 1000, T0).unwrap();
+        assert_eq!((present(&mut s, T0), s.actual_position(T0)), (1000, 900.0), "the horn placed where it reads 1000");
+        s.set_register(xseries::HARDWARE_ERROR_STATUS, 0x04, T0).unwrap();
+        assert_eq!(s.status_error(0), ALERT);
+        s.set_register(xseries::TORQUE_ENABLE, 1, T0).unwrap();
+        assert!(!s.torque(), "protection keeps torque off");
+        assert!(s.set_register(xseries::MOVING, 1, T0).unwrap_err().contains("cannot be set"));
+        let err = s.set_register(xseries::STATUS_RETURN_LEVEL, 256, T0).unwrap_err();
+        assert_eq!(err, "256 does not fit status_return_level (it holds 0 to 255)");
+        let err = SimServo::new(&STS3215, 1, 1_000_000).set_register(xseries::PRESENT_POSITION, 0, T0).unwrap_err();
+        assert!(err.contains("STS3215 has no present_position"), "{err}");
     }
 }
