@@ -11,7 +11,13 @@
 //! loaded (acquire), then frees them by moving `tail` (release). Every slot is an atomic byte, so
 //! no `unsafe` is needed; on the Cortex-M4 these are plain loads and stores. A byte that finds the
 //! ring full is dropped and counted: the link's frame check then sees a damaged frame, which the
-//! host sends again.
+//! host sends again. The interrupt also counts the UART's receive overruns here ([`RxRing::overrun`]),
+//! bytes the hardware lost before the ring saw them, so that both losses reach the firmware's
+//! status (`errors.link_dropped`, `errors.link_overruns`) through the main loop.
+//!
+//! Both counters are `u32` and wrap (the producer adds with `wrapping_add`): at 1 Mbps a host
+//! flooding a full ring for 12 hours makes 2^32 drops; a host comparing two statuses takes the
+//! difference with `wrapping_sub`.
 //!
 //! # Panics
 //! Nothing here panics: indices are reduced modulo the capacity before use.
@@ -27,6 +33,8 @@ pub struct RxRing<const N: usize> {
     tail: AtomicUsize,
     /// Bytes dropped because the ring was full.
     dropped: AtomicU32,
+    /// Receive overruns the UART reported (each lost at least one byte before the ring).
+    overruns: AtomicU32,
 }
 
 impl<const N: usize> Default for RxRing<N> {
@@ -40,7 +48,13 @@ impl<const N: usize> RxRing<N> {
     pub const fn new() -> Self {
         #[allow(clippy::declare_interior_mutable_const)]
         const EMPTY: AtomicU8 = AtomicU8::new(0);
-        Self { slots: [EMPTY; N], head: AtomicUsize::new(0), tail: AtomicUsize::new(0), dropped: AtomicU32::new(0) }
+        Self {
+            slots: [EMPTY; N],
+            head: AtomicUsize::new(0),
+            tail: AtomicUsize::new(0),
+            dropped: AtomicU32::new(0),
+            overruns: AtomicU32::new(0),
+        }
     }
 
     /// The slot after `i`.
@@ -98,6 +112,19 @@ impl<const N: usize> RxRing<N> {
     pub fn dropped(&self) -> u32 {
         self.dropped.load(Ordering::Relaxed)
     }
+
+    /// Producer side (the receive interrupt): counts one receive overrun of the UART, a byte (or
+    /// more) that came while the UART still held the one before, and was lost there.
+    pub fn overrun(&self) {
+        // As in `push`: only the producer writes the counter.
+        let overruns = self.overruns.load(Ordering::Relaxed);
+        self.overruns.store(overruns.wrapping_add(1), Ordering::Relaxed);
+    }
+
+    /// Receive overruns counted so far ([`RxRing::overrun`]).
+    pub fn overruns(&self) -> u32 {
+        self.overruns.load(Ordering::Relaxed)
+    }
 }
 
 #[cfg(test)]
@@ -137,6 +164,23 @@ mod tests {
         assert_eq!(ring.pop_into(&mut out), 0);
         assert!(ring.push(5));
         assert_eq!((ring.pop_into(&mut out), out[0]), (1, 5));
+    }
+
+    /// A burst of 1,000 bytes into a ring that holds 511 before the consumer reads: the first 511
+    /// are kept in order, the other 489 dropped and counted one by one; overruns are counted apart.
+    #[test]
+    fn a_burst_beyond_the_ring_counts_every_dropped_byte() {
+        let ring = RxRing::<512>::new();
+        let kept = (0..1_000u32).filter(|&i| ring.push(i as u8)).count();
+        assert_eq!((kept, ring.dropped(), ring.overruns()), (511, 489, 0));
+        let mut out = [0u8; 1_000];
+        assert_eq!(ring.pop_into(&mut out), 511);
+        assert!(out[..511].iter().enumerate().all(|(i, &b)| b == i as u8));
+        // Room again: the next bytes are kept, and the count stays.
+        assert!(ring.push(7));
+        ring.overrun();
+        ring.overrun();
+        assert_eq!((ring.dropped(), ring.overruns()), (489, 2));
     }
 
     #[test]

@@ -38,7 +38,7 @@ unsafe impl InterruptNumber for Irq {
 pub fn enable_link_receive(link: &mut Uart) {
     link.enable_rx_interrupt();
     // SAFETY: the handler (`DefaultHandler` below) only reads UART0's received bytes into the
-    // lock-free ring and clears the UART's interrupt flag; the main loop touches neither the
+    // lock-free ring and clears the UART's interrupt and overrun flags; the main loop touches neither the
     // receive side of UART0 nor the ring's producer side, so taking the interrupt cannot break a
     // critical section of the main loop.
     unsafe { NVIC::unmask(Irq::Uart0Rx) };
@@ -50,8 +50,12 @@ pub fn enable_link_receive(link: &mut Uart) {
 unsafe fn DefaultHandler(irqn: i16) {
     if irqn == Irq::Uart0Rx as i16 {
         Uart::clear_rx_interrupt(UART0);
-        Uart::drain_rx(UART0, |byte| {
-            LINK_RX.push(byte);
-        });
+        Uart::drain_rx(
+            UART0,
+            |byte| {
+                LINK_RX.push(byte);
+            },
+            || LINK_RX.overrun(),
+        );
     }
 }

@@ -1,6 +1,6 @@
 //! The CMSDK APB UART of the MPS2 boards (Arm's "Cortex-M System Design Kit" UART), as an
 //! `embedded-io` serial port. Registers: DATA (0x00), STATE (0x04: bit 0 TX buffer full, bit 1 RX
-//! buffer full), CTRL (0x08: bit 0 TX enable, bit 1 RX enable, bit 3 RX interrupt enable),
+//! buffer full, bit 3 RX overrun, write 1 to clear), CTRL (0x08: bit 0 TX enable, bit 1 RX enable, bit 3 RX interrupt enable),
 //! INTSTATUS/INTCLEAR (0x0C: bit 1 RX), BAUDDIV (0x10).
 
 use core::ptr::{read_volatile, write_volatile};
@@ -14,6 +14,7 @@ const INTCLEAR: usize = 0x0C;
 const BAUDDIV: usize = 0x10;
 const TX_FULL: u32 = 1 << 0;
 const RX_FULL: u32 = 1 << 1;
+const RX_OVERRUN: u32 = 1 << 3;
 const ENABLE_TX_RX: u32 = 0b11;
 const RX_INTERRUPT: u32 = 1 << 3;
 
@@ -54,10 +55,25 @@ impl Uart {
         Self { base, clock_hz: 0 }.write_reg(INTCLEAR, RX_FULL);
     }
 
-    /// Hands every byte the UART at `base` holds to `keep` (from its receive interrupt).
-    pub fn drain_rx(base: usize, mut keep: impl FnMut(u8)) {
+    /// Hands every byte the UART at `base` holds to `keep`, and each receive overrun it reports to
+    /// `overrun` (from its receive interrupt).
+    ///
+    /// An overrun (STATE bit 3) is a byte that came while DATA still held one, so one of the two
+    /// is lost. It happens only while the receive interrupt is pending or this handler runs (the
+    /// byte in DATA raised it, and the lost byte raises it again), so the loop sees every one,
+    /// and clears it (write 1). QEMU's model never overruns: it holds a byte back until DATA has
+    /// been read.
+    pub fn drain_rx(base: usize, mut keep: impl FnMut(u8), mut overrun: impl FnMut()) {
         let uart = Self { base, clock_hz: 0 };
-        while uart.rx_ready() {
+        loop {
+            let state = uart.read_reg(STATE);
+            if state & RX_OVERRUN != 0 {
+                uart.write_reg(STATE, RX_OVERRUN);
+                overrun();
+            }
+            if state & RX_FULL == 0 {
+                break;
+            }
             keep(uart.read_reg(DATA) as u8);
         }
     }
@@ -69,7 +85,7 @@ impl Uart {
     }
 
     fn write_reg(&self, offset: usize, value: u32) {
-        // SAFETY: as in `read_reg`; the registers written (DATA, CTRL, INTCLEAR, BAUDDIV) have no
+        // SAFETY: as in `read_reg`; the registers written (DATA, STATE, CTRL, INTCLEAR, BAUDDIV) have no
         // effect beyond this UART.
         unsafe { write_volatile((self.base + offset) as *mut u32, value) }
     }

@@ -33,6 +33,11 @@ fn USART1() {
         if sr.rxne().bit_is_clear() && sr.ore().bit_is_clear() {
             break;
         }
+        // ORE: a byte came while RXNE was still set, and the shift register's byte (at least one)
+        // was lost (RM0383 §19.6.1, USART_SR). Counted for the status; the DR read below clears it.
+        if sr.ore().bit_is_set() {
+            LINK_RX.overrun();
+        }
         let byte = usart.dr().read().dr().bits() as u8;
         // After an overrun DR still holds the byte before the lost one; a byte with a framing,
         // noise or parity error is dropped. Either way the link's frame check sees the gap and the
