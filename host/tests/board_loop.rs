@@ -219,3 +219,117 @@ fn an_arm_sent_over_the_link_switches_the_bus_and_uses_four_of_six_joints() {
 fn main_bus(bus: &armctl::sim::SharedBus) -> u32 {
     bus.borrow().baud()
 }
+
+type BoardApp = Firmware<{ firmware::board::JOINTS }, 32>;
+type SimMaster = Master<armctl::sim::SimPort, NoDirectionPin, armctl::sim::VirtualClock>;
+
+/// The boards' build with the built-in SO-101 on simulated servos, for the tests below.
+fn board_app() -> (BoardApp, SimMaster, armctl::sim::VirtualClock) {
+    let bus = SimBus::new(STS3215.protocol, &STS3215, &[1, 2, 3, 4, 5, 6], BAUD);
+    let (_bus, port, clock) = connect(bus);
+    let config = BusConfig::new(STS3215.protocol, BAUD);
+    let master = Master::new(port, NoDirectionPin, clock.clone(), config);
+    let board = Board { bus: config, model: &STS3215, control: Config::default(), max_bus_baud: u32::MAX };
+    let app = Firmware::new(board, Some(&firmware::builtin::SO101)).unwrap();
+    (app, master, clock)
+}
+
+/// The host sends 100 pings (700 bytes) while the loop is away, into the boards' 512-byte ring:
+/// 511 are kept, 189 dropped. After the loop has drained the ring, a status read through the same
+/// ring reports those 189 drops, and the UART overruns its receive interrupt counted (three,
+/// counted here as an interrupt would). Telemetry carries them too.
+#[test]
+fn the_status_reports_the_bytes_the_ring_dropped_and_the_uart_overruns() {
+    use firmware::link::message::Status;
+    let (mut app, mut master, clock) = board_app();
+    static RING: RxRing<512> = RxRing::new();
+    let mut main = MainLoop::new(&mut app, &mut master, &RING);
+    fn status(
+        main: &mut MainLoop<
+            '_,
+            { firmware::board::JOINTS },
+            32,
+            512,
+            armctl::sim::SimPort,
+            NoDirectionPin,
+            armctl::sim::VirtualClock,
+            256,
+        >,
+        seq: u8,
+    ) -> Status {
+        match send(main, &RING, &[HostMessage::GetStatus], seq).remove(0) {
+            FirmwareMessage::Status(s) => s,
+            other => panic!("{other:?}"),
+        }
+    }
+    let before = status(&mut main, 1);
+    assert_eq!((before.errors.link_dropped, before.errors.link_overruns), (0, 0));
+
+    let flood = pings(100);
+    assert_eq!(flood.len(), 700);
+    let kept = flood.iter().filter(|&&b| RING.push(b)).count();
+    assert_eq!((kept, RING.dropped()), (511, 189));
+    for _ in 0..3 {
+        RING.overrun();
+    }
+    let mut tx = Vec::new();
+    while !RING.is_empty() {
+        main.poll(&mut tx);
+    }
+    // The ring kept the first 73 pings whole (511 bytes), and the rest went.
+    assert_eq!(replies(&tx).len(), 511 / 7);
+
+    let after = status(&mut main, 120);
+    assert_eq!((after.errors.link_dropped, after.errors.link_overruns), (189, 3), "{:?}", after.errors);
+    // Telemetry, the status the firmware sends unasked, carries them as well.
+    let _ = send(&mut main, &RING, &[HostMessage::SetTelemetry { rate_hz: 100 }], 121);
+    let mut tx = Vec::new();
+    for _ in 0..3 {
+        let next = main.poll(&mut tx);
+        clock.advance_to(next * 1_000);
+    }
+    let mut decoder = FrameDecoder::<MAX_ENCODED>::new();
+    let mut telemetry = Vec::new();
+    for &b in &tx {
+        if let Some(Ok(frame)) = decoder.push(b) {
+            if frame.kind == FrameKind::Event {
+                telemetry.push(decode_payload::<FirmwareMessage>(frame.payload).unwrap());
+            }
+        }
+    }
+    assert!(
+        telemetry.iter().any(
+            |m| matches!(m, FirmwareMessage::Telemetry(s) if (s.errors.link_dropped, s.errors.link_overruns) == (189, 3))
+        ),
+        "{telemetry:?}"
+    );
+}
+
+/// A host that never pauses cannot hold the control tick back: with 300 pings (2,100 bytes)
+/// waiting, a pass whose tick is due takes [`DRAIN_PER_PASS`] bytes (73 whole pings), then ticks;
+/// the rest follow on the next passes. Without the bound the pass would answer all 300 first.
+#[test]
+fn a_pass_takes_at_most_its_bound_of_bytes_then_ticks() {
+    use firmware::board::main_loop::DRAIN_PER_PASS;
+    let (mut app, mut master, clock) = board_app();
+    static RING: RxRing<4096> = RxRing::new();
+    let mut main = MainLoop::new(&mut app, &mut master, &RING);
+    let mut tx = Vec::new();
+    let due = main.poll(&mut tx);
+    assert!(tx.is_empty());
+    clock.advance_to(due * 1_000);
+
+    let flood = pings(300);
+    assert!(flood.iter().all(|&b| RING.push(b)));
+    let next = main.poll(&mut tx);
+    assert_eq!(replies(&tx).len(), DRAIN_PER_PASS / 7, "one pass answers the pings in its bound");
+    assert!(next >= due + 10_000, "the tick due at {due} µs ran in that pass (next due {next} µs)");
+    let mut passes = 1;
+    while !RING.is_empty() {
+        main.poll(&mut tx);
+        passes += 1;
+    }
+    assert_eq!(passes, flood.len().div_ceil(DRAIN_PER_PASS));
+    let seqs: Vec<u8> = replies(&tx).iter().map(|(s, _)| *s).collect();
+    assert_eq!(seqs, (1..=300).map(|s| s as u8).collect::<Vec<u8>>(), "every ping answered, in order");
+}

@@ -77,11 +77,18 @@ fn status_reports_the_controller() {
     assert_eq!(numbers(&v["measured"]).len(), 5);
     assert_eq!(numbers(&v["tool"]).len(), 3);
     assert!(v["free_slots"].as_u64().unwrap() > 0, "{v}");
+    // The core in this process has no receive ring or UART: nothing dropped, honestly 0.
+    assert_eq!(
+        (v["errors"]["link_dropped"].as_u64(), v["errors"]["link_overruns"].as_u64()),
+        (Some(0), Some(0)),
+        "{v}"
+    );
     let run = armctl(&["--sim", "status"]);
     assert_eq!(run.code, 0, "{}", run.stderr);
-    for field in ["state", "measured", "setpoints", "queue", "ik", "loop", "errors"] {
+    for field in ["state", "measured", "setpoints", "queue", "ik", "loop", "errors", "link rx"] {
         assert!(run.stdout.lines().any(|l| l.starts_with(field)), "no {field} line in {}", run.stdout);
     }
+    assert!(run.stdout.contains("link rx    0 bytes dropped (receive ring full), 0 UART overruns"), "{}", run.stdout);
 }
 
 #[test]

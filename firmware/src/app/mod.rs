@@ -46,6 +46,19 @@ pub struct Board {
     pub max_bus_baud: u32,
 }
 
+/// What a board's link receive path lost before the firmware saw the bytes: the receive ring's
+/// drops and the UART's overruns ([`crate::board::RxRing`]), as its counters read. The board's main
+/// loop hands them over on every pass ([`Firmware::set_receive_loss`]); the status reports them
+/// (`errors.link_dropped`, `errors.link_overruns`). Where the core runs without such a ring (SIL,
+/// a PC) nothing sets them and they stay 0.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ReceiveLoss {
+    /// Bytes the ring dropped because it was full.
+    pub dropped: u32,
+    /// Receive overruns of the UART.
+    pub overruns: u32,
+}
+
 /// The arm in use: its name and digest ([`ArmSetup::digest`]). Its controller is
 /// [`Core::controller`], which stays in place from one arm to the next.
 #[derive(Clone, Debug)]
@@ -74,6 +87,8 @@ struct Core<const N: usize, const Q: usize> {
     /// Telemetry period (µs) and when the next frame is due.
     telemetry: Option<(u64, u64)>,
     loops: LoopStats,
+    /// The board's link receive losses, as its main loop last set them.
+    receive_loss: ReceiveLoss,
 }
 
 impl<const N: usize, const Q: usize> Core<N, Q> {
@@ -104,6 +119,7 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
             staging: Staging::new(),
             telemetry: None,
             loops: LoopStats::default(),
+            receive_loss: ReceiveLoss::default(),
         } in place {
             controller: Controller::blank(board.model, board.control)
                 => |controller| Controller::blank_at(controller, board.model, board.control),
@@ -226,6 +242,12 @@ impl<const N: usize, const Q: usize> Firmware<N, Q> {
     /// The frame decoder's counters.
     pub fn frame_stats(&self) -> crate::link::frame::FrameStats {
         self.decoder.stats()
+    }
+
+    /// What the board's link receive path has lost so far (its counters, which wrap), for the
+    /// status to report; the board's main loop sets it before handing over received bytes.
+    pub fn set_receive_loss(&mut self, loss: ReceiveLoss) {
+        self.core.receive_loss = loss;
     }
 
     /// A stop from the board itself rather than the host (a stop button; on a PC, the signal that

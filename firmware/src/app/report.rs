@@ -79,6 +79,8 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
             link_corrupt: link.corrupt,
             link_oversized: link.oversized,
             naks: link.naks,
+            link_dropped: self.receive_loss.dropped,
+            link_overruns: self.receive_loss.overruns,
             ..ErrorCounters::default()
         };
         let Some(c) = self.running() else {

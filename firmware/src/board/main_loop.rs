@@ -14,11 +14,28 @@ use embedded_io::{Read, ReadReady, Write};
 
 use super::rx_ring::RxRing;
 use super::BusPort;
-use crate::app::Firmware;
+use crate::app::{Firmware, ReceiveLoss};
 use crate::bus::master::{Clock, Master};
 
 /// Bytes handed to the firmware at a time.
 const CHUNK: usize = 64;
+
+/// The most received bytes one pass hands to the firmware before it turns to the control tick, so
+/// that a host that never pauses (a flood, a runaway script) cannot hold the tick back for ever.
+///
+/// Why 512. At 1 Mbps a byte takes 10 bit times (8N1), 10 µs: 100 bytes a millisecond, 1,000 in
+/// the 10 ms control period. While a byte waits, the board does not sleep between passes (see
+/// [`MainLoop::run`]), so the bound does not slow the drain; it decides how much can pile up behind
+/// a tick that is due. A pass is away from the ring longest while it ticks: a bus cycle, up to
+/// 3.5 ms with a servo missing, in which 350 bytes come; a pass takes more than that, as much as
+/// the boards' ring holds (511, 5.1 ms of line), so what came during a tick is all taken before
+/// the next tick, and the tick's pass and one other take more than the 1,000 bytes a period
+/// brings: the loop keeps up with a host sending at 1 Mbps without a pause. A flood delays a due
+/// tick by at most 512 bytes' work: about 5 ms when each request is answered by a reply of about
+/// its length (sent at the same 1 Mbps), about 77 ms at worst, when every request is a 7-byte
+/// `GetStatus` answered by a 105-byte status (5 joints and the gripper: 73 of them); the F411's
+/// watchdog allows 150 ms.
+pub const DRAIN_PER_PASS: usize = 512;
 
 /// The firmware, its bus master and its link's received bytes, on one schedule.
 pub struct MainLoop<'a, const N: usize, const Q: usize, const R: usize, P, D, C, const BUF: usize> {
@@ -41,11 +58,14 @@ where
         Self { app, master, rx, next_tick }
     }
 
-    /// One pass: every byte waiting goes to the firmware (replies to `tx`), then the tick if it is
-    /// due. Returns when the next tick is due (µs), for the board to sleep until then.
+    /// One pass: the bytes waiting go to the firmware (replies to `tx`), at most
+    /// [`DRAIN_PER_PASS`] of them, then the tick if it is due. Returns when the next tick is due
+    /// (µs), for the board to sleep until then (unless bytes still wait).
     pub fn poll<W: Write>(&mut self, tx: &mut W) -> u64 {
+        // What the ring and the UART have lost up to now, for a status asked for below.
+        self.app.set_receive_loss(ReceiveLoss { dropped: self.rx.dropped(), overruns: self.rx.overruns() });
         let mut chunk = [0u8; CHUNK];
-        loop {
+        for _ in 0..DRAIN_PER_PASS / CHUNK {
             let n = self.rx.pop_into(&mut chunk);
             if n == 0 {
                 break;

@@ -17,7 +17,7 @@ use heapless::{String, Vec};
 use serde::{Deserialize, Serialize};
 
 /// The protocol version carried by the handshake; bumped on any change to the wire format.
-pub const PROTOCOL_VERSION: u16 = 5;
+pub const PROTOCOL_VERSION: u16 = 6;
 /// The most joints a message carries.
 pub const MAX_JOINTS: usize = 8;
 /// The longest arm name, in bytes of UTF-8.
@@ -416,6 +416,14 @@ pub struct ErrorCounters {
     /// Cartesian moves whose straight line ran into the joint limits, finished by a joint-space
     /// move to the solution found before moving.
     pub line_fallbacks: u32,
+    // Added in protocol version 6.
+    /// Bytes from the host that a board dropped because its link receive ring was full (the
+    /// main loop fell behind the line). Wraps at 2^32. 0 where the core runs on a PC: its link
+    /// has no such ring.
+    pub link_dropped: u32,
+    /// Receive overruns of a board's link UART: bytes lost in the UART because its receive
+    /// interrupt came too late (each overrun loses at least one). Wraps at 2^32. 0 on a PC.
+    pub link_overruns: u32,
 }
 
 /// A snapshot of the controller.

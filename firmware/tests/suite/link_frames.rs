@@ -103,6 +103,8 @@ fn status(n: usize) -> Status {
             watchdog_trips: u32::MAX,
             ik_failures: u32::MAX,
             line_fallbacks: u32::MAX,
+            link_dropped: u32::MAX,
+            link_overruns: u32::MAX,
         },
         lost_servos: u32::MAX,
         gripper: Some(GripperStatus { opening: 41.5, goal: 0.0, load: -35.2, holding: true }),
@@ -244,6 +246,22 @@ fn every_message_round_trips_within_a_frame() {
         round_trip(200 + i as u8, FrameKind::Reply, m);
         round_trip(i as u8, FrameKind::Event, m);
     }
+}
+
+/// The largest status (8 joints, the gripper, every counter at u32::MAX, the link's receive
+/// losses of protocol 6 included) fits a frame, and the margin is printed.
+#[test]
+fn the_largest_status_fits_a_frame() {
+    let largest = FirmwareMessage::Telemetry(status(MAX_JOINTS));
+    let mut buf = [0u8; MAX_PAYLOAD];
+    let payload = postcard::to_slice(&largest, &mut buf).unwrap().len();
+    let wire = round_trip(255, FrameKind::Event, &largest);
+    assert_eq!(wire, payload + OVERHEAD);
+    assert!(wire <= MAX_FRAME);
+    let mut five = status(5);
+    five.errors = ErrorCounters::default();
+    let typical = round_trip(1, FrameKind::Reply, &FirmwareMessage::Status(five));
+    println!("largest status: payload {payload} of {MAX_PAYLOAD} bytes, frame {wire} of {MAX_FRAME}; 5 joints, counters 0: frame {typical}");
 }
 
 /// The figure for the report: a 6-joint keyframe push with velocities.

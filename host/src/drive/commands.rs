@@ -384,5 +384,12 @@ pub fn print_status(driver: &Driver, s: &Status, json: bool, out: &mut dyn Write
         "errors     link corrupt {}, oversized {}, naks {}, bus timeouts {}, bus errors {}, underruns {}",
         e.link_corrupt, e.link_oversized, e.naks, e.bus_timeouts, e.bus_errors, e.underruns
     )?;
+    // Bytes lost before the firmware could read them: a board's receive ring full, its UART
+    // overrun (0 where the core runs on this PC).
+    writeln!(
+        out,
+        "link rx    {} bytes dropped (receive ring full), {} UART overruns",
+        e.link_dropped, e.link_overruns
+    )?;
     Ok(())
 }
