@@ -24,8 +24,9 @@ use core::mem::MaybeUninit;
 use core::ptr::addr_of_mut;
 use core::sync::atomic::{AtomicBool, Ordering};
 
-use cortex_m_rt::entry;
+use cortex_m_rt::{entry, exception, ExceptionFrame};
 use firmware::app::{Board, Firmware};
+use firmware::board::reset::{ResetCause, ResetFlags, TorqueAfterReset};
 use firmware::board::MainLoop;
 use firmware::bus::master::{BusConfig, Master};
 use firmware::bus::table::STS3215;
@@ -67,6 +68,12 @@ static STARTED: AtomicBool = AtomicBool::new(false);
 /// chip: fifteen control periods, far above a tick's few milliseconds.
 const WATCHDOG_MS: u32 = 150;
 
+/// The crystal's start-up time is 2 ms typical (DS10314, HSE 4-26 MHz oscillator
+/// characteristics); RCC_CR.HSERDY is polled once a millisecond for this many milliseconds.
+const HSE_WAIT_MS: u32 = 100;
+/// Cycles of a millisecond on the 16 MHz internal oscillator the chip starts on.
+const HSI_CYCLES_PER_MS: u32 = 16_000;
+
 /// Logs why start-up stopped (the host then sees no handshake) and gives up.
 fn refused<T>(what: &str) -> Option<T> {
     defmt::error!("start-up stopped: {=str}", what);
@@ -88,15 +95,30 @@ fn start() -> Option<(&'static mut App, &'static mut BusMaster, Link, Independen
         return refused("started twice");
     }
     let Some(dp) = pac::Peripherals::take() else { return refused("peripherals taken") };
-    // Was the last reset the watchdog's? Read before anything else, then clear the flags
-    // (RCC_CSR: IWDGRSTF is `wdgrstf` in the device crate; RMVF clears them all).
-    let watchdog_reset = dp.RCC.csr().read().wdgrstf().bit_is_set();
-    dp.RCC.csr().modify(|_, w| w.rmvf().set_bit());
+    // Why the chip was reset decides the servos' torque (firmware::board::reset). Read before
+    // anything else, then cleared (RMVF), so that the next reset's flags are its own.
+    let cause = reset_cause(&dp.RCC);
+    log_reset(cause);
     // 25 MHz crystal, PLL to 84 MHz: the most the F411 runs at in power scale 2 (RM0383 §5.1.3,
     // PWR_CR.VOS), where it comes out of reset and where the HAL leaves it (96 MHz would need
     // scale 1 set before the PLL starts). USART1 (APB2, 84 MHz: USARTDIV 5.25) and USART2 (APB1,
     // 42 MHz: USARTDIV 2.625) both divide exactly to 1 Mbps, and TIM2's 84 MHz to microseconds.
-    let mut rcc = dp.RCC.freeze(rcc::Config::hse(25.MHz()).sysclk(84.MHz()));
+    // The HAL's `freeze` waits for the crystal without a bound, so it is given the crystal only
+    // once `crystal_runs` has seen it run. Without one, the chip stays on its 16 MHz internal
+    // oscillator (HSI) as reset leaves it, PLL off, and the HAL is told so (`constrain`): 1 Mbps
+    // still divides exactly on both USARTs (USARTDIV 1) and TIM2 still counts microseconds, but the
+    // bus cannot go faster, the loop runs at a fifth of the speed, and the HSI is trimmed to 1 % at
+    // 25 °C only (DS10314, HSI oscillator characteristics; more over temperature), as is every
+    // baud rate then.
+    let mut rcc = if crystal_runs(&dp.RCC) {
+        dp.RCC.freeze(rcc::Config::hse(25.MHz()).sysclk(84.MHz()))
+    } else {
+        defmt::error!(
+            "no crystal (HSERDY not set in {=u32} ms): running on the internal 16 MHz oscillator, PLL off; check the 25 MHz crystal",
+            HSE_WAIT_MS
+        );
+        dp.RCC.constrain()
+    };
     let Some(clock) = Tim2Clock::start(dp.TIM2, &mut rcc) else { return refused("TIM2 clock") };
     let gpioa = dp.GPIOA.split(&mut rcc);
 
@@ -133,15 +155,18 @@ fn start() -> Option<(&'static mut App, &'static mut BusMaster, Link, Independen
         return refused("built-in arm");
     }
     let master = master_slot.write(BusMaster::new(bus_port, direction, clock, bus));
-    if watchdog_reset {
-        // The loop hung and the watchdog reset the chip: the servos may still hold torque toward
-        // the goal they had. Limp, until the host switches torque on again.
-        defmt::error!("reset by the watchdog: the servos' torque goes off");
+    // The servos may still hold torque toward the goal they had: limp, until the host switches
+    // torque on again (or, after the reset button, held where they stand: `log_reset`).
+    if cause.torque() == TorqueAfterReset::Off {
         app.torque_off(clock.now());
     }
-    // Started last, once start-up's own long steps are done; paused while a debugger halts the core.
+    // Started last, once start-up's own long steps are done. A release build's watchdog keeps
+    // counting while a debugger halts the core: a halt longer than WATCHDOG_MS resets the chip,
+    // and the servos' torque then goes off, so the arm never holds for longer with nothing
+    // running it. A debug build's pauses (DBGMCU_APB1_FZ.DBG_IWDG_STOP), so that breakpoints can
+    // be used: the arm then holds its last goal while halted.
     let mut watchdog = IndependentWatchdog::new(dp.IWDG);
-    watchdog.stop_on_debug(&dp.DBGMCU, true);
+    watchdog.stop_on_debug(&dp.DBGMCU, cfg!(debug_assertions));
     watchdog.start(WATCHDOG_MS.millis());
     Some((app, master, link, watchdog))
 }
@@ -152,6 +177,86 @@ fn start() -> Option<(&'static mut App, &'static mut BusMaster, Link, Independen
 #[inline(never)]
 fn run(app: &'static mut App, master: &'static mut BusMaster, mut link: Link, mut watchdog: IndependentWatchdog) -> ! {
     MainLoop::new(app, master, &link_rx::LINK_RX).run(&mut link, |_, _| watchdog.feed())
+}
+
+/// The log's first line: the reset's cause and what it does to the servos' torque, before the
+/// clocks start (one line per cause: defmt keeps each string on the host, none in flash).
+fn log_reset(cause: ResetCause) {
+    match cause {
+        ResetCause::PowerOn => defmt::info!("stm32f411: reset by power-on: servos' torque off; starting the clocks"),
+        ResetCause::BrownOut => defmt::warn!("stm32f411: reset by brown-out: servos' torque off; starting the clocks"),
+        ResetCause::Watchdog => {
+            defmt::error!("stm32f411: reset by the watchdog: servos' torque off; starting the clocks")
+        }
+        ResetCause::Fault => defmt::error!("stm32f411: reset after a fault: servos' torque off; starting the clocks"),
+        ResetCause::LowPower => {
+            defmt::warn!("stm32f411: reset by low-power management: servos' torque off; starting the clocks")
+        }
+        ResetCause::Software => {
+            defmt::info!("stm32f411: software reset (a debugger's): servos' torque off; starting the clocks")
+        }
+        ResetCause::Pin => defmt::info!(
+            "stm32f411: reset by the reset pin: servos found torqued are held where they stand; starting the clocks"
+        ),
+        ResetCause::Unknown => {
+            defmt::warn!("stm32f411: reset, no cause flagged: servos' torque off; starting the clocks")
+        }
+    }
+}
+
+/// Why the chip was reset, from RCC_CSR's flags (RM0383 §6.3.19), which are then cleared (RMVF).
+fn reset_cause(rcc: &pac::RCC) -> ResetCause {
+    let csr = rcc.csr().read();
+    let flags = ResetFlags {
+        power_on: csr.porrstf().bit_is_set(),
+        brown_out: csr.borrstf().bit_is_set(),
+        // IWDGRSTF is `wdgrstf` in the device crate.
+        watchdog: csr.wdgrstf().bit_is_set() || csr.wwdgrstf().bit_is_set(),
+        fault: false,
+        low_power: csr.lpwrrstf().bit_is_set(),
+        software: csr.sftrstf().bit_is_set(),
+        // PINRSTF is `padrstf`.
+        pin: csr.padrstf().bit_is_set(),
+    };
+    rcc.csr().modify(|_, w| w.rmvf().set_bit());
+    flags.cause()
+}
+
+/// Starts the 25 MHz crystal (RCC_CR.HSEON) and waits at most [`HSE_WAIT_MS`] for it to run
+/// (HSERDY); switches it off again and returns false if it does not.
+fn crystal_runs(rcc: &pac::RCC) -> bool {
+    rcc.cr().modify(|_, w| w.hseon().set_bit());
+    for _ in 0..HSE_WAIT_MS {
+        if rcc.cr().read().hserdy().bit_is_set() {
+            return true;
+        }
+        cortex_m::asm::delay(HSI_CYCLES_PER_MS);
+    }
+    rcc.cr().modify(|_, w| w.hseon().clear_bit());
+    false
+}
+
+/// A fault (a bad address, an undefined instruction, an escalated bus or usage fault): logs
+/// where, then waits for the independent watchdog, started here if start-up had not started it
+/// yet (its reset values give about 0.5 s). The servo bus is left alone: the fault may have come
+/// from the bus code or left its state half-written, so no packet sent from here could be
+/// trusted. The servos hold their last goal until the watchdog's reset, after which start-up
+/// takes their torque off (a watchdog reset, firmware::board::reset).
+#[exception]
+unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
+    defmt::error!(
+        "HardFault: pc {=u32:#010x}, lr {=u32:#010x}, xpsr {=u32:#010x}; the watchdog resets the chip",
+        frame.pc(),
+        frame.lr(),
+        frame.xpsr()
+    );
+    // SAFETY: a write of the start key to IWDG_KR, which nothing else writes in a way this could
+    // break (a running watchdog stays running; the main loop's feeds write another key).
+    let iwdg = unsafe { &*pac::IWDG::ptr() };
+    iwdg.kr().write(|w| w.key().start());
+    loop {
+        cortex_m::asm::nop();
+    }
 }
 
 /// Stops the core for good (a broken start-up; the host sees no handshake).
