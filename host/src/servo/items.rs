@@ -9,7 +9,7 @@ use firmware::bus::table::{sts3215, xseries, Item, Model};
 use firmware::bus::Protocol;
 
 /// The X-series items (the three models share their addresses).
-const XSERIES: [Item; 24] = [
+const XSERIES: [Item; 27] = [
     xseries::MODEL_NUMBER,
     xseries::FIRMWARE_VERSION,
     xseries::ID,
@@ -18,6 +18,9 @@ const XSERIES: [Item; 24] = [
     xseries::DRIVE_MODE,
     xseries::OPERATING_MODE,
     xseries::HOMING_OFFSET,
+    xseries::TEMPERATURE_LIMIT,
+    xseries::MAX_VOLTAGE_LIMIT,
+    xseries::MIN_VOLTAGE_LIMIT,
     xseries::VELOCITY_LIMIT,
     xseries::MAX_POSITION_LIMIT,
     xseries::MIN_POSITION_LIMIT,

@@ -22,6 +22,14 @@ pub const DRIVE_MODE: Item = Item::new("drive_mode", 10, 1, ReadWrite, Unsigned)
 pub const OPERATING_MODE: Item = Item::new("operating_mode", 11, 1, ReadWrite, Unsigned);
 /// Homing offset in ticks.
 pub const HOMING_OFFSET: Item = Item::new("homing_offset", 20, 4, ReadWrite, Signed);
+/// Temperature limit, °C: above it the servo raises its overheating error and drops torque
+/// (factory: XL430-W250 72, XM430-W350 80, XL330-M288 70).
+pub const TEMPERATURE_LIMIT: Item = Item::new("temperature_limit", 31, 1, ReadWrite, Unsigned);
+/// Highest input voltage, 0.1 V: outside the two limits the servo raises its input voltage error
+/// (factory: XL430-W250 140, XM430-W350 160, XL330-M288 70).
+pub const MAX_VOLTAGE_LIMIT: Item = Item::new("max_voltage_limit", 32, 2, ReadWrite, Unsigned);
+/// Lowest input voltage, 0.1 V (factory: XL430-W250 60, XM430-W350 95, XL330-M288 35).
+pub const MIN_VOLTAGE_LIMIT: Item = Item::new("min_voltage_limit", 34, 2, ReadWrite, Unsigned);
 /// Current limit in the model's current unit (XM430-W350 2.69 mA, factory 1193; XL330-M288 1 mA,
 /// factory 1750); the XL430-W250 has no current sensing and no such item.
 pub const CURRENT_LIMIT: Item = Item::new("current_limit", 38, 2, ReadWrite, Unsigned);
@@ -102,7 +110,7 @@ const ACCELERATION_UNIT: f32 = 214.577 * 4096.0 / 3600.0;
 /// Factory values of the three models: the "Initial Value" (or "Default Value") column of the
 /// ROBOTIS e-manual's control tables, "XL430-W250-T", "XM430-W350" and "XL330-M288-T" (EEPROM and
 /// RAM areas): id 1, baud index 1 (57600), return delay 250 (500 µs), drive mode 0, operating mode
-/// 3 (position), homing offset 0, position limits 0 and 4095, torque off, LED off, status return
+/// 3 (position), homing offset 0, the temperature and voltage limits of each model (above), position limits 0 and 4095, torque off, LED off, status return
 /// level 2 (all), profile acceleration and velocity 0 (unlimited), and per model the velocity
 /// limit (XL430-W250 265, XM430-W350 200, XL330-M288 445) and the current limit (XM430-W350 1193,
 /// XL330-M288 1750; the XL430-W250 has none). The position gains, which the project neither
@@ -114,7 +122,12 @@ const ACCELERATION_UNIT: f32 = 214.577 * 4096.0 / 3600.0;
 /// - present input voltage and temperature are readings: each model at the supply its speed below
 ///   is given at (12 V for the XL430 and XM430, 5 V for the XL330: a 12 V reading there would be
 ///   an XL330 on the wrong supply) and 30 °C.
-const fn defaults(velocity_limit: i64, current_limit: i64, volts_x10: i64) -> [(Item, i64); 18] {
+const fn defaults(
+    velocity_limit: i64,
+    current_limit: i64,
+    volts_x10: i64,
+    (temperature_limit, max_volts_x10, min_volts_x10): (i64, i64, i64),
+) -> [(Item, i64); 21] {
     [
         (ID, 1),
         (BAUD_RATE, 1),
@@ -122,6 +135,9 @@ const fn defaults(velocity_limit: i64, current_limit: i64, volts_x10: i64) -> [(
         (DRIVE_MODE, 0),
         (OPERATING_MODE, 3),
         (HOMING_OFFSET, 0),
+        (TEMPERATURE_LIMIT, temperature_limit),
+        (MAX_VOLTAGE_LIMIT, max_volts_x10),
+        (MIN_VOLTAGE_LIMIT, min_volts_x10),
         (CURRENT_LIMIT, current_limit),
         (VELOCITY_LIMIT, velocity_limit),
         (MAX_POSITION_LIMIT, 4095),
@@ -137,9 +153,9 @@ const fn defaults(velocity_limit: i64, current_limit: i64, volts_x10: i64) -> [(
     ]
 }
 
-const XL430_DEFAULTS: [(Item, i64); 18] = defaults(265, 0, 120);
-const XM430_DEFAULTS: [(Item, i64); 18] = defaults(200, 1193, 120);
-const XL330_DEFAULTS: [(Item, i64); 18] = defaults(445, 1750, 50);
+const XL430_DEFAULTS: [(Item, i64); 21] = defaults(265, 0, 120, (72, 140, 60));
+const XM430_DEFAULTS: [(Item, i64); 21] = defaults(200, 1193, 120, (80, 160, 95));
+const XL330_DEFAULTS: [(Item, i64); 21] = defaults(445, 1750, 50, (70, 70, 35));
 
 /// The effort of a model with current sensing: the goal current caps it (in current-based
 /// position mode), the present current reports it; full is the factory current limit.
