@@ -160,7 +160,7 @@ fn a_12_volt_supply_on_the_servos() {
     let (report, _) = sim.doctor(&["--arm", "so101", "--reads", "50"]);
     let power = findings(&report, "power");
     assert!(
-        power.iter().any(|(l, m)| *l != "ok" && m.contains("reads 12.0 V, above")),
+        power.iter().any(|(l, m)| *l != "ok" && m.contains("read 12.0 V, above")),
         "a 12 V supply on 7.4 V servos: {power:?}"
     );
 }
@@ -170,12 +170,20 @@ fn a_12_volt_supply_on_5_volt_dynamixels_is_judged_by_their_own_limits() {
     // Koch's XL330s on the XL430s' 12 V supply: the servo's own voltage limits (3.5 to 7.0 V
     // from the factory) say it, with no guessing about versions.
     let sim = Sim::start(&[
-        "--protocol", "dxl2", "--model", "xl330-m288", "--ids", "1-3", "--register", "all:present_input_voltage=120",
-        SET_UP[0], SET_UP[1],
+        "--protocol",
+        "dxl2",
+        "--model",
+        "xl330-m288",
+        "--ids",
+        "1-3",
+        "--register",
+        "all:present_input_voltage=120",
+        SET_UP[0],
+        SET_UP[1],
     ]);
     let (report, code) = sim.doctor(&["--protocol", "dxl2", "--baud", "1000000", "--reads", "50"]);
     assert_eq!(code, 1);
-    expect(&report, "power", "fail", "servo 1 reads 12.0 V, above its own limits 3.5-7.0 V");
+    expect(&report, "power", "fail", "id 1-3 read 12.0 V, above its own limits 3.5-7.0 V");
 }
 
 #[test]

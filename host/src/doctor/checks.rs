@@ -15,7 +15,7 @@
 use firmware::bus::table::Model;
 use firmware::bus::{Id, Protocol};
 
-use super::finding::{id_list, Finding};
+use super::finding::{id_list, Finding, Level};
 use super::survey::{replies_to_all, servo_name, Reading};
 
 /// A goal this far from the present position (fraction of a turn, about 3.6°) is a move waiting
@@ -178,6 +178,8 @@ pub fn firmware(readings: &[Reading]) -> Vec<Finding> {
 pub fn power(readings: &[Reading], names: &[(Id, String)]) -> Vec<Finding> {
     let mut findings = Vec::new();
     let mut volts = Vec::new();
+    // Voltage verdicts, one per servo, grouped after the loop: one supply feeds them all.
+    let mut supply: Vec<(Id, Level, String, &'static str)> = Vec::new();
     for r in readings {
         let (Some(model), Some(v)) = (r.model(), r.voltage_dv) else { continue };
         volts.push(v);
@@ -186,25 +188,21 @@ pub fn power(readings: &[Reading], names: &[(Id, String)]) -> Vec<Finding> {
         let Some((lo, hi)) = own.or_else(|| rated_voltage_dv(model)) else { continue };
         let whose = if own.is_some() { "its own limits" } else { "its rating" };
         let range = format!("{:.1}-{:.1} V", lo as f64 / 10.0, hi as f64 / 10.0);
-        let reads = format!("{name} reads {:.1} V", v as f64 / 10.0);
+        let reads = format!("{:.1} V", v as f64 / 10.0);
         if v > hi {
             let hint = if model.number == 777 && own.is_none() && v <= 140 {
                 "; right only if these are Feetech's 12 V STS3215 (C018, C047), else a 12 V supply on 7.4 V servos"
             } else {
                 ""
             };
-            let level_fail = own.is_some() || model.number != 777 || v > 140;
-            let message = format!("{reads}, above {whose} {range}{hint}");
+            let level = if own.is_some() || model.number != 777 || v > 140 { Level::Fail } else { Level::Warn };
             let fix = "switch the power off and use the supply the servos are rated for (SO-101 kits: 7.4 V for the \
                        7.4 V servos, 12 V for the 12 V ones)";
-            findings.push(if level_fail {
-                Finding::fail("power", message, fix)
-            } else {
-                Finding::warn("power", message, fix)
-            });
+            supply.push((r.servo.id, level, format!("{reads}, above {whose} {range}{hint}"), fix));
         } else if v < lo {
-            findings.push(Finding::fail(
-                "power",
+            supply.push((
+                r.servo.id,
+                Level::Fail,
                 format!("{reads}, below {whose} {range}: too weak a supply, or 7.4 V on 12 V servos"),
                 "use the supply the servos are rated for, and check it holds its voltage under load",
             ));
@@ -243,6 +241,21 @@ pub fn power(readings: &[Reading], names: &[(Id, String)]) -> Vec<Finding> {
             ));
         }
     }
+    let mut grouped: Vec<(Vec<Id>, Level, String, &'static str)> = Vec::new();
+    for (id, level, text, fix) in supply {
+        match grouped.iter_mut().find(|(_, l, t, _)| *l == level && *t == text) {
+            Some((ids, ..)) => ids.push(id),
+            None => grouped.push((vec![id], level, text, fix)),
+        }
+    }
+    let supply_findings = grouped.into_iter().map(|(ids, level, text, fix)| {
+        let message = match ids.as_slice() {
+            [id] => format!("{} reads {text}", servo_name(*id, names)),
+            _ => format!("id {} read {text}", id_list(&ids)),
+        };
+        Finding { level, check: "power", message, fix: Some(fix.to_string()) }
+    });
+    findings.splice(0..0, supply_findings);
     if let (Some(lo), Some(hi)) = (volts.iter().min(), volts.iter().max()) {
         if hi - lo > 10 {
             findings.push(Finding::warn(
@@ -409,7 +422,6 @@ pub fn calibration(
 
 #[cfg(test)]
 mod tests {
-    use super::super::finding::Level;
     use super::*;
     use crate::servo::session::Servo;
     use firmware::bus::table::{STS3215, XL430_W250};
@@ -483,6 +495,11 @@ mod tests {
         let f = power(&[r.clone()], &[]);
         assert_eq!(levels(&f), [Level::Fail]);
         assert!(f[0].message.contains("above its own limits 4.0-8.0 V"), "{}", f[0].message);
+        let mut twin = r.clone();
+        twin.servo.id = 2;
+        let f = power(&[r.clone(), twin], &[]);
+        assert_eq!(levels(&f), [Level::Fail], "one supply, one finding: {f:?}");
+        assert!(f[0].message.starts_with("id 1-2 read 12.0 V, above"), "{}", f[0].message);
         let mut x = reading(2, &XL430_W250);
         x.voltage_dv = Some(50);
         assert_eq!(levels(&power(&[x], &[])), [Level::Fail]);

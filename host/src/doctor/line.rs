@@ -13,11 +13,15 @@ use firmware::bus::Id;
 
 use super::finding::Finding;
 use crate::places::pc::latency::{latency_timer, LatencyTimer, ADVISED_MS, UDEV_RULE, UDEV_RULE_FILE};
-use crate::places::pc::timing::{self, Measured, PERIODS_US};
+use crate::places::pc::timing::{self, margins, Measured, PERIODS_US};
 use crate::servo::session::{Port, Session};
 
 /// Sync reads for the error rate, unless `--reads` says otherwise.
 pub const DEFAULT_READS: u32 = 300;
+
+/// How late a reply may come in the error-rate reads and still count as received, µs: three
+/// expiries of a 16 ms latency timer.
+pub const LATE_REPLY_US: u64 = 50_000;
 
 /// Lost replies above this fraction fail the line (below it, any loss is a warning).
 pub const FAIL_RATE: f64 = 0.01;
@@ -92,7 +96,9 @@ pub fn measure<P: Port, C: Clock>(
     // does not decide the verdict alone.
     let timed = timing::measure(session.master_mut(), model, ids).map_err(|e| e.to_string());
     let config = session.config();
-    session.set_config(BusConfig { retries: 0, ..config });
+    // No retries, and a reply timeout well past any adapter's latency: a late reply is a slow
+    // read (the cycle's and the adapter's findings), not a lost one.
+    session.set_config(BusConfig { retries: 0, ..margins(config, LATE_REPLY_US) });
     let item = model.items.present_position;
     let mut out = vec![0u8; ids.len() * item.len()];
     let before = session.master_mut().stats().bad_checksums;
