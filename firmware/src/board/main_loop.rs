@@ -26,11 +26,14 @@ const CHUNK: usize = 64;
 /// Why 512. At 1 Mbps a byte takes 10 bit times (8N1), 10 µs: 100 bytes a millisecond, 1,000 in
 /// the 10 ms control period. While a byte waits, the board does not sleep between passes (see
 /// [`MainLoop::run`]), so the bound does not slow the drain; it decides how much can pile up behind
-/// a tick that is due. A pass is away from the ring longest while it ticks: a bus cycle, up to
-/// 3.5 ms with a servo missing, in which 350 bytes come; a pass takes more than that, as much as
-/// the boards' ring holds (511, 5.1 ms of line), so what came during a tick is all taken before
-/// the next tick, and the tick's pass and one other take more than the 1,000 bytes a period
-/// brings: the loop keeps up with a host sending at 1 Mbps without a pause. A flood delays a due
+/// a tick that is due. A pass is away from the ring longest while it ticks: a bus cycle, about
+/// 4 ms for the SO-101's six servos at their factory return delay of 500 µs (which a board keeps),
+/// 8 ms with one missing, in which 400 to 800 bytes come. A pass takes as much as the boards' ring
+/// holds (511 bytes, 5.1 ms of line), so whatever the ring kept during a tick is taken before the
+/// next tick, and the tick's pass and one other take more than the 1,000 bytes a period brings:
+/// the bound never makes the loop fall behind a host sending at 1 Mbps; the ring may (beyond
+/// 5.1 ms of ticking), and counts it. A host that waits for each reply, as armctl does, never
+/// has more than one frame (256 bytes) in flight. A flood delays a due
 /// tick by at most 512 bytes' work: about 5 ms when each request is answered by a reply of about
 /// its length (sent at the same 1 Mbps), about 77 ms at worst, when every request is a 7-byte
 /// `GetStatus` answered by a 105-byte status (5 joints and the gripper: 73 of them); the F411's
