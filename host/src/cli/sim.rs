@@ -153,8 +153,9 @@ pub struct SimServosArgs {
     /// Raise a hardware error on servo ID (or `all`) from the start: BITS (decimal or 0x..) go to
     /// Dynamixel's hardware error status (bit 0 input voltage, 2 overheating, 3 motor encoder, 4
     /// electrical shock, 5 overload; every status then has the alert bit) or are Feetech's status
-    /// error bits (0 voltage, 1 sensor, 2 temperature, 3 current, 5 overload). Torque goes off and
-    /// stays off, as the servo's protection does. Applied after --register. Repeatable.
+    /// error bits (0 voltage, 1 sensor, 2 temperature, 3 current, 4 angle, 5 overload: the "servo
+    /// status" bits of Feetech's memory table). Torque goes off and stays off, as the servo's
+    /// protection does. Applied after --register. Repeatable.
     #[arg(long, value_name = "ID=BITS")]
     pub hardware_error: Vec<String>,
     /// The adapter hears its own transmission: every byte written to the pty comes back first,
