@@ -45,12 +45,28 @@ static TAKEN: AtomicBool = AtomicBool::new(false);
 /// Whether this frame is being dropped (the logger was entered again before `release`).
 static REENTERED: AtomicBool = AtomicBool::new(false);
 
-/// Opens the log file on the host (truncated, binary), or `None` if the host refuses.
+/// Opens the log file on the host (binary) at its end, or `None` if the host refuses. After a reset
+/// (QEMU keeps running) the firmware opens it again, and the host, following the file, reads on
+/// where it was: so the file is opened for update and written from its end, and only created
+/// (truncated) when it is not there yet (each QEMU starts in a new directory). Not the append mode:
+/// QEMU 7.2 truncates the file for it.
 fn open_log() -> Option<usize> {
     let name = LOG_FILE.as_bytes();
     // SAFETY: SYS_OPEN reads `name.len() - 1` bytes of the NUL-terminated name, which lives for the
     // whole call (a static string).
-    let handle = unsafe { syscall!(OPEN, name.as_ptr(), nr::open::W_TRUNC_BINARY, name.len() - 1) };
+    let open = |mode| unsafe { syscall!(OPEN, name.as_ptr(), mode, name.len() - 1) };
+    let mut handle = open(nr::open::RW_BINARY);
+    if handle as isize >= 0 {
+        // SAFETY: SYS_FLEN and SYS_SEEK take the handle just opened and a number.
+        unsafe {
+            let length = syscall!(FLEN, handle);
+            if length as isize > 0 {
+                let _ = syscall!(SEEK, handle, length);
+            }
+        }
+    } else {
+        handle = open(nr::open::W_TRUNC_BINARY);
+    }
     (handle as isize >= 0).then_some(handle)
 }
 
@@ -60,6 +76,13 @@ fn write_console(console: &mut Option<usize>, opened: &mut bool, bytes: &[u8]) {
     if !*opened {
         *opened = true;
         *console = open_log();
+        // A frame separator first: a frame cut short by a reset ends here, so that it costs the
+        // host one frame it reports malformed, not this start's first line too. (The host's
+        // decoder skips runs of separators.)
+        if let Some(handle) = *console {
+            // SAFETY: SYS_WRITE reads the one byte of a static array for the whole call.
+            let _ = unsafe { syscall!(WRITE, handle, [0u8].as_ptr(), 1) };
+        }
     }
     if let Some(handle) = *console {
         // SAFETY: SYS_WRITE reads `bytes.len()` bytes from `bytes`, borrowed for the whole call.

@@ -12,9 +12,10 @@ use core::sync::atomic::{AtomicBool, Ordering};
 
 use board_mps2_an386::clock::{self, SysTickClock};
 use board_mps2_an386::uart::{self, Uart};
-use board_mps2_an386::{halt, irq, stack};
-use cortex_m_rt::entry;
+use board_mps2_an386::{halt, irq, reset, stack};
+use cortex_m_rt::{entry, exception, ExceptionFrame};
 use firmware::app::{Board, Firmware};
+use firmware::board::reset::{Note, ResetCause, TorqueAfterReset};
 use firmware::board::MainLoop;
 use firmware::bus::master::{BusConfig, Master, NoDirectionPin};
 use firmware::bus::table::STS3215;
@@ -42,7 +43,15 @@ static STARTED: AtomicBool = AtomicBool::new(false);
 #[entry]
 fn main() -> ! {
     stack::paint();
-    let Some((app, master, link)) = start() else { halt() };
+    // Why the board was reset decides the servos' torque (firmware::board::reset): logged before
+    // anything is set up.
+    let cause = reset::take_cause();
+    let torque = match cause.torque() {
+        TorqueAfterReset::Off => "the servos' torque goes off",
+        TorqueAfterReset::Hold => "servos found torqued are held where they stand",
+    };
+    defmt::info!("mps2-an386: reset by {=str}: {=str}; starting", cause.as_str(), torque);
+    let Some((app, master, link)) = start(cause) else { halt() };
     defmt::info!(
         "static state: firmware {=usize} bytes, bus master {=usize} bytes; start-up stack {=usize} bytes",
         core::mem::size_of::<App>(),
@@ -54,10 +63,11 @@ fn main() -> ! {
     run(app, master, link)
 }
 
-/// Brings up the hardware and the firmware core; `None` if the built-in arm is refused or this ran
-/// before (the statics are written once).
+/// Brings up the hardware and the firmware core, the servos' torque as `cause` wants it, and the
+/// watchdog last; `None` if the built-in arm is refused or this ran before (the statics are written
+/// once).
 #[inline(never)]
-fn start() -> Option<(&'static mut App, &'static mut BusMaster, Uart)> {
+fn start(cause: ResetCause) -> Option<(&'static mut App, &'static mut BusMaster, Uart)> {
     if STARTED.swap(true, Ordering::Relaxed) {
         return None;
     }
@@ -74,6 +84,9 @@ fn start() -> Option<(&'static mut App, &'static mut BusMaster, Uart)> {
     app.start(Some(&firmware::builtin::SO101)).ok()?;
     let port = Uart::new(uart::UART1, clock::SYSCLK_HZ, BAUD);
     let master = master_slot.write(BusMaster::new(port, NoDirectionPin, SysTickClock, bus));
+    if cause.torque() == TorqueAfterReset::Off {
+        app.torque_off(SysTickClock.now());
+    }
     defmt::info!(
         "mps2-an386: so101 built in, up to {=usize} joints, {=usize} queue slots, {=u32} us period, link and bus at {=u32} baud",
         JOINTS,
@@ -81,6 +94,7 @@ fn start() -> Option<(&'static mut App, &'static mut BusMaster, Uart)> {
         app.period_us(),
         BAUD
     );
+    reset::start_watchdog();
     Some((app, master, link))
 }
 
@@ -93,6 +107,7 @@ fn run(app: &'static mut App, master: &'static mut BusMaster, mut link: Uart) ->
     let mut next_stack_check = clock.now() + STACK_CHECK_US;
     let mut stack_logged = 0;
     MainLoop::new(app, master, &irq::LINK_RX).run(&mut link, |next_tick, rx| {
+        reset::feed();
         // Interrupts off between the last check and `wfi`, so a byte that comes in between wakes
         // it (a pending interrupt ends `wfi` even while masked) instead of waiting for SysTick.
         cortex_m::interrupt::free(|_| {
@@ -110,6 +125,39 @@ fn run(app: &'static mut App, master: &'static mut BusMaster, mut link: Uart) ->
             }
         }
     })
+}
+
+/// The watchdog's warning: the control loop has not fed it for `reset::WATCHDOG_MS`. Noted and
+/// logged; the watchdog's reset follows as long again later, and nothing runs until then (the
+/// servos hold their last goal). Start-up then takes their torque off.
+#[exception]
+unsafe fn NonMaskableInt() {
+    reset::note_that(Note::Watchdog);
+    defmt::error!("watchdog: the control loop stopped; the board resets");
+    loop {
+        cortex_m::asm::nop();
+    }
+}
+
+/// A fault: noted and logged (where), then the watchdog resets the board (started here if
+/// start-up had not started it). The servo bus is left alone: the fault may have come from the
+/// bus code or left its state half-written, so no packet sent from here could be trusted. The
+/// servos hold their last goal until the reset, after which start-up takes their torque off.
+#[exception]
+unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
+    reset::note_that(Note::Fault);
+    defmt::error!(
+        "HardFault: pc {=u32:#010x}, lr {=u32:#010x}, xpsr {=u32:#010x}; the watchdog resets the board",
+        frame.pc(),
+        frame.lr(),
+        frame.xpsr()
+    );
+    if !reset::watchdog_runs() {
+        reset::start_watchdog();
+    }
+    loop {
+        cortex_m::asm::nop();
+    }
 }
 
 /// The release firmware has no panic path: every index, slice and clamp in the code it runs is
