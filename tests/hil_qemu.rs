@@ -389,3 +389,151 @@ fn the_real_firmware_drives_an_open_manipulator_x_on_dynamixel() {
 fn the_real_firmware_drives_a_six_joint_arm_file_on_feetech() {
     any_arm_on_the_real_firmware(concat!(env!("CARGO_MANIFEST_DIR"), "/../host/examples/arms/six-dof.toml"));
 }
+
+/// RAM far from anything the firmware uses (its statics and stack are within the first 64 KiB of
+/// the 4 MiB at 0x20000000): where the resets test puts the instruction it points the core at.
+const SCRATCH: u32 = 0x2030_0000;
+
+/// Waits for the firmware to start again after a reset: its start line among the log's lines after
+/// the first `seen`; returns those lines.
+fn restarted(board: &Qemu, seen: usize) -> Vec<String> {
+    let end = std::time::Instant::now() + qemu::START_TIMEOUT;
+    loop {
+        let lines = board.log().lines_from(seen);
+        if lines.iter().any(|l| l.contains("static state:")) {
+            return lines;
+        }
+        assert!(std::time::Instant::now() < end, "the firmware did not start again: {lines:#?}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Whether servo `id` has its torque on as the simulated servo itself has it, asked until it says
+/// `expected` or 10 s have passed: a hand can turn a horn only while its torque is off
+/// ([`PtyServer::hand`]), and then does (to 2048, the middle).
+fn servo_torque_becomes(bus: &PtyServer, id: u8, expected: bool) -> bool {
+    let end = std::time::Instant::now() + Duration::from_secs(10);
+    loop {
+        let ticket = bus.hand(id, 2048, 2048, 0.05);
+        let torqued = loop {
+            if let Some(event) = bus.hand_events().into_iter().find(|e| e.ticket == ticket) {
+                break match event.result {
+                    Ok(()) => false,
+                    Err(why) if why.contains("torque on") => true,
+                    Err(why) => panic!("the hand could not tell servo {id}'s torque: {why}"),
+                };
+            }
+            assert!(std::time::Instant::now() < end + Duration::from_secs(5), "the hand never came back");
+            std::thread::sleep(Duration::from_millis(10));
+        };
+        if torqued == expected || std::time::Instant::now() > end {
+            return torqued;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// The host link opened again (after the board reset: a new session).
+fn reopen(board: &Qemu) -> Connection {
+    let target = Target::Port { path: board.link_path().to_string(), baud: 1_000_000 };
+    open(target, None, &mut std::io::sink()).unwrap()
+}
+
+/// The firmware's status once it has settled into `state` (within 10 s).
+fn settles_in(c: &mut Client, state: RunState) -> Status {
+    poll_until(c, Duration::from_secs(10), |s| s.state == state)
+}
+
+/// Asserts that a line containing each of `texts` is among `lines`.
+fn logged(lines: &[String], texts: &[&str]) {
+    for text in texts {
+        let Some(line) = lines.iter().find(|l| l.contains(text)) else {
+            panic!("no \"{text}\" in the log: {lines:#?}")
+        };
+        eprintln!("firmware: {line}");
+    }
+}
+
+/// Each reset the MPS2 can tell apart under QEMU, acted out from outside as on a board (QEMU's gdb
+/// stub stands in for a probe), does to the simulated servos' torque what
+/// `firmware::board::reset` decides: the reset button (QEMU's `system_reset`) keeps it, held where
+/// the arm stands; a stopped control loop (the core sent to a branch-to-self: the watchdog), a
+/// fault (an undefined instruction: the HardFault handler, then the watchdog) and a power-on (a
+/// new QEMU on the same, still torqued, servos) take it off. The servos are asked directly.
+#[test]
+fn each_reset_does_to_the_servos_torque_what_the_board_decides() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    if !qemu::available() {
+        assert!(std::env::var_os("CI").is_none(), "qemu-system-arm is missing, and CI is set: the HIL tests must run");
+        eprintln!("SKIPPED: qemu-system-arm is not installed; the HIL test did not run");
+        return;
+    }
+    let elf = qemu::build(qemu::FIRMWARE_BIN).unwrap();
+    let bus = PtyServer::spawn(so101_bus(Faults::default())).unwrap();
+    let config = QemuConfig { elf, bus: Some(bus.path().to_string()) };
+    let board = Qemu::start_with_debugger(&config).unwrap();
+    board.wait_started(qemu::START_TIMEOUT).unwrap();
+    logged(&board.log().lines(), &["reset by power-on: the servos' torque goes off"]);
+    let mut link = reopen(&board);
+    torque_on(&mut link.client);
+    settles_in(&mut link.client, RunState::Idle);
+    assert!(servo_torque_becomes(&bus, 1, true), "torque on did not reach servo 1");
+
+    // The reset button: held where it stands.
+    drop(link);
+    let seen = board.log().lines().len();
+    let mut gdb = board.debugger().unwrap();
+    gdb.monitor("system_reset").unwrap();
+    gdb.resume().unwrap();
+    logged(&restarted(&board, seen), &["reset by the reset pin: servos found torqued are held where they stand"]);
+    let mut link = reopen(&board);
+    settles_in(&mut link.client, RunState::Idle);
+    std::thread::sleep(Duration::from_millis(500));
+    assert!(servo_torque_becomes(&bus, 1, true), "the reset button took servo 1's torque off");
+    assert_eq!(link.client.status().unwrap().state, RunState::Idle);
+
+    // The control loop stops (the core spins on `b .`): the watchdog resets the board, limp.
+    drop(link);
+    let seen = board.log().lines().len();
+    let mut gdb = board.debugger().unwrap();
+    gdb.write_memory(SCRATCH, &[0xfe, 0xe7]).unwrap();
+    gdb.set_pc(SCRATCH | 1).unwrap();
+    gdb.resume().unwrap();
+    let lines = restarted(&board, seen);
+    logged(&lines, &["watchdog: the control loop stopped", "reset by the watchdog: the servos' torque goes off"]);
+    let mut link = reopen(&board);
+    assert!(!servo_torque_becomes(&bus, 1, false), "servo 1 kept its torque after the watchdog's reset");
+    settles_in(&mut link.client, RunState::TorqueOff);
+
+    // A fault (an undefined instruction, `udf #254`): logged where, then the watchdog, limp.
+    torque_on(&mut link.client);
+    settles_in(&mut link.client, RunState::Idle);
+    assert!(servo_torque_becomes(&bus, 1, true));
+    drop(link);
+    let seen = board.log().lines().len();
+    let mut gdb = board.debugger().unwrap();
+    gdb.write_memory(SCRATCH, &[0xfe, 0xde]).unwrap();
+    gdb.set_pc(SCRATCH | 1).unwrap();
+    gdb.resume().unwrap();
+    let lines = restarted(&board, seen);
+    logged(&lines, &["HardFault: pc 0x20300000", "reset by a fault (then the watchdog): the servos' torque goes off"]);
+    let mut link = reopen(&board);
+    assert!(!servo_torque_becomes(&bus, 1, false), "servo 1 kept its torque after the fault");
+    settles_in(&mut link.client, RunState::TorqueOff);
+
+    // Power-on: the board starts anew (a new QEMU) on servos still torqued.
+    torque_on(&mut link.client);
+    settles_in(&mut link.client, RunState::Idle);
+    assert!(servo_torque_becomes(&bus, 1, true));
+    drop(link);
+    drop(board);
+    let board = Qemu::start(&config).unwrap();
+    board.wait_started(qemu::START_TIMEOUT).unwrap();
+    logged(&board.log().lines(), &["reset by power-on: the servos' torque goes off"]);
+    let mut link = reopen(&board);
+    assert!(!servo_torque_becomes(&bus, 1, false), "servo 1 kept its torque after a power-on");
+    settles_in(&mut link.client, RunState::TorqueOff);
+    drop(link);
+    drop(board);
+    bus.stop().unwrap();
+}

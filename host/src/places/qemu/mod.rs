@@ -4,6 +4,7 @@
 //! `armctl sim --qemu`, `armctl bench mcu`, `armctl footprint` and the HIL tests.
 //! ([`super::board::build`] builds any board crate, the STM32 one too.)
 
+pub mod gdb;
 pub mod log;
 
 use std::io::{BufRead, BufReader, Read};
@@ -14,6 +15,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 
+pub use gdb::Gdb;
 pub use log::DefmtLog;
 
 /// The board crate (its own cargo workspace), found from this crate's source directory.
@@ -27,6 +29,9 @@ pub const FIRMWARE_BIN: &str = "board-mps2-an386";
 /// The log file the firmware writes over semihosting, in QEMU's working directory (the board
 /// crate's `log::LOG_FILE`).
 const LOG_FILE: &str = "defmt.bin";
+
+/// QEMU's gdb stub's socket in its working directory ([`Qemu::start_with_debugger`]).
+const GDB_SOCKET: &str = "gdb.sock";
 
 /// The start of the line the board binary's `main` logs just before it enters the control loop.
 const STARTED_LINE: &str = "static state:";
@@ -69,6 +74,23 @@ impl Qemu {
     /// nanosecond, so timing inside the guest is repeatable) and waits for it to name UART0's pty,
     /// which it then makes its owner's alone. Fails in one line if it cannot.
     pub fn start(config: &QemuConfig) -> Result<Qemu> {
+        Self::spawn(config, false)
+    }
+
+    /// As [`Qemu::start`], with QEMU's gdb stub listening on a unix socket in its working
+    /// directory, for [`Qemu::debugger`]: tests that act on the firmware from outside, as a probe
+    /// does on a board.
+    pub fn start_with_debugger(config: &QemuConfig) -> Result<Qemu> {
+        Self::spawn(config, true)
+    }
+
+    /// Connects to the gdb stub of a QEMU started with [`Qemu::start_with_debugger`]; the machine
+    /// stops until [`Gdb::resume`].
+    pub fn debugger(&self) -> Result<Gdb> {
+        Gdb::connect(&self.dir.join(GDB_SOCKET))
+    }
+
+    fn spawn(config: &QemuConfig, debugger: bool) -> Result<Qemu> {
         static RUNS: AtomicUsize = AtomicUsize::new(0);
         let dir = std::env::temp_dir().join(format!(
             "armctl-qemu-{}-{}",
@@ -88,6 +110,9 @@ impl Qemu {
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped());
+        if debugger {
+            command.arg("-gdb").arg(format!("unix:{},server=on,wait=off", dir.join(GDB_SOCKET).display()));
+        }
         let child = command.spawn().context("cannot start qemu-system-arm (apt-get install qemu-system-arm)")?;
         let log = DefmtLog::follow(&dir.join(LOG_FILE), &elf);
         let mut qemu = Qemu { child, dir, link: String::new(), log: None };
