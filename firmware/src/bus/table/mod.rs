@@ -194,7 +194,9 @@ pub struct Model {
     pub max_velocity: f32,
     /// The items a master uses, by role.
     pub items: Items,
-    /// Factory values written into a fresh control table: (item, value).
+    /// Factory values written into a fresh control table: (item, value). Only the simulator
+    /// needs them: they are compiled in with the `factory-defaults` feature (the host crates turn
+    /// it on) and empty on the boards, where they would only take flash.
     pub defaults: &'static [(Item, i64)],
     /// How the model caps and reports its effort (`None`: it cannot, as the XL430-W250, which
     /// has no current sensing).

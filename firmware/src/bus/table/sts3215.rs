@@ -98,7 +98,8 @@ const BAUDS: [(u8, u32); 8] =
 /// Items the project reads or writes whose spreadsheet value is 0 (homing offset, operating mode,
 /// torque enable, acceleration, goal time and velocity) are listed too, so that the list is the
 /// whole of it.
-const DEFAULTS: [(Item, i64); 26] = [
+#[cfg(feature = "factory-defaults")]
+const DEFAULTS: &[(Item, i64)] = &[
     (FIRMWARE_MAJOR_VERSION, 3),
     (FIRMWARE_MINOR_VERSION, 10),
     (MODEL_NUMBER, 777),
@@ -131,6 +132,10 @@ const DEFAULTS: [(Item, i64); 26] = [
     (PRESENT_TEMPERATURE, 30),
     (MAXIMUM_ACCELERATION, 0),
 ];
+
+/// Boards hold no factory values: only the simulator writes them into a table (see [`Model::defaults`]).
+#[cfg(not(feature = "factory-defaults"))]
+const DEFAULTS: &[(Item, i64)] = &[];
 
 /// STS3215 (model 777): 4096 steps per revolution, 1 Mbps from the factory, about 45 rev/min
 /// without load at 7.4 V (0.222 s per 60°).
@@ -168,7 +173,7 @@ pub const STS3215: Model = Model {
         hardware_error: None,
         lock: Some(LOCK),
     },
-    defaults: &DEFAULTS,
+    defaults: DEFAULTS,
     // The torque limit caps the output, the present load reports it, both in 0.1 %.
     force: Some(Force { limit: TORQUE_LIMIT, limit_full: 1000, present: PRESENT_LOAD, present_full: 1000 }),
 };

@@ -122,6 +122,7 @@ const ACCELERATION_UNIT: f32 = 214.577 * 4096.0 / 3600.0;
 /// - present input voltage and temperature are readings: each model at the supply its speed below
 ///   is given at (12 V for the XL430 and XM430, 5 V for the XL330: a 12 V reading there would be
 ///   an XL330 on the wrong supply) and 30 °C.
+#[cfg(feature = "factory-defaults")]
 const fn defaults(
     velocity_limit: i64,
     current_limit: i64,
@@ -153,9 +154,20 @@ const fn defaults(
     ]
 }
 
-const XL430_DEFAULTS: [(Item, i64); 21] = defaults(265, 0, 120, (72, 140, 60));
-const XM430_DEFAULTS: [(Item, i64); 21] = defaults(200, 1193, 120, (80, 160, 95));
-const XL330_DEFAULTS: [(Item, i64); 21] = defaults(445, 1750, 50, (70, 70, 35));
+#[cfg(feature = "factory-defaults")]
+const XL430_DEFAULTS: &[(Item, i64)] = &defaults(265, 0, 120, (72, 140, 60));
+#[cfg(feature = "factory-defaults")]
+const XM430_DEFAULTS: &[(Item, i64)] = &defaults(200, 1193, 120, (80, 160, 95));
+#[cfg(feature = "factory-defaults")]
+const XL330_DEFAULTS: &[(Item, i64)] = &defaults(445, 1750, 50, (70, 70, 35));
+// Boards hold no factory values: only the simulator writes them into a table (see
+// [`Model::defaults`]).
+#[cfg(not(feature = "factory-defaults"))]
+const XL430_DEFAULTS: &[(Item, i64)] = &[];
+#[cfg(not(feature = "factory-defaults"))]
+const XM430_DEFAULTS: &[(Item, i64)] = &[];
+#[cfg(not(feature = "factory-defaults"))]
+const XL330_DEFAULTS: &[(Item, i64)] = &[];
 
 /// The effort of a model with current sensing: the goal current caps it (in current-based
 /// position mode), the present current reports it; full is the factory current limit.
@@ -191,8 +203,8 @@ const fn x_series(
 }
 
 /// XL430-W250 (model 1060): 57 rev/min without load at 12 V.
-pub const XL430_W250: Model = x_series("XL430-W250", 1060, 57.0, &XL430_DEFAULTS, None);
+pub const XL430_W250: Model = x_series("XL430-W250", 1060, 57.0, XL430_DEFAULTS, None);
 /// XM430-W350 (model 1020): 46 rev/min without load at 12 V.
-pub const XM430_W350: Model = x_series("XM430-W350", 1020, 46.0, &XM430_DEFAULTS, current(1193));
+pub const XM430_W350: Model = x_series("XM430-W350", 1020, 46.0, XM430_DEFAULTS, current(1193));
 /// XL330-M288 (model 1200): 103 rev/min without load at 5 V.
-pub const XL330_M288: Model = x_series("XL330-M288", 1200, 103.0, &XL330_DEFAULTS, current(1750));
+pub const XL330_M288: Model = x_series("XL330-M288", 1200, 103.0, XL330_DEFAULTS, current(1750));
