@@ -423,27 +423,11 @@ pub fn calibration(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::servo::session::Servo;
+    use crate::doctor::survey::healthy;
     use firmware::bus::table::{STS3215, XL430_W250};
 
     fn reading(id: Id, model: &'static Model) -> Reading {
-        Reading {
-            servo: Servo { id, model_number: model.number, model: Some(model), firmware: Some(3) },
-            firmware_minor: Some(10),
-            voltage_dv: Some(74),
-            voltage_limits_dv: None,
-            temperature_c: Some(30),
-            temperature_limit_c: None,
-            hardware_error: Some(0),
-            return_delay: Some(0),
-            status_return_level: Some(replies_to_all(model.protocol)),
-            torque: Some(false),
-            goal: Some(2048),
-            present: Some(2048),
-            homing_offset: Some(0),
-            collision: None,
-            failed: Vec::new(),
-        }
+        healthy(id, model)
     }
 
     fn so101() -> Expected {

@@ -151,26 +151,16 @@ pub fn confirm(fix: &Fix, yes: bool, input: &mut dyn BufRead, prompt: &mut dyn W
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::servo::session::Servo;
+    use crate::doctor::survey::healthy;
     use firmware::bus::table::STS3215;
 
     fn reading(torque: bool) -> Reading {
         Reading {
-            servo: Servo { id: 3, model_number: 777, model: Some(&STS3215), firmware: Some(3) },
-            firmware_minor: Some(10),
-            voltage_dv: Some(74),
-            voltage_limits_dv: None,
-            temperature_c: Some(30),
-            temperature_limit_c: None,
-            hardware_error: Some(0),
             return_delay: Some(250),
             status_return_level: Some(0),
             torque: Some(torque),
             goal: Some(3000),
-            present: Some(2048),
-            homing_offset: Some(0),
-            collision: None,
-            failed: Vec::new(),
+            ..healthy(3, &STS3215)
         }
     }
 

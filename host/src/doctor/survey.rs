@@ -146,3 +146,26 @@ pub fn replies_to_all(protocol: Protocol) -> i64 {
         Protocol::Feetech => 1,
     }
 }
+
+/// A healthy servo of `model` as the checks' tests start from: firmware 3.10, 7.4 V, 30 °C, no
+/// error, return delay 0, answering everything, torque off, standing at its goal (2048).
+#[cfg(test)]
+pub fn healthy(id: Id, model: &'static Model) -> Reading {
+    Reading {
+        servo: Servo { id, model_number: model.number, model: Some(model), firmware: Some(3) },
+        firmware_minor: Some(10),
+        voltage_dv: Some(74),
+        voltage_limits_dv: None,
+        temperature_c: Some(30),
+        temperature_limit_c: None,
+        hardware_error: Some(0),
+        return_delay: Some(0),
+        status_return_level: Some(replies_to_all(model.protocol)),
+        torque: Some(false),
+        goal: Some(2048),
+        present: Some(2048),
+        homing_offset: Some(0),
+        collision: None,
+        failed: Vec::new(),
+    }
+}
