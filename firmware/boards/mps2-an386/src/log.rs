@@ -49,7 +49,8 @@ static REENTERED: AtomicBool = AtomicBool::new(false);
 /// (QEMU keeps running) the firmware opens it again, and the host, following the file, reads on
 /// where it was: so the file is opened for update and written from its end, and only created
 /// (truncated) when it is not there yet (each QEMU starts in a new directory). Not the append mode:
-/// QEMU 7.2 truncates the file for it.
+/// with it, Debian's QEMU 7.2 put a restarted firmware's first frame over the old log's start
+/// (seen in `tests/hil_qemu.rs`: the host decoded a malformed frame).
 fn open_log() -> Option<usize> {
     let name = LOG_FILE.as_bytes();
     // SAFETY: SYS_OPEN reads `name.len() - 1` bytes of the NUL-terminated name, which lives for the
