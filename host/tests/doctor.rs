@@ -8,18 +8,26 @@ mod support;
 
 use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
+use std::sync::{Mutex, MutexGuard};
 
 use serde_json::Value;
 use support::armctl;
+
+/// One simulator and one doctor at a time: the doctor times the line, and a dozen simulators
+/// and doctors at once on a 2-core machine would time the machine instead.
+static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
 
 /// `armctl sim servos --pty ARGS`, killed when dropped.
 struct Sim {
     child: Child,
     path: String,
+    _turn: MutexGuard<'static, ()>,
 }
 
 impl Sim {
     fn start(args: &[&str]) -> Sim {
+        // A test that failed while holding the lock poisons it; the next still runs.
+        let turn = ONE_AT_A_TIME.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
         let mut child = Command::new(env!("CARGO_BIN_EXE_armctl"))
             .args(["sim", "servos", "--pty"])
             .args(args)
@@ -32,7 +40,7 @@ impl Sim {
         BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).expect("the pty's path");
         let path = line.trim().to_string();
         assert!(path.starts_with("/dev/"), "sim servos {args:?} printed {line:?}");
-        Sim { child, path }
+        Sim { child, path, _turn: turn }
     }
 
     /// `armctl doctor --bus PTY --json ARGS`: its JSON and exit code.

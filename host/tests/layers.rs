@@ -18,7 +18,7 @@ const ROWS: &[&[&str]] = &[
     &["motion", "servo"],
     &["drive", "mocap"],
     &["rig"],
-    &["demo", "bench", "footprint", "teleop", "view"],
+    &["demo", "bench", "doctor", "footprint", "teleop", "view"],
     &["cli"],
 ];
 
