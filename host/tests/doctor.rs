@@ -308,7 +308,11 @@ fn nothing_on_the_bus_is_one_fail_with_what_to_check() {
 fn bad_invocations_are_one_line_errors() {
     for (args, text) in [
         (vec!["doctor"], "doctor needs --bus PORT"),
-        (vec!["doctor", "--sim"], "--sim is not for it"),
+        (vec!["--sim", "doctor"], "--sim is not for it"),
+        (
+            vec!["--bus", "/dev/nonexistent-armctl-port", "doctor", "--protocol", "sts", "--baud", "1000000"],
+            "nonexistent",
+        ),
         (
             vec!["doctor", "--bus", "/dev/nonexistent-armctl-port", "--protocol", "sts", "--baud", "1000000"],
             "nonexistent",

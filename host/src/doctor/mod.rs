@@ -39,12 +39,29 @@ use crate::drive::args::LinkArgs;
 use crate::places::pc::timing::margins;
 use crate::servo::session::Session;
 
-/// `armctl doctor`'s own options (the bus, protocol, baud, arm and calibration are the drive
-/// options, before or after the command).
+/// `armctl doctor`'s options. The bus, protocol, baud, arm, calibration and `--json` are the drive
+/// options' own, and may come before the command as well.
 #[derive(Args, Debug)]
 pub struct DoctorArgs {
-    #[command(flatten)]
-    link: LinkArgs,
+    /// The servos' USB adapter (`armctl ports` lists them).
+    #[arg(long, value_name = "PORT")]
+    bus: Option<String>,
+    /// The servos' protocol, sts (Feetech) or dxl2 (Dynamixel 2.0) (default: both are tried).
+    #[arg(long, value_enum)]
+    protocol: Option<crate::args::bus::ProtocolArg>,
+    /// The servos' baud rate (default: the usual rates are tried, the arm file's first).
+    #[arg(long)]
+    baud: Option<u32>,
+    /// The arm the servos should make up (a preset or an arm file with a [servos] table): its ids
+    /// and model are checked (default: whatever answers among ids 0 to 20).
+    #[arg(long = "arm", value_name = "ARM")]
+    arm: Option<String>,
+    /// A LeRobot calibration file (JSON) to check the servos' homing offsets and limits against.
+    #[arg(long, value_name = "FILE")]
+    calibration: Option<std::path::PathBuf>,
+    /// One line of JSON: the bus, every servo's readings, the line's counts and the findings.
+    #[arg(long)]
+    json: bool,
     /// Offer the safe fixes (return delay 0, status return level, stale goals to the present
     /// position, the adapter's latency timer), each confirmed on stdin.
     #[arg(long)]
@@ -66,7 +83,16 @@ struct Look {
 
 /// Runs the doctor; exit code 1 when a finding is FAIL.
 pub fn run(before: &LinkArgs, args: DoctorArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
-    let link = before.merged(&args.link)?;
+    let after = LinkArgs {
+        bus: args.bus.clone(),
+        protocol: args.protocol,
+        baud: args.baud,
+        arm: args.arm.clone(),
+        calibration: args.calibration.clone(),
+        json: args.json,
+        ..LinkArgs::default()
+    };
+    let link = before.merged(&after)?;
     let refused: Vec<&str> = [
         (link.port.is_some(), "--port"),
         (link.sim, "--sim"),
