@@ -283,25 +283,7 @@ pub fn power(readings: &[Reading], names: &[(Id, String)]) -> Vec<Finding> {
 
 /// The error bits in words.
 pub fn hardware_error_text(protocol: Protocol, bits: u8) -> String {
-    let names: &[(u8, &str)] = match protocol {
-        // X-series Hardware Error Status (address 70).
-        Protocol::Dxl2 => &[
-            (0x01, "input voltage"),
-            (0x04, "overheating"),
-            (0x08, "motor encoder"),
-            (0x10, "electrical shock"),
-            (0x20, "overload"),
-        ],
-        // Feetech's status error byte.
-        Protocol::Feetech => &[
-            (0x01, "input voltage"),
-            (0x02, "angle sensor"),
-            (0x04, "overheating"),
-            (0x08, "overcurrent"),
-            (0x20, "overload"),
-        ],
-    };
-    let found: Vec<&str> = names.iter().filter(|(b, _)| bits & b != 0).map(|(_, n)| *n).collect();
+    let found = crate::servo::session::hardware_error_names(protocol, bits);
     if found.is_empty() {
         format!("error bits {bits:#04x}")
     } else {

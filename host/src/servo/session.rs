@@ -279,16 +279,35 @@ pub fn value_error(e: ValueError) -> anyhow::Error {
     anyhow::anyhow!("{e}")
 }
 
-/// The X-series hardware error status bits (e-manual, address 70).
-fn hardware_errors(bits: i64) -> String {
-    const NAMES: [(i64, &str); 5] = [
+/// The names of the hardware fault bits set in `bits`, lowest bit first: on Dynamixel the X-series
+/// hardware error status (e-manual, address 70), on Feetech the status error byte (the
+/// firmware's [`firmware::bus::feetech::StatusError`] bits).
+pub fn hardware_error_names(protocol: Protocol, bits: u8) -> Vec<&'static str> {
+    use firmware::bus::feetech::StatusError;
+    const DYNAMIXEL: [(u8, &str); 5] = [
         (0x01, "input voltage"),
         (0x04, "overheating"),
         (0x08, "motor encoder"),
         (0x10, "electrical shock"),
         (0x20, "overload"),
     ];
-    let names: Vec<&str> = NAMES.iter().filter(|(bit, _)| bits & bit != 0).map(|(_, name)| *name).collect();
+    const FEETECH: [(u8, &str); 5] = [
+        (StatusError::VOLTAGE, "input voltage"),
+        (StatusError::SENSOR, "angle sensor"),
+        (StatusError::OVERHEAT, "overheating"),
+        (StatusError::OVERCURRENT, "overcurrent"),
+        (StatusError::OVERLOAD, "overload"),
+    ];
+    let names: &[(u8, &str)] = match protocol {
+        Protocol::Dxl2 => &DYNAMIXEL,
+        Protocol::Feetech => &FEETECH,
+    };
+    names.iter().filter(|(bit, _)| bits & bit != 0).map(|(_, name)| *name).collect()
+}
+
+/// The X-series hardware error status bits in words.
+fn hardware_errors(bits: i64) -> String {
+    let names = hardware_error_names(Protocol::Dxl2, bits as u8);
     if names.is_empty() {
         "no fault bit set".to_string()
     } else {
