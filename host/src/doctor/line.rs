@@ -79,23 +79,20 @@ pub fn measure<P: Port, C: Clock>(
     reads: u32,
     echo: bool,
 ) -> LineReport {
+    let config = session.config();
     let mut report = LineReport {
         echo,
         latency_timer: latency_timer(Path::new("/sys"), path),
         servos: ids.len(),
         // The configuration `armctl --bus` starts from (its margins follow the latency measured),
         // not the doctor's own long scan timeouts.
-        bus: Some({
-            let c = session.config();
-            BusConfig { return_delay_us: c.return_delay_us, echo: c.echo, ..BusConfig::new(c.protocol, c.baud) }
+        bus: Some(BusConfig {
+            return_delay_us: config.return_delay_us,
+            echo: config.echo,
+            ..BusConfig::new(config.protocol, config.baud)
         }),
         ..LineReport::default()
     };
-    // The wire times come from the PC place's own timing; the reads it times are replaced by the
-    // error-rate reads below, a few hundred instead of 20, so that one late reply on a busy PC
-    // does not decide the verdict alone.
-    let timed = timing::measure(session.master_mut(), model, ids).map_err(|e| e.to_string());
-    let config = session.config();
     // No retries, and a reply timeout well past any adapter's latency: a late reply is a slow
     // read (the cycle's and the adapter's findings), not a lost one.
     session.set_config(BusConfig { retries: 0, ..margins(config, LATE_REPLY_US) });
@@ -119,7 +116,14 @@ pub fn measure<P: Port, C: Clock>(
             Err(_) => break,
         }
     }
-    report.timing = Some(timed.map(|m| if reads_us.is_empty() { m } else { Measured { reads_us, ..m } }));
+    // The reads are timed as `armctl --bus` times its 20 when it connects (`timing::measure`),
+    // a few hundred instead, so that one late reply on a busy PC does not decide alone; only
+    // reads every servo answered time a cycle.
+    report.timing = Some(if reads_us.is_empty() {
+        Err("no sync read was answered by every servo".to_string())
+    } else {
+        Ok(Measured::of(reads_us, &config, model, ids.len()))
+    });
     report.corrupt = u64::from(session.master_mut().stats().bad_checksums.saturating_sub(before));
     session.set_config(config);
     report

@@ -72,7 +72,6 @@ where
 {
     let item = model.items.present_position;
     let config = *master.config();
-    let protocol = config.protocol;
     let mut out = vec![0u8; ids.len() * item.len()];
     let mut reads_us = Vec::with_capacity(SAMPLES);
     for _ in 0..SAMPLES {
@@ -93,12 +92,21 @@ where
     if reads_us.len() < SAMPLES / 2 {
         bail!("the bus needed retries on {} of {SAMPLES} reads while it was timed", SAMPLES - reads_us.len());
     }
-    let replies = ids.len() * protocol.status_len(item.len());
-    let wire_read_ns = wire_time_ns(sync_read_request_len(protocol, ids.len()) + replies, config.baud)
-        + ids.len() as u64 * u64::from(config.return_delay_us) * 1000;
-    let goal = model.items.goal_position.len();
-    let wire_write_ns = wire_time_ns(sync_write_len(protocol, ids.len(), goal), config.baud);
-    Ok(Measured { reads_us, wire_read_us: wire_read_ns.div_ceil(1000), wire_write_us: wire_write_ns.div_ceil(1000) })
+    Ok(Measured::of(reads_us, &config, model, ids.len()))
+}
+
+impl Measured {
+    /// `reads_us`, timed sync reads of the present position of `servos` servos of `model` on a
+    /// bus run as `config`, with the wire times they are judged against.
+    pub fn of(reads_us: Vec<u64>, config: &BusConfig, model: &Model, servos: usize) -> Self {
+        let protocol = config.protocol;
+        let replies = servos * protocol.status_len(model.items.present_position.len());
+        let wire_read_ns = wire_time_ns(sync_read_request_len(protocol, servos) + replies, config.baud)
+            + servos as u64 * u64::from(config.return_delay_us) * 1000;
+        let goal = model.items.goal_position.len();
+        let wire_write_ns = wire_time_ns(sync_write_len(protocol, servos, goal), config.baud);
+        Self { reads_us, wire_read_us: wire_read_ns.div_ceil(1000), wire_write_us: wire_write_ns.div_ceil(1000) }
+    }
 }
 
 /// How the bus is run, once measured.
