@@ -33,8 +33,8 @@ pub const SCAN_IDS: std::ops::RangeInclusive<u8> = 0..=20;
 /// The adapter latency the scan allows for: an FTDI chip's factory 16 ms latency timer, and some.
 pub const SCAN_LATENCY_US: u64 = 20_000;
 
-/// Extra attempts for an id whose reply came garbled in the scan.
-pub const GARBLED_RETRIES: u8 = 4;
+/// Extra attempts, once something answered at a rate, for an id that did not answer cleanly.
+pub const AGAIN_RETRIES: u8 = 4;
 
 /// What answered where.
 #[derive(Debug)]
@@ -112,37 +112,48 @@ pub fn scan(
         tried.push((protocol, baud));
         writeln!(progress, "looking for servos: {} at {baud} baud", protocol.name())?;
         let mut session = Session::open(path, scan_config(protocol, baud, echo))?;
-        let mut servos = Vec::new();
-        let mut garbled = Vec::new();
-        for &id in ids {
-            match session.identify(id) {
-                Ok(servo) => servos.push(servo),
-                Err(BusFailure(MasterError::NoReply { corrupt: 0, .. })) => {}
-                Err(BusFailure(MasterError::NoReply { .. } | MasterError::BadReply { .. })) => garbled.push(id),
-                Err(BusFailure(MasterError::Refused { .. })) => garbled.push(id),
-                Err(e) => return Err(e).with_context(|| format!("{path}: scanning at {baud} baud")),
-            }
-        }
-        // A garbled reply may be noise on the line rather than two servos answering at once:
-        // those ids are asked again with retries, and only a servo that never answers cleanly
-        // stays garbled (two servos with one id collide on every attempt).
-        if !garbled.is_empty() {
-            session.set_config(BusConfig { retries: GARBLED_RETRIES, ..session.config() });
-            let mut still = Vec::new();
-            for id in garbled {
-                match session.identify(id) {
-                    Ok(servo) => servos.push(servo),
-                    Err(_) => still.push(id),
-                }
-            }
-            garbled = still;
+        let (mut servos, mut garbled) = ping(&mut session, ids, path, baud)?;
+        // Something is at this rate. A noisy line loses or garbles a ping now and then, which
+        // one attempt takes for a missing servo or for two servos with one id: the ids that did
+        // not answer cleanly are asked again with retries. Only a servo that never answers stays
+        // missing, and only one that never answers cleanly stays garbled (two servos with one id
+        // collide on every attempt).
+        if !servos.is_empty() || !garbled.is_empty() {
+            let again: Vec<Id> = ids.iter().copied().filter(|id| !servos.iter().any(|s| s.id == *id)).collect();
+            session.set_config(BusConfig { retries: AGAIN_RETRIES, ..session.config() });
+            let (more, still) = ping(&mut session, &again, path, baud)?;
+            servos.extend(more);
             servos.sort_by_key(|s| s.id);
+            garbled = still;
         }
         if !servos.is_empty() || !garbled.is_empty() {
             return Ok(Some(Found { protocol, baud, servos, garbled, tried }));
         }
     }
     Ok(None)
+}
+
+/// Pings each of `ids` once per attempt of the session's configuration: the servos that answer,
+/// and the ids whose replies came garbled.
+fn ping<P: crate::servo::session::Port, C: firmware::bus::master::Clock>(
+    session: &mut Session<P, C>,
+    ids: &[Id],
+    path: &str,
+    baud: u32,
+) -> Result<(Vec<Servo>, Vec<Id>)> {
+    let mut servos = Vec::new();
+    let mut garbled = Vec::new();
+    for &id in ids {
+        match session.identify(id) {
+            Ok(servo) => servos.push(servo),
+            Err(BusFailure(MasterError::NoReply { corrupt: 0, .. })) => {}
+            Err(BusFailure(
+                MasterError::NoReply { .. } | MasterError::BadReply { .. } | MasterError::Refused { .. },
+            )) => garbled.push(id),
+            Err(e) => return Err(e).with_context(|| format!("{path}: scanning at {baud} baud")),
+        }
+    }
+    Ok((servos, garbled))
 }
 
 /// An id no arm uses, for the echo probe: nothing should answer it.
