@@ -19,7 +19,7 @@
 
 use heapless::Deque;
 
-use super::command::Refusal;
+use super::refusal::Refusal;
 use crate::bus::Id;
 
 /// A stall shorter than this many position reads is motion slowing down, not a grasp.

@@ -24,12 +24,14 @@ mod config;
 pub mod gripper;
 mod health;
 pub mod limiter;
+mod refusal;
 mod tick;
 
-pub use command::{Command, Pace, Refusal, ToolPath};
+pub use command::{Command, Pace, ToolPath};
 pub use config::{joint_limits, minimum_period_us, Config, ConfigError};
 pub use gripper::{GripperConfig, GripperState};
 pub use health::{Counters, Fault, ServoHealth, TickReport};
+pub use refusal::Refusal;
 
 use kinematics::ik::Target;
 use kinematics::nalgebra::{SVector, Vector3};
