@@ -21,7 +21,6 @@ use serde::{de::DeserializeOwned, Serialize};
 
 use super::cobs::{self, CobsError};
 use super::crc::crc16;
-use super::message::NakReason;
 
 /// Largest frame on the wire, delimiter included.
 pub const MAX_FRAME: usize = 256;
@@ -105,17 +104,6 @@ pub enum FrameError {
     UnknownMessage,
     /// A message does not fit a frame, or the output buffer is too small.
     BufferTooSmall,
-}
-
-impl FrameError {
-    /// The nak reason reported for the error.
-    pub fn nak_reason(&self) -> NakReason {
-        match self {
-            Self::Oversized { .. } | Self::BufferTooSmall => NakReason::Oversized,
-            Self::UnknownKind { .. } | Self::UnknownMessage => NakReason::UnknownMessage,
-            Self::Cobs(_) | Self::Truncated { .. } | Self::Crc { .. } => NakReason::Corrupt,
-        }
-    }
 }
 
 impl core::fmt::Display for FrameError {

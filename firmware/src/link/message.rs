@@ -16,6 +16,8 @@
 use heapless::{String, Vec};
 use serde::{Deserialize, Serialize};
 
+use super::frame::{FrameError, MAX_FRAME};
+
 /// The protocol version carried by the handshake; bumped on any change to the wire format.
 pub const PROTOCOL_VERSION: u16 = 6;
 /// The most joints a message carries.
@@ -524,7 +526,7 @@ pub struct ValueError {
 pub enum NakReason {
     /// A frame failed its CRC or COBS decoding (its sequence number cannot be trusted).
     Corrupt,
-    /// A frame longer than [`super::frame::MAX_FRAME`].
+    /// A frame longer than [`MAX_FRAME`].
     Oversized,
     /// The frame kind or message is not one this protocol version knows.
     UnknownMessage,
@@ -552,11 +554,23 @@ pub enum NakReason {
     NoGripper,
 }
 
+/// The nak reported for bytes that are no frame, or a payload that is no message. Here rather than
+/// beside [`FrameError`]: framing is the layer below the messages and knows none of them.
+impl From<FrameError> for NakReason {
+    fn from(error: FrameError) -> Self {
+        match error {
+            FrameError::Oversized { .. } | FrameError::BufferTooSmall => Self::Oversized,
+            FrameError::UnknownKind { .. } | FrameError::UnknownMessage => Self::UnknownMessage,
+            FrameError::Cobs(_) | FrameError::Truncated { .. } | FrameError::Crc { .. } => Self::Corrupt,
+        }
+    }
+}
+
 impl core::fmt::Display for NakReason {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
             Self::Corrupt => write!(f, "corrupt frame"),
-            Self::Oversized => write!(f, "frame longer than {} bytes", super::frame::MAX_FRAME),
+            Self::Oversized => write!(f, "frame longer than {MAX_FRAME} bytes"),
             Self::UnknownMessage => write!(f, "unknown message"),
             Self::BadValue(e) => write!(f, "bad value: {:?} is {:?}", e.field, e.problem),
             Self::QueueFull => write!(f, "keyframe queue full"),

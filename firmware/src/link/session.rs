@@ -63,7 +63,7 @@ impl Session {
         }
         let message = match decode_payload::<HostMessage>(frame.payload) {
             Ok(m) => m,
-            Err(e) => return self.reply_nak(frame.seq, e.nak_reason(), out),
+            Err(e) => return self.reply_nak(frame.seq, NakReason::from(e), out),
         };
         let hello = matches!(message, HostMessage::Hello { .. });
         if let Some((seq, crc, reply)) = &self.last {
@@ -92,7 +92,7 @@ impl Session {
     /// the reason, so the host retransmits at once instead of waiting out its timeout.
     pub fn nak_broken(&mut self, error: &FrameError, out: &mut [u8]) -> Result<usize, FrameError> {
         self.stats.naks = self.stats.naks.wrapping_add(1);
-        self.event(&FirmwareMessage::Nak { reason: error.nak_reason() }, out)
+        self.event(&FirmwareMessage::Nak { reason: NakReason::from(*error) }, out)
     }
 
     /// Builds an event frame (telemetry) with the next event seq.

@@ -317,7 +317,7 @@ fn every_flipped_bit_is_caught() {
             let got = feed(&bad);
             assert!(got.iter().all(|r| r.is_err()), "flip {byte}:{bit} gave {got:?}");
             for r in got {
-                let reason = r.unwrap_err().nak_reason();
+                let reason = NakReason::from(r.unwrap_err());
                 assert!(matches!(reason, NakReason::Corrupt), "flip {byte}:{bit}: {reason:?}");
             }
         }
@@ -346,7 +346,7 @@ fn unknown_kind_and_unknown_message_rejected() {
     let mut raw = vec![0x05, 0x7F, 0x0A];
     raw.extend(crc16(&raw).to_be_bytes());
     assert_eq!(parse_raw(&raw), Err(FrameError::UnknownKind { kind: 0x7F }));
-    assert_eq!(FrameError::UnknownKind { kind: 0x7F }.nak_reason(), NakReason::UnknownMessage);
+    assert_eq!(NakReason::from(FrameError::UnknownKind { kind: 0x7F }), NakReason::UnknownMessage);
     // Variant 200 does not exist; a known variant with trailing bytes is refused as well.
     assert_eq!(decode_payload::<HostMessage>(&[200, 1]), Err(FrameError::UnknownMessage));
     assert_eq!(decode_payload::<HostMessage>(&[0x0A, 0x00]), Err(FrameError::UnknownMessage));
