@@ -233,27 +233,13 @@ fn expected(protocol: &str, joints: &[Joint]) -> Vec<MotorCalibration> {
         .collect()
 }
 
-/// Calibrates `arm` over the simulator with the hand's `joints` (the gripper last), then checks
-/// everything the calibration wrote.
-fn calibrate_end_to_end(arm: &str, protocol: &str, joints: &[Joint]) {
-    let dir = temp_dir(arm);
-    let toml = dir.join("my-arm.toml");
-    let json = dir.join("my-arm.json");
-    let start: Vec<(u8, i64)> = joints.iter().map(|j| (j.id, j.middle)).collect();
-    let (mut sim, path) = simulator(arm, &start);
-    let mut cal = Process::spawn(&[
-        "calibrate",
-        "--bus",
-        &path,
-        "--protocol",
-        protocol,
-        "--arm",
-        arm,
-        "--out",
-        toml.to_str().unwrap(),
-        "--lerobot-json",
-        json.to_str().unwrap(),
-    ]);
+/// Runs `armctl calibrate --bus PATH --protocol PROTOCOL ARGS` to the end, the hand moving
+/// `joints` (the gripper last) as a person does: the middles held in step 1, each swept joint
+/// from its middle to one stop, to the other and back in step 2. Its stdout lines.
+fn by_hand(sim: &mut Process, path: &str, protocol: &str, args: &[&str], joints: &[Joint]) -> Vec<String> {
+    let mut all = vec!["calibrate", "--bus", path, "--protocol", protocol];
+    all.extend(args);
+    let mut cal = Process::spawn(&all);
     cal.until("step 1 of 2: move the arm to the middle of its range");
     cal.send("");
     cal.until("step 2 of 2: move every joint");
@@ -268,15 +254,28 @@ fn calibrate_end_to_end(arm: &str, protocol: &str, joints: &[Joint]) {
     // for the calibration, which would then miss the stop by the ticks of the next move.
     let stop0: fn(&Joint) -> i64 = |j| j.stops.unwrap().0;
     let stop1: fn(&Joint) -> i64 = |j| j.stops.unwrap().1;
-    hand(&mut sim, &leg(|j| j.middle, stop0, 0.25));
-    hand(&mut sim, &leg(stop0, stop0, 0.1));
-    hand(&mut sim, &leg(stop0, stop1, 0.25));
-    hand(&mut sim, &leg(stop1, stop1, 0.1));
-    hand(&mut sim, &leg(stop1, |j| j.middle, 0.25));
+    hand(sim, &leg(|j| j.middle, stop0, 0.25));
+    hand(sim, &leg(stop0, stop0, 0.1));
+    hand(sim, &leg(stop0, stop1, 0.25));
+    hand(sim, &leg(stop1, stop1, 0.1));
+    hand(sim, &leg(stop1, |j| j.middle, 0.25));
     cal.send("");
     let (code, err) = cal.finish();
     assert_eq!(code, 0, "stdout {:?}\nstderr {err}", cal.seen);
     assert!(cal.seen.iter().any(|l| l.starts_with("wrote ")), "{:?}", cal.seen);
+    std::mem::take(&mut cal.seen)
+}
+
+/// Calibrates `arm` over the simulator with the hand's `joints` (the gripper last), then checks
+/// everything the calibration wrote.
+fn calibrate_end_to_end(arm: &str, protocol: &str, joints: &[Joint]) {
+    let dir = temp_dir(arm);
+    let toml = dir.join("my-arm.toml");
+    let json = dir.join("my-arm.json");
+    let start: Vec<(u8, i64)> = joints.iter().map(|j| (j.id, j.middle)).collect();
+    let (mut sim, path) = simulator(arm, &start);
+    let args = ["--arm", arm, "--out", toml.to_str().unwrap(), "--lerobot-json", json.to_str().unwrap()];
+    by_hand(&mut sim, &path, protocol, &args, joints);
     let want = expected(protocol, joints);
 
     // The servos hold the offsets and limits.
@@ -560,4 +559,191 @@ fn bad_arguments_and_a_zero_width_range_in_the_arm_file_are_one_line() {
         &err,
         &[&format!("line {line}, column 13: [servos] range_max: joint 3 (elbow_flex): range_min and range_max are both 1000: a range of zero width")],
     );
+}
+
+/// A person's arm file for the SO-101's servos: a DH table in degrees, comments on every table
+/// and on the keys a calibration sets, the gripper's range to be measured.
+const PERSONS_ARM: &str = r#"# My SO-101 clone, measured with calipers: standard DH, degrees.
+name = "my-so101"
+convention = "dh"
+angles = "degrees"   # alpha, theta and the limits
+
+[[joint]]
+name = "shoulder_pan"
+type = "revolute"
+a = 0
+alpha = 90           # the shoulder's axis lies flat
+d = 0.0624
+limits = [-110, 110]
+
+[[joint]]
+name = "shoulder_lift"
+type = "revolute"
+a = 0.1159
+alpha = 0
+d = 0
+theta = 75.96        # the upper arm's bend
+limits = [-100, 100]
+
+[[joint]]
+name = "elbow_flex"
+type = "revolute"
+a = 0.1350
+alpha = 0
+d = 0
+limits = [-96.8, 96.8]
+
+[[joint]]
+name = "wrist_flex"
+type = "revolute"
+a = 0
+alpha = 90
+d = 0
+limits = [-95, 95]
+
+[[joint]]
+name = "wrist_roll"
+type = "revolute"
+a = 0
+alpha = 0
+d = 0.0601
+limits = [-157, 157]  # the cable stops it
+
+[tool]                # between the jaws
+xyz = [0, 0, 0.098]
+
+# Feetech STS3215s, as the kit comes.
+[servos]
+model = "STS3215"
+ids = [1, 2, 3, 4, 5]   # base first
+max_velocity = 1.5      # rad/s: slow while I learn
+max_acceleration = 6.0  # rad/s²
+
+[gripper]
+id = 6
+closed = 2000   # a guess until calibrated
+open = 3000
+opening_mm = 90 # measured
+"#;
+
+/// `armctl calibrate --arm my.toml --out my.toml` on a person's arm file: only the servos'
+/// calibration keys and the gripper's range change (the rest compared byte for byte, comments,
+/// degrees and DH table included); the file loads as the same arm with the new calibration, its
+/// limits (degrees in the file) tightened to the measured ranges; calibrating again writes the
+/// same file.
+#[test]
+fn a_persons_arm_file_gets_the_calibration_and_keeps_everything_else() {
+    let joints = [
+        Joint { id: 1, middle: 3000, stops: Some((1800, 4100)) },
+        Joint { id: 2, middle: 1100, stops: Some((300, 1900)) },
+        Joint { id: 3, middle: 2900, stops: Some((2000, 3800)) },
+        Joint { id: 4, middle: 1500, stops: Some((700, 2300)) },
+        Joint { id: 5, middle: 600, stops: None },
+        Joint { id: 6, middle: 2600, stops: Some((2200, 3400)) },
+    ];
+    let want = expected("sts", &joints);
+    let dir = temp_dir("persons-file");
+    let file = dir.join("my.toml");
+    std::fs::write(&file, PERSONS_ARM).unwrap();
+    let before = ArmSpec::load(file.to_str().unwrap(), None).unwrap();
+    let start: Vec<(u8, i64)> = joints.iter().map(|j| (j.id, j.middle)).collect();
+    let (mut sim, path) = simulator("so101", &start);
+    let args = ["--arm", file.to_str().unwrap(), "--out", file.to_str().unwrap()];
+    let seen = by_hand(&mut sim, &path, "sts", &args, &joints);
+    assert!(
+        seen.iter().any(|l| l.contains("(its servos' calibration and gripper range; the rest as it was)")),
+        "{seen:?}"
+    );
+
+    let list =
+        |f: fn(&MotorCalibration) -> i32| want[..5].iter().map(|m| f(m).to_string()).collect::<Vec<_>>().join(", ");
+    let calibration = format!(
+        "homing_offset = [{}]\nrange_min = [{}]\nrange_max = [{}]\n",
+        list(|m| m.homing_offset),
+        list(|m| m.range_min),
+        list(|m| m.range_max)
+    );
+    let g = want[5];
+    let expected_text = PERSONS_ARM
+        .replace("max_acceleration = 6.0  # rad/s²\n", &format!("max_acceleration = 6.0  # rad/s²\n{calibration}"))
+        .replace("closed = 2000   # a guess", &format!("closed = {}   # a guess", g.range_min))
+        .replace("open = 3000\n", &format!("open = {}\n", g.range_max));
+    let text = std::fs::read_to_string(&file).unwrap();
+    assert_eq!(text, expected_text);
+
+    // The same arm, the new calibration, the limits the file's tightened to the measured ranges.
+    let after = ArmSpec::load(file.to_str().unwrap(), None).unwrap_or_else(|e| panic!("{e:#}"));
+    assert_eq!(after.tool, before.tool);
+    let servos = after.servos.as_ref().unwrap();
+    assert_eq!(servos.calibration.as_deref(), Some(&want[..5]));
+    assert_eq!(servos.gripper.map(|g| (g.id, g.closed, g.open)), Some((6, g.range_min, g.range_max)));
+    let old = before.servos.as_ref().unwrap();
+    assert_eq!((servos.max_velocity, servos.max_acceleration, &servos.ids), (1.5, 6.0, &old.ids));
+    for ((b, a), m) in before.joints.iter().zip(&after.joints).zip(&want) {
+        assert_eq!((&a.name, a.kind, a.origin, a.axis), (&b.name, b.kind, b.origin, b.axis));
+        let (lower, upper) = record::joint_limits(b, m, 4096).unwrap();
+        assert_eq!((a.lower, a.upper), (lower, upper), "{}", a.name);
+    }
+    assert!(after.joints[0].upper < 110f64.to_radians(), "the pan's range was tightened");
+    let (code, _, err) = armctl(&["--bus", &path, "--protocol", "sts", "--arm", file.to_str().unwrap(), "status"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(!err.contains("does not hold the calibration"), "{err}");
+
+    // Again, from the preset this time (the same joints and servos: the same arm), into the same
+    // file: the same text.
+    let args = ["--arm", "so101", "--out", file.to_str().unwrap()];
+    by_hand(&mut sim, &path, "sts", &args, &joints);
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), expected_text, "calibrating again changes nothing");
+    drop(sim);
+}
+
+/// An existing `--out` that is not an arm file of the arm being calibrated is refused with one
+/// line before the port is opened (the port does not even exist), and left as it was.
+#[test]
+fn an_out_that_is_not_this_arms_file_is_refused_and_left_alone() {
+    let dir = temp_dir("refused-out");
+    let other = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/examples/arms/six-dof.toml")).unwrap();
+    for (name, text, arm, needle) in [
+        (
+            "robot.toml",
+            "<?xml version=\"1.0\"?>\n<robot name=\"so101\"></robot>\n".to_string(),
+            "so101",
+            "it is a URDF (XML), not an arm file (TOML)",
+        ),
+        (
+            "broken.toml",
+            PERSONS_ARM.replace("[servos]", "[servos"),
+            "so101",
+            "it is not an arm file armctl reads (line",
+        ),
+        ("cargo.toml", "[package]\nname = \"x\"\n".to_string(), "so101", "unknown field `package`"),
+        ("other.toml", other, "so101", "it is another arm: "),
+        (
+            "omx.toml",
+            PERSONS_ARM.to_string(),
+            "open-manipulator-x",
+            "it is another arm: my-so101 has joints shoulder_pan",
+        ),
+    ] {
+        let out = dir.join(name);
+        std::fs::write(&out, &text).unwrap();
+        let protocol = if arm == "so101" { "sts" } else { "dxl2" };
+        let (code, stdout, err) = armctl(&[
+            "calibrate",
+            "--bus",
+            "/dev/no-such-port",
+            "--protocol",
+            protocol,
+            "--arm",
+            arm,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!((code, stdout.as_str()), (1, ""), "{name}: {err}");
+        one_error_line(
+            &err,
+            &[&format!("--out {} exists and is not written over: ", out.display()), needle, "nothing was written"],
+        );
+        assert_eq!(std::fs::read_to_string(&out).unwrap(), text, "{name} is unchanged");
+    }
 }

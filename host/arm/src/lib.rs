@@ -9,6 +9,7 @@ pub mod dof;
 pub mod presets;
 pub mod servos;
 pub mod toml_file;
+pub mod toml_update;
 pub mod toml_writer;
 pub mod tree;
 pub mod urdf;

@@ -49,8 +49,11 @@
 //!
 //! With the calibration arrays, [`ServoSetup::calibration`](super::servos::ServoSetup) holds a
 //! [`MotorCalibration`] per joint, so the joints map to ticks as LeRobot's degree mode maps them and
-//! connecting checks that the servos hold the offsets and limits. [`super::toml_writer`] writes
-//! such a file.
+//! connecting checks that the servos hold the offsets and limits; each joint's limits are then the
+//! file's tightened to its calibrated range less
+//! [`STOP_MARGIN_DEG`](super::calibration::record::STOP_MARGIN_DEG) a side
+//! ([`joint_limits`](super::calibration::record::joint_limits)). [`super::toml_writer`] writes such
+//! a file, and [`super::toml_update`] writes a calibration into an existing one.
 
 use super::calibration::MotorCalibration;
 use super::{ArmSpec, JointSpec};
@@ -100,7 +103,7 @@ struct ServosEntry {
     range_max: Option<Spanned<Vec<i64>>>,
 }
 
-use super::calibration::record::MAX_HOMING_OFFSET;
+use super::calibration::record::{joint_limits, MAX_HOMING_OFFSET};
 
 #[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
 #[serde(rename_all = "kebab-case")]
@@ -265,7 +268,17 @@ pub fn parse(text: &str) -> Result<ArmSpec> {
         None => None,
         Some(entry) => {
             let at = format!("{}: [servos]", position(text, entry.span().start));
-            Some(servos(&at, text, entry.get_ref(), &joints)?)
+            let servos = servos(&at, text, entry.get_ref(), &joints)?;
+            // A calibrated joint keeps clear of the stops it was moved to: the file's limits are
+            // the arm's, the calibration tightens them here (`armctl calibrate` writing into an
+            // existing file changes the servos' keys only, never a joint's limits).
+            if let Some(calibration) = &servos.calibration {
+                for (joint, m) in joints.iter_mut().zip(calibration) {
+                    (joint.lower, joint.upper) =
+                        joint_limits(joint, m, servos.model.ticks_per_revolution).map_err(|e| anyhow!("{at}: {e}"))?;
+                }
+            }
+            Some(servos)
         }
     };
     let servos = match (&file.gripper, servos) {

@@ -183,6 +183,12 @@ mod tests {
         servos.reversed = Some(vec![false, false, true, false, false]);
         arm.servos = Some(servos);
         arm.joints[1].lower = -1.2345678901234567;
+        // Loading tightens a calibrated arm's limits to its ranges: written tightened, they read
+        // back as written.
+        let calibration = arm.servos.as_ref().and_then(|s| s.calibration.clone()).unwrap();
+        for (joint, m) in arm.joints.iter_mut().zip(&calibration) {
+            (joint.lower, joint.upper) = crate::calibration::record::joint_limits(joint, m, 4096).unwrap();
+        }
         let text = to_text(&arm, &["made by a test".to_string()]);
         assert!(text.starts_with("# made by a test\nname = \"so101\"\n"), "{text}");
         let back = toml_file::parse(&text).unwrap_or_else(|e| panic!("{e:#}\n{text}"));

@@ -12,7 +12,9 @@
 //!    positions are shown live.
 //! 4. Each servo gets its range as its position limits; the arm file gets the calibration in
 //!    `[servos]`, the gripper's range in `[gripper]`, and joint limits tightened to the measured
-//!    range ([`record::joint_limits`]).
+//!    range ([`record::joint_limits`]). An `--out` that exists is a person's arm file: the
+//!    calibration is written into it, changing nothing else ([`toml_update`]), and anything that
+//!    is not an arm file of this arm is refused before the servos are touched.
 //!
 //! Each step waits for a line on standard input, so a script (or a test) answers the steps from a
 //! pipe. Input that ends before a step is an error, and nothing further is done. Every value is
@@ -38,7 +40,7 @@ use super::session::{Port, Session};
 use crate::args::bus::ProtocolArg;
 use crate::arm::calibration::{homing_offset_item, lerobot, record, MotorCalibration};
 use crate::arm::servos::{servos_of, ServoSetup};
-use crate::arm::ArmSpec;
+use crate::arm::{toml_update, ArmSpec};
 
 /// The baud rate when `--baud` is not given: `--bus`'s, the STS3215's factory rate.
 const DEFAULT_BAUD: u32 = 1_000_000;
@@ -65,8 +67,11 @@ pub struct CalibrateArgs {
     /// The arm: a preset (so101, open-manipulator-x) or an arm file with a [servos] table.
     #[arg(long)]
     pub arm: String,
-    /// The arm file to write (.toml): the arm's joints with their limits tightened to the measured
-    /// ranges, its servos with their calibration, its gripper's range.
+    /// The arm file to write (.toml). A new file gets the arm's joints with their limits tightened
+    /// to the measured ranges, its servos with their calibration, its gripper's range. An existing
+    /// arm file of the same arm keeps everything its author wrote (comments, units, layout): only
+    /// its [servos] calibration keys and its [gripper] range change. Any other existing file is
+    /// refused, before the servos are touched.
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
     /// Also write the calibration as LeRobot's calibration file (JSON), for LeRobot or for
@@ -97,6 +102,9 @@ struct Plan {
     servos: ServoSetup,
     parts: Vec<Part>,
     out: PathBuf,
+    /// `out` exists, an arm file of this arm: the calibration is written into it
+    /// ([`toml_update`]) instead of a new file.
+    update: bool,
     lerobot_json: Option<PathBuf>,
 }
 
@@ -132,6 +140,16 @@ impl Plan {
                 bail!("cannot write {}: there is no directory {}", path.display(), dir.display());
             }
         }
+        let update = match std::fs::read_to_string(&args.out) {
+            Ok(text) => {
+                // A preset's servos are not in its ArmSpec: compared with them.
+                let with_servos = ArmSpec { servos: Some(servos.clone()), ..arm.clone() };
+                toml_update::check(&text, &with_servos).map_err(|e| refused(&args.out, &e))?;
+                true
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => false,
+            Err(e) => bail!("--out {}: cannot read it ({e}); nothing was written", args.out.display()),
+        };
         let mut parts: Vec<Part> = arm
             .joints
             .iter()
@@ -152,7 +170,7 @@ impl Plan {
                 full_turn: false,
             });
         }
-        Ok(Self { arm, servos, parts, out: args.out.clone(), lerobot_json: args.lerobot_json.clone() })
+        Ok(Self { arm, servos, parts, out: args.out.clone(), update, lerobot_json: args.lerobot_json.clone() })
     }
 
     fn model(&self) -> &'static Model {
@@ -162,6 +180,15 @@ impl Plan {
     fn ids(&self) -> Vec<Id> {
         self.parts.iter().map(|p| p.id).collect()
     }
+}
+
+/// Why `--out` cannot be updated, in one line.
+fn refused(out: &Path, why: &anyhow::Error) -> anyhow::Error {
+    anyhow!(
+        "--out {} exists and is not written over: {why:#}; nothing was written (name a new file to write a new \
+         arm file)",
+        out.display()
+    )
 }
 
 /// The person's answers: one line of input per step, read on a thread of its own so that the
@@ -210,7 +237,7 @@ fn ended(step: &str, state: &str) -> anyhow::Error {
 /// Runs `armctl calibrate`, the steps answered on standard input.
 pub fn run(args: CalibrateArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
     let plan = Plan::new(&args)?;
-    if plan.servos.calibration.is_some() {
+    if plan.servos.calibration.is_some() && !plan.update {
         writeln!(
             err,
             "note: {} holds a calibration already, and its joint limits were tightened by it: calibrating from it \
@@ -397,6 +424,19 @@ fn calibrate<P: Port, C: Clock>(
     let arm = record::calibrated_arm(&plan.arm, &plan.servos, joints, gripper)?;
     let file = record::lerobot_file(&plan.arm, joints, gripper);
     file.check()?;
+    let (text, arm) = if plan.update {
+        // Read again: the person may have edited it during the calibration.
+        let text = std::fs::read_to_string(&plan.out).with_context(|| format!("cannot read {}", plan.out.display()))?;
+        toml_update::with_calibration(&text, &arm).map_err(|e| refused(&plan.out, &e))?
+    } else {
+        let header = [
+            format!("{}, calibrated by armctl calibrate (LeRobot's procedure) on {}.", plan.arm.name, session.path()),
+            "The servos hold these homing offsets and position limits; the joint limits are the arm's, tightened to"
+                .to_string(),
+            format!("the range each joint was moved through less {} degrees a side.", record::STOP_MARGIN_DEG),
+        ];
+        (crate::arm::toml_writer::to_text(&arm, &header), arm)
+    };
 
     for m in &calibrations {
         write_eeprom(
@@ -409,14 +449,7 @@ fn calibrate<P: Port, C: Clock>(
     if let Some(path) = &plan.lerobot_json {
         std::fs::write(path, lerobot::to_text(&file)).with_context(|| format!("cannot write {}", path.display()))?;
     }
-    let header = [
-        format!("{}, calibrated by armctl calibrate (LeRobot's procedure) on {}.", plan.arm.name, session.path()),
-        "The servos hold these homing offsets and position limits; the joint limits are the arm's, tightened to"
-            .to_string(),
-        format!("the range each joint was moved through less {} degrees a side.", record::STOP_MARGIN_DEG),
-    ];
-    std::fs::write(&plan.out, crate::arm::toml_writer::to_text(&arm, &header))
-        .with_context(|| format!("cannot write {}", plan.out.display()))?;
+    std::fs::write(&plan.out, text).with_context(|| format!("cannot write {}", plan.out.display()))?;
 
     for (k, (part, m)) in plan.parts.iter().zip(&calibrations).enumerate() {
         let what = match (plan.arm.joints.get(k), arm.joints.get(k)) {
@@ -436,9 +469,10 @@ fn calibrate<P: Port, C: Clock>(
         )?;
     }
     let written_json = plan.lerobot_json.as_ref().map(|p| format!(" and {}", p.display())).unwrap_or_default();
+    let how = if plan.update { " (its servos' calibration and gripper range; the rest as it was)" } else { "" };
     writeln!(
         out,
-        "wrote {}{written_json}; drive the arm with `armctl --bus {} --protocol {} --arm {} status`",
+        "wrote {}{how}{written_json}; drive the arm with `armctl --bus {} --protocol {} --arm {} status`",
         plan.out.display(),
         session.path(),
         match model.protocol {
