@@ -17,9 +17,10 @@
 mod clock;
 mod half_duplex;
 mod link_rx;
-mod rtt_log;
 mod serial;
 
+// The defmt global logger over RTT (feature `rtt-log`): linked in by this use alone.
+use board_support as _;
 use core::mem::MaybeUninit;
 use core::ptr::addr_of_mut;
 use core::sync::atomic::{AtomicBool, Ordering};
