@@ -88,6 +88,33 @@ fn a_leader_drives_the_follower_through_the_firmware_within_its_limits() {
     assert_eq!(replay.code, 0, "replay: {}", replay.stderr);
 }
 
+/// A leader pushed past the follower's limits, both ways: the follower is held at each end of its
+/// commanded range, and the recording reads back exactly what was sent, the ends included (to six
+/// decimals, an end could be written just beyond the range, and a replay then refused).
+#[test]
+fn a_recording_at_the_limits_reads_back_as_sent() {
+    let script = scratch("past-the-limits.csv");
+    std::fs::write(&script, "t,q1,q2,q3,q4,q5\n0,0,0,0,0,0\n1.2,2.9,2.9,2.9,2.9,2.9\n2,2.9,2.9,2.9,2.9,2.9\n3.8,-2.9,-2.9,-2.9,-2.9,-2.9\n6,-2.9,-2.9,-2.9,-2.9,-2.9\n")
+        .unwrap();
+    let record = scratch("at-the-limits.csv");
+    let run = armctl(&["--sim", "teleop", "--leader", "sim", "--leader-script", s(&script), "--record", s(&record)]);
+    assert_eq!(run.code, 0, "stderr: {}", run.stderr);
+    let arm = armctl::arm::ArmSpec::load("so101", None).unwrap();
+    let servos = armctl::arm::servos::ServoSetup::for_arm("so101").unwrap();
+    let keyframes = armctl::motion::trajectory::read_keyframes(&record).unwrap_or_else(|e| panic!("{e:#}"));
+    for j in 0..5 {
+        // The range the firmware holds (f32) within the arm's limits (f64), which `play` checks.
+        let (lo, hi) = servos.commanded_range(&arm, j).unwrap();
+        let (lo, hi) = (f64::from(lo).max(arm.joints[j].lower), f64::from(hi).min(arm.joints[j].upper));
+        let values: Vec<f64> = keyframes.positions.iter().map(|q| q[j]).collect();
+        assert!(values.iter().all(|v| (lo..=hi).contains(v)), "joint {}: a value outside {lo}..={hi}", j + 1);
+        let (min, max) = values.iter().fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+        assert_eq!((min, max), (lo, hi), "joint {}: held at each end, written exactly", j + 1);
+    }
+    let replay = armctl(&["--sim", "play", s(&record)]);
+    assert_eq!(replay.code, 0, "replay: {}", replay.stderr);
+}
+
 /// Bad input is one line on stderr and nothing starts: no script for a simulated leader, a
 /// leader that is not there, an arm with another joint count, a rate out of range.
 #[test]

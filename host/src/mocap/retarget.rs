@@ -208,14 +208,8 @@ impl Retargeted {
         let mut text = header.join(",");
         text.push('\n');
         for (t, q) in self.times.iter().zip(&self.q) {
-            use std::fmt::Write;
-            write!(text, "{t:.6}")?;
-            // Joint values in full (the shortest text that reads back as the same f64): rounded to
-            // a few decimals, a value IK left at a joint limit could land just beyond it.
-            for v in q {
-                write!(text, ",{v}")?;
-            }
-            text.push('\n');
+            // Joint values in full: rounded, a value IK left at a joint limit could land beyond it.
+            crate::motion::trajectory::push_keyframe_row(&mut text, *t, q.iter().copied());
         }
         out.write_all(text.as_bytes())?;
         Ok(())

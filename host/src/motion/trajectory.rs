@@ -99,6 +99,20 @@ pub(crate) fn gripper_value(line: usize, value: f64) -> Result<f64> {
     Ok(value)
 }
 
+/// Appends one row of a keyframe file to `text`: the time to the microsecond (the link's clock
+/// counts microseconds), then `values` in full, each as the shortest text that reads back as the
+/// same `f64`. Rounded to a few decimals, a value the sender left at a joint limit can land just
+/// beyond it, and the file is then refused when read or played back (`teleop --record`,
+/// `retarget` and its rig file write through this).
+pub fn push_keyframe_row(text: &mut String, time: f64, values: impl IntoIterator<Item = f64>) {
+    use std::fmt::Write as _;
+    let _ = write!(text, "{time:.6}");
+    for v in values {
+        let _ = write!(text, ",{v}");
+    }
+    text.push('\n');
+}
+
 fn expected_header(joints: usize, velocities: bool) -> Vec<String> {
     let mut names = vec!["t".to_string()];
     names.extend((1..=joints).map(|j| format!("q{j}")));
@@ -574,6 +588,28 @@ pub fn to_json(s: &Sampled) -> Value {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A keyframe row reads back as the values written, bit for bit: ±π (a continuous joint's
+    /// limits), which six decimals round past (3.141593 > π); a limit the firmware holds as f32;
+    /// a value with more digits than any rounding keeps.
+    #[test]
+    fn a_keyframe_row_reads_back_exactly_even_at_a_limit() {
+        let pi = core::f64::consts::PI;
+        assert!(format!("{pi:.6}").parse::<f64>().unwrap() > pi, "the case rounding gets wrong");
+        let rows = [
+            [-pi, pi, f64::from(1.919_862_2_f32), 0.1 + 0.2, 1e-9, -0.0],
+            [pi, -pi, f64::from(-1.745_329_3_f32), -2.0 / 3.0, 12.5, 100.0],
+        ];
+        let mut text = String::from("t,q1,q2,q3,q4,q5,q6\n");
+        for (k, row) in rows.iter().enumerate() {
+            push_keyframe_row(&mut text, 0.01 * k as f64, row.iter().copied());
+        }
+        let back = parse_keyframes(&text).unwrap();
+        for (read, written) in back.positions.iter().zip(&rows) {
+            assert_eq!(read.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), written.map(f64::to_bits), "{text}");
+        }
+        assert_eq!(back.times, [0.0, 0.01]);
+    }
 
     #[test]
     fn parses_and_names_lines() {

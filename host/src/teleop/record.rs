@@ -8,6 +8,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 
+use crate::motion::trajectory::push_keyframe_row;
+
 /// Writes the rows of one session.
 pub struct Recorder {
     path: PathBuf,
@@ -30,15 +32,19 @@ impl Recorder {
         Ok(Self { path: path.to_path_buf(), out, gripper, last_gripper: 50.0 })
     }
 
-    /// One keyframe; a row without a gripper value repeats the last one.
+    /// One keyframe; a row without a gripper value repeats the last one. The values are written
+    /// in full, as `retarget` writes them ([`push_keyframe_row`]): each reads back as the `f64`
+    /// that was sent, so one the stream left at a joint limit is not rounded past it.
     pub fn row(&mut self, time: f64, q: &[f64], gripper: Option<f64>) -> Result<()> {
-        let mut fields = vec![format!("{time:.6}")];
-        fields.extend(q.iter().map(|x| format!("{x:.6}")));
-        if self.gripper {
+        let mut text = String::new();
+        let gripper = if self.gripper {
             self.last_gripper = gripper.unwrap_or(self.last_gripper);
-            fields.push(format!("{:.3}", self.last_gripper));
-        }
-        writeln!(self.out, "{}", fields.join(",")).with_context(|| format!("cannot write {}", self.path.display()))
+            Some(self.last_gripper)
+        } else {
+            None
+        };
+        push_keyframe_row(&mut text, time, q.iter().copied().chain(gripper));
+        self.out.write_all(text.as_bytes()).with_context(|| format!("cannot write {}", self.path.display()))
     }
 
     /// Flushes the file.

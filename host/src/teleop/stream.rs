@@ -69,11 +69,15 @@ impl Settings {
         gripper: bool,
     ) -> Result<Self> {
         let servos = servos_of(driver.arm()).ok_or_else(|| anyhow!("the follower has no servo mapping"))?;
+        // The range as the firmware holds it (f32), and within the arm's own limits (f64): a limit
+        // rounded to f32 can lie just beyond the arm's (1.69 is 1.6900000572 as f32), and a value
+        // there would be refused when the recording is played back.
         let range = (0..driver.joints())
             .map(|j| {
+                let joint = &driver.arm().joints[j];
                 servos
                     .commanded_range(driver.arm(), j)
-                    .map(|(lo, hi)| (f64::from(lo), f64::from(hi)))
+                    .map(|(lo, hi)| (f64::from(lo).max(joint.lower), f64::from(hi).min(joint.upper)))
                     .ok_or_else(|| anyhow!("the follower's joint {} has no range within its servo", j + 1))
             })
             .collect::<Result<Vec<_>>>()?;
@@ -384,6 +388,7 @@ impl Streamer {
     pub fn send(&mut self, driver: &mut Driver, reading: &Reading, read_at: Instant) -> Result<Sent> {
         self.check(reading)?;
         let time = self.due(driver, read_at)?;
+        let base = self.recorded;
         let period = self.settings.period.as_secs_f64();
         let dt = if self.playing { time - self.last_time } else { time.max(period) };
         let (q, v) = shape(reading, &self.previous, dt, &self.settings, &mut self.figures);
@@ -399,7 +404,7 @@ impl Streamer {
         };
         let time = self.pushed(driver, time, &at, read_at, Some(&q))?;
         self.previous = q.clone();
-        Ok(Sent { time: self.recorded_time(time), joints: q, gripper: gripper.map(f64::from) })
+        Ok(Sent { time: base + time, joints: q, gripper: gripper.map(f64::from) })
     }
 
     /// Sends the tool pose `target`, read at `read_at`, as a Cartesian keyframe: the follower's
@@ -416,12 +421,17 @@ impl Streamer {
             bail!("a pose holds {bad}: nothing was sent");
         }
         let time = self.due(driver, read_at)?;
+        let base = self.recorded;
         let gripper = gripper.filter(|_| self.settings.gripper).map(|g| g.clamp(0.0, 100.0) as f32);
         let at = |time: f32| HostMessage::PushCartesianKeyframe(CartesianKeyframe { time, target, gripper });
         let time = self.pushed(driver, time, &at, read_at, None)?;
-        Ok(Sent { time: self.recorded_time(time), joints: Vec::new(), gripper: gripper.map(f64::from) })
+        Ok(Sent { time: base + time, joints: Vec::new(), gripper: gripper.map(f64::from) })
     }
 
+    /// The recording's time of `time` on the current playback's clock. A keyframe is recorded
+    /// on the clock of the playback it was pushed into: `send` takes the offset before pushing,
+    /// because the status read after a push can find that playback ended (and move the offset on
+    /// for the next one), which would put this keyframe after the next ones in the file.
     fn recorded_time(&self, time: f64) -> f64 {
         self.recorded + time
     }

@@ -142,14 +142,9 @@ impl Retargets {
         }
         text.push('\n');
         for (k, t) in self.times.iter().enumerate() {
-            write!(text, "{t:.6}")?;
             // In full, as the one-arm file (see [`Retargeted::write_csv`]).
-            for (_, q) in columns {
-                for v in &q[k] {
-                    write!(text, ",{v}")?;
-                }
-            }
-            text.push('\n');
+            let values = columns.iter().flat_map(|(_, q)| q[k].iter().copied());
+            crate::motion::trajectory::push_keyframe_row(&mut text, *t, values);
         }
         out.write_all(text.as_bytes())?;
         Ok(())
