@@ -6,6 +6,8 @@ use armctl::sim::{Faults, PtyServer, SimConfig};
 use firmware::bus::table::{Model, STS3215, XL430_W250};
 use firmware::bus::Protocol;
 
+mod support;
+
 /// What one run did.
 struct Run {
     code: i32,
@@ -418,7 +420,7 @@ fn an_alert_shows_the_data_then_one_error_line_per_servo() {
         let mut session = Session::new("sim", port, clock, BusConfig::new(m.protocol, BAUD));
         let address = m.items.present_position.address;
         let (mut out, mut err) = (Vec::new(), Vec::new());
-        let code = commands::read(&mut session, 3, address, 2, &mut out, &mut err).unwrap();
+        let code = commands::read(&mut session, 3, address, 2, false, &mut out, &mut err).unwrap();
         let (out, err) = (String::from_utf8(out).unwrap(), String::from_utf8(err).unwrap());
         assert_eq!(code, 1, "{out}{err}");
         assert_eq!(out.lines().count(), 1 + usize::from(m.protocol == Protocol::Feetech), "the data is shown: {out}");
@@ -426,17 +428,16 @@ fn an_alert_shows_the_data_then_one_error_line_per_servo() {
     }
 }
 
-/// A LeRobot calibration file for servos 1 and 2, in a temp dir (`drive_mode` 1 on the second).
-fn calibration_file(name: &str, homing: [i32; 2]) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("armctl-servo-cli-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+/// A LeRobot calibration file for servos 1 and 2 (`drive_mode` 1 on the second), in a folder of its
+/// own removed when dropped.
+fn calibration_file(homing: [i32; 2]) -> support::TempPath {
     let text = format!(
         "{{\n    \"shoulder_pan\": {{\n        \"id\": 1,\n        \"drive_mode\": 0,\n        \"homing_offset\": {},\n        \
          \"range_min\": 758,\n        \"range_max\": 3292\n    }},\n    \"gripper\": {{\n        \"id\": 2,\n        \
          \"drive_mode\": 1,\n        \"homing_offset\": {},\n        \"range_min\": 2019,\n        \"range_max\": 3367\n    }}\n}}",
         homing[0], homing[1]
     );
-    let path = dir.join("calibration.json");
+    let path = support::TempPath::new("calibration.json");
     std::fs::write(&path, text).unwrap();
     path
 }
@@ -448,7 +449,7 @@ fn calibration_file(name: &str, homing: [i32; 2]) -> std::path::PathBuf {
 fn a_lerobot_calibration_is_checked_against_the_servos_and_written_to_them() {
     for model in [&STS3215, &XL430_W250] {
         let server = sim(model, &[1, 2], Faults::default(), &[]);
-        let file = calibration_file(proto(model), [-1470, 1160]);
+        let file = calibration_file([-1470, 1160]);
         let path = file.to_str().unwrap();
         servo(&server, model, &["calibration", "check"], &["--file", path]).fails(
             1,
@@ -481,7 +482,7 @@ fn a_lerobot_calibration_is_checked_against_the_servos_and_written_to_them() {
 #[test]
 fn calibration_writes_need_torque_off_and_a_good_file() {
     let server = sim(&STS3215, &[1, 2], Faults::default(), &[]);
-    let good = calibration_file("torque", [-1470, 1160]);
+    let good = calibration_file([-1470, 1160]);
     servo(&server, &STS3215, &["torque", "on"], &["--id", "2"]).ok();
     servo(&server, &STS3215, &["calibration", "write"], &["--file", good.to_str().unwrap()])
         .fails(1, &["servo 2: torque is on", "nothing was written"]);
@@ -489,7 +490,7 @@ fn calibration_writes_need_torque_off_and_a_good_file() {
     assert_eq!(read.ok().lines()[1..], ["homing_offset = 0"], "servo 1 was not written either");
     // Feetech's homing offset is sign-magnitude with 11 bits: LeRobot's "Magnitude 2114 exceeds 2047".
     servo(&server, &STS3215, &["torque", "off"], &["--id", "2"]).ok();
-    let too_far = calibration_file("too-far", [-1470, 2114]);
+    let too_far = calibration_file([-1470, 2114]);
     servo(&server, &STS3215, &["calibration", "write"], &["--file", too_far.to_str().unwrap()])
         .fails(1, &["servo 2 (gripper): homing offset 2114 does not fit", "nothing was written"]);
     let read = servo(&server, &STS3215, &["read"], &["--id", "1", "--item", "homing_offset"]);
@@ -498,4 +499,67 @@ fn calibration_writes_need_torque_off_and_a_good_file() {
     std::fs::write(&broken, "{\"shoulder_pan\": {\"id\": 1}}").unwrap();
     servo(&server, &STS3215, &["calibration", "check"], &["--file", broken.to_str().unwrap()])
         .fails(1, &["broken.json", "motor \"shoulder_pan\": no \"drive_mode\""]);
+}
+
+/// One JSON line of `run`'s stdout.
+fn json_line(run: &Run) -> serde_json::Value {
+    let lines = run.lines();
+    assert_eq!(lines.len(), 1, "one line of JSON: {:?}", run.out);
+    serde_json::from_str(lines[0]).unwrap_or_else(|e| panic!("not JSON ({e}): {}", lines[0]))
+}
+
+/// Every `servo` command with `--json` (after the subcommand, between `servo` and it, or before
+/// `servo`): one line of JSON with what the text says.
+#[test]
+fn every_servo_command_prints_one_line_of_json() {
+    let m = &XL430_W250;
+    let server = sim(m, &[1, 2], Faults::default(), &[]);
+    let v = json_line(&servo(&server, m, &["scan"], &["--ids", "0-3", "--json"]).ok());
+    assert_eq!(
+        v,
+        serde_json::json!({"servos": [
+            {"id": 1, "model_number": 1060, "model": "XL430-W250", "firmware": 46, "baud": 1000000},
+            {"id": 2, "model_number": 1060, "model": "XL430-W250", "firmware": 46, "baud": 1000000},
+        ]})
+    );
+    let v = json_line(&servo(&server, m, &["--json", "write"], &["--id", "1", "--addr", "112", "--value", "300"]).ok());
+    assert_eq!(
+        v,
+        serde_json::json!({"id": 1, "address": 112, "bytes": [0x2c, 1, 0, 0], "item": "profile_velocity", "value": 300})
+    );
+    let run = {
+        let common = ["--port", server.path(), "--protocol", "dxl2", "--baud", "1000000", "--timeout-ms", "200"];
+        let mut args = vec!["--json", "servo", "read", "--id", "1", "--item", "profile_velocity,present_position"];
+        args.extend_from_slice(&common);
+        armctl(&args).ok()
+    };
+    assert_eq!(json_line(&run)["items"], serde_json::json!({"profile_velocity": 300, "present_position": 2048}));
+    let v = json_line(&servo(&server, m, &["read"], &["--id", "1", "--addr", "112", "--len", "4", "--json"]).ok());
+    assert_eq!(
+        v,
+        serde_json::json!({"id": 1, "address": 112, "bytes": [0x2c, 1, 0, 0], "items": {"profile_velocity": 300}})
+    );
+    let v = json_line(&servo(&server, m, &["torque", "on"], &["--id", "2", "--json"]).ok());
+    assert_eq!(v, serde_json::json!({"id": 2, "torque": true, "confirmed": true}));
+    let v = json_line(&servo(&server, m, &["torque", "off"], &["--id", "all", "--json"]).ok());
+    assert_eq!(v, serde_json::json!({"id": "all", "torque": false, "confirmed": false}));
+    // LeRobot's calibration: written (torque off everywhere), then checked.
+    servo(&server, m, &["torque", "off"], &["--id", "2"]).ok();
+    let file = calibration_file([-1470, 1160]);
+    let path = file.to_str().unwrap();
+    let v = json_line(&servo(&server, m, &["calibration", "write"], &["--file", path, "--json"]).ok());
+    let written = v["written"].as_array().unwrap();
+    assert!(
+        written.contains(
+            &serde_json::json!({"id": 2, "motor": "gripper", "field": "homing offset", "from": 0, "to": 1160})
+        ),
+        "{v}"
+    );
+    let v = json_line(&servo(&server, m, &["calibration", "check"], &["--file", path, "--json"]).ok());
+    assert_eq!(v, serde_json::json!({"matches": true, "motors": 2}));
+    let v = json_line(&servo(&server, m, &["set-id"], &["--id", "1", "--new-id", "7", "--json"]).ok());
+    assert_eq!(v["new_id"], 7);
+    assert_eq!(v["servo"]["model"], "XL430-W250");
+    let v = json_line(&servo(&server, m, &["set-baud"], &["--id", "7", "--new-baud", "57600", "--json"]).ok());
+    assert_eq!(v, serde_json::json!({"id": 7, "baud": 57600, "item": "baud_rate", "index": 1}));
 }

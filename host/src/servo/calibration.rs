@@ -61,12 +61,13 @@ pub fn read_file(path: &Path) -> Result<Calibration> {
     lerobot::read(path)
 }
 
-/// `check`: `calibration matches the servos (6 motors)`, or one error line naming the first
-/// servo that differs and the fix.
+/// `check`: `calibration matches the servos (6 motors)` (with `json`, `{"matches": true,
+/// "motors": 6}`), or one error line naming the first servo that differs and the fix.
 pub fn check<P: Port, C: Clock>(
     session: &mut Session<P, C>,
     file: &Path,
     fix: &str,
+    json: bool,
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> Result<i32> {
@@ -87,15 +88,20 @@ pub fn check<P: Port, C: Clock>(
             file.display()
         );
     }
-    writeln!(out, "calibration matches the servos ({} motors)", calibration.motors.len())?;
+    let motors = calibration.motors.len();
+    super::commands::print(out, json, serde_json::json!({ "matches": true, "motors": motors }), || {
+        format!("calibration matches the servos ({motors} motors)")
+    })?;
     finish(session, err)
 }
 
 /// `write`: every register that differs gets the file's value, one line each; refused for a
-/// servo whose torque is on (the joint would have to go limp).
+/// servo whose torque is on (the joint would have to go limp). With `json`, one line:
+/// `{"written": [{"id": 1, "motor": "shoulder_pan", "field": "homing_offset", "from": 0, "to": 12}]}`.
 pub fn write<P: Port, C: Clock>(
     session: &mut Session<P, C>,
     file: &Path,
+    json: bool,
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> Result<i32> {
@@ -130,13 +136,22 @@ pub fn write<P: Port, C: Clock>(
             );
         }
     }
+    let mut written = Vec::new();
     for (d, register, model) in &found {
         let servo = session.identify(d.id)?;
         eeprom_write(session, &servo, model, true, |s| s.write_item(d.id, model, register.item, d.file))
             .with_context(|| format!("servo {} ({}): {}", d.id, d.motor, d.field))?;
-        writeln!(out, "servo {} ({}): {} {} -> {}", d.id, d.motor, d.field, d.servo, d.file)?;
+        if json {
+            written.push(
+                serde_json::json!({ "id": d.id, "motor": d.motor, "field": d.field, "from": d.servo, "to": d.file }),
+            );
+        } else {
+            writeln!(out, "servo {} ({}): {} {} -> {}", d.id, d.motor, d.field, d.servo, d.file)?;
+        }
     }
-    if found.is_empty() {
+    if json {
+        writeln!(out, "{}", serde_json::json!({ "written": written }))?;
+    } else if found.is_empty() {
         writeln!(out, "the servos hold the file's calibration already; nothing written")?;
     }
     finish(session, err)

@@ -22,6 +22,10 @@ use crate::args::bus::ProtocolArg;
 pub struct ServoArgs {
     #[command(subcommand)]
     command: ServoCommand,
+    /// Print the result as one line of JSON with the same content as the text (before or after
+    /// the subcommand).
+    #[arg(long, global = true)]
+    pub json: bool,
 }
 
 #[derive(Subcommand, Debug)]
@@ -253,6 +257,7 @@ pub fn run(args: ServoArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
     if let Some(problem) = check_ids(bus.protocol.into(), &ids) {
         return usage(err, &problem);
     }
+    let json = args.json;
     match args.command {
         ServoCommand::Scan { bus, ids, all_bauds } => {
             let config = bus.config(0);
@@ -264,22 +269,22 @@ pub fn run(args: ServoArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
             // The default range is Feetech's; Dynamixel stops one id earlier.
             let ids: Vec<Id> = ids.into_iter().filter(|id| check_ids(protocol, &[*id]).is_none()).collect();
             let bauds = if all_bauds { commands::protocol_bauds(protocol) } else { vec![config.baud] };
-            commands::scan(&bus.port, config, &bauds, &ids, out, err)
+            commands::scan(&bus.port, config, &bauds, &ids, json, out, err)
         }
         ServoCommand::Read { bus, id, addr: Some(addr), len: Some(len), .. } => {
-            commands::read(&mut bus.open()?, id, addr, usize::from(len), out, err)
+            commands::read(&mut bus.open()?, id, addr, usize::from(len), json, out, err)
         }
-        ServoCommand::Read { bus, id, item, .. } => commands::read_items(&mut bus.open()?, id, &item, out, err),
+        ServoCommand::Read { bus, id, item, .. } => commands::read_items(&mut bus.open()?, id, &item, json, out, err),
         ServoCommand::Write { bus, id, addr, value, len } => {
-            commands::write(&mut bus.open()?, id, addr, value, len, out, err)
+            commands::write(&mut bus.open()?, id, addr, value, len, json, out, err)
         }
         ServoCommand::SetId { bus, id, new_id } => {
             if id == new_id {
                 return usage(err, "--new-id is the servo's id already");
             }
-            commands::set_id(&mut bus.open()?, id, new_id, out, err)
+            commands::set_id(&mut bus.open()?, id, new_id, json, out, err)
         }
-        ServoCommand::SetBaud { bus, id, new_baud } => commands::set_baud(bus.open()?, id, new_baud, out, err),
+        ServoCommand::SetBaud { bus, id, new_baud } => commands::set_baud(bus.open()?, id, new_baud, json, out, err),
         ServoCommand::Calibration { action, bus, file } => {
             // The file is checked before the port is opened: a bad file touches no servo.
             super::calibration::read_file(&file)?;
@@ -296,13 +301,13 @@ pub fn run(args: ServoArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
                         bus.port,
                         file.display()
                     );
-                    super::calibration::check(&mut session, &file, &fix, out, err)
+                    super::calibration::check(&mut session, &file, &fix, json, out, err)
                 }
-                CalibrationAction::Write => super::calibration::write(&mut session, &file, out, err),
+                CalibrationAction::Write => super::calibration::write(&mut session, &file, json, out, err),
             }
         }
         ServoCommand::Torque { state, bus, id } => {
-            commands::torque(&mut bus.open()?, id, matches!(state, OnOff::On), out, err)
+            commands::torque(&mut bus.open()?, id, matches!(state, OnOff::On), json, out, err)
         }
     }
 }

@@ -1,6 +1,6 @@
-//! The `armctl servo` commands, on an open [`Session`]. Each writes its result lines to `out`,
-//! its complaints as `error: ...` lines to `err`, and returns the exit code; a failure that ends
-//! the command is an `Err` (one line, exit code 1).
+//! The `armctl servo` commands, on an open [`Session`]. Each writes its result lines to `out` (with
+//! `json`, one line of JSON with the same content), its complaints as `error: ...` lines to `err`,
+//! and returns the exit code; a failure that ends the command is an `Err` (one line, exit code 1).
 //!
 //! A reply whose error byte reports a hardware fault (Dynamixel alert bit, any Feetech error bit)
 //! still carries its data, and the servo carried out the instruction: the result is printed, then
@@ -14,6 +14,7 @@ use firmware::bus::feetech::value::Endian;
 use firmware::bus::master::{BusConfig, Clock, MasterError};
 use firmware::bus::table::{Access, Encoding, Item, Model, MODELS};
 use firmware::bus::{Id, Protocol, BROADCAST};
+use serde_json::{json, Value};
 
 use super::items;
 use super::session::{value_error, BusFailure, Port, Servo, Session};
@@ -36,6 +37,26 @@ pub fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect::<Vec<_>>().join(" ")
 }
 
+/// Writes `value` as one line of JSON when `json`, else `text`'s lines.
+pub fn print(out: &mut dyn Write, json: bool, value: Value, text: impl FnOnce() -> String) -> Result<()> {
+    if json {
+        writeln!(out, "{value}")?;
+    } else {
+        writeln!(out, "{}", text())?;
+    }
+    Ok(())
+}
+
+/// A servo as JSON: `{"id": 1, "model_number": 1060, "model": "XL430-W250", "firmware": 46}`.
+fn servo_json(servo: &Servo) -> Value {
+    json!({
+        "id": servo.id,
+        "model_number": servo.model_number,
+        "model": servo.model.map(|m| m.name),
+        "firmware": servo.firmware,
+    })
+}
+
 /// Every baud rate of the protocol's models, fastest first.
 pub fn protocol_bauds(protocol: Protocol) -> Vec<u32> {
     let mut bauds: Vec<u32> =
@@ -46,15 +67,18 @@ pub fn protocol_bauds(protocol: Protocol) -> Vec<u32> {
 }
 
 /// `scan`: pings each id at each baud; one line per servo that answers:
-/// `id 1: model 1060 XL430-W250, firmware 46, 57600 baud`.
+/// `id 1: model 1060 XL430-W250, firmware 46, 57600 baud`; with `json`, one line at the end,
+/// `{"servos": [{"id": 1, "model_number": 1060, "model": "XL430-W250", "firmware": 46, "baud": 57600}]}`.
 pub fn scan(
     path: &str,
     config: BusConfig,
     bauds: &[u32],
     ids: &[Id],
+    json: bool,
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> Result<i32> {
+    let mut servos = Vec::new();
     let mut found = 0usize;
     let mut problems = 0usize;
     let mut code = 0;
@@ -65,7 +89,13 @@ pub fn scan(
                 Ok(servo) => {
                     found += 1;
                     let firmware = servo.firmware.map_or_else(|| "?".to_string(), |f| f.to_string());
-                    writeln!(out, "id {id}: model {}, firmware {firmware}, {baud} baud", servo.model_text())?;
+                    if json {
+                        let mut value = servo_json(&servo);
+                        value["baud"] = baud.into();
+                        servos.push(value);
+                    } else {
+                        writeln!(out, "id {id}: model {}, firmware {firmware}, {baud} baud", servo.model_text())?;
+                    }
                     if let Some(problem) = duplicate_check(&mut session, &servo) {
                         problems += 1;
                         writeln!(err, "error: {problem}")?;
@@ -91,6 +121,9 @@ pub fn scan(
             _ => bail!("no servos answered at any of {} baud", join(bauds)),
         }
     }
+    if json {
+        writeln!(out, "{}", json!({ "servos": servos }))?;
+    }
     Ok(if problems > 0 { 1 } else { code })
 }
 
@@ -111,37 +144,63 @@ fn join(values: &[u32]) -> String {
     values.iter().map(u32::to_string).collect::<Vec<_>>().join(", ")
 }
 
-/// `read`: the bytes in hex on one line, then `name = value` for each known item inside them.
+/// `read`: the bytes in hex on one line, then `name = value` for each known item inside them;
+/// with `json`, `{"id": 1, "address": 132, "bytes": [0, 8, 0, 0], "items": {"present_position": 2048}}`.
+#[allow(clippy::too_many_arguments)]
 pub fn read<P: Port, C: Clock>(
     session: &mut Session<P, C>,
     id: Id,
     address: u16,
     len: usize,
+    json: bool,
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> Result<i32> {
     let mut bytes = vec![0u8; len];
     session.read(id, address, &mut bytes)?;
-    writeln!(out, "{}", hex(&bytes))?;
     // The model only decodes: without it (an odd ping), the bytes are still the answer.
-    if let Ok(Servo { model: Some(model), .. }) = session.identify(id) {
-        print_items(out, model, items::within(model, address, len), address, &bytes)?;
-    }
+    let decoded = match session.identify(id) {
+        Ok(Servo { model: Some(model), .. }) => decode(model, items::within(model, address, len), address, &bytes)?,
+        _ => Vec::new(),
+    };
+    print_read(out, json, id, address, &bytes, &decoded)?;
     finish(session, err)
 }
 
-/// `name = value` for each of `items`, decoded from `bytes` read at `address`.
-fn print_items(
-    out: &mut dyn Write,
+/// `(name, value)` for each of `items`, decoded from `bytes` read at `address`.
+fn decode(
     model: &Model,
     items: impl IntoIterator<Item = Item>,
     address: u16,
     bytes: &[u8],
-) -> Result<()> {
+) -> Result<Vec<(&'static str, i64)>> {
+    let mut decoded = Vec::new();
     for item in items {
         let start = usize::from(item.address - address);
         let value = item.decode(&bytes[start..start + item.len()], model.endian).map_err(value_error)?;
-        writeln!(out, "{} = {value}", item.name)?;
+        decoded.push((item.name, value));
+    }
+    Ok(decoded)
+}
+
+/// What `read` prints: the bytes in hex, then `name = value` for each decoded item; or JSON.
+fn print_read(
+    out: &mut dyn Write,
+    json: bool,
+    id: Id,
+    address: u16,
+    bytes: &[u8],
+    decoded: &[(&str, i64)],
+) -> Result<()> {
+    if json {
+        let items: serde_json::Map<String, Value> =
+            decoded.iter().map(|(name, value)| (name.to_string(), Value::from(*value))).collect();
+        writeln!(out, "{}", json!({ "id": id, "address": address, "bytes": bytes, "items": items }))?;
+        return Ok(());
+    }
+    writeln!(out, "{}", hex(bytes))?;
+    for (name, value) in decoded {
+        writeln!(out, "{name} = {value}")?;
     }
     Ok(())
 }
@@ -155,6 +214,7 @@ pub fn read_items<P: Port, C: Clock>(
     session: &mut Session<P, C>,
     id: Id,
     names: &[String],
+    json: bool,
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> Result<i32> {
@@ -179,8 +239,8 @@ pub fn read_items<P: Port, C: Clock>(
     }
     let mut bytes = vec![0u8; span];
     session.read(id, first, &mut bytes)?;
-    writeln!(out, "{}", hex(&bytes))?;
-    print_items(out, model, wanted, first, &bytes)?;
+    let decoded = decode(model, wanted, first, &bytes)?;
+    print_read(out, json, id, first, &bytes, &decoded)?;
     finish(session, err)
 }
 
@@ -201,13 +261,16 @@ fn write_target(servo: &Servo, address: u16, len: Option<u8>) -> Result<Item> {
 }
 
 /// `write`: encodes `value` for the item at `address` and writes it:
-/// `servo 1: wrote 00 08 00 00 at 116 (goal_position = 2048)`.
+/// `servo 1: wrote 00 08 00 00 at 116 (goal_position = 2048)`; with `json`,
+/// `{"id": 1, "address": 116, "bytes": [0, 8, 0, 0], "item": "goal_position", "value": 2048}`.
+#[allow(clippy::too_many_arguments)]
 pub fn write<P: Port, C: Clock>(
     session: &mut Session<P, C>,
     id: Id,
     address: u16,
     value: i64,
     len: Option<u8>,
+    json: bool,
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> Result<i32> {
@@ -248,8 +311,12 @@ pub fn write<P: Port, C: Clock>(
             session.write(id, address, bytes).map_err(|e| explain(e, servo.model, address))?;
         }
     }
-    let named = if item.name == "value" { String::new() } else { format!(" ({} = {value})", item.name) };
-    writeln!(out, "servo {id}: wrote {} at {address}{named}", hex(bytes))?;
+    let name = (item.name != "value").then_some(item.name);
+    let value_json = json!({ "id": id, "address": address, "bytes": bytes, "item": name, "value": value });
+    print(out, json, value_json, || {
+        let named = name.map(|n| format!(" ({n} = {value})")).unwrap_or_default();
+        format!("servo {id}: wrote {} at {address}{named}", hex(bytes))
+    })?;
     finish(session, err)
 }
 
@@ -308,11 +375,12 @@ pub(super) fn eeprom_write<P: Port, C: Clock>(
 }
 
 /// `set-id`: moves servo `id` to `new_id`, which must be free:
-/// `servo 1: id is now 5 (model 1060 XL430-W250)`.
+/// `servo 1: id is now 5 (model 1060 XL430-W250)`; with `json`, `{"id": 1, "new_id": 5, "servo": {...}}`.
 pub fn set_id<P: Port, C: Clock>(
     session: &mut Session<P, C>,
     id: Id,
     new_id: Id,
+    json: bool,
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> Result<i32> {
@@ -337,13 +405,23 @@ pub fn set_id<P: Port, C: Clock>(
     if let Some(lock) = model.items.lock {
         session.write_item(new_id, model, lock, 1).context("cannot lock the EEPROM again")?;
     }
-    writeln!(out, "servo {id}: id is now {new_id} (model {})", moved.model_text())?;
+    print(out, json, json!({ "id": id, "new_id": new_id, "servo": servo_json(&moved) }), || {
+        format!("servo {id}: id is now {new_id} (model {})", moved.model_text())
+    })?;
     finish(session, err)
 }
 
 /// `set-baud`: switches servo `id` to `baud` (one the model has), then reopens the port at that
-/// baud and pings it: `servo 1: baud rate is now 1000000 (baud_rate = 3)`.
-pub fn set_baud(mut session: Session, id: Id, baud: u32, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+/// baud and pings it: `servo 1: baud rate is now 1000000 (baud_rate = 3)`; with `json`,
+/// `{"id": 1, "baud": 1000000, "item": "baud_rate", "index": 3}`.
+pub fn set_baud(
+    mut session: Session,
+    id: Id,
+    baud: u32,
+    json: bool,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> Result<i32> {
     let servo = session.identify(id)?;
     let model = servo.known_model()?;
     let Some(index) = model.baud_index(baud) else {
@@ -367,7 +445,9 @@ pub fn set_baud(mut session: Session, id: Id, baud: u32, out: &mut dyn Write, er
     if let Some(lock) = model.items.lock {
         session.write_item(id, model, lock, 1).context("cannot lock the EEPROM again")?;
     }
-    writeln!(out, "servo {id}: baud rate is now {baud} ({} = {index})", item.name)?;
+    print(out, json, json!({ "id": id, "baud": baud, "item": item.name, "index": index }), || {
+        format!("servo {id}: baud rate is now {baud} ({} = {index})", item.name)
+    })?;
     finish(&mut session, err)
 }
 
@@ -380,11 +460,13 @@ pub enum Target {
     All,
 }
 
-/// `torque`: writes the torque item and reads it back: `servo 1: torque on`.
+/// `torque`: writes the torque item and reads it back: `servo 1: torque on`; with `json`,
+/// `{"id": 1, "torque": true, "confirmed": true}` (`"id": "all"` for the broadcast, unconfirmed).
 pub fn torque<P: Port, C: Clock>(
     session: &mut Session<P, C>,
     target: Target,
     on: bool,
+    json: bool,
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> Result<i32> {
@@ -399,7 +481,9 @@ pub fn torque<P: Port, C: Clock>(
             if (now != 0) != on {
                 bail!("servo {id}: wrote {} = {}, but it reads back {now}", item.name, u8::from(on));
             }
-            writeln!(out, "servo {id}: torque {word}")?;
+            print(out, json, json!({ "id": id, "torque": on, "confirmed": true }), || {
+                format!("servo {id}: torque {word}")
+            })?;
         }
         Target::All => {
             let protocol = session.protocol();
@@ -409,7 +493,9 @@ pub fn torque<P: Port, C: Clock>(
                 bail!("the {} models disagree on the torque item's address: switch them one by one", protocol.name());
             }
             session.write(BROADCAST, item.address, &[u8::from(on)])?;
-            writeln!(out, "all servos: torque {word} (broadcast, not confirmed)")?;
+            print(out, json, json!({ "id": "all", "torque": on, "confirmed": false }), || {
+                format!("all servos: torque {word} (broadcast, not confirmed)")
+            })?;
         }
     }
     finish(session, err)
