@@ -29,11 +29,12 @@ const READY_TIMEOUT: Duration = Duration::from_secs(2);
 /// How long the second signal's torque off may take.
 const TORQUE_OFF_TIMEOUT: Duration = Duration::from_secs(1);
 
-/// Arguments of `armctl serve`.
+/// Arguments of `armctl serve`. Its options are the drive options' namesakes, and may come before
+/// the command as well (`armctl --sim serve`).
 #[derive(Args, Debug)]
 pub struct ServeArgs {
-    /// Drive the servos on this USB adapter's serial port.
-    #[arg(long, value_name = "PORT", conflicts_with = "sim", required_unless_present = "sim")]
+    /// Drive the servos on this USB adapter's serial port (this or --sim is required).
+    #[arg(long, value_name = "PORT", conflicts_with = "sim")]
     pub bus: Option<String>,
     /// Drive simulated servos instead (served on a pseudo-terminal of their own, in real time).
     #[arg(long)]
@@ -44,8 +45,8 @@ pub struct ServeArgs {
     /// The servos' baud rate [default: the arm file's `baud`, else 1000000].
     #[arg(long)]
     pub baud: Option<u32>,
-    /// A preset or an arm file with a [servos] table [default: so101 on sts, open-manipulator-x on
-    /// dxl2].
+    /// A preset with servos (so101, open-manipulator-x) or an arm file with a [servos] table
+    /// [default: so101 on sts, open-manipulator-x on dxl2; so101 with --sim].
     #[arg(long)]
     pub arm: Option<String>,
     /// With --sim: deliver the simulated servos' replies in bursts every MS milliseconds, as a USB
@@ -55,10 +56,18 @@ pub struct ServeArgs {
     /// A LeRobot calibration file (JSON) of the arm's servos (see `armctl --help`'s --calibration).
     #[arg(long, value_name = "FILE")]
     pub calibration: Option<std::path::PathBuf>,
+    /// Print the first line as JSON, {"pty": PATH}, instead of the bare path.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Runs `armctl serve`; returns the exit code.
 pub fn run(args: ServeArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+    match (&args.bus, args.sim) {
+        (None, false) => bail!("serve needs --bus PORT (servos on a USB adapter) or --sim (simulated servos)"),
+        (Some(_), true) => bail!("--bus and --sim exclude each other: give one"),
+        _ => {}
+    }
     let arm_name = match (&args.arm, args.protocol) {
         (Some(arm), _) => arm.clone(),
         (None, Some(protocol)) => default_bus_arm(protocol).to_string(),
@@ -99,7 +108,11 @@ pub fn run(args: ServeArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
         std::thread::sleep(Duration::from_millis(1));
     }
     let pty = PtyLink::spawn(client.into_transport())?;
-    writeln!(out, "{}", pty.path())?;
+    if args.json {
+        super::print_json(out, &serde_json::json!({ "pty": pty.path() }))?;
+    } else {
+        writeln!(out, "{}", pty.path())?;
+    }
     out.flush()?;
     writeln!(
         err,

@@ -25,7 +25,8 @@ use crate::sim::{limits_of, Faults, PtyServer, Recorder, ServeOptions, SimConfig
 #[command(args_conflicts_with_subcommands = true)]
 pub struct SimArgs {
     /// Run the real firmware (the MPS2 AN386 Cortex-M4F binary, built if needed) under
-    /// qemu-system-arm, its servo bus on simulated SO-101 servos (Feetech STS3215, ids 1-5, 1 Mbps).
+    /// qemu-system-arm, its servo bus on simulated SO-101 servos (Feetech STS3215 at 1 Mbps: the
+    /// joints' ids 1-5 and the gripper's 6).
     /// Prints the host link's port on the first line of stdout and the firmware's log on stderr,
     /// then runs until interrupted.
     #[arg(long)]
@@ -36,6 +37,10 @@ pub struct SimArgs {
     /// Faults of the simulated servos under QEMU.
     #[command(flatten)]
     pub faults: FaultArgs,
+    /// With --qemu: print the first line as JSON, {"port": PATH} (the host link's), instead of the
+    /// bare path.
+    #[arg(long, requires = "qemu")]
+    pub json: bool,
     /// What to simulate.
     #[command(subcommand)]
     pub what: Option<SimCommand>,
@@ -193,6 +198,10 @@ pub struct SimServosArgs {
     /// stop it with either.
     #[arg(long, value_name = "FILE")]
     pub record: Option<PathBuf>,
+    /// Print every stdout line as JSON: first {"pty": PATH} instead of the bare path, then
+    /// {"done": "move ID TICKS"} or {"error": "..."} for each command on stdin.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `--start`: (id, ticks) pairs, each id served, each position on the encoder's turn.
@@ -406,7 +415,7 @@ fn prepare(args: &SimServosArgs) -> Result<(SimConfig, ServeOptions)> {
 pub fn run(args: SimArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
     match args.what {
         Some(SimCommand::Servos(servos)) => run_servos(servos, out, err),
-        None if args.qemu => run_qemu(args.elf, &args.faults, out, err),
+        None if args.qemu => run_qemu(args.elf, &args.faults, args.json, out, err),
         None => {
             writeln!(err, "error: name what to simulate: `armctl sim servos ...` or `armctl sim --qemu`")?;
             Ok(2)
@@ -416,13 +425,19 @@ pub fn run(args: SimArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i3
 
 /// `armctl sim --qemu`, in an armctl built without the `board-tools` feature it needs.
 #[cfg(not(feature = "board-tools"))]
-fn run_qemu(_: Option<PathBuf>, _: &FaultArgs, _: &mut dyn Write, _: &mut dyn Write) -> Result<i32> {
+fn run_qemu(_: Option<PathBuf>, _: &FaultArgs, _: bool, _: &mut dyn Write, _: &mut dyn Write) -> Result<i32> {
     Err(crate::places::board::without_tools("sim --qemu"))
 }
 
 /// `armctl sim --qemu`.
 #[cfg(feature = "board-tools")]
-fn run_qemu(elf: Option<PathBuf>, faults: &FaultArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+fn run_qemu(
+    elf: Option<PathBuf>,
+    faults: &FaultArgs,
+    json: bool,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> Result<i32> {
     let faults = match faults.faults() {
         Ok(f) => f,
         Err(e) => {
@@ -441,7 +456,11 @@ fn run_qemu(elf: Option<PathBuf>, faults: &FaultArgs, out: &mut dyn Write, err: 
     let bus = PtyServer::spawn(crate::sim::so101_bus(faults)).context("cannot open a pseudo-terminal")?;
     let mut board = Qemu::start(&QemuConfig { elf, bus: Some(bus.path().to_string()) })?;
     board.wait_started(qemu::START_TIMEOUT)?;
-    writeln!(out, "{}", board.link_path())?;
+    if json {
+        super::print_json(out, &serde_json::json!({ "port": board.link_path() }))?;
+    } else {
+        writeln!(out, "{}", board.link_path())?;
+    }
     out.flush()?;
     writeln!(
         err,
@@ -502,7 +521,11 @@ fn run_servos(args: SimServosArgs, out: &mut dyn Write, err: &mut dyn Write) -> 
         }
     }
     let server = PtyServer::spawn_with(config.clone(), options).context("cannot open a pseudo-terminal")?;
-    writeln!(out, "{}", server.path())?;
+    if args.json {
+        super::print_json(out, &serde_json::json!({ "pty": server.path() }))?;
+    } else {
+        writeln!(out, "{}", server.path())?;
+    }
     out.flush()?;
     let ids: Vec<String> = config.ids.iter().map(u8::to_string).collect();
     let mut extras = String::new();
@@ -558,7 +581,7 @@ fn run_servos(args: SimServosArgs, out: &mut dyn Write, err: &mut dyn Write) -> 
             server.stop().context("the simulated bus stopped")?;
             return Ok(interrupt::EXIT_CODE);
         }
-        hand.serve(&server, poll, out)?;
+        hand.serve(&server, poll, args.json, out)?;
         printed.print(&server, err)?;
     }
     printed.print(&server, err)?;
@@ -591,8 +614,17 @@ impl HandLines {
     }
 
     /// Waits up to `poll` for a command (less while moves are under way), carries it out, and
-    /// prints the lines of the moves that ended.
-    fn serve(&mut self, server: &PtyServer, poll: Duration, out: &mut dyn Write) -> Result<()> {
+    /// prints the lines of the moves that ended (as JSON with `json`).
+    fn serve(&mut self, server: &PtyServer, poll: Duration, json: bool, out: &mut dyn Write) -> Result<()> {
+        let mut answer = |key: &str, text: String| -> Result<()> {
+            if json {
+                super::print_json(out, &serde_json::json!({ key: text }))
+            } else if key == "done" {
+                Ok(writeln!(out, "done {text}")?)
+            } else {
+                Ok(writeln!(out, "error: {text}")?)
+            }
+        };
         let wait = if self.pending.is_empty() { poll } else { HAND_POLL };
         match self.lines.as_ref().map(|rx| rx.recv_timeout(wait)) {
             Some(Ok(line)) => match hand_command(&line) {
@@ -601,7 +633,7 @@ impl HandLines {
                     let ticket = server.hand(id, from, to, seconds);
                     self.pending.push((ticket, echo));
                 }
-                Err(e) => writeln!(out, "error: {e}")?,
+                Err(e) => answer("error", e.to_string())?,
             },
             Some(Err(std::sync::mpsc::RecvTimeoutError::Timeout)) => {}
             // End of input: no more commands; the moves under way are still reported.
@@ -614,8 +646,8 @@ impl HandLines {
             let Some(i) = self.pending.iter().position(|(t, _)| *t == event.ticket) else { continue };
             let (_, echo) = self.pending.remove(i);
             match event.result {
-                Ok(()) => writeln!(out, "done {echo}")?,
-                Err(reason) => writeln!(out, "error: {echo}: {reason}")?,
+                Ok(()) => answer("done", echo)?,
+                Err(reason) => answer("error", format!("{echo}: {reason}"))?,
             }
         }
         out.flush()?;

@@ -77,6 +77,15 @@ pub struct ViewArgs {
     pub tip: Option<String>,
 }
 
+/// The first line of stdout: the page's URL, or with `--json` {"url": URL}.
+fn print_url(url: &str, json: bool, out: &mut dyn Write) -> Result<()> {
+    if json {
+        crate::cli::print_json(out, &serde_json::json!({ "url": url }))
+    } else {
+        Ok(writeln!(out, "{url}")?)
+    }
+}
+
 /// Runs `armctl view` until Ctrl-C; returns the exit code.
 pub fn run(link: &LinkArgs, args: ViewArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
     // Everything the user typed is checked before anything is opened.
@@ -116,7 +125,7 @@ pub fn run(link: &LinkArgs, args: ViewArgs, out: &mut dyn Write, err: &mut dyn W
         latest,
     };
     let mut server = ViewServer::start(listener, served, token)?;
-    writeln!(out, "{}", server.url())?;
+    print_url(server.url(), link.json, out)?;
     out.flush()?;
     writeln!(
         err,

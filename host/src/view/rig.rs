@@ -82,7 +82,7 @@ pub fn run(rig: &str, link: &LinkArgs, args: &ViewArgs, out: &mut dyn Write, err
     let served =
         Served { arms: served, rig: Some(Rig { name: spec.name.clone(), json: rig_json }), meshes: Vec::new(), latest };
     let mut server = ViewServer::start(listener, served, token)?;
-    writeln!(out, "{}", server.url())?;
+    super::print_url(server.url(), link.json, out)?;
     out.flush()?;
     writeln!(
         err,
