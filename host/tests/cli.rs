@@ -629,3 +629,167 @@ fn board_commands_say_which_build_has_them() {
         assert!(stderr.contains(&format!("--features board-tools -- {command}")), "{command}: {stderr}");
     }
 }
+
+/// `armctl --help` lists the commands under the headings of `armctl::cli::GROUPS`, every visible
+/// command in exactly one group, every name of the table a command, each with its own help line.
+#[test]
+fn help_groups_every_command_once() {
+    let command = armctl::cli::command();
+    let visible: Vec<&str> = command
+        .get_subcommands()
+        .filter(|c| !c.is_hide_set() && c.get_name() != "help")
+        .map(|c| c.get_name())
+        .collect();
+    let grouped: Vec<&str> = armctl::cli::GROUPS.iter().flat_map(|(_, names)| names.iter().copied()).collect();
+    for name in &visible {
+        let n = grouped.iter().filter(|g| *g == name).count();
+        assert_eq!(n, 1, "{name} is in {n} groups");
+    }
+    for name in &grouped {
+        assert!(visible.contains(name), "the groups name {name}, which is no command");
+    }
+    let run = armctl(&["--help"]);
+    assert_eq!(run.code, 0, "{}", run.stderr);
+    let help = &run.stdout;
+    assert!(help.starts_with("armctl drives arms of serial bus servos"), "{help}");
+    for (heading, names) in armctl::cli::GROUPS {
+        assert!(help.contains(&format!("\n{heading}:\n")), "{heading} missing from {help}");
+        for name in *names {
+            let about = command.find_subcommand(name).unwrap().get_about().unwrap().to_string();
+            assert!(help.lines().any(|l| l.trim_start().starts_with(name) && l.ends_with(&about)), "{name}: {about}");
+        }
+    }
+    // Listed once: clap's own flat list is not there as well.
+    assert!(!help.contains("Commands:"), "{help}");
+    assert_eq!(help.matches("\n  fk ").count(), 1, "{help}");
+    // -h shows the same groups.
+    assert!(armctl(&["-h"]).stdout.contains("\nKinematics:\n"));
+}
+
+/// `--json` before the command and after it, for every command whose output is JSON already (it
+/// changes nothing) and for those that print text otherwise: the same single JSON line.
+#[test]
+fn json_before_or_after_every_command() {
+    let keyframes = TempFile::new("keyframes", "t,q1,q2\n0,0,0\n1,0.5,-0.5\n");
+    let bvh = format!("{}/tests/data/bvh/t_pose_arm.bvh", env!("CARGO_MANIFEST_DIR"));
+    let commands: Vec<Vec<&str>> = vec![
+        vec!["fk", "--arm", "so101", "--q", "0,0.1,0.2,0.3,0.4"],
+        vec!["jacobian", "--arm", "planar:2", "--q", "0,0"],
+        vec!["ik", "--arm", "so101", "--target", "0.2,0,0.1"],
+        vec!["bench", "ik", "--arm", "planar:3", "--n", "20", "--no-k"],
+        vec!["bench", "rate", "--protocol", "sts", "--seconds", "0.2"],
+        vec!["bench", "bus", "--protocol", "dxl2", "--cycles", "5"],
+        vec!["trajectory", "sample", "--keyframes", keyframes.path(), "--method", "linear", "--rate", "4"],
+        vec!["ports"],
+        vec!["retarget", bvh.as_str(), "--arm", "so101", "--seconds", "0.5"],
+    ];
+    for args in &commands {
+        let before: Vec<&str> = std::iter::once("--json").chain(args.iter().copied()).collect();
+        let after: Vec<&str> = args.iter().copied().chain(std::iter::once("--json")).collect();
+        let (a, b) = (armctl(&before), armctl(&after));
+        for run in [&a, &b] {
+            assert_eq!(run.code, 0, "{args:?}: {}", run.stderr);
+            let text = run.stdout.trim_end();
+            serde_json::from_str::<Value>(text).unwrap_or_else(|e| panic!("{args:?}: not JSON ({e}): {text}"));
+        }
+        // The same answer, except for what is measured in real time.
+        if !matches!(args[0], "bench" | "retarget") {
+            assert_eq!(a.stdout, b.stdout, "{args:?}");
+        }
+    }
+    // Given on both sides it is the same option once.
+    armctl(&["--json", "fk", "--arm", "so101", "--q", "0,0,0,0,0", "--json"]).json();
+    // --arm is global too, for the commands that have one.
+    let q = ["--q", "0,0.1,0.2,0.3,0.4"];
+    assert_eq!(
+        armctl(&[&["--arm", "so101", "fk"][..], &q].concat()).stdout,
+        armctl(&[&["fk", "--arm", "so101"][..], &q].concat()).stdout
+    );
+}
+
+/// The demo prints text unless --json, which works on either side.
+#[test]
+fn demo_json_before_or_after() {
+    for args in [&["--json", "demo", "--no-plot"][..], &["demo", "--no-plot", "--json"]] {
+        let v = armctl(args).json();
+        assert_eq!(v["arm"], "so101", "{args:?}");
+    }
+    let v = armctl(&["--arm", "open-manipulator-x", "--json", "demo", "--no-plot"]).json();
+    assert_eq!(v["arm"], "open-manipulator-x");
+    assert_fails(&["--arm", "so101", "demo", "--arm", "open-manipulator-x"], &["--arm is given twice"]);
+}
+
+/// Commands that need hardware take --json on either side: they get as far as the port, which
+/// does not exist, and fail there in one line.
+#[test]
+fn json_is_parsed_for_the_commands_that_need_a_port() {
+    let port = missing_path("ttyUSB9");
+    let commands: Vec<Vec<&str>> = vec![
+        vec!["servo", "scan", "--port", &port, "--protocol", "sts", "--ids", "1"],
+        vec!["servo", "torque", "on", "--port", &port, "--protocol", "dxl2", "--id", "1"],
+        vec!["doctor", "--bus", &port, "--protocol", "sts", "--baud", "1000000"],
+        vec!["calibrate", "--bus", &port, "--protocol", "sts", "--arm", "so101", "--out", "/nonexistent-dir/a.toml"],
+        vec!["--bus", &port, "--protocol", "sts", "status"],
+    ];
+    for args in &commands {
+        let before: Vec<&str> = std::iter::once("--json").chain(args.iter().copied()).collect();
+        let after: Vec<&str> = args.iter().copied().chain(std::iter::once("--json")).collect();
+        for argv in [before, after] {
+            let run = armctl(&argv);
+            assert_eq!(run.code, 1, "{argv:?}: clap refused it: {}", run.stderr);
+            assert!(run.stdout.is_empty(), "{argv:?}: {}", run.stdout);
+            assert_eq!(run.stderr.lines().count(), 1, "{argv:?}: {}", run.stderr);
+            assert!(run.stderr.starts_with("error: "), "{argv:?}: {}", run.stderr);
+            assert!(!run.stderr.contains("unexpected argument"), "{argv:?}: {}", run.stderr);
+        }
+    }
+    // servo's --json also goes between servo and its subcommand.
+    let run = armctl(&["servo", "--json", "scan", "--port", &port, "--protocol", "sts"]);
+    assert_eq!((run.code, run.stderr.lines().count()), (1, 1), "{}", run.stderr);
+}
+
+/// A drive option before a command that has no use for it: one line naming the option and the
+/// command.
+#[test]
+fn drive_options_before_other_commands_are_refused_in_one_line() {
+    assert_fails(&["--rig", "bimanual-so101", "fk", "--arm", "so101", "--q", "0"], &["--rig", "`armctl fk`"]);
+    assert_fails(&["--sim", "ik", "--arm", "so101", "--target", "0.2,0,0.1"], &["--sim", "`armctl ik`"]);
+    assert_fails(
+        &["--sim", "--object-mm", "20", "bench", "ik", "--arm", "so101"],
+        &["--sim, --object-mm", "`armctl bench ik`"],
+    );
+    assert_fails(
+        &["--port", "/dev/null", "servo", "scan", "--port", "/dev/null", "--protocol", "sts"],
+        &["--port", "`armctl servo scan`"],
+    );
+    assert_fails(&["fk", "--q", "0"], &["--arm is missing"]);
+}
+
+/// The commands that print a path or URL first and then serve: with --json the first line is an
+/// object. Each is stopped by killing it once the line is read.
+#[test]
+fn json_first_line_of_the_serving_commands() {
+    use std::io::BufRead;
+    for (args, key) in [
+        (&["--json", "sim", "servos", "--pty", "--protocol", "sts", "--ids", "1"][..], "pty"),
+        (&["sim", "servos", "--pty", "--protocol", "sts", "--ids", "1", "--json"], "pty"),
+        (&["--json", "--sim", "serve"], "pty"),
+        (&["serve", "--sim", "--json"], "pty"),
+        (&["--json", "view", "--listen", "127.0.0.1:0"], "url"),
+        (&["view", "--sim", "--listen", "127.0.0.1:0", "--json"], "url"),
+    ] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_armctl"))
+            .args(args)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let mut line = String::new();
+        std::io::BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+        child.kill().unwrap();
+        child.wait().unwrap();
+        let v: Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("{args:?}: not JSON ({e}): {line:?}"));
+        assert!(v[key].as_str().is_some_and(|s| !s.is_empty()), "{args:?}: {v}");
+    }
+}

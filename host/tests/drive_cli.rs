@@ -299,7 +299,7 @@ fn the_link_options_are_checked() {
     assert_fails(&["--sim", "--port", "/dev/null", "status"], &["--sim"]);
     assert_fails(&["--port", "/dev/does-not-exist", "status"], &["/dev/does-not-exist"]);
     assert_fails(&["--sim", "--arm", "no-such-arm", "status"], &["no-such-arm"]);
-    assert_fails(&["--sim", "fk", "--arm", "so101", "--q", "0,0,0,0,0"], &["--sim", "only for move"]);
+    assert_fails(&["--sim", "fk", "--arm", "so101", "--q", "0,0,0,0,0"], &["--sim is not an option of `armctl fk`"]);
     assert_fails(&["--arm", "so101", "status", "--sim", "--arm", "open-manipulator-x"], &["--arm is given twice"]);
     assert_fails(&["--baud", "57600", "status"], &["--baud", "--port"]);
     assert_fails(&["--sim", "--baud", "57600", "status"], &["--baud", "--sim"]);

@@ -42,6 +42,9 @@ pub struct BusBenchArgs {
     /// Control cycles simulated (the median is reported).
     #[arg(long, default_value_t = 100)]
     cycles: usize,
+    /// Changes nothing: the output is JSON already (one indented object).
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// One cycle's simulated figures.

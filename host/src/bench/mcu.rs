@@ -58,9 +58,9 @@ const DESCRIPTIONS: [(&str, &str); 15] = [
 /// Arguments of `armctl bench mcu`.
 #[derive(Args, Debug)]
 pub struct McuBenchArgs {
-    /// One JSON object instead of the table.
+    /// One JSON object (indented) instead of the table.
     #[arg(long)]
-    json: bool,
+    pub json: bool,
 }
 
 /// One `op` line of the firmware's output.

@@ -41,6 +41,9 @@ pub struct PcBenchArgs {
     /// Seconds of motion measured.
     #[arg(long, default_value_t = 5.0)]
     seconds: f64,
+    /// Changes nothing: the output is one line of JSON already.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// The benchmark's arm: `planar:N` driven by servos of the protocol's usual model, ids 1..=N.

@@ -69,9 +69,9 @@ pub struct RateBenchArgs {
     /// Virtual seconds each schedule runs (compute time is free on the virtual clock).
     #[arg(long, default_value_t = 2.0)]
     seconds: f64,
-    /// One JSON object instead of the table.
+    /// One JSON object (indented) instead of the table.
     #[arg(long)]
-    json: bool,
+    pub json: bool,
 }
 
 /// What is measured.

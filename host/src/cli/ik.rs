@@ -19,7 +19,7 @@ use crate::bench::ik as bench;
 #[derive(Args, Debug)]
 pub(crate) struct IkArgs {
     #[command(flatten)]
-    arm: ArmArgs,
+    pub(super) arm: ArmArgs,
     /// Target tool position x,y,z (m).
     #[arg(long, allow_hyphen_values = true, required_unless_present = "batch", conflicts_with = "batch")]
     target: Option<String>,
@@ -55,6 +55,9 @@ pub(crate) struct IkArgs {
     /// Iteration budget over all restarts.
     #[arg(long, default_value_t = 1000)]
     max_iterations: u32,
+    /// Changes nothing: every result is one line of JSON already.
+    #[arg(long)]
+    pub(super) json: bool,
 }
 
 fn config(args: &IkArgs) -> Result<IkConfig<f64>> {

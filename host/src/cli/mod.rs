@@ -11,106 +11,154 @@ use crate::args::numbers as parse;
 use crate::arm::dof::{self, DynArm, Scalar};
 use crate::arm::ArmSpec;
 use crate::bench::ik::{self as bench, Protocol};
+use crate::drive::args::LinkArgs;
 use anyhow::{bail, Result};
-use clap::{Args, Parser, Subcommand};
+use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand};
 use serde_json::{json, Value};
 use std::ffi::OsString;
 use std::io::Write;
 
-/// Kinematics, inverse kinematics and benchmarks for serial-bus-servo arms.
+/// armctl drives arms of serial bus servos (Dynamixel Protocol 2.0, Feetech STS/SCS) through the
+/// firmware core: simulated on this PC (--sim), on a board running the firmware (--port), or with
+/// this PC as the board, on the servos' USB adapter (--bus). It sets up, calibrates, teleoperates
+/// and checks the servos and the arm, and has kinematics, simulation and firmware tools.
 #[derive(Parser, Debug)]
-#[command(name = "armctl", version, about)]
+#[command(
+    name = "armctl",
+    version,
+    after_help = "The drive options (all but --json) are for the commands that drive an arm; before another command, \
+                  each goes to that command's option of the same name where it has one. Every command takes --json. \
+                  `armctl COMMAND --help` tells what a command does, its options and what it prints."
+)]
 struct Cli {
     #[command(flatten)]
-    link: crate::drive::args::LinkArgs,
+    link: LinkArgs,
     #[command(subcommand)]
     command: Command,
 }
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// The whole product without hardware: a simulated arm driven through the firmware in
-    /// software in the loop, to Cartesian targets and along a streamed pick-and-place path.
+    /// The whole product without hardware: a simulated arm driven through the firmware core
+    ///
+    /// Software in the loop on a virtual clock: the arm goes to Cartesian targets and along a
+    /// streamed pick-and-place path, then the report (--json: one line of JSON) and a plot
+    /// (demo-ARM.png unless --plot or --no-plot). With --rig: two simulated arms hand an object
+    /// over.
     Demo(crate::demo::DemoArgs),
-    /// Forward kinematics: tool pose and every joint frame for joint values.
+    /// Forward kinematics: the tool's pose and every joint's frame for joint values (JSON)
     Fk {
         #[command(flatten)]
         arm: ArmArgs,
         /// Joint values, comma-separated (radians, metres for prismatic joints).
         #[arg(long, allow_hyphen_values = true)]
         q: String,
+        /// Changes nothing: the output is one line of JSON already.
+        #[arg(long)]
+        json: bool,
     },
-    /// The 6 x N geometric Jacobian (rows linear x, y, z then angular x, y, z).
+    /// The 6 x N geometric Jacobian at joint values (JSON)
+    ///
+    /// Rows linear x, y, z then angular x, y, z; one column per joint.
     Jacobian {
         #[command(flatten)]
         arm: ArmArgs,
-        /// Joint values, comma-separated.
+        /// Joint values, comma-separated (radians, metres for prismatic joints).
         #[arg(long, allow_hyphen_values = true)]
         q: String,
+        /// Changes nothing: the output is one line of JSON already.
+        #[arg(long)]
+        json: bool,
     },
-    /// Inverse kinematics for one target, or for every line of a JSON-lines file.
+    /// Inverse kinematics for one target, or for every line of a JSON-lines file (JSON lines)
     Ik(ik::IkArgs),
-    /// Benchmarks.
+    /// Benchmarks: IK solve rate, bus wire time, control rate, instructions on the MCU, the core
+    /// on this PC
     Bench {
         #[command(subcommand)]
         what: BenchCommand,
     },
-    /// Flash, static RAM, panic paths and stack depth of each board binary, against the goals.
+    /// Flash, static RAM, panic paths and stack depth of each board binary, against the goals
+    ///
+    /// Builds the board binaries (or reads --elf) and measures the stack under QEMU unless
+    /// --no-qemu. Needs an armctl built with the board-tools feature.
     Footprint(crate::footprint::FootprintArgs),
-    /// Simulated servo buses (served on a pseudo-terminal), or the firmware under QEMU (--qemu).
+    /// Simulated servos on a pseudo-terminal (sim servos), or the firmware under QEMU (sim --qemu)
     Sim(sim::SimArgs),
-    /// Joint trajectories through keyframes.
+    /// Joint trajectories through keyframes: sampled at a fixed rate (trajectory sample)
     Trajectory {
         #[command(subcommand)]
         what: TrajectoryCommand,
     },
-    /// The serial ports with the USB device behind each (vendor:product id, maker, product, serial
-    /// number, /dev/serial/by-id name): which one is the arm's adapter.
+    /// The serial ports with the USB device behind each: which one is the arm's adapter
+    ///
+    /// One line per port: its path, vendor:product id, maker, product, serial number and
+    /// /dev/serial/by-id name.
     Ports {
-        /// One JSON array instead of a line per port.
+        /// One JSON array (one line) instead of a line per port.
         #[arg(long)]
         json: bool,
     },
-    /// Keep one firmware core running on this PC (servos on a USB adapter with --bus, simulated with
-    /// --sim) and serve its host link on a pseudo-terminal for `armctl --port`: prints the pty's
-    /// path on the first line of stdout.
+    /// Keep one firmware core running on this PC, its host link on a pseudo-terminal for --port
+    ///
+    /// Servos on a USB adapter with --bus, simulated with --sim. Prints the pty's path on the first
+    /// line of stdout (--json: {"pty": PATH}); consecutive `armctl --port PTY` commands then drive
+    /// one arm whose state persists. Ctrl-C stops the arm, then exits.
     Serve(serve::ServeArgs),
-    /// Serial bus servo set-up on a real port: scan, read, write, set-id, set-baud, torque.
+    /// Serial bus servos on a port: scan, read, write, set-id, set-baud, calibration, torque
     Servo(crate::servo::cli::ServoArgs),
-    /// What is wrong with a servo bus (--bus PORT): ids, models, firmware, supply, temperature,
-    /// error flags, return delay, the adapter's echo and latency, lost replies, stale goals, the
-    /// calibration, whether a control cycle fits. One line per finding, OK, WARN or FAIL with the
-    /// fix; writes nothing unless --fix. Scans both protocols at the usual baud rates when
-    /// --protocol and --baud are not given.
+    /// What is wrong with a servo bus (--bus PORT): one line per finding, OK, WARN or FAIL, with the fix
+    ///
+    /// Ids, models, firmware, supply, temperature, error flags, return delay, the adapter's echo
+    /// and latency, lost replies, stale goals, the calibration, whether a control cycle fits.
+    /// Writes nothing unless --fix. Scans both protocols at the usual baud rates when --protocol
+    /// and --baud are not given.
     Doctor(crate::doctor::DoctorArgs),
-    /// Calibrate an arm's servos as LeRobot does (homing offsets at the middle of each joint's
-    /// range, the ranges moved through by hand as position limits), answering each step with a
-    /// line on stdin; writes the servos, an arm file (--out) and LeRobot's file (--lerobot-json).
-    Calibrate(crate::servo::calibrate::CalibrateArgs),
-    /// A human arm from a BVH motion-capture file onto the arm: joint keyframes for `armctl play`
-    /// (--out), the hand's and the tool's paths (--plot), tracking figures; --play streams them.
-    /// With --rig RIG: the human's arms onto every arm of the rig, one keyframe file for all.
+    /// Calibrate an arm's servos as LeRobot does, each step answered with a line on stdin
+    ///
+    /// Homing offsets at the middle of each joint's range, the ranges moved through by hand as
+    /// position limits. Writes the servos, an arm file (--out) and LeRobot's file
+    /// (--lerobot-json).
+    Calibrate {
+        #[command(flatten)]
+        args: crate::servo::calibrate::CalibrateArgs,
+        /// The dialog (steps, live table, results) on stderr instead, and on stdout one line of
+        /// JSON once done: the files written, each joint's limits (rad) and the calibration as
+        /// LeRobot's file has it.
+        #[arg(long)]
+        json: bool,
+    },
+    /// A human arm from a BVH motion-capture file onto the arm, as keyframes; --play streams them
+    ///
+    /// Joint keyframes for `armctl play` (--out), the hand's and the tool's paths (--plot) and
+    /// tracking figures (one line of JSON); --play streams them to the arm (its report a second
+    /// JSON line). With --rig RIG: the human's arms onto every arm of the rig, one keyframe file
+    /// for all.
     Retarget(retarget::RetargetArgs),
-    /// Teleoperation: a leader arm moved by hand (torque off, read by sync read) drives the
-    /// follower given by the drive options (--port, --bus or --sim), through both calibrations,
-    /// as keyframes the follower's firmware plays within its limits. Reports the loop's rate and
-    /// latency; --record writes the session as a keyframe file for `armctl play`.
+    /// Teleoperation: a leader arm moved by hand drives the follower (--port, --bus or --sim)
+    ///
+    /// The leader's servos (torque off) are read by sync read and mapped through both
+    /// calibrations to keyframes the follower's firmware plays within its limits. Reports the
+    /// loop's rate and latency (--json: one line of JSON); --record writes the session as a
+    /// keyframe file for `armctl play`.
     Teleop(crate::teleop::TeleopArgs),
-    /// The arm live in a browser: a local page with the arm in 3D, joint sliders, a target to
-    /// drag (IK preview, then the move on the firmware), telemetry, keyframe files, stop and
-    /// torque, and the same as a JSON API. Prints the page's URL on the first line; opens no
-    /// browser. Drives --sim (the default, in real time), --port or --bus.
+    /// The arm live in a browser, and the same as a JSON API: prints the page's URL
+    ///
+    /// A local page with the arm in 3D, joint sliders, a target to drag (IK preview, then the
+    /// move on the firmware), telemetry, keyframe files, stop and torque. Prints the page's URL
+    /// on the first line (--json: {"url": URL}); opens no browser. Drives --sim (the default, in
+    /// real time), --port or --bus; --rig, every arm of a rig.
     View(crate::view::ViewArgs),
-    /// Driving an arm (after --port PORT, --bus PORT --protocol P or --sim): move, joints, play,
-    /// status, stop, torque.
+    // The drive commands (move, joints, play, status, stop, torque, gripper), each with the drive
+    // options before or after it.
     #[command(flatten)]
     Drive(crate::drive::args::DriveCommand),
 }
 
 #[derive(Subcommand, Debug)]
 enum TrajectoryCommand {
-    /// Interpolate a keyframe CSV file and sample it at a fixed rate (CSV `t,q...,v...,a...` or
-    /// --json on stdout).
+    /// Interpolate a keyframe CSV file and sample it at a fixed rate (CSV `t,q...,v...,a...` on
+    /// stdout, or one line of JSON with --json).
     Sample(crate::motion::sample::SampleArgs),
 }
 
@@ -132,6 +180,10 @@ enum BenchCommand {
         /// Skip the `k` crate's solver (run only when built with `--features compare-k`).
         #[arg(long)]
         no_k: bool,
+        /// Changes nothing: the report on stdout is one line of JSON already (the summary lines
+        /// go to stderr).
+        #[arg(long)]
+        json: bool,
     },
     /// Wire time of one control cycle (sync write goals + sync read positions), computed and
     /// simulated with the firmware's cycle against simulated servos.
@@ -143,7 +195,7 @@ enum BenchCommand {
     /// Instructions per operation on the Cortex-M4F (FK, IK, player tick, bus packets), counted by
     /// the firmware's `opcount` binary under `qemu-system-arm -icount shift=0`.
     Mcu(crate::bench::mcu::McuBenchArgs),
-    /// Control rate and bus time per tick of the firmware core hosted on this PC (--bus) against
+    /// Control rate and bus time per tick of the firmware core hosted on this PC (as --bus runs it) against
     /// simulated servos on a pseudo-terminal in real time, with or without a USB adapter's burst
     /// latency.
     Pc(crate::bench::pc::PcBenchArgs),
@@ -151,12 +203,47 @@ enum BenchCommand {
 
 #[derive(Args, Debug)]
 pub(crate) struct ArmArgs {
-    /// Arm: a preset name or a path to a .urdf or .toml arm file.
+    /// Arm: a preset (so101, open-manipulator-x, ur5e, puma560, iiwa14, planar:N) or a .urdf or
+    /// .toml arm file (required; may come before the command too).
     #[arg(long)]
-    arm: String,
+    arm: Option<String>,
     /// Tip link of a URDF arm (needed when the URDF tree has several leaves).
     #[arg(long)]
     tip: Option<String>,
+}
+
+/// The commands by what a person does with them, in the order `armctl --help` lists them. Each
+/// command's line there is its own short help, read from clap when the help is shown, so that it
+/// is written once.
+pub const GROUPS: &[(&str, &[&str])] = &[
+    (
+        "Drive an arm",
+        &["move", "joints", "play", "gripper", "status", "stop", "torque", "view", "teleop", "retarget", "serve"],
+    ),
+    ("Set up the servos and the arm", &["ports", "servo", "doctor", "calibrate"]),
+    ("Kinematics", &["fk", "jacobian", "ik", "trajectory"]),
+    ("Simulate and test", &["demo", "sim", "bench"]),
+    ("Firmware", &["footprint"]),
+];
+
+/// The command line's definition: clap's, with the commands listed by [`GROUPS`] instead of in one
+/// flat list (clap puts a command under one heading only, and would list them twice).
+pub fn command() -> clap::Command {
+    let cli = Cli::command();
+    let width = GROUPS.iter().flat_map(|(_, names)| names.iter().map(|n| n.len())).max().unwrap_or(0);
+    let mut groups = String::new();
+    for (heading, names) in GROUPS {
+        groups.push_str(&format!("{heading}:\n"));
+        for name in *names {
+            let about =
+                cli.find_subcommand(name).and_then(|c| c.get_about()).map(|a| a.to_string()).unwrap_or_default();
+            groups.push_str(&format!("  {name:<width$}  {about}\n"));
+        }
+        groups.push('\n');
+    }
+    cli.help_template(format!(
+        "{{about-with-newline}}\n{{usage-heading}} {{usage}}\n\n{groups}Options (before the command or after it):\n{{options}}{{after-help}}"
+    ))
 }
 
 /// Runs `armctl` with `args` (program name first); returns the exit code.
@@ -165,8 +252,11 @@ where
     I: IntoIterator<Item = T>,
     T: Into<OsString> + Clone,
 {
-    let cli = match Cli::try_parse_from(args) {
-        Ok(cli) => cli,
+    let parsed = command()
+        .try_get_matches_from(args)
+        .and_then(|matches| Ok((Cli::from_arg_matches(&matches)?, command_name(&matches))));
+    let (cli, name) = match parsed {
+        Ok(parsed) => parsed,
         Err(e) => {
             use clap::error::ErrorKind;
             if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
@@ -186,7 +276,7 @@ where
             return 2;
         }
     };
-    match run(&cli.link, cli.command, out, err) {
+    match run(&cli.link, cli.command, &name, out, err) {
         Ok(code) => code,
         // The reader closed the pipe (`armctl ... | head`): it has what it wanted.
         Err(e) if e.downcast_ref::<std::io::Error>().is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe) => 0,
@@ -198,16 +288,81 @@ where
 }
 
 pub(crate) fn load(arm: &ArmArgs) -> Result<Box<dyn DynArm>> {
-    dof::build(ArmSpec::load(&arm.arm, arm.tip.as_deref())?)
+    let Some(name) = &arm.arm else {
+        bail!("--arm is missing: a preset name or a .urdf or .toml arm file");
+    };
+    dof::build(ArmSpec::load(name, arm.tip.as_deref())?)
 }
 
-fn run(link: &crate::drive::args::LinkArgs, command: Command, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
-    // `retarget --play` drives an arm too: it takes the drive options; `retarget --rig` takes the rig.
-    if !matches!(&command, Command::Drive(_) | Command::Teleop(_) | Command::View(_) | Command::Doctor(_))
-        && !matches!(&command, Command::Retarget(a) if a.plays() || link.rig.is_some())
-    {
-        link.refuse_for_other_commands()?;
+/// The command as typed, subcommands included: `fk`, `bench ik`, `servo scan`.
+fn command_name(matches: &clap::ArgMatches) -> String {
+    let mut names = Vec::new();
+    let mut at = matches;
+    while let Some((name, sub)) = at.subcommand() {
+        names.push(name);
+        at = sub;
     }
+    names.join(" ")
+}
+
+/// Moves the options given before the command (the drive options, [`LinkArgs`]) into the
+/// command's own namesakes, so that a global option works on either side of the command: `--json`
+/// into every command's; `--arm` into the kinematics commands' and demo's; `--rig` into demo's;
+/// serve's bus options into serve's. The commands that take the drive options themselves (the
+/// drive commands, teleop, view, retarget, doctor) merge them on their own. An option the command
+/// has no use for is refused in one line.
+fn take_globals(link: &LinkArgs, mut command: Command, name: &str) -> Result<Command> {
+    use crate::drive::args::either;
+    let mut rest = link.clone();
+    let json = std::mem::take(&mut rest.json);
+    match &mut command {
+        Command::Drive(_) | Command::Teleop(_) | Command::View(_) | Command::Doctor(_) | Command::Retarget(_) => {
+            return Ok(command)
+        }
+        Command::Fk { arm, json: own, .. }
+        | Command::Jacobian { arm, json: own, .. }
+        | Command::Bench { what: BenchCommand::Ik { arm, json: own, .. } } => {
+            *own |= json;
+            arm.arm = either("--arm", rest.arm.take(), arm.arm.take())?;
+        }
+        Command::Ik(args) => {
+            args.json |= json;
+            args.arm.arm = either("--arm", rest.arm.take(), args.arm.arm.take())?;
+        }
+        Command::Demo(args) => {
+            args.json |= json;
+            args.arm = either("--arm", rest.arm.take(), args.arm.take())?;
+            args.rig = either("--rig", rest.rig.take(), args.rig.take())?;
+        }
+        Command::Serve(args) => {
+            args.json |= json;
+            args.bus = either("--bus", rest.bus.take(), args.bus.take())?;
+            args.sim |= std::mem::take(&mut rest.sim);
+            args.protocol = either("--protocol", rest.protocol.take(), args.protocol.take())?;
+            args.baud = either("--baud", rest.baud.take(), args.baud.take())?;
+            args.arm = either("--arm", rest.arm.take(), args.arm.take())?;
+            args.calibration = either("--calibration", rest.calibration.take(), args.calibration.take())?;
+        }
+        Command::Bench { what: BenchCommand::Bus(args) } => args.json |= json,
+        Command::Bench { what: BenchCommand::Rate(args) } => args.json |= json,
+        Command::Bench { what: BenchCommand::Mcu(args) } => args.json |= json,
+        Command::Bench { what: BenchCommand::Pc(args) } => args.json |= json,
+        Command::Footprint(args) => args.json |= json,
+        Command::Sim(args) => match &mut args.what {
+            Some(sim::SimCommand::Servos(servos)) => servos.json |= json,
+            None => args.json |= json,
+        },
+        Command::Trajectory { what: TrajectoryCommand::Sample(args) } => args.json |= json,
+        Command::Ports { json: own } => *own |= json,
+        Command::Servo(args) => args.json |= json,
+        Command::Calibrate { json: own, .. } => *own |= json,
+    }
+    rest.refuse_for(name)?;
+    Ok(command)
+}
+
+fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+    let command = take_globals(link, command, name)?;
     match command {
         Command::Drive(command) => {
             let merged = link.merged(command.link())?;
@@ -220,7 +375,7 @@ fn run(link: &crate::drive::args::LinkArgs, command: Command, out: &mut dyn Writ
         Command::Retarget(args) => return retarget::run(link, args, out, err),
         Command::Teleop(args) => return crate::teleop::run(link, args, out, err),
         Command::View(args) => return crate::view::run(link, args, out, err),
-        Command::Fk { arm, q } => {
+        Command::Fk { arm, q, json: _ } => {
             let arm = load(&arm)?;
             let q = parse::numbers(&q, "--q")?;
             let tool = arm.tool_pose(&q)?;
@@ -243,7 +398,7 @@ fn run(link: &crate::drive::args::LinkArgs, command: Command, out: &mut dyn Writ
                 }),
             )?;
         }
-        Command::Jacobian { arm, q } => {
+        Command::Jacobian { arm, q, json: _ } => {
             let arm = load(&arm)?;
             let q = parse::numbers(&q, "--q")?;
             print_json(out, &json!({"arm": arm.spec().name, "jacobian": arm.jacobian(&q)?}))?;
@@ -256,7 +411,7 @@ fn run(link: &crate::drive::args::LinkArgs, command: Command, out: &mut dyn Writ
         Command::Bench { what: BenchCommand::Pc(args) } => return crate::bench::pc::run(&args, out, err),
         Command::Servo(args) => return crate::servo::cli::run(args, out, err),
         Command::Doctor(args) => return crate::doctor::run(link, args, out, err),
-        Command::Calibrate(args) => return crate::servo::calibrate::run(args, out, err),
+        Command::Calibrate { args, json } => return calibrate(args, json, out, err),
         Command::Ports { json } => {
             let ports = crate::servo::ports::usb_ports(std::path::Path::new("/dev"));
             if json {
@@ -277,7 +432,7 @@ fn run(link: &crate::drive::args::LinkArgs, command: Command, out: &mut dyn Writ
         Command::Trajectory { what: TrajectoryCommand::Sample(args) } => {
             return crate::motion::sample::run(&args, out, err)
         }
-        Command::Bench { what: BenchCommand::Ik { arm, n, scalar, seed, no_k } } => {
+        Command::Bench { what: BenchCommand::Ik { arm, n, scalar, seed, no_k, json: _ } } => {
             if n == 0 {
                 bail!("--n must be at least 1");
             }
@@ -313,6 +468,54 @@ fn run(link: &crate::drive::args::LinkArgs, command: Command, out: &mut dyn Writ
         }
     }
     Ok(0)
+}
+
+/// `armctl calibrate`; with `json`, the dialog goes to `err` and its outcome, read back from the
+/// arm file written, to `out` as one line of JSON.
+fn calibrate(
+    args: crate::servo::calibrate::CalibrateArgs,
+    json: bool,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> Result<i32> {
+    use crate::arm::calibration::{lerobot, record};
+    if !json {
+        return crate::servo::calibrate::run(args, out, err);
+    }
+    /// One writer shared by the dialog's two streams.
+    struct Shared<'a, 'b>(&'a std::cell::RefCell<&'b mut dyn Write>);
+    impl Write for Shared<'_, '_> {
+        fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+            self.0.borrow_mut().write(buf)
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            self.0.borrow_mut().flush()
+        }
+    }
+    let (written, lerobot_json) = (args.out.clone(), args.lerobot_json.clone());
+    let shared = std::cell::RefCell::new(err);
+    let code = crate::servo::calibrate::run(args, &mut Shared(&shared), &mut Shared(&shared))?;
+    let arm = ArmSpec::load(&written.display().to_string(), None)?;
+    let servos = crate::arm::servos::servos_of(&arm)
+        .ok_or_else(|| anyhow::anyhow!("{} has no [servos] table after calibrating", written.display()))?;
+    let file = record::lerobot_file(
+        &arm,
+        servos.calibration.as_deref().unwrap_or_default(),
+        servos.gripper_calibration.as_ref(),
+    );
+    let calibration: Value = serde_json::from_str(&lerobot::to_text(&file))?;
+    let joints: Vec<Value> =
+        arm.joints.iter().map(|j| json!({"name": j.name, "lower": j.lower, "upper": j.upper})).collect();
+    print_json(
+        out,
+        &json!({
+            "out": written.display().to_string(),
+            "lerobot_json": lerobot_json.map(|p| p.display().to_string()),
+            "joints": joints,
+            "calibration": calibration,
+        }),
+    )?;
+    Ok(code)
 }
 
 fn vec3(p: &kinematics::Pose<f64>) -> [f64; 3] {

@@ -32,26 +32,30 @@ use crate::link::client::{LinkClient, LinkConfig, LinkError};
 use crate::places::sil::{Sil, SilOptions, TraceSample};
 use scenario::Scenario;
 
+/// The demo's arm when `--arm` is not given.
+pub const DEFAULT_ARM: &str = "so101";
+
 /// `armctl demo` options.
 #[derive(Args, Debug)]
 pub struct DemoArgs {
     /// The simulated arm: a preset with servos (so101 on a Feetech STS3215 bus,
-    /// open-manipulator-x on a Dynamixel XM430 bus) or an arm file with a [servos] table.
-    #[arg(long, default_value = "so101", conflicts_with = "rig")]
-    arm: String,
+    /// open-manipulator-x on a Dynamixel XM430 bus) or an arm file with a [servos] table
+    /// [default: so101].
+    #[arg(long, conflicts_with = "rig")]
+    pub arm: Option<String>,
     /// The second scene: a rig of simulated arms (bimanual-so101, or a rig file of two
     /// simulated arms with grippers) hands an object from the first arm to the second.
     #[arg(long, value_name = "RIG")]
-    rig: Option<String>,
+    pub rig: Option<String>,
     /// Where to write the PNG plot (default demo-ARM.png in the current directory).
     #[arg(long)]
     plot: Option<PathBuf>,
     /// Do not write a plot.
     #[arg(long, conflicts_with = "plot")]
     no_plot: bool,
-    /// Print the results as one JSON object.
+    /// Print the results as one line of JSON instead of the text report.
     #[arg(long)]
-    json: bool,
+    pub json: bool,
 }
 
 type Client = LinkClient<Sil>;
@@ -280,6 +284,9 @@ fn fmt3(p: [f64; 3]) -> String {
 
 /// Runs `armctl demo`.
 pub fn run(args: &DemoArgs, out: &mut dyn Write) -> Result<i32> {
+    if args.arm.is_some() && args.rig.is_some() {
+        bail!("--arm and --rig exclude each other: the rig file names its arms");
+    }
     if let Some(rig) = &args.rig {
         if args.plot.is_some() {
             bail!("--plot draws the one-arm demo; the handover (--rig) has no plot yet");
@@ -287,7 +294,7 @@ pub fn run(args: &DemoArgs, out: &mut dyn Write) -> Result<i32> {
         return handover::run(rig, args.json, out);
     }
     let wall = Instant::now();
-    let options = SilOptions::new(&args.arm)?;
+    let options = SilOptions::new(args.arm.as_deref().unwrap_or(DEFAULT_ARM))?;
     let mut sil = Sil::new(&options)?;
     sil.record();
     let mut c = LinkClient::new(sil, LinkConfig::default());

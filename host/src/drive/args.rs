@@ -25,11 +25,13 @@ pub fn default_bus_arm(protocol: ProtocolArg) -> &'static str {
 }
 
 /// Which arm to drive. Accepted before the command or after it (`armctl --sim move --to ... --json`
-/// as well as `armctl move --sim --to ...`), as global options are.
+/// as well as `armctl move --sim --to ...`), as global options are. Before another command, each
+/// goes to the command's own option of that name where it has one (`armctl --json fk ...`,
+/// `armctl --sim serve`), and is refused where it has none (`armctl --rig R fk ...`).
 #[derive(Args, Debug, Default, Clone, PartialEq)]
 pub struct LinkArgs {
-    /// Drive the board running the firmware on this serial port (for move, joints, play, status,
-    /// stop, torque).
+    /// Drive the board running the firmware on this serial port (or on the pseudo-terminal that
+    /// `armctl serve` or `armctl sim --qemu` printed).
     #[arg(long, value_name = "PORT", conflicts_with = "sim")]
     pub port: Option<String>,
     /// Drive the servos on this USB adapter's serial port (U2D2, Waveshare, FE-URT-1) with the
@@ -45,9 +47,10 @@ pub struct LinkArgs {
     /// Drive the firmware core simulated on this PC with simulated servos (software in the loop).
     #[arg(long)]
     pub sim: bool,
-    /// With --sim: the simulated arm, so101 (default) or open-manipulator-x. With --port: a preset
-    /// arm to configure on the board first (default: the arm the board runs). With --bus: a preset
-    /// or an arm file with a [servos] table (default: so101 on sts, open-manipulator-x on dxl2).
+    /// The arm: a preset or an arm file (.toml or .urdf). To drive it with --sim or --bus it needs
+    /// servos: so101, open-manipulator-x or an arm file with a [servos] table. With --sim
+    /// [default: so101]; with --port, configured on the board first [default: the arm the board
+    /// runs]; with --bus [default: so101 on sts, open-manipulator-x on dxl2].
     #[arg(long = "arm", value_name = "ARM")]
     pub arm: Option<String>,
     /// With --bus: a LeRobot calibration file (JSON) of the arm's servos: the joints then map to
@@ -60,10 +63,12 @@ pub struct LinkArgs {
     /// Drive every arm of a rig together (a rig file, or the built-in bimanual-so101): status,
     /// stop, torque, move (--to ARM=x,y,z in the world frame, once per arm) and play (a keyframe
     /// file with each arm's columns, ARM.q1,...); `view --rig` shows and drives every arm in one
-    /// page. Each arm's place is in the file.
+    /// page, `teleop --rig` and `retarget --rig` take every arm's part. Each arm's place is in the
+    /// file.
     #[arg(long, value_name = "FILE", conflicts_with_all = ["sim", "port", "bus"])]
     pub rig: Option<String>,
-    /// Print the result as one line of JSON.
+    /// Print the result as one line of JSON (view: its URL as {"url": URL}). Every command takes
+    /// --json, before or after it: its --help says what it prints.
     #[arg(long)]
     pub json: bool,
 }
@@ -73,10 +78,7 @@ impl LinkArgs {
     /// both places must have the same value.
     pub fn merged(&self, after: &LinkArgs) -> Result<LinkArgs> {
         fn one<T: Clone + PartialEq + std::fmt::Debug>(name: &str, a: &Option<T>, b: &Option<T>) -> Result<Option<T>> {
-            match (a, b) {
-                (Some(x), Some(y)) if x != y => bail!("{name} is given twice, with different values ({x:?} and {y:?})"),
-                _ => Ok(a.clone().or_else(|| b.clone())),
-            }
+            either(name, a.clone(), b.clone())
         }
         Ok(LinkArgs {
             port: one("--port", &self.port, &after.port)?,
@@ -119,18 +121,15 @@ impl LinkArgs {
         Ok(())
     }
 
-    /// Refuses these options for a command that does not drive an arm.
-    pub fn refuse_for_other_commands(&self) -> Result<()> {
+    /// Refuses the options given that `command` (as typed: `fk`, `bench ik`) has no use for.
+    pub fn refuse_for(&self, command: &str) -> Result<()> {
         let mut given = self.one_arm_options();
         given.extend(
             [(self.rig.is_some(), "--rig"), (self.json, "--json")].into_iter().filter_map(|(g, n)| g.then_some(n)),
         );
         if !given.is_empty() {
-            bail!(
-                "{} before the command: only for move, joints, play, status, stop, torque and gripper (other commands take \
-                 their options after the command name)",
-                given.join(", ")
-            );
+            let (options, are) = if given.len() == 1 { ("an option", "is") } else { ("options", "are") };
+            bail!("{} {are} not {options} of `armctl {command}` (see armctl {command} --help)", given.join(", "));
         }
         Ok(())
     }
@@ -195,6 +194,14 @@ impl LinkArgs {
     }
 }
 
+/// One option given before the command (`a`) and after it (`b`): either, or both if they agree.
+pub fn either<T: PartialEq + std::fmt::Debug>(name: &str, a: Option<T>, b: Option<T>) -> Result<Option<T>> {
+    match (a, b) {
+        (Some(x), Some(y)) if x != y => bail!("{name} is given twice, with different values ({x:?} and {y:?})"),
+        (a, b) => Ok(a.or(b)),
+    }
+}
+
 /// `arm` with the LeRobot calibration in `file`, if one is given: each servo's entry found by its
 /// id. Errors name the file.
 pub fn calibrated(mut arm: crate::arm::ArmSpec, file: Option<&std::path::Path>) -> Result<crate::arm::ArmSpec> {
@@ -210,9 +217,10 @@ pub fn calibrated(mut arm: crate::arm::ArmSpec, file: Option<&std::path::Path>) 
 /// The arm-driving commands.
 #[derive(Subcommand, Debug)]
 pub enum DriveCommand {
-    /// Move the tool to a point (and orientation) along a straight line, IK on the firmware.
+    /// Move the tool to a point (and orientation), IK on the firmware: a straight line, or by joints
     ///
-    /// Switches torque on if it is off. Waits until the arm is at rest and prints the target,
+    /// The way is --path's: the straight line, finished by joints where it runs into the joint
+    /// limits (auto, the default), the line only, or by joints. Switches torque on if it is off. Waits until the arm is at rest and prints the target,
     /// the position reached (forward kinematics of the measured joints), the error and the time;
     /// Ctrl-C stops the arm.
     Move(MoveArgs),
@@ -220,7 +228,7 @@ pub enum DriveCommand {
     ///
     /// Switches torque on if it is off. Waits until the arm is at rest; Ctrl-C stops the arm.
     Joints(JointsArgs),
-    /// Play a keyframe file, joint or Cartesian, with a progress bar.
+    /// Play a keyframe file, joint or Cartesian, with a progress bar on a terminal
     ///
     /// Joint keyframes have the header t,q1,...,qN[,v1,...,vN], as for `armctl trajectory sample`;
     /// Cartesian ones t,x,y,z or t,x,y,z,qw,qx,qy,qz (metres, unit quaternion w first; IK on the
@@ -233,10 +241,10 @@ pub enum DriveCommand {
     Stop(OnlyLinkArgs),
     /// Torque on (hold the present position; also leaves an emergency stop) or off (limp).
     Torque(TorqueArgs),
-    /// Open, close or set the gripper (percent, 0 closed to 100 open), optionally with an effort
-    /// limit (percent of the servo's full torque or current).
+    /// Open, close or set the gripper (percent, 0 closed to 100 open), with an optional effort limit
     ///
-    /// Switches torque on if it is off. Waits until the gripper is at its goal or holds something
+    /// The effort limit is a percent of the servo's full torque or current. Switches torque on if
+    /// it is off. Waits until the gripper is at its goal or holds something
     /// (stopped short of its goal under load) and prints where it stopped and the load.
     Gripper(GripperArgs),
 }

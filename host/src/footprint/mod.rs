@@ -50,9 +50,9 @@ pub struct FootprintArgs {
     /// Skip the stack measurement under QEMU.
     #[arg(long)]
     no_qemu: bool,
-    /// One JSON object instead of the text report.
+    /// One line of JSON instead of the text report.
     #[arg(long)]
-    json: bool,
+    pub json: bool,
 }
 
 /// The board binaries.
