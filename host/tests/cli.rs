@@ -730,6 +730,7 @@ fn json_is_parsed_for_the_commands_that_need_a_port() {
         vec!["doctor", "--bus", &port, "--protocol", "sts", "--baud", "1000000"],
         vec!["calibrate", "--bus", &port, "--protocol", "sts", "--arm", "so101", "--out", "/nonexistent-dir/a.toml"],
         vec!["--bus", &port, "--protocol", "sts", "status"],
+        vec!["--bus", &port, "--protocol", "sts", "--arm", "so101", "calibrate", "--out", "/nonexistent-dir/a.toml"],
     ];
     for args in &commands {
         let before: Vec<&str> = std::iter::once("--json").chain(args.iter().copied()).collect();
@@ -762,6 +763,8 @@ fn drive_options_before_other_commands_are_refused_in_one_line() {
         &["--port", "/dev/null", "servo", "scan", "--port", "/dev/null", "--protocol", "sts"],
         &["--port", "`armctl servo scan`"],
     );
+    assert_fails(&["--arm", "so101", "calibrate", "--out", "a.toml"], &["calibrate needs --bus PORT, --protocol"]);
+    assert_fails(&["--bus", "a", "calibrate", "--bus", "b", "--out", "a.toml"], &["--bus is given twice"]);
     assert_fails(&["fk", "--q", "0"], &["--arm is missing"]);
 }
 

@@ -27,7 +27,15 @@ pub fn calibrate(
 ) -> PyResult<()> {
     let protocol = ProtocolArg::from_str(protocol, true)
         .map_err(|_| to_py(anyhow::anyhow!("protocol {protocol:?}: sts (Feetech) or dxl2 (Dynamixel 2.0)")))?;
-    let args = CalibrateArgs { bus, protocol, baud, arm, out, lerobot_json, timeout_ms: 10 };
+    let args = CalibrateArgs {
+        bus: Some(bus),
+        protocol: Some(protocol),
+        baud,
+        arm: Some(arm),
+        out,
+        lerobot_json,
+        timeout_ms: 10,
+    };
     let code = py
         .detach(|| {
             let (mut out, mut err) = (std::io::stdout(), std::io::stderr());

@@ -308,7 +308,7 @@ fn command_name(matches: &clap::ArgMatches) -> String {
 /// Moves the options given before the command (the drive options, [`LinkArgs`]) into the
 /// command's own namesakes, so that a global option works on either side of the command: `--json`
 /// into every command's; `--arm` into the kinematics commands' and demo's; `--rig` into demo's;
-/// serve's bus options into serve's. The commands that take the drive options themselves (the
+/// serve's and calibrate's bus options into theirs. The commands that take the drive options themselves (the
 /// drive commands, teleop, view, retarget, doctor) merge them on their own. An option the command
 /// has no use for is refused in one line.
 fn take_globals(link: &LinkArgs, mut command: Command, name: &str) -> Result<Command> {
@@ -355,7 +355,13 @@ fn take_globals(link: &LinkArgs, mut command: Command, name: &str) -> Result<Com
         Command::Trajectory { what: TrajectoryCommand::Sample(args) } => args.json |= json,
         Command::Ports { json: own } => *own |= json,
         Command::Servo(args) => args.json |= json,
-        Command::Calibrate { json: own, .. } => *own |= json,
+        Command::Calibrate { args, json: own } => {
+            *own |= json;
+            args.bus = either("--bus", rest.bus.take(), args.bus.take())?;
+            args.protocol = either("--protocol", rest.protocol.take(), args.protocol.take())?;
+            args.baud = either("--baud", rest.baud.take(), args.baud.take())?;
+            args.arm = either("--arm", rest.arm.take(), args.arm.take())?;
+        }
     }
     rest.refuse_for(name)?;
     Ok(command)

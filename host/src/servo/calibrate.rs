@@ -55,18 +55,20 @@ const DXL_POSITION_MODE: i64 = 3;
 /// `armctl calibrate`'s arguments.
 #[derive(Args, Debug)]
 pub struct CalibrateArgs {
-    /// The servos' USB adapter's serial port (/dev/ttyUSB0, /dev/ttyACM0, COM3).
+    /// The servos' USB adapter's serial port (/dev/ttyUSB0, /dev/ttyACM0, COM3) (required; like
+    /// --protocol, --baud and --arm, it may come before the command too).
     #[arg(long, value_name = "PORT")]
-    pub bus: String,
-    /// The servos' protocol: sts (Feetech) or dxl2 (Dynamixel 2.0).
+    pub bus: Option<String>,
+    /// The servos' protocol: sts (Feetech) or dxl2 (Dynamixel 2.0) (required).
     #[arg(long, value_enum)]
-    pub protocol: ProtocolArg,
+    pub protocol: Option<ProtocolArg>,
     /// Baud rate [default: 1000000].
     #[arg(long)]
     pub baud: Option<u32>,
-    /// The arm: a preset (so101, open-manipulator-x) or an arm file with a [servos] table.
+    /// The arm: a preset (so101, open-manipulator-x) or an arm file with a [servos] table
+    /// (required).
     #[arg(long)]
-    pub arm: String,
+    pub arm: Option<String>,
     /// The arm file to write (.toml). A new file gets the arm's joints with their limits tightened
     /// to the measured ranges, its servos with their calibration, its gripper's range. An existing
     /// arm file of the same arm keeps everything its author wrote (comments, units, layout): only
@@ -108,9 +110,25 @@ struct Plan {
     lerobot_json: Option<PathBuf>,
 }
 
+impl CalibrateArgs {
+    /// --bus, --protocol and --arm, which clap cannot require, as they may come before the command.
+    fn required(&self) -> Result<(&str, ProtocolArg, &str)> {
+        match (&self.bus, self.protocol, &self.arm) {
+            (Some(bus), Some(protocol), Some(arm)) => Ok((bus, protocol, arm)),
+            (bus, protocol, arm) => {
+                let missing =
+                    [(bus.is_none(), "--bus PORT"), (protocol.is_none(), "--protocol"), (arm.is_none(), "--arm")];
+                let missing: Vec<&str> = missing.into_iter().filter_map(|(m, name)| m.then_some(name)).collect();
+                bail!("calibrate needs {} (see armctl calibrate --help)", missing.join(", "))
+            }
+        }
+    }
+}
+
 impl Plan {
     fn new(args: &CalibrateArgs) -> Result<Self> {
-        let arm = ArmSpec::load(&args.arm, None)?;
+        let (_, protocol, arm) = args.required()?;
+        let arm = ArmSpec::load(arm, None)?;
         let servos = servos_of(&arm).ok_or_else(|| {
             anyhow!(
                 "arm {} has no servos to calibrate: use a preset with servos (so101, open-manipulator-x) or an arm \
@@ -118,7 +136,7 @@ impl Plan {
                 arm.name
             )
         })?;
-        let protocol = Protocol::from(args.protocol);
+        let protocol = Protocol::from(protocol);
         if servos.model.protocol != protocol {
             bail!(
                 "arm {}'s servos are {} ({}); --protocol {} does not speak to them",
@@ -237,22 +255,23 @@ fn ended(step: &str, state: &str) -> anyhow::Error {
 /// Runs `armctl calibrate`, the steps answered on standard input.
 pub fn run(args: CalibrateArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
     let plan = Plan::new(&args)?;
+    let (bus, protocol, arm) = args.required()?;
     if plan.servos.calibration.is_some() && !plan.update {
         writeln!(
             err,
             "note: {} holds a calibration already, and its joint limits were tightened by it: calibrating from it \
              can only tighten them further (calibrate from the preset or the URDF to start afresh)",
-            args.arm
+            arm
         )?;
     }
-    let protocol = Protocol::from(args.protocol);
+    let protocol = Protocol::from(protocol);
     let base = BusConfig::new(protocol, args.baud.unwrap_or(DEFAULT_BAUD));
     let config = BusConfig {
         margin_us: args.timeout_ms * 1000,
         idle_gap_us: (args.timeout_ms * 1000).max(base.idle_gap_us),
         ..base
     };
-    let mut session = Session::open(&args.bus, config)?;
+    let mut session = Session::open(bus, config)?;
     let steps = Steps::from(std::io::BufReader::new(std::io::stdin()))?;
     let live = std::io::stdout().is_terminal();
     calibrate(&mut session, &plan, &steps, live, out, err)
