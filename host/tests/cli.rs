@@ -766,6 +766,8 @@ fn drive_options_before_other_commands_are_refused_in_one_line() {
     assert_fails(&["--arm", "so101", "calibrate", "--out", "a.toml"], &["calibrate needs --bus PORT, --protocol"]);
     assert_fails(&["--bus", "a", "calibrate", "--bus", "b", "--out", "a.toml"], &["--bus is given twice"]);
     assert_fails(&["fk", "--q", "0"], &["--arm is missing"]);
+    // clap's own errors point at the help of the command they are about.
+    assert_fails(&["bench", "ik", "--arm", "so101", "--bogus"], &["'--bogus'", "(see armctl bench ik --help)"]);
 }
 
 /// The commands that print a path or URL first and then serve: with --json the first line is an

@@ -272,7 +272,10 @@ where
             // here, as it lists missing arguments on lines of their own) says what is wrong.
             let text = e.to_string();
             let first = text.split("\n\n").next().unwrap_or_default().split_whitespace().collect::<Vec<_>>().join(" ");
-            let _ = writeln!(err, "{first} (see armctl --help)");
+            // The usage line names the command the error is about: its help is the one to read.
+            let usage = text.lines().find_map(|l| l.strip_prefix("Usage: ")).unwrap_or("armctl");
+            let command: Vec<&str> = usage.split_whitespace().take_while(|w| !w.starts_with(['[', '<', '-'])).collect();
+            let _ = writeln!(err, "{first} (see {} --help)", command.join(" "));
             return 2;
         }
     };
