@@ -15,7 +15,7 @@ use embedded_io::{Read, ReadReady, Write};
 use super::rx_ring::RxRing;
 use super::BusPort;
 use crate::app::{Firmware, ReceiveLoss};
-use crate::bus::master::{Clock, Master};
+use crate::bus::master::{Clock, Master, PACKET_BUF};
 
 /// Bytes handed to the firmware at a time.
 const CHUNK: usize = 64;
@@ -41,7 +41,7 @@ const CHUNK: usize = 64;
 pub const DRAIN_PER_PASS: usize = 512;
 
 /// The firmware, its bus master and its link's received bytes, on one schedule.
-pub struct MainLoop<'a, const N: usize, const Q: usize, const R: usize, P, D, C, const BUF: usize> {
+pub struct MainLoop<'a, const N: usize, const Q: usize, const R: usize, P, D, C, const BUF: usize = PACKET_BUF> {
     app: &'a mut Firmware<N, Q>,
     master: &'a mut Master<P, D, C, BUF>,
     rx: &'a RxRing<R>,
@@ -59,6 +59,11 @@ where
     pub fn new(app: &'a mut Firmware<N, Q>, master: &'a mut Master<P, D, C, BUF>, rx: &'a RxRing<R>) -> Self {
         let next_tick = master.clock().now_us();
         Self { app, master, rx, next_tick }
+    }
+
+    /// The firmware the loop runs.
+    pub fn firmware(&self) -> &Firmware<N, Q> {
+        self.app
     }
 
     /// One pass: the bytes waiting go to the firmware (replies to `tx`), at most

@@ -4,14 +4,22 @@
 //!   is lost while the loop is busy with the servo bus;
 //! - [`main_loop`]: the loop that hands those bytes to the firmware and runs the control tick on
 //!   its schedule, and switches the servo bus when the host sends an arm on another one;
-//! - [`reset`]: what each cause of a reset does to the servos' torque.
+//! - [`reset`]: what each cause of a reset does to the servos' torque;
+//! - [`start`]: the firmware and its bus master in static memory, placed and started once, and the
+//!   main loop over them.
+//!
+//! What needs the Cortex-M itself (defmt, critical sections, linker sections) is not here, since
+//! this crate builds for the host too: it is in `firmware/boards/support`, which only the board
+//! binaries build.
 
 pub mod main_loop;
 pub mod reset;
 pub mod rx_ring;
+pub mod start;
 
 pub use main_loop::MainLoop;
 pub use rx_ring::RxRing;
+pub use start::{Slots, StartError};
 
 /// The joints a board binary is built for: it drives any arm of 1 to this many joints (and a
 /// gripper), the rest padding (fixed joints: see [`crate::app::arm`]).

@@ -318,10 +318,13 @@ fn classify(protocol: Protocol, error: u8) -> (bool, Option<u8>) {
     }
 }
 
+/// A master's packet buffers unless its type says otherwise (bytes).
+pub const PACKET_BUF: usize = 256;
+
 /// A bus master over serial port `P`, direction pin `D` and clock `C`, with `BUF`-byte packet
 /// buffers (the longest packet sent or received).
 #[derive(Debug)]
-pub struct Master<P, D, C, const BUF: usize = 256> {
+pub struct Master<P, D, C, const BUF: usize = PACKET_BUF> {
     port: P,
     direction: D,
     clock: C,

@@ -15,7 +15,9 @@ use crate::uart::{Uart, UART0};
 /// The host link's received bytes, filled by the receive interrupt and drained by the main loop:
 /// two of the largest frames, more than 3.5 ms of bytes at 1 Mbps (a servo-bus cycle with a servo
 /// missing).
-pub static LINK_RX: RxRing<512> = RxRing::new();
+pub static LINK_RX: RxRing<LINK_RX_BYTES> = RxRing::new();
+/// [`LINK_RX`]'s size in bytes.
+pub const LINK_RX_BYTES: usize = 512;
 
 /// The MPS2 AN386's interrupt lines used here (CMSDK UART n: RX on 2n, TX on 2n + 1).
 #[derive(Clone, Copy, Debug)]

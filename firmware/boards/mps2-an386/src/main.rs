@@ -1,14 +1,11 @@
 //! The firmware for the MPS2 AN386 board under QEMU: UART0 is the host link (its bytes kept by the
 //! receive interrupt, [`irq::LINK_RX`]), UART1 the servo bus (Feetech, 1 Mbps), SysTick the time
 //! base; the built-in SO-101 arm. Everything else is the firmware core: the application
-//! ([`firmware::app::Firmware`]) and the main loop every board runs
-//! ([`firmware::board::MainLoop`]); this file only wires the hardware to them.
+//! ([`firmware::app::Firmware`]), its start-up in static memory ([`firmware::board::Slots`]) and
+//! the main loop every board runs ([`firmware::board::MainLoop`]); this file only wires the
+//! hardware to them.
 #![no_std]
 #![no_main]
-
-use core::mem::MaybeUninit;
-use core::ptr::addr_of_mut;
-use core::sync::atomic::{AtomicBool, Ordering};
 
 use board_mps2_an386::clock::{self, SysTickClock};
 use board_mps2_an386::uart::{self, Uart};
@@ -16,7 +13,7 @@ use board_mps2_an386::{halt, irq, reset, stack};
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use firmware::app::{Board, Firmware};
 use firmware::board::reset::{Note, ResetCause, TorqueAfterReset};
-use firmware::board::MainLoop;
+use firmware::board::{MainLoop, Slots};
 use firmware::bus::master::{BusConfig, Master, NoDirectionPin};
 use firmware::bus::table::STS3215;
 use firmware::controller::Config;
@@ -32,13 +29,11 @@ const STACK_CHECK_US: u64 = 1_000_000;
 
 type App = Firmware<JOINTS, QUEUE>;
 type BusMaster = Master<Uart, NoDirectionPin, SysTickClock>;
+/// The main loop over the firmware, the bus master and the link's receive ring.
+type Loop = MainLoop<'static, JOINTS, QUEUE, { irq::LINK_RX_BYTES }, Uart, NoDirectionPin, SysTickClock>;
 
-/// The firmware state, in static RAM so that the stack holds only call frames. The constructor's
-/// result is written straight into it: built on the stack and moved, a 6 KB state would need its
-/// size in stack again at start-up.
-static mut APP: MaybeUninit<App> = MaybeUninit::uninit();
-static mut MASTER: MaybeUninit<BusMaster> = MaybeUninit::uninit();
-static STARTED: AtomicBool = AtomicBool::new(false);
+/// The firmware state and the bus master, in static RAM (see [`Slots`]).
+static SLOTS: Slots<JOINTS, QUEUE, BusMaster> = Slots::new();
 
 #[entry]
 fn main() -> ! {
@@ -51,7 +46,7 @@ fn main() -> ! {
         TorqueAfterReset::Hold => "servos found torqued are held where they stand",
     };
     defmt::info!("mps2-an386: reset by {=str}: {=str}; starting", cause.as_str(), torque);
-    let Some((app, master, link)) = start(cause) else { halt() };
+    let Some((main_loop, link)) = start(cause) else { halt() };
     defmt::info!(
         "static state: firmware {=usize} bytes, bus master {=usize} bytes; start-up stack {=usize} bytes",
         core::mem::size_of::<App>(),
@@ -60,17 +55,14 @@ fn main() -> ! {
     );
     // From here on the high-water mark is the control loop's own (start-up's frames are gone).
     stack::paint();
-    run(app, master, link)
+    run(main_loop, link)
 }
 
 /// Brings up the hardware and the firmware core, the servos' torque as `cause` wants it, and the
 /// watchdog last; `None` if the built-in arm is refused or this ran before (the statics are written
 /// once).
 #[inline(never)]
-fn start(cause: ResetCause) -> Option<(&'static mut App, &'static mut BusMaster, Uart)> {
-    if STARTED.swap(true, Ordering::Relaxed) {
-        return None;
-    }
+fn start(cause: ResetCause) -> Option<(Loop, Uart)> {
     let core = cortex_m::Peripherals::take()?;
     clock::start(core.SYST);
     let mut link = Uart::new(uart::UART0, clock::SYSCLK_HZ, BAUD);
@@ -78,35 +70,32 @@ fn start(cause: ResetCause) -> Option<(&'static mut App, &'static mut BusMaster,
     let bus = BusConfig::new(STS3215.protocol, BAUD);
     let board =
         Board { bus, model: &STS3215, control: Config::default(), max_bus_baud: Uart::max_baud(clock::SYSCLK_HZ) };
-    // SAFETY: STARTED guarantees this runs once, so these are the only references to the statics.
-    let (app_slot, master_slot) = unsafe { (&mut *addr_of_mut!(APP), &mut *addr_of_mut!(MASTER)) };
-    let app = App::blank_in(app_slot, board);
-    app.start(Some(&firmware::builtin::SO101)).ok()?;
     let port = Uart::new(uart::UART1, clock::SYSCLK_HZ, BAUD);
-    let master = master_slot.write(BusMaster::new(port, NoDirectionPin, SysTickClock, bus));
-    if cause.torque() == TorqueAfterReset::Off {
-        app.torque_off(SysTickClock.now());
-    }
+    let main_loop = SLOTS
+        .start(board, &firmware::builtin::SO101, cause, &irq::LINK_RX, || {
+            BusMaster::new(port, NoDirectionPin, SysTickClock, bus)
+        })
+        .ok()?;
     defmt::info!(
         "mps2-an386: so101 built in, up to {=usize} joints, {=usize} queue slots, {=u32} us period, link and bus at {=u32} baud",
         JOINTS,
         QUEUE,
-        app.period_us(),
+        main_loop.firmware().period_us(),
         BAUD
     );
     reset::start_watchdog();
-    Some((app, master, link))
+    Some((main_loop, link))
 }
 
 /// The control loop ([`MainLoop`]): host bytes as the receive interrupt kept them, a tick on the
 /// fixed schedule, and sleep in between (SysTick wakes the core every millisecond, a host byte at
 /// once); once a second, the stack's high-water mark, logged when it grew.
 #[inline(never)]
-fn run(app: &'static mut App, master: &'static mut BusMaster, mut link: Uart) -> ! {
+fn run(main_loop: Loop, mut link: Uart) -> ! {
     let clock = SysTickClock;
     let mut next_stack_check = clock.now() + STACK_CHECK_US;
     let mut stack_logged = 0;
-    MainLoop::new(app, master, &irq::LINK_RX).run(&mut link, |next_tick, rx| {
+    main_loop.run(&mut link, |next_tick, rx| {
         reset::feed();
         // Interrupts off between the last check and `wfi`, so a byte that comes in between wakes
         // it (a pending interrupt ends `wfi` even while masked) instead of waiting for SysTick.

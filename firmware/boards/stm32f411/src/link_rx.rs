@@ -11,7 +11,9 @@ use firmware::board::RxRing;
 use stm32f4xx_hal::pac::{self, interrupt, Interrupt};
 
 /// The host link's received bytes: two of the largest frames, more than 3.5 ms of bytes at 1 Mbps.
-pub static LINK_RX: RxRing<512> = RxRing::new();
+pub static LINK_RX: RxRing<LINK_RX_BYTES> = RxRing::new();
+/// [`LINK_RX`]'s size in bytes.
+pub const LINK_RX_BYTES: usize = 512;
 
 /// Lets USART1's interrupt reach the NVIC. Call once USART1 listens for RXNE.
 pub fn enable() {

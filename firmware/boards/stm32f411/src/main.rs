@@ -1,9 +1,10 @@
 //! The firmware for an STM32F411 "Black Pill" (STM32F411CEU6, 25 MHz crystal): USART1 is the host
 //! link to a USB-serial adapter (its bytes kept by the receive interrupt, `link_rx.rs`), USART2
 //! the servo bus (Feetech, 1 Mbps, one wire), TIM2 the time base; the built-in SO-101 arm.
-//! Everything else is the firmware core: the application ([`firmware::app::Firmware`]) and the
-//! main loop every board runs ([`firmware::board::MainLoop`]); this file only wires the hardware
-//! to them.
+//! Everything else is the firmware core: the application ([`firmware::app::Firmware`]), its
+//! start-up in static memory ([`firmware::board::Slots`]) and the main loop every board runs
+//! ([`firmware::board::MainLoop`]); this file only wires the hardware to them. The defmt log goes
+//! over RTT (`board-support`'s `rtt-log`), which a probe reads.
 //!
 //! | pin  | use                                                                   |
 //! |------|-----------------------------------------------------------------------|
@@ -21,14 +22,11 @@ mod serial;
 
 // The defmt global logger over RTT (feature `rtt-log`): linked in by this use alone.
 use board_support as _;
-use core::mem::MaybeUninit;
-use core::ptr::addr_of_mut;
-use core::sync::atomic::{AtomicBool, Ordering};
 
 use cortex_m_rt::{entry, exception, ExceptionFrame};
-use firmware::app::{Board, Firmware};
-use firmware::board::reset::{ResetCause, ResetFlags, TorqueAfterReset};
-use firmware::board::MainLoop;
+use firmware::app::Board;
+use firmware::board::reset::{ResetCause, ResetFlags};
+use firmware::board::{MainLoop, Slots};
 use firmware::bus::master::{BusConfig, Master};
 use firmware::bus::table::STS3215;
 use firmware::controller::Config;
@@ -55,15 +53,15 @@ const BAUD: u32 = 1_000_000;
 /// `flush`, which waits for transmission complete.
 type DirectionPin = PA1<Output>;
 /// Any arm of 1 to [`firmware::board::JOINTS`] joints (the built-in SO-101 has 5).
-type App = Firmware<{ firmware::board::JOINTS }, 32>;
+const JOINTS: usize = firmware::board::JOINTS;
+/// Keyframe queue slots.
+const QUEUE: usize = 32;
 type BusMaster = Master<HalfDuplex, DirectionPin, Tim2Clock>;
+/// The main loop over the firmware, the bus master and the link's receive ring.
+type Loop = MainLoop<'static, JOINTS, QUEUE, { link_rx::LINK_RX_BYTES }, HalfDuplex, DirectionPin, Tim2Clock>;
 
-/// The firmware state, in static RAM so that the stack holds only call frames. The constructor's
-/// result is written straight into it (as on the MPS2 board): built on the stack and moved, it
-/// would need its size in stack again at start-up.
-static mut APP: MaybeUninit<App> = MaybeUninit::uninit();
-static mut MASTER: MaybeUninit<BusMaster> = MaybeUninit::uninit();
-static STARTED: AtomicBool = AtomicBool::new(false);
+/// The firmware state and the bus master, in static RAM (see [`Slots`]).
+static SLOTS: Slots<JOINTS, QUEUE, BusMaster> = Slots::new();
 
 /// How long the main loop may go without feeding the independent watchdog before it resets the
 /// chip: fifteen control periods, far above a tick's few milliseconds.
@@ -83,18 +81,15 @@ fn refused<T>(what: &str) -> Option<T> {
 
 #[entry]
 fn main() -> ! {
-    let Some((app, master, link, watchdog)) = start() else { halt() };
-    run(app, master, link, watchdog)
+    let Some((main_loop, link, watchdog)) = start() else { halt() };
+    run(main_loop, link, watchdog)
 }
 
 /// Brings up the clocks, the two USARTs, the timer, the watchdog and the firmware core; `None`
 /// (with an error line in the log) if anything is refused or this ran before (the statics are
 /// written once). Never inlined, so that its frame is gone before the control loop starts.
 #[inline(never)]
-fn start() -> Option<(&'static mut App, &'static mut BusMaster, Link, IndependentWatchdog)> {
-    if STARTED.swap(true, Ordering::Relaxed) {
-        return refused("started twice");
-    }
+fn start() -> Option<(Loop, Link, IndependentWatchdog)> {
     let Some(dp) = pac::Peripherals::take() else { return refused("peripherals taken") };
     // Why the chip was reset decides the servos' torque (firmware::board::reset). Read before
     // anything else, then cleared (RMVF), so that the next reset's flags are its own.
@@ -149,18 +144,14 @@ fn start() -> Option<(&'static mut App, &'static mut BusMaster, Link, Independen
     );
 
     let board = Board { bus, model: &STS3215, control: Config::default(), max_bus_baud: bus_port.max_baud() };
-    // SAFETY: STARTED guarantees this runs once, so these are the only references to the statics.
-    let (app_slot, master_slot) = unsafe { (&mut *addr_of_mut!(APP), &mut *addr_of_mut!(MASTER)) };
-    let app = App::blank_in(app_slot, board);
-    if app.start(Some(&firmware::builtin::SO101)).is_err() {
-        return refused("built-in arm");
-    }
-    let master = master_slot.write(BusMaster::new(bus_port, direction, clock, bus));
-    // The servos may still hold torque toward the goal they had: limp, until the host switches
-    // torque on again (or, after the reset button, held where they stand: `log_reset`).
-    if cause.torque() == TorqueAfterReset::Off {
-        app.torque_off(clock.now());
-    }
+    // The servos' torque goes off unless the reset button was pressed (`log_reset`).
+    let started = SLOTS.start(board, &firmware::builtin::SO101, cause, &link_rx::LINK_RX, || {
+        BusMaster::new(bus_port, direction, clock, bus)
+    });
+    let main_loop = match started {
+        Ok(main_loop) => main_loop,
+        Err(e) => return refused(e.as_str()),
+    };
     // Started last, once start-up's own long steps are done. A release build's watchdog keeps
     // counting while a debugger halts the core: a halt longer than WATCHDOG_MS resets the chip,
     // and the servos' torque then goes off, so the arm never holds for longer with nothing
@@ -169,15 +160,15 @@ fn start() -> Option<(&'static mut App, &'static mut BusMaster, Link, Independen
     let mut watchdog = IndependentWatchdog::new(dp.IWDG);
     watchdog.stop_on_debug(&dp.DBGMCU, cfg!(debug_assertions));
     watchdog.start(WATCHDOG_MS.millis());
-    Some((app, master, link, watchdog))
+    Some((main_loop, link, watchdog))
 }
 
 /// The control loop ([`MainLoop`]): host bytes as the receive interrupt kept them, a tick on the
 /// fixed schedule, the watchdog fed on every pass. It does not sleep: TIM2 counts time but raises
 /// no interrupt to wake it.
 #[inline(never)]
-fn run(app: &'static mut App, master: &'static mut BusMaster, mut link: Link, mut watchdog: IndependentWatchdog) -> ! {
-    MainLoop::new(app, master, &link_rx::LINK_RX).run(&mut link, |_, _| watchdog.feed())
+fn run(main_loop: Loop, mut link: Link, mut watchdog: IndependentWatchdog) -> ! {
+    main_loop.run(&mut link, |_, _| watchdog.feed())
 }
 
 /// The log's first line: the reset's cause and what it does to the servos' torque, before the
