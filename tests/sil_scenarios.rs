@@ -429,7 +429,8 @@ fn telemetry_pause_resume_and_emergency_stop_over_the_link() {
 fn a_home_built_arm_from_an_arm_file_with_servos_is_configured_and_driven() {
     // The OpenManipulator-X geometry as an arm file of someone's own, with its first servo
     // mounted the other way round and the third off-centre.
-    let file = std::env::temp_dir().join(format!("sil-arm-{}.toml", std::process::id()));
+    // Removed when dropped, also when the test fails.
+    let file = tempfile::Builder::new().prefix("sil-arm-").suffix(".toml").tempfile().unwrap().into_temp_path();
     std::fs::write(
         &file,
         r#"
@@ -469,7 +470,6 @@ max_acceleration = 6.0
     let options = SilOptions::new("open-manipulator-x").unwrap();
     let mut c = LinkClient::new(Sil::new(&options).unwrap(), LinkConfig::default());
     let (info, arm) = armctl::drive::connection::handshake(&mut c, Some(file.to_str().unwrap())).unwrap();
-    std::fs::remove_file(&file).unwrap();
     assert_eq!(info.arm_name.as_str(), "my-arm");
     torque_on(&mut c);
     // Joint 3 reads -100 ticks off its zero: the firmware knows its mapping.

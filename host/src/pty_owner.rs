@@ -98,8 +98,9 @@ mod tests {
 
     #[test]
     fn what_is_not_a_pty_is_refused_in_one_line_naming_it() {
-        let dir = std::env::temp_dir().join(format!("armctl-pty-owner-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        // Removed when dropped, also when the test fails.
+        let temp = tempfile::tempdir().unwrap();
+        let dir = temp.path();
         let file = dir.join("not-a-pty");
         std::fs::write(&file, b"").unwrap();
         std::fs::set_permissions(&file, Permissions::from_mode(0o644)).unwrap();
@@ -111,6 +112,5 @@ mod tests {
         }
         // Refused before its mode was touched.
         assert_eq!(std::fs::metadata(&file).unwrap().mode() & 0o7777, 0o644);
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

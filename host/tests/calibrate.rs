@@ -10,7 +10,6 @@
 //! expected exactly, without the few ticks a 20 ms sampling would miss of a moving horn.
 
 use std::io::{BufRead, BufReader, Write};
-use std::path::PathBuf;
 use std::process::{Child, ChildStdin, Command, Stdio};
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::time::{Duration, Instant};
@@ -185,11 +184,9 @@ fn registers(path: &str, protocol: &str, id: u8, items: &[&str]) -> Vec<i64> {
     values
 }
 
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("armctl-calibrate-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A folder of its own, removed when dropped (also when the test fails).
+fn temp_dir(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new().prefix(&format!("armctl-calibrate-{name}-")).tempdir().unwrap()
 }
 
 /// One joint (or the gripper) as the hand moves it, in the horn's own ticks: where the person
@@ -270,8 +267,8 @@ fn by_hand(sim: &mut Process, path: &str, protocol: &str, args: &[&str], joints:
 /// everything the calibration wrote.
 fn calibrate_end_to_end(arm: &str, protocol: &str, joints: &[Joint]) {
     let dir = temp_dir(arm);
-    let toml = dir.join("my-arm.toml");
-    let json = dir.join("my-arm.json");
+    let toml = dir.path().join("my-arm.toml");
+    let json = dir.path().join("my-arm.json");
     let start: Vec<(u8, i64)> = joints.iter().map(|j| (j.id, j.middle)).collect();
     let (mut sim, path) = simulator(arm, &start);
     let args = ["--arm", arm, "--out", toml.to_str().unwrap(), "--lerobot-json", json.to_str().unwrap()];
@@ -425,10 +422,10 @@ fn bad_input_stops_the_calibration_with_one_line_and_writes_nothing_further() {
     let dir = temp_dir("bad-input");
     let (mut sim, path) = simulator("so101", &[(1, 3000), (2, 1100)]);
     let nothing_written = || {
-        assert!(!dir.join("my.toml").exists() && !dir.join("my.json").exists(), "no file is written");
+        assert!(!dir.path().join("my.toml").exists() && !dir.path().join("my.json").exists(), "no file is written");
     };
 
-    let mut cal = so101_calibration(&path, &dir);
+    let mut cal = so101_calibration(&path, dir.path());
     cal.until("step 1 of 2");
     let (code, err) = cal.finish();
     assert_eq!(code, 1);
@@ -436,7 +433,7 @@ fn bad_input_stops_the_calibration_with_one_line_and_writes_nothing_further() {
     assert_eq!(registers(&path, "sts", 1, &["homing_offset", "max_position_limit"]), [0, 4095]);
     nothing_written();
 
-    let mut cal = so101_calibration(&path, &dir);
+    let mut cal = so101_calibration(&path, dir.path());
     cal.until("step 1 of 2");
     cal.send("");
     cal.until("step 2 of 2");
@@ -447,7 +444,7 @@ fn bad_input_stops_the_calibration_with_one_line_and_writes_nothing_further() {
     nothing_written();
 
     // Every joint but the elbow (servo 3) is moved.
-    let mut cal = so101_calibration(&path, &dir);
+    let mut cal = so101_calibration(&path, dir.path());
     cal.until("step 1 of 2");
     cal.send("");
     cal.until("step 2 of 2");
@@ -493,7 +490,7 @@ fn an_offset_beyond_the_servos_reach_is_refused_and_the_registers_restored() {
         ]);
         assert_eq!(code, 0, "{err}");
     }
-    let mut cal = so101_calibration(&path, &dir);
+    let mut cal = so101_calibration(&path, dir.path());
     cal.until("step 1 of 2");
     cal.send("");
     let (code, err) = cal.finish();
@@ -506,7 +503,7 @@ fn an_offset_beyond_the_servos_reach_is_refused_and_the_registers_restored() {
         registers(&path, "sts", 1, &["homing_offset", "min_position_limit", "max_position_limit"]),
         [-3, 0, 4000]
     );
-    assert!(!dir.join("my.toml").exists());
+    assert!(!dir.path().join("my.toml").exists());
 }
 
 /// Arguments refused before any port is opened, and an arm file whose calibration has a range
@@ -514,7 +511,7 @@ fn an_offset_beyond_the_servos_reach_is_refused_and_the_registers_restored() {
 #[test]
 fn bad_arguments_and_a_zero_width_range_in_the_arm_file_are_one_line() {
     let dir = temp_dir("arguments");
-    let out = dir.join("x.toml");
+    let out = dir.path().join("x.toml");
     let out = out.to_str().unwrap();
     for (args, needle) in [
         (
@@ -550,7 +547,7 @@ fn bad_arguments_and_a_zero_width_range_in_the_arm_file_are_one_line() {
     let text = armctl::arm::toml_writer::to_text(&ArmSpec { servos: Some(servos), ..spec }, &[]);
     let bad = text.replace("range_max = [3000, 3000, 3000", "range_max = [3000, 3000, 1000");
     assert_ne!(bad, text);
-    let path = dir.join("zero.toml");
+    let path = dir.path().join("zero.toml");
     std::fs::write(&path, &bad).unwrap();
     let line = bad.lines().position(|l| l.starts_with("range_max")).unwrap() + 1;
     let (code, _, err) = armctl(&["fk", "--arm", path.to_str().unwrap(), "--q", "0,0,0,0,0"]);
@@ -643,7 +640,7 @@ fn a_persons_arm_file_gets_the_calibration_and_keeps_everything_else() {
     ];
     let want = expected("sts", &joints);
     let dir = temp_dir("persons-file");
-    let file = dir.join("my.toml");
+    let file = dir.path().join("my.toml");
     std::fs::write(&file, PERSONS_ARM).unwrap();
     let before = ArmSpec::load(file.to_str().unwrap(), None).unwrap();
     let start: Vec<(u8, i64)> = joints.iter().map(|j| (j.id, j.middle)).collect();
@@ -725,7 +722,7 @@ fn an_out_that_is_not_this_arms_file_is_refused_and_left_alone() {
             "it is another arm: my-so101 has joints shoulder_pan",
         ),
     ] {
-        let out = dir.join(name);
+        let out = dir.path().join(name);
         std::fs::write(&out, &text).unwrap();
         let protocol = if arm == "so101" { "sts" } else { "dxl2" };
         let (code, stdout, err) = armctl(&[

@@ -84,9 +84,8 @@ const SO101: &str = r#"{
 /// lacks a servo of the arm is one line.
 #[test]
 fn bus_with_a_lerobot_calibration_drives_the_servos_to_lerobots_ticks() {
-    let dir = std::env::temp_dir().join(format!("armctl-calibration-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let file = dir.join("my_so101.json");
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("my_so101.json");
     std::fs::write(&file, SO101).unwrap();
     let calibration = armctl::arm::calibration::lerobot::read(&file).unwrap();
     let mut spec = ArmSpec::load("so101", None).unwrap();
@@ -166,7 +165,7 @@ fn bus_with_a_lerobot_calibration_drives_the_servos_to_lerobots_ticks() {
     // The gripper's servo is checked as the joints' are (issue 29): a file whose gripper entry the
     // servo does not hold (a replaced or reset gripper servo) is refused when connecting, naming
     // it; once written, accepted.
-    let regripped = dir.join("regripped.json");
+    let regripped = dir.path().join("regripped.json");
     std::fs::write(
         &regripped,
         SO101.replace(
@@ -193,7 +192,7 @@ fn bus_with_a_lerobot_calibration_drives_the_servos_to_lerobots_ticks() {
     assert_eq!(code, 0, "{err}");
     let (code, out, err) = with(regripped);
     assert_eq!(code, 0, "{out}{err}");
-    let missing = dir.join("five.json");
+    let missing = dir.path().join("five.json");
     std::fs::write(&missing, SO101.replace("\"id\": 3,", "\"id\": 7,")).unwrap();
     let (code, _, err) =
         armctl(&["--bus", port, "--protocol", "sts", "--calibration", missing.to_str().unwrap(), "status"]);

@@ -3,7 +3,6 @@
 
 use serde_json::Value;
 use std::io::Write;
-use std::path::PathBuf;
 use std::process::{Command, Stdio};
 
 /// What one run of the binary did.
@@ -102,25 +101,19 @@ fn angle(a: &[f64; 4], b: &[f64; 4]) -> f64 {
     2.0 * (x * x + y * y + z * z).sqrt().atan2(w.abs())
 }
 
-/// A file in the temp directory, removed when dropped.
-struct TempFile(PathBuf);
+/// A file in the temp directory, removed when dropped (also when the test fails).
+struct TempFile(tempfile::TempPath);
 
 impl TempFile {
     fn new(tag: &str, contents: &str) -> Self {
-        let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap().as_nanos();
-        let path = std::env::temp_dir().join(format!("armctl-cli-test-{}-{tag}-{nanos}.jsonl", std::process::id()));
-        std::fs::write(&path, contents).unwrap();
-        Self(path)
+        let prefix = format!("armctl-cli-test-{tag}-");
+        let file = tempfile::Builder::new().prefix(&prefix).suffix(".jsonl").tempfile().unwrap();
+        std::fs::write(file.path(), contents).unwrap();
+        Self(file.into_temp_path())
     }
 
     fn path(&self) -> &str {
         self.0.to_str().unwrap()
-    }
-}
-
-impl Drop for TempFile {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_file(&self.0);
     }
 }
 

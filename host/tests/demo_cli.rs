@@ -6,8 +6,10 @@ use serde_json::Value;
 use std::process::Command;
 
 fn demo(args: &[&str]) -> (i32, String, String) {
-    let dir = std::env::temp_dir();
-    let out = Command::new(env!("CARGO_BIN_EXE_armctl")).arg("demo").args(args).current_dir(dir).output().unwrap();
+    // Run where a default plot may land, removed afterwards.
+    let dir = tempfile::tempdir().unwrap();
+    let out =
+        Command::new(env!("CARGO_BIN_EXE_armctl")).arg("demo").args(args).current_dir(dir.path()).output().unwrap();
     (out.status.code().unwrap_or(-1), String::from_utf8(out.stdout).unwrap(), String::from_utf8(out.stderr).unwrap())
 }
 
@@ -71,14 +73,14 @@ fn open_manipulator_x_on_dynamixel() {
 
 #[test]
 fn the_table_and_the_plot() {
-    let path = std::env::temp_dir().join(format!("armctl-demo-test-{}.png", std::process::id()));
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("demo.png");
     let (code, out, err) = demo(&["--plot", path.to_str().unwrap()]);
     assert_eq!(code, 0, "{err}");
     assert!(out.contains("ticks to 1mm") && out.contains("Safety monitor: ") && out.contains("0 violations"), "{out}");
     assert!(out.contains("jaw stopped at 33.3 % (30.0 mm)") && out.contains("picked and placed"), "{out}");
     let png = std::fs::read(&path).unwrap();
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
-    std::fs::remove_file(&path).unwrap();
 }
 
 /// An arm file with a `[servos]` table: the six-joint example, its points drawn from its own
@@ -113,7 +115,8 @@ fn an_arm_without_a_gripper_plays_the_path_without_one() {
     let source = format!("{}/examples/arms/six-dof.toml", env!("CARGO_MANIFEST_DIR"));
     let text = std::fs::read_to_string(source).unwrap();
     let without = text.split("[gripper]").next().unwrap().replace("name = \"six-dof\"", "name = \"six-dof-bare\"");
-    let path = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("six-dof-bare.toml");
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("six-dof-bare.toml");
     std::fs::write(&path, without).unwrap();
     let report = json(&["--arm", path.to_str().unwrap(), "--json", "--no-plot"]);
     assert!(report["grasp"].is_null(), "{}", report["grasp"]);

@@ -2,7 +2,8 @@
 //! one-line errors and leave no file; odd but valid traces draw without panicking.
 
 use armctl::demo::plot::{write_demo_png, DemoTrace, GripperTrace, MIN_HEIGHT, WIDTH};
-use std::path::PathBuf;
+
+mod support;
 
 /// A gripper that opens, closes on something at 35 % from 4 s to 7 s, then opens again.
 fn gripper(time: &[f64]) -> GripperTrace {
@@ -54,12 +55,9 @@ fn trace() -> DemoTrace {
     }
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("demo_plot");
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join(name);
-    let _ = std::fs::remove_file(&path);
-    path
+/// `name` in a folder of its own, removed when dropped (also when the test fails).
+fn scratch(name: &str) -> support::TempPath {
+    support::TempPath::new(name)
 }
 
 /// The image size from a PNG's IHDR chunk, after checking the signature.

@@ -257,8 +257,7 @@ fn a_noisy_line_loses_replies() {
 
 #[test]
 fn a_calibration_file_against_the_servos() {
-    let dir = std::env::temp_dir().join(format!("armctl-doctor-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = tempfile::tempdir().unwrap();
     let names = ["shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll", "gripper"];
     let write = |file: &str, offset_of_2: i64| {
         let motors: serde_json::Map<String, Value> = names
@@ -270,7 +269,7 @@ fn a_calibration_file_against_the_servos() {
                 (n.to_string(), motor)
             })
             .collect();
-        let path = dir.join(file);
+        let path = dir.path().join(file);
         std::fs::write(&path, Value::Object(motors).to_string()).unwrap();
         path.display().to_string()
     };
@@ -286,7 +285,6 @@ fn a_calibration_file_against_the_servos() {
     let (report, _) = sim.doctor(&["--arm", "so101", "--reads", "20", "--calibration", &too_far]);
     expect(&report, "calibration", "fail", "shoulder_lift: homing offset 2114 in");
     expect(&report, "calibration", "fail", "does not fit the STS3215's register");
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]

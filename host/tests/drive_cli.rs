@@ -3,7 +3,6 @@
 //! and `stop`; one-line errors for bad input, which never reaches the arm.
 
 use serde_json::Value;
-use std::path::PathBuf;
 mod support;
 
 use std::process::{Command, Stdio};
@@ -47,25 +46,19 @@ fn fk_pose(q: &[f64]) -> ([f64; 3], [f64; 4]) {
     (pose.translation.into(), pose.quaternion_wxyz())
 }
 
-/// A file in the temp directory, removed when dropped.
-struct TempFile(PathBuf);
+/// A file in the temp directory, removed when dropped (also when the test fails).
+struct TempFile(tempfile::TempPath);
 
 impl TempFile {
     fn new(tag: &str, contents: &str) -> Self {
-        let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap().as_nanos();
-        let path = std::env::temp_dir().join(format!("armctl-drive-test-{}-{tag}-{nanos}.csv", std::process::id()));
-        std::fs::write(&path, contents).unwrap();
-        Self(path)
+        let prefix = format!("armctl-drive-test-{tag}-");
+        let file = tempfile::Builder::new().prefix(&prefix).suffix(".csv").tempfile().unwrap();
+        std::fs::write(file.path(), contents).unwrap();
+        Self(file.into_temp_path())
     }
 
     fn path(&self) -> &str {
         self.0.to_str().unwrap()
-    }
-}
-
-impl Drop for TempFile {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_file(&self.0);
     }
 }
 

@@ -13,8 +13,9 @@ fn data(name: &str) -> String {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/bvh").join(name).display().to_string()
 }
 
-fn temp(name: &str) -> PathBuf {
-    std::env::temp_dir().join(format!("mocap-cli-{}-{name}", std::process::id()))
+/// `name` in a folder of its own, removed when dropped (also when the test fails).
+fn temp(name: &str) -> support::TempPath {
+    support::TempPath::new(name)
 }
 
 /// The report line of a successful run, and its keyframe file's text.
@@ -28,7 +29,6 @@ fn retarget(file: &str, arm: &str, extra: &[&str]) -> (Value, String, String) {
     assert_eq!(lines.len(), 1, "{}", run.stdout);
     let report = serde_json::from_str(lines[0]).unwrap();
     let csv = std::fs::read_to_string(&out).unwrap();
-    std::fs::remove_file(&out).unwrap();
     (report, csv, run.stderr)
 }
 
@@ -187,7 +187,6 @@ fn a_file_without_a_right_arm_lists_its_joints() {
     std::fs::write(&file, text).unwrap();
     let path = file.display().to_string();
     let run = armctl(&["retarget", &path, "--arm", "so101"]);
-    std::fs::remove_file(&file).unwrap();
     assert_eq!(run.code, 1);
     assert_eq!(
         run.stderr.trim_end(),
@@ -220,6 +219,5 @@ fn play_streams_the_keyframes_to_the_simulated_arm() {
     assert_eq!(lines[1]["keyframes"], lines[0]["keyframes"]);
     assert_eq!(lines[1]["pushed"], lines[0]["keyframes"]);
     let png = std::fs::read(&plot).unwrap();
-    std::fs::remove_file(&plot).unwrap();
     assert_eq!(&png[1..4], b"PNG");
 }

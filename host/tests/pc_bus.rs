@@ -5,7 +5,8 @@
 //! asserted is what the servos got and what the commands said.
 
 use std::io::{BufRead, BufReader, Read};
-use std::path::PathBuf;
+
+mod support;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -110,10 +111,9 @@ fn largest_difference(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
 }
 
-/// A keyframe file of `q` scaled from 0 to 1 and back to half, written to a temp dir.
-fn keyframes(name: &str, q: &[f64]) -> (PathBuf, Vec<f64>) {
-    let dir = std::env::temp_dir().join(format!("armctl-pc-bus-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+/// A keyframe file of `q` scaled from 0 to 1 and back to half, in a folder of its own removed
+/// when dropped.
+fn keyframes(q: &[f64]) -> (support::TempPath, Vec<f64>) {
     let header: Vec<String> = (1..=q.len()).map(|j| format!("q{j}")).collect();
     let mut text = format!("t,{}\n", header.join(","));
     let end: Vec<f64> = q.iter().map(|x| 0.5 * x).collect();
@@ -121,7 +121,7 @@ fn keyframes(name: &str, q: &[f64]) -> (PathBuf, Vec<f64>) {
         let row: Vec<f64> = q.iter().map(|x| scale * x).collect();
         text.push_str(&format!("{t},{}\n", join(&row)));
     }
-    let path = dir.join("keyframes.csv");
+    let path = support::TempPath::new("keyframes.csv");
     std::fs::write(&path, text).unwrap();
     (path, end)
 }
@@ -166,7 +166,7 @@ fn every_drive_command_drives_the_servos_through_bus_on_both_protocols() {
         let moved = bus(&["move", "--to", &to, "--json"]).json("move");
         assert!(moved["error_mm"].as_f64().unwrap() < 1.0, "{arm}: {moved}");
 
-        let (file, end) = keyframes(arm, q);
+        let (file, end) = keyframes(q);
         let played = bus(&["play", file.to_str().unwrap(), "--json"]).json("play");
         assert_eq!(played["command"], "play", "{arm}: {played}");
         let status = bus(&["status", "--json"]).json("status after play");
@@ -328,7 +328,7 @@ fn one_served_arm_keeps_its_state_across_five_commands() {
     let before = port(&["status", "--json"]).json("3 status");
     assert_eq!(before["state"], "Idle", "torque stayed on between commands: {before}");
     assert!(largest_difference(&numbers(&before["measured"]), q) < 0.01, "the arm stayed where it was: {before}");
-    let (file, end) = keyframes("serve", q);
+    let (file, end) = keyframes(q);
     let played = port(&["play", file.to_str().unwrap(), "--json"]).json("4 play");
     assert_eq!(played["command"], "play");
     let after = port(&["status", "--json"]).json("5 status");

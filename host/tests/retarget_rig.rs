@@ -30,8 +30,9 @@ fn data(name: &str) -> String {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/bvh").join(name).display().to_string()
 }
 
-fn temp(name: &str) -> PathBuf {
-    std::env::temp_dir().join(format!("retarget-rig-{}-{name}", std::process::id()))
+/// `name` in a folder of its own, removed when dropped (also when the test fails).
+fn temp(name: &str) -> support::TempPath {
+    support::TempPath::new(name)
 }
 
 /// The CMU file, or `None` (after saying so) where it is not installed; fails under `CI`.
@@ -128,8 +129,6 @@ fn two_arms_share_one_time_base_and_the_right_arm_keeps_its_one_arm_keyframes() 
         assert!((rig_row[0] - one_row[0] - shift).abs() < 2e-6, "{} against {} + {shift}", rig_row[0], one_row[0]);
         assert_eq!(rig_row[6..11], one_row[1..6]);
     }
-    std::fs::remove_file(&rig_out).unwrap();
-    std::fs::remove_file(&one_out).unwrap();
 }
 
 /// Figures of CMU 01_01's first 8 s on bimanual-so101, measured (deterministic runs): left 95.0 %
@@ -192,12 +191,10 @@ fn cmu_01_01_onto_bimanual_so101_plays_both_arms_in_sil() {
     assert_within_velocity(&rows);
     split_for_play(&out);
     for arm in ["left", "right"] {
-        let png = plot.with_file_name(format!("retarget-rig-{}-cmu-{arm}.png", std::process::id()));
+        let png = plot.with_file_name(format!("cmu-{arm}.png"));
         assert_eq!(r["plot"][arm], png.display().to_string());
         assert_eq!(&std::fs::read(&png).unwrap()[1..4], b"PNG");
-        std::fs::remove_file(&png).unwrap();
     }
-    std::fs::remove_file(&out).unwrap();
 }
 
 /// Each arm's tool against its scaled hand path in SIL (mm), both arms played by the rig's player
@@ -236,7 +233,6 @@ fn follow_in_sil(path: &Path, seconds: f64) -> (Retargets, Vec<Followed>) {
     r.write_csv(&names, &mut std::fs::File::create(&file).unwrap()).unwrap();
     let bases: Vec<Pose<f64>> = spec.arms.iter().map(|a| a.base).collect();
     let parts = columns::read(&file, &names, &bases, 30.0).unwrap();
-    std::fs::remove_file(&file).unwrap();
 
     let mut err = Vec::new();
     let mut rig = Rig::open(&spec, &mut err).unwrap();
@@ -391,7 +387,6 @@ fn bad_chains_rigs_and_files_fail_in_one_line_writing_nothing() {
     // With its chain it runs.
     let run = armctl(&["retarget", &two, "--rig", rig_path, "--chain", "north=LeftArm,LeftForeArm,LeftHand"]);
     assert_eq!(run.json()["arms"]["north"]["chain"][0], "LeftArm");
-    std::fs::remove_file(&rig).unwrap();
 
     let missing = data("nothing-here.bvh");
     assert_fails(&["retarget", &missing, "--rig", RIG], &format!("error: cannot read BVH file {missing}: "));
@@ -505,7 +500,6 @@ fn torso_rig_run(file: &str, seconds: Option<f64>) -> (Value, Value, f64) {
         assert!(s["goals_checked"].as_u64().unwrap() > 100, "{arm}: {s}");
         assert_eq!(s["violations"], 0, "{arm}: {s}");
     }
-    std::fs::remove_file(&out).unwrap();
     (r, played, worst)
 }
 

@@ -103,7 +103,7 @@ fn two_arm_file(dir: &Path) -> std::path::PathBuf {
 #[test]
 fn a_file_with_both_arms_columns_plays_on_one_timeline() {
     let dir = tempdir();
-    let file = two_arm_file(&dir);
+    let file = two_arm_file(dir.path());
     let v = json_of(&["--rig", "bimanual-so101", "play", file.to_str().unwrap(), "--json"]);
     eprintln!("{v}");
     assert_eq!(v["arms"]["left"]["pushed"], 31);
@@ -176,10 +176,10 @@ fn stop_stops_every_arm_in_the_middle_of_a_play() {
 #[test]
 fn bad_rig_input_is_refused_in_one_line() {
     let dir = tempdir();
-    let file = two_arm_file(&dir);
+    let file = two_arm_file(dir.path());
     let text = std::fs::read_to_string(&file).unwrap();
     let write = |name: &str, text: &str| {
-        let path = dir.join(name);
+        let path = dir.path().join(name);
         std::fs::write(&path, text).unwrap();
         path.to_str().unwrap().to_string()
     };
@@ -226,13 +226,9 @@ fn bad_rig_input_is_refused_in_one_line() {
     }
 }
 
-fn tempdir() -> std::path::PathBuf {
-    use std::sync::atomic::{AtomicUsize, Ordering};
-    static N: AtomicUsize = AtomicUsize::new(0);
-    let dir =
-        std::env::temp_dir().join(format!("armctl-rig-{}-{}", std::process::id(), N.fetch_add(1, Ordering::Relaxed)));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A folder of its own, removed when dropped (also when the test fails).
+fn tempdir() -> tempfile::TempDir {
+    tempfile::Builder::new().prefix("armctl-rig-").tempdir().unwrap()
 }
 
 /// The example rig of two SO-101 arms on a turning torso (host/examples/rigs): one tree.
@@ -296,11 +292,11 @@ fn a_shared_joint_makes_the_rig_one_tree_and_random_reachable_targets_are_reache
     refused(&["--rig", &torso_rig(), "move", "--to", "left=0.2,0.2,0.1", "--quat", "left=1,0,0,0"], "positions only");
     refused(&["demo", "--rig", &torso_rig()], "mounted on another arm");
     let dir = tempdir();
-    let cartesian = dir.join("cartesian.csv");
+    let cartesian = dir.path().join("cartesian.csv");
     std::fs::write(&cartesian, "t,left.x,left.y,left.z\n1,0.2,0.2,0.2\n").unwrap();
     refused(&["--rig", &torso_rig(), "play", cartesian.to_str().unwrap()], "give it joint columns");
     // Joint columns play on the tree as on any rig: the torso turns, both arms with it.
-    let joints = dir.join("joints.csv");
+    let joints = dir.path().join("joints.csv");
     std::fs::write(
         &joints,
         "t,torso.q1,left.q1,left.q2,left.q3,left.q4,left.q5,right.q1,right.q2,right.q3,right.q4,right.q5\n\

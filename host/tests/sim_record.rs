@@ -5,7 +5,7 @@
 //! are one line and exit code 2, with nothing served.
 
 use std::io::{BufRead, BufReader};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -22,11 +22,9 @@ fn one_at_a_time() -> std::sync::MutexGuard<'static, ()> {
     LOCK.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("armctl-sim-record-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A fresh folder for one test, removed when dropped, also when the test fails.
+fn temp_dir(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new().prefix(&format!("armctl-sim-record-{name}-")).tempdir().unwrap()
 }
 
 /// `armctl sim servos ARGS` with its stderr gathered by a thread; returns it, the pty's path
@@ -131,7 +129,7 @@ fn assert_grid(rows: &[Vec<String>]) {
 fn the_recording_follows_a_goal_sent_over_the_pty() {
     let _one = one_at_a_time();
     let dir = temp_dir("goal");
-    let file = dir.join("positions.csv");
+    let file = dir.path().join("positions.csv");
     let (mut child, path, errors) = serve(&["--pty", "--arm", "so101", "--record", file.to_str().unwrap()]);
     // The file and its header exist before the path is printed.
     assert_eq!(std::fs::read_to_string(&file).unwrap(), format!("{HEADER}\n"));
@@ -172,7 +170,6 @@ fn the_recording_follows_a_goal_sent_over_the_pty() {
     for row in &rows {
         assert!(row[2..7].iter().all(|p| p == "2048.00") && row[8..].iter().all(|g| g == "2048"), "{row:?}");
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Killed outright (no handler runs), the server leaves the rows of its last flush, at most
@@ -182,7 +179,7 @@ fn a_killed_server_leaves_whole_rows_and_sigterm_the_whole_recording() {
     let _one = one_at_a_time();
     let dir = temp_dir("kill");
     for (sig, code) in [("KILL", None), ("TERM", Some(130))] {
-        let file = dir.join(format!("{sig}.csv"));
+        let file = dir.path().join(format!("{sig}.csv"));
         let (mut child, _path, errors) =
             serve(&["--protocol", "sts", "--ids", "1-6", "--pty", "--record", file.to_str().unwrap()]);
         std::thread::sleep(Duration::from_millis(1300));
@@ -195,7 +192,6 @@ fn a_killed_server_leaves_whole_rows_and_sigterm_the_whole_recording() {
         let least = if code.is_some() { 600 } else { 250 };
         assert!(rows.len() >= least, "{sig}: {} rows; {errors}", rows.len());
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// A LeRobot calibration of the SO-101 whose shoulder servos were homed elsewhere: shoulder_pan's
@@ -218,7 +214,7 @@ const CALIBRATION: &str = r#"{
 fn a_calibration_moves_the_goal_ranges_the_monitor_judges_by() {
     let _one = one_at_a_time();
     let dir = temp_dir("calibration");
-    let calibration = dir.join("so101.json");
+    let calibration = dir.path().join("so101.json");
     std::fs::write(&calibration, CALIBRATION).unwrap();
     let nominal = armctl::sim::limits_of(&armctl::arm::ArmSpec::load("so101", None).unwrap()).unwrap();
     let inside = |id: u8, goal: i64| {
@@ -272,7 +268,6 @@ fn a_calibration_moves_the_goal_ranges_the_monitor_judges_by() {
         let (lo, hi): (i64, i64) = (lo.parse().unwrap(), hi.parse().unwrap());
         assert!(lo >= 2900 && hi <= 4000 && lo < hi, "{line}");
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// `armctl sim servos ARGS` in this process: its exit code, stdout and stderr.
@@ -289,17 +284,17 @@ fn run(args: &[&str]) -> (i32, String, String) {
 #[test]
 fn bad_record_paths_and_calibrations_are_one_line() {
     let dir = temp_dir("bad");
-    let missing_dir = dir.join("no-such-dir").join("x.csv");
-    let not_json = dir.join("not.json");
+    let missing_dir = dir.path().join("no-such-dir").join("x.csv");
+    let not_json = dir.path().join("not.json");
     std::fs::write(&not_json, "{ this is not json").unwrap();
-    let short = dir.join("short.json");
+    let short = dir.path().join("short.json");
     std::fs::write(
         &short,
         r#"{"shoulder_pan": {"id": 1, "drive_mode": 0, "homing_offset": 0, "range_min": 100, "range_max": 1300}}"#,
     )
     .unwrap();
-    let absent = dir.join("absent.json");
-    let (missing, directory) = (missing_dir.to_str().unwrap(), dir.to_str().unwrap());
+    let absent = dir.path().join("absent.json");
+    let (missing, directory) = (missing_dir.to_str().unwrap(), dir.path().to_str().unwrap());
     for (args, expected) in [
         (vec!["--arm", "so101", "--record", missing], format!("error: --record {missing}: ")),
         (vec!["--arm", "so101", "--record", directory], format!("error: --record {directory}: ")),
@@ -314,9 +309,8 @@ fn bad_record_paths_and_calibrations_are_one_line() {
         assert!(err.contains(&expected), "{args:?}: {err}");
         assert!(out.is_empty(), "{args:?}: nothing served: {out}");
     }
-    let untouched = dir.join("untouched.csv");
+    let untouched = dir.path().join("untouched.csv");
     let (code, _, err) = run(&["--arm", "so101", "--burst-ms", "0", "--record", untouched.to_str().unwrap()]);
     assert_eq!(code, 2, "{err}");
     assert!(!untouched.exists(), "no recording for arguments refused");
-    let _ = std::fs::remove_dir_all(&dir);
 }

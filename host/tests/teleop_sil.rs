@@ -10,7 +10,7 @@
 //! shared): the README gives them as measured by the same command.
 
 use serde_json::Value;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 mod support;
 
 use support::armctl;
@@ -26,13 +26,12 @@ const SCRIPT: &str = "t,q1,q2,q3,q4,q5,gripper
 /// Where the script ends.
 const END: [f64; 5] = [0.1, -0.1, 0.2, 0.1, 0.05];
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("armctl-teleop-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+/// `name` in a folder of its own, removed when dropped (also when the test fails).
+fn scratch(name: &str) -> support::TempPath {
+    support::TempPath::new(name)
 }
 
-fn script() -> PathBuf {
+fn script() -> support::TempPath {
     let path = scratch("leader.csv");
     std::fs::write(&path, SCRIPT).unwrap();
     path

@@ -2,8 +2,10 @@
 //! stdout, one-line errors naming the file line, and the PNG plot.
 
 use serde_json::Value;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
+
+mod support;
 
 struct Run {
     code: i32,
@@ -24,11 +26,9 @@ fn armctl(args: &[&str]) -> Run {
     }
 }
 
-/// Writes `text` to a fresh file under the test scratch directory.
-fn file(name: &str, text: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("trajectory_cli");
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join(name);
+/// Writes `text` to `name` in a folder of its own, removed when dropped (also when the test fails).
+fn file(name: &str, text: &str) -> support::TempPath {
+    let path = support::TempPath::new(name);
     std::fs::write(&path, text).unwrap();
     path
 }
@@ -206,8 +206,7 @@ fn limits_slow_the_trajectory_down() {
 #[test]
 fn plot_writes_a_png() {
     let path = file("plot.csv", WITH_VELOCITIES);
-    let png = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("trajectory_cli").join("plot.png");
-    let _ = std::fs::remove_file(&png);
+    let png = path.with_file_name("plot.png");
     let run = sample(&path, &["--method", "kb", "--continuity", "0.5", "--plot", png.to_str().unwrap()]);
     assert_eq!(run.code, 0, "{}", run.stderr);
     let bytes = std::fs::read(&png).expect("plot written");

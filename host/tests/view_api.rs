@@ -193,7 +193,8 @@ fn draws_a_urdfs_meshes_and_says_which_are_missing() {
     use std::io::{Read, Write};
     // A five-joint URDF shaped like the SO-101 preset's joints (revolute about z), with an STL
     // for the base and one for the third link, and one mesh that is not there.
-    let dir = std::env::temp_dir().join(format!("armctl-view-urdf-{}", std::process::id()));
+    let temp = tempfile::tempdir().unwrap();
+    let dir = temp.path();
     std::fs::create_dir_all(dir.join("meshes")).unwrap();
     // A binary STL of one triangle: 80-byte header, count, normal, 3 vertices, attribute.
     let mut stl = vec![0u8; 80];
@@ -244,7 +245,6 @@ fn draws_a_urdfs_meshes_and_says_which_are_missing() {
     stream.read_to_end(&mut response).unwrap();
     assert!(response.ends_with(&stl), "the mesh's bytes are served as they are");
     let (code, stderr) = view.stop();
-    let _ = std::fs::remove_dir_all(&dir);
     assert_eq!(code, 0, "{stderr}");
     assert!(stderr.contains("warning: --urdf") && stderr.contains("gone.stl"), "{stderr}");
 }

@@ -129,29 +129,24 @@ mod tests {
     use crate::dof;
     use kinematics::nalgebra::Matrix3;
 
-    /// A folder under the system's temporary one, removed when dropped (also when a test fails).
-    struct TempDir(PathBuf);
+    /// A folder of its own (`tempfile`'s), removed when dropped (also when a test fails).
+    struct TempDir(tempfile::TempDir);
 
     impl TempDir {
         fn new(label: &str) -> Self {
-            let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos());
-            let dir = std::env::temp_dir().join(format!("armctl-{label}-{}-{nanos}", std::process::id()));
-            std::fs::create_dir_all(&dir).unwrap();
-            Self(dir)
+            Self(tempfile::Builder::new().prefix(&format!("armctl-{label}-")).tempdir().unwrap())
+        }
+
+        fn path(&self) -> &std::path::Path {
+            self.0.path()
         }
 
         /// Creates an empty file at `relative`, and its folders.
         fn touch(&self, relative: &str) -> PathBuf {
-            let file = self.0.join(relative);
+            let file = self.path().join(relative);
             std::fs::create_dir_all(file.parent().unwrap()).unwrap();
             std::fs::write(&file, b"").unwrap();
             file
-        }
-    }
-
-    impl Drop for TempDir {
-        fn drop(&mut self) {
-            let _ = std::fs::remove_dir_all(&self.0);
         }
     }
 
@@ -196,13 +191,13 @@ mod tests {
     #[test]
     fn inline_urdf_visuals_in_chain_frames() {
         let temp = TempDir::new("urdf-visuals-inline");
-        let base_dir = temp.0.join("robot/urdf");
+        let base_dir = temp.path().join("robot/urdf");
         let base = temp.touch("robot/urdf/base.stl");
         let plate = temp.touch("tools/meshes/plate.stl"); // package://tools as a folder above the URDF's
         let upper = temp.touch("robot/meshes/upper.stl"); // package://robot as the URDF's parent folder
         let hand = temp.touch("abs/hand.stl");
         temp.touch("robot/urdf/side.stl"); // off the chain to the tip: not listed
-        let text = ROBOT.replace("TEMP", temp.0.to_str().unwrap());
+        let text = ROBOT.replace("TEMP", temp.path().to_str().unwrap());
 
         let (found, missing) = visuals(&text, Some("hand"), &base_dir).unwrap();
         let files: Vec<&Path> = found.iter().map(|v| v.file.as_path()).collect();
@@ -253,7 +248,7 @@ mod tests {
         for mesh in doc.descendants().filter(|n| n.has_tag_name("mesh")) {
             temp.touch(mesh.attribute("filename").unwrap());
         }
-        let (found, missing) = visuals(&text, tip, &temp.0).unwrap();
+        let (found, missing) = visuals(&text, tip, temp.path()).unwrap();
         assert!(missing.is_empty(), "{missing:#?}");
         let spec = urdf::parse(&text, tip).unwrap();
         let mut per_frame = vec![0; spec.dof() + 1];

@@ -245,37 +245,35 @@ pub fn install(missing: &[Missing], rustup: &str, dir: &Path, sysroot: &Path) ->
 mod tests {
     use super::*;
 
-    fn scratch(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("armctl-board-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        dir
+    /// A folder of its own, removed when dropped (also when the test fails).
+    fn scratch(name: &str) -> tempfile::TempDir {
+        tempfile::Builder::new().prefix(&format!("armctl-board-{name}-")).tempdir().unwrap()
     }
 
     #[test]
     fn a_sysroot_without_the_target_or_tools_lacks_both_and_one_with_them_lacks_nothing() {
-        let sysroot = scratch("sysroot");
-        let toolchain = Toolchain { sysroot: sysroot.clone(), host: "x86_64-unknown-linux-gnu".into() };
+        let temp = scratch("sysroot");
+        let sysroot = temp.path();
+        let toolchain = Toolchain { sysroot: sysroot.to_path_buf(), host: "x86_64-unknown-linux-gnu".into() };
         assert_eq!(toolchain.missing(), [Missing::Target, Missing::LlvmTools]);
         std::fs::create_dir_all(sysroot.join("lib/rustlib").join(TARGET).join("lib")).unwrap();
         assert_eq!(toolchain.missing(), [Missing::LlvmTools]);
         std::fs::create_dir_all(toolchain.llvm_bin()).unwrap();
         std::fs::write(toolchain.llvm_bin().join("llvm-objdump"), b"").unwrap();
         assert_eq!(toolchain.missing(), []);
-        std::fs::remove_dir_all(&sysroot).unwrap();
     }
 
     #[test]
     fn without_rustup_the_error_is_one_line_naming_what_to_install() {
-        let dir = scratch("no-rustup");
-        let e = install(&[Missing::Target], "armctl-test-no-such-rustup", &dir, Path::new("/opt/rust"))
+        let temp = scratch("no-rustup");
+        let dir = temp.path();
+        let e = install(&[Missing::Target], "armctl-test-no-such-rustup", dir, Path::new("/opt/rust"))
             .unwrap_err()
             .to_string();
         assert!(!e.contains('\n'), "{e}");
         assert!(e.contains("rustup is not installed") && e.contains(TARGET) && e.contains("/opt/rust"), "{e}");
         // Nothing missing: nothing to run, so no rustup needed.
-        install(&[], "armctl-test-no-such-rustup", &dir, Path::new("/opt/rust")).unwrap();
-        std::fs::remove_dir_all(&dir).unwrap();
+        install(&[], "armctl-test-no-such-rustup", dir, Path::new("/opt/rust")).unwrap();
     }
 
     #[test]

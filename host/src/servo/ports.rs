@@ -126,9 +126,9 @@ mod tests {
 
     #[test]
     fn usb_ports_with_their_device_and_by_id_name_built_in_ones_left_out() {
-        let root = std::env::temp_dir().join(format!("armctl-ports-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&root);
-        let dev = root.join("dev");
+        // Removed when dropped, also when the test fails.
+        let root = tempfile::tempdir().unwrap();
+        let dev = root.path().join("dev");
         std::fs::create_dir_all(dev.join("serial/by-id")).unwrap();
         for node in ["ttyUSB0", "ttyACM0", "ttyS0"] {
             std::fs::write(dev.join(node), b"").unwrap();
@@ -152,7 +152,6 @@ mod tests {
         assert_eq!(ports[1].by_id, [dev.join("serial/by-id/usb-FTDI_FT232H_FT8ABC-if00-port0").display().to_string()]);
         let line = describe(&ports[1]);
         assert!(line.contains("0403:6014  FTDI  serial FT8ABC  (") && line.contains("usb-FTDI_FT232H"), "{line}");
-        std::fs::remove_dir_all(&root).unwrap();
     }
 
     #[test]

@@ -5,6 +5,7 @@
 pub mod view;
 
 use serde_json::Value;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
 /// One run of `armctl`.
@@ -35,5 +36,33 @@ pub fn armctl(args: &[&str]) -> Run {
         code: output.status.code().expect("armctl exits normally"),
         stdout: String::from_utf8(output.stdout).expect("UTF-8 stdout"),
         stderr: String::from_utf8(output.stderr).expect("UTF-8 stderr"),
+    }
+}
+
+/// A file path in a folder of its own, made by `tempfile`: the folder and whatever the test wrote
+/// in it are removed when this is dropped, also when the test fails. Reads as a [`Path`].
+pub struct TempPath {
+    path: PathBuf,
+    _dir: tempfile::TempDir,
+}
+
+impl TempPath {
+    /// `name` (which may hold folders that are not made) in a fresh folder.
+    pub fn new(name: &str) -> Self {
+        let dir = tempfile::Builder::new().prefix("armctl-test-").tempdir().expect("a temporary folder");
+        Self { path: dir.path().join(name), _dir: dir }
+    }
+}
+
+impl std::ops::Deref for TempPath {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.path
+    }
+}
+
+impl AsRef<Path> for TempPath {
+    fn as_ref(&self) -> &Path {
+        &self.path
     }
 }

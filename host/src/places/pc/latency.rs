@@ -81,10 +81,11 @@ mod tests {
 
     /// A `/sys` and `/dev` as Linux lays them out for one FTDI adapter (`ttyUSB0`, with its
     /// `by-id` link) and one CDC-ACM board (`ttyACM0`, no usb-serial entry), the FTDI timer at
-    /// `timer`. Each test gets its own folder, as tests run in parallel.
-    fn fake_tree(test: &str, timer: &str) -> PathBuf {
-        let root = std::env::temp_dir().join(format!("armctl-latency-{test}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&root);
+    /// `timer`. Each test gets its own folder (tests run in parallel), removed when dropped, also
+    /// when the test fails.
+    fn fake_tree(timer: &str) -> tempfile::TempDir {
+        let temp = tempfile::Builder::new().prefix("armctl-latency-").tempdir().unwrap();
+        let root = temp.path();
         let devices = root.join("sys/bus/usb-serial/devices/ttyUSB0");
         std::fs::create_dir_all(&devices).unwrap();
         std::fs::write(devices.join("latency_timer"), timer).unwrap();
@@ -94,16 +95,16 @@ mod tests {
             std::fs::write(dev.join(node), b"").unwrap();
         }
         symlink("../../ttyUSB0", dev.join("serial/by-id/usb-FTDI_FT232R_USB_UART_A10K-if00-port0")).unwrap();
-        root
+        temp
     }
 
     #[test]
     fn a_16_ms_timer_gets_the_fix_in_the_warning() {
-        let root = fake_tree("16", "16\n");
-        let port = root.join("dev/ttyUSB0");
-        let timer = latency_timer(&root.join("sys"), &port).unwrap();
+        let root = fake_tree("16\n");
+        let port = root.path().join("dev/ttyUSB0");
+        let timer = latency_timer(&root.path().join("sys"), &port).unwrap();
         assert_eq!((timer.device.as_str(), timer.ms), ("ttyUSB0", 16));
-        let file = root.join("sys/bus/usb-serial/devices/ttyUSB0/latency_timer");
+        let file = root.path().join("sys/bus/usb-serial/devices/ttyUSB0/latency_timer");
         let expected = format!(
             "warning: {}: the USB adapter's latency timer is 16 ms, so each servo reply can come up to 16 ms late \
              (DynamixelSDK sets 1 ms)\n  \
@@ -113,43 +114,39 @@ mod tests {
             port.display(),
             file.display()
         );
-        assert_eq!(warning(&root.join("sys"), &port), Some(expected));
-        std::fs::remove_dir_all(&root).unwrap();
+        assert_eq!(warning(&root.path().join("sys"), &port), Some(expected));
     }
 
     #[test]
     fn a_1_ms_timer_is_fine() {
-        let root = fake_tree("1", "1\n");
-        let port = root.join("dev/ttyUSB0");
-        assert_eq!(latency_timer(&root.join("sys"), &port).map(|t| t.ms), Some(1));
-        assert_eq!(warning(&root.join("sys"), &port), None);
-        std::fs::remove_dir_all(&root).unwrap();
+        let root = fake_tree("1\n");
+        let port = root.path().join("dev/ttyUSB0");
+        assert_eq!(latency_timer(&root.path().join("sys"), &port).map(|t| t.ms), Some(1));
+        assert_eq!(warning(&root.path().join("sys"), &port), None);
     }
 
     #[test]
     fn a_cdc_acm_port_has_no_timer() {
-        let root = fake_tree("acm", "16\n");
-        assert_eq!(latency_timer(&root.join("sys"), &root.join("dev/ttyACM0")), None);
-        assert_eq!(warning(&root.join("sys"), &root.join("dev/ttyACM0")), None);
-        std::fs::remove_dir_all(&root).unwrap();
+        let root = fake_tree("16\n");
+        assert_eq!(latency_timer(&root.path().join("sys"), &root.path().join("dev/ttyACM0")), None);
+        assert_eq!(warning(&root.path().join("sys"), &root.path().join("dev/ttyACM0")), None);
     }
 
     #[test]
     fn a_by_id_link_is_followed_to_its_device() {
-        let root = fake_tree("by-id", "16\n");
-        let link = root.join("dev/serial/by-id/usb-FTDI_FT232R_USB_UART_A10K-if00-port0");
-        let timer = latency_timer(&root.join("sys"), &link).unwrap();
+        let root = fake_tree("16\n");
+        let link = root.path().join("dev/serial/by-id/usb-FTDI_FT232R_USB_UART_A10K-if00-port0");
+        let timer = latency_timer(&root.path().join("sys"), &link).unwrap();
         assert_eq!((timer.device.as_str(), timer.ms), ("ttyUSB0", 16));
         let text = timer.warning().unwrap();
         assert!(text.starts_with(&format!("warning: {} (ttyUSB0): ", link.display())), "{text}");
         assert!(text.contains("bus/usb-serial/devices/ttyUSB0/latency_timer\n"), "{text}");
-        std::fs::remove_dir_all(&root).unwrap();
     }
 
     #[test]
     fn garbage_or_an_unreadable_file_gives_no_timer() {
-        let root = fake_tree("garbage", "sixteen\n");
-        let (sys, port) = (root.join("sys"), root.join("dev/ttyUSB0"));
+        let root = fake_tree("sixteen\n");
+        let (sys, port) = (root.path().join("sys"), root.path().join("dev/ttyUSB0"));
         assert_eq!(latency_timer(&sys, &port), None);
         // A folder where the file should be: reading it fails.
         let file = sys.join("bus/usb-serial/devices/ttyUSB0/latency_timer");
@@ -157,7 +154,6 @@ mod tests {
         std::fs::create_dir(&file).unwrap();
         assert_eq!(latency_timer(&sys, &port), None);
         assert_eq!(warning(&sys, &port), None);
-        std::fs::remove_dir_all(&root).unwrap();
     }
 
     #[test]
