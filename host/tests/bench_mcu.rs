@@ -26,8 +26,7 @@ const OPERATIONS: [&str; 12] = [
 fn qemu_available() -> bool {
     let found = armctl::places::qemu::available();
     if !found {
-        assert!(std::env::var_os("CI").is_none(), "qemu-system-arm is missing, and CI is set: bench mcu must run");
-        eprintln!("SKIPPED: qemu-system-arm is not installed (apt-get install qemu-system-arm); bench mcu did not run");
+        armctl::untested::skip(env!("CARGO_TARGET_TMPDIR"), "qemu-system-arm", "apt-get install qemu-system-arm");
     }
     found
 }

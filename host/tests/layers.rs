@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 /// `arm` is not here: it is the crate `armctl-arm` (host/arm), beneath all of them, and cargo
 /// does not let it import armctl.
 const ROWS: &[&[&str]] = &[
-    &["args", "plot", "pty_owner"],
+    &["args", "plot", "pty_owner", "untested"],
     &["link", "sim"],
     &["places"],
     &["motion", "servo"],

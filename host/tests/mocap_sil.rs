@@ -23,12 +23,11 @@ fn cmu(path: &str) -> Option<&Path> {
     if path.exists() {
         return Some(path);
     }
-    assert!(
-        std::env::var_os("CI").is_none(),
-        "{} is missing, and CI is set: the motion-capture SIL test must run (apt-get install assimp-testmodels)",
-        path.display()
+    armctl::untested::skip(
+        env!("CARGO_TARGET_TMPDIR"),
+        &path.display().to_string(),
+        "apt-get install assimp-testmodels",
     );
-    eprintln!("SKIPPED: {} is missing (apt-get install assimp-testmodels); the test did not run", path.display());
     None
 }
 

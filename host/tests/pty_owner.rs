@@ -30,11 +30,20 @@ fn namespaces_allowed() -> bool {
         Ok(out) if out.status.success() => true,
         Ok(out) => {
             let why = String::from_utf8_lossy(&out.stderr);
-            eprintln!("SKIPPED: cannot mount a devpts of its own in a user namespace ({}); not run", why.trim());
+            let what = format!("a devpts of its own in a user namespace ({})", why.trim());
+            armctl::untested::skip(
+                env!("CARGO_TARGET_TMPDIR"),
+                &what,
+                "sysctl kernel.unprivileged_userns_clone=1, or a machine that allows user namespaces",
+            );
             false
         }
         Err(e) => {
-            eprintln!("SKIPPED: cannot run unshare ({e}); not run");
+            armctl::untested::skip(
+                env!("CARGO_TARGET_TMPDIR"),
+                &format!("unshare ({e})"),
+                "apt-get install util-linux",
+            );
             false
         }
     }

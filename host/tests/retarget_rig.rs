@@ -41,11 +41,7 @@ fn cmu() -> Option<&'static Path> {
     if path.exists() {
         return Some(path);
     }
-    assert!(
-        std::env::var_os("CI").is_none(),
-        "{CMU_01_01} is missing, and CI is set: the rig retarget tests must run (apt-get install assimp-testmodels)"
-    );
-    eprintln!("SKIPPED: {CMU_01_01} is missing (apt-get install assimp-testmodels); the test did not run");
+    armctl::untested::skip(env!("CARGO_TARGET_TMPDIR"), CMU_01_01, "apt-get install assimp-testmodels");
     None
 }
 
