@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The `ik --batch` figures in the README: per-line time from outside the process, less the solve
+"""The `ik --batch` figures in docs/kinematics.md: per-line time from outside the process, less the solve
 mean the same run prints.
 
     python3 host/scripts/batch_overhead.py target/release/armctl [LINES] [RUNS]

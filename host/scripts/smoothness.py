@@ -27,7 +27,7 @@ side, lag within one action period plus 20 ms.
 
     python host/scripts/smoothness.py [--armctl target/release/armctl] [--json]
 
-Needs lerobot, armctl and lerobot_robot_armctl installed (see the README). The clocks: the path's
+Needs lerobot, armctl and lerobot_robot_armctl installed (see docs/python.md). The clocks: the path's
 time zero is the moment the first action is sent; the recording's clock starts when the servos
 start; the offset between them is taken from the moment the servos' pseudo-terminal is announced,
 which is late by the time to read a line from a pipe (well under a millisecond on an idle machine).

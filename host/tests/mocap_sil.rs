@@ -147,7 +147,7 @@ fn cmu_01_01_on_a_six_joint_arm_plays_in_sil_without_violations_following_the_ha
 const TOLERANCE_MEAN_MM: f64 = 20.0;
 const TOLERANCE_P95_MM: f64 = 60.0;
 
-/// The whole of 01_01 (22.9 s captured) on both arms, for the README's figure: no assertion on
+/// The whole of 01_01 (22.9 s captured) on both arms, for the manual's figure (docs/motion-capture.md): no assertion on
 /// the tracking, which the excerpt tests above bound. Run with
 /// `cargo test --release -p armctl --test mocap_sil -- --ignored --nocapture`.
 #[test]

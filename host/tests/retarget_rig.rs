@@ -303,7 +303,7 @@ fn cmu_01_01_both_tools_follow_their_hands_in_sil() {
     }
 }
 
-/// The whole of 01_01 (22.9 s captured) on both arms, for the README's figures: no assertion on
+/// The whole of 01_01 (22.9 s captured) on both arms, for the manual's figures (docs/rig.md): no assertion on
 /// the tracking, which the excerpt bounds. Run with
 /// `cargo test --release -p armctl --test retarget_rig -- --ignored --nocapture`.
 #[test]

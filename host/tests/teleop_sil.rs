@@ -7,7 +7,7 @@
 //! The script moves every joint and the trigger, then jumps (0.7 rad on the base in 20 ms): the
 //! follower must follow within its speed limit, with no goal outside its limits, and end where
 //! the leader ends. The loop's rate and latency are reported, not asserted (the machines are
-//! shared): the README gives them as measured by the same command.
+//! shared): docs/teleoperation.md gives them as measured by the same command.
 
 use serde_json::Value;
 use std::path::Path;

@@ -2,7 +2,7 @@
 //! DNS-rebinding page, clients without the token, clients that trickle bytes or never read, a
 //! flood of requests, and Ctrl-C with all of them connected. Each test drives the simulated arm
 //! (`--sim`, real time) and checks that nothing moved that should not have, and that a stop got
-//! through. The figures are printed (run with --nocapture) and quoted in the README ("Who can
+//! through. The figures are printed (run with --nocapture) and quoted in docs/view.md ("Who can
 //! reach it").
 //!
 //! The tests run one at a time (they measure timing and load on a shared machine).

@@ -97,7 +97,7 @@ fn same_axis(a: [f64; 3], b: [f64; 3]) -> bool {
     (dot / (norm(a) * norm(b)) - 1.0).abs() < 1e-6
 }
 
-/// `GET /api/arm`: the chain, for drawing (see the README's API section).
+/// `GET /api/arm`: the chain, for drawing (see docs/view.md, the API).
 pub fn arm_json(arm: &ArmSpec, queue_capacity: usize, meshes: &[Mesh]) -> Result<Value> {
     let joints: Vec<Value> = arm
         .joints

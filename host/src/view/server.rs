@@ -303,7 +303,7 @@ fn route(shared: &Shared, head: &Head, local: IpAddr) -> Route {
         ("GET", "status") => status(served, 0),
         ("GET", p) if p.starts_with("mesh/") => Route::Answer(mesh(&p["mesh/".len()..], served)),
         ("POST", endpoint) => Route::Post(Some(0), endpoint.to_string()),
-        _ => refused(405, format!("{method} {path}: not an endpoint (see the README's API list)")),
+        _ => refused(405, format!("{method} {path}: not an endpoint (see docs/view.md, the API)")),
     }
 }
 
@@ -333,7 +333,7 @@ fn rig_route(served: &Served, rig: &Rig, method: &str, endpoint: &str) -> Route 
             ("GET", "") => Route::Answer(Answer::json(200, &served.arms[index].arm)),
             ("GET", "status") => status(served, index),
             ("POST", what) if !what.is_empty() => Route::Post(Some(index), what.to_string()),
-            _ => refused(405, format!("{method} /api/arm/{name}/{what}: not an endpoint (see the README's API list)")),
+            _ => refused(405, format!("{method} /api/arm/{name}/{what}: not an endpoint (see docs/view.md, the API)")),
         };
     }
     match (method, endpoint) {
@@ -370,7 +370,7 @@ fn rig_route(served: &Served, rig: &Rig, method: &str, endpoint: &str) -> Route 
         ),
         ("GET", p) if p.starts_with("mesh/") => Route::Answer(mesh(&p["mesh/".len()..], served)),
         ("POST", other) => refused(404, format!("no endpoint POST /api/{other}")),
-        _ => refused(405, format!("{method} /api/{endpoint}: not an endpoint (see the README's API list)")),
+        _ => refused(405, format!("{method} /api/{endpoint}: not an endpoint (see docs/view.md, the API)")),
     }
 }
 

@@ -93,7 +93,7 @@ pub struct Extras {
     pub queue_capacity: usize,
 }
 
-/// The telemetry object of one status (see the README's API section), its positions in
+/// The telemetry object of one status (see docs/view.md, the API), its positions in
 /// `placement`'s frame.
 pub fn telemetry(
     arm: &dyn DynArm,

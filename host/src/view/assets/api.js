@@ -1,4 +1,4 @@
-// Talking to the `armctl view` server (its API: the README's "Seeing the arm"; every error is
+// Talking to the `armctl view` server (its API: docs/view.md; every error is
 // {"error": "..."}).
 
 const listeners = [];

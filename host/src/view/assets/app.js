@@ -1,5 +1,5 @@
 // The page of `armctl view`: wiring between the server (api.js), the 3D view (scene.js),
-// the chart (chart.js) and the controls in index.html. The API it uses: the README's
+// the chart (chart.js) and the controls in index.html. The API it uses: docs/view.md's
 // "Seeing the arm". In a rig's view (`armctl view --rig`, GET /api/rig not null) every arm is
 // drawn at its base and listed with its telemetry; the controls drive the arm picked in the list
 // (its requests go to /api/arm/NAME/...), and STOP stops every arm.
