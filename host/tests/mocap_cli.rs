@@ -167,7 +167,7 @@ fn bad_options_fail_in_one_line() {
     );
     assert_error(
         &["retarget", &t, "--arm", "so101", "--sim"],
-        "error: --sim name an arm to drive: add --play to stream the keyframes to it",
+        "error: --sim is for driving an arm: add --play to stream the keyframes to it",
     );
     assert_error(
         &["retarget", &t, "--arm", "so101", "--play"],

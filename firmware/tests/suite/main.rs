@@ -6,5 +6,4 @@ mod dxl2_packets;
 mod feetech_packets;
 mod link_frames;
 mod master_half_duplex;
-mod modules;
 mod stream_props;

@@ -139,7 +139,8 @@ fn refuse_without_play(link: &LinkArgs) -> Result<()> {
     .filter_map(|(given, name)| given.then_some(name))
     .collect();
     if !given.is_empty() {
-        bail!("{} name an arm to drive: add --play to stream the keyframes to it", given.join(", "));
+        let verb = if given.len() == 1 { "is" } else { "are" };
+        bail!("{} {verb} for driving an arm: add --play to stream the keyframes to it", given.join(", "));
     }
     Ok(())
 }

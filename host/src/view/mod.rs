@@ -79,8 +79,9 @@ pub struct ViewArgs {
 
 /// The first line of stdout: the page's URL, or with `--json` {"url": URL}.
 fn print_url(url: &str, json: bool, out: &mut dyn Write) -> Result<()> {
+    // Not through `cli::print_json`: the command line is the layer above this one.
     if json {
-        crate::cli::print_json(out, &serde_json::json!({ "url": url }))
+        Ok(writeln!(out, "{}", serde_json::json!({ "url": url }))?)
     } else {
         Ok(writeln!(out, "{url}")?)
     }
