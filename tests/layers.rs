@@ -216,15 +216,16 @@ fn no_two_firmware_modules_import_each_other_round_a_circle() {
     assert_no_circle("firmware");
 }
 
+/// `a::b` as a module path; `` is the crate root.
+fn module(path: &str) -> Module {
+    path.split("::").filter(|s| !s.is_empty()).map(str::to_string).collect()
+}
+
 #[test]
 fn the_host_graph_sees_the_imports_it_checks() {
     // A check that reads nothing passes anything: make sure known edges are found.
     let g = graph("host");
-    let has = |from: &str, to: &str| {
-        let from: Module = from.split("::").map(str::to_string).collect();
-        let to: Module = to.split("::").map(str::to_string).collect();
-        g.edges.get(&from).is_some_and(|t| t.contains(&to))
-    };
+    let has = |from: &str, to: &str| g.edges.get(&module(from)).is_some_and(|t| t.contains(&module(to)));
     assert!(has("drive::commands", "drive::args"));
     assert!(has("places::sil", "sim"));
     assert!(has("cli", "demo"));
@@ -235,11 +236,7 @@ fn the_host_graph_sees_the_imports_it_checks() {
 fn the_firmware_graph_sees_the_imports_it_checks() {
     // A check that reads nothing passes anything: make sure known edges are found.
     let g = graph("firmware");
-    let has = |from: &str, to: &str| {
-        let from: Module = from.split("::").map(str::to_string).collect();
-        let to: Module = to.split("::").map(str::to_string).collect();
-        g.edges.get(&from).is_some_and(|t| t.contains(&to))
-    };
+    let has = |from: &str, to: &str| g.edges.get(&module(from)).is_some_and(|t| t.contains(&module(to)));
     assert!(has("link::frame", "link::cobs"));
     assert!(has("controller::command", "controller::gripper"));
     assert!(has("board::main_loop", "app"));
@@ -249,7 +246,6 @@ fn the_firmware_graph_sees_the_imports_it_checks() {
 #[test]
 fn a_circle_is_found() {
     // Two modules that import each other, as `link::frame` and `link::message` once did.
-    let module = |m: &str| -> Module { m.split("::").filter(|s| !s.is_empty()).map(str::to_string).collect() };
     let tree = |message: &str| {
         vec![
             (module(""), "pub mod link;".to_string()),
