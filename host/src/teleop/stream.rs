@@ -388,7 +388,6 @@ impl Streamer {
     pub fn send(&mut self, driver: &mut Driver, reading: &Reading, read_at: Instant) -> Result<Sent> {
         self.check(reading)?;
         let time = self.due(driver, read_at)?;
-        let base = self.recorded;
         let period = self.settings.period.as_secs_f64();
         let dt = if self.playing { time - self.last_time } else { time.max(period) };
         let (q, v) = shape(reading, &self.previous, dt, &self.settings, &mut self.figures);
@@ -402,9 +401,9 @@ impl Streamer {
                 gripper,
             })
         };
-        let time = self.pushed(driver, time, &at, read_at, Some(&q))?;
+        let recorded = self.pushed(driver, time, &at, read_at, Some(&q))?;
         self.previous = q.clone();
-        Ok(Sent { time: base + time, joints: q, gripper: gripper.map(f64::from) })
+        Ok(Sent { time: recorded, joints: q, gripper: gripper.map(f64::from) })
     }
 
     /// Sends the tool pose `target`, read at `read_at`, as a Cartesian keyframe: the follower's
@@ -421,24 +420,20 @@ impl Streamer {
             bail!("a pose holds {bad}: nothing was sent");
         }
         let time = self.due(driver, read_at)?;
-        let base = self.recorded;
         let gripper = gripper.filter(|_| self.settings.gripper).map(|g| g.clamp(0.0, 100.0) as f32);
         let at = |time: f32| HostMessage::PushCartesianKeyframe(CartesianKeyframe { time, target, gripper });
-        let time = self.pushed(driver, time, &at, read_at, None)?;
-        Ok(Sent { time: base + time, joints: Vec::new(), gripper: gripper.map(f64::from) })
+        let recorded = self.pushed(driver, time, &at, read_at, None)?;
+        Ok(Sent { time: recorded, joints: Vec::new(), gripper: gripper.map(f64::from) })
     }
 
-    /// The recording's time of `time` on the current playback's clock. A keyframe is recorded
-    /// on the clock of the playback it was pushed into: `send` takes the offset before pushing,
-    /// because the status read after a push can find that playback ended (and move the offset on
-    /// for the next one), which would put this keyframe after the next ones in the file.
+    /// The recording's time of `time` on the current playback's clock.
     fn recorded_time(&self, time: f64) -> f64 {
         self.recorded + time
     }
 
     /// Pushes a keyframe due at `time`, starts the playback with the first, keeps the figures and,
     /// now and then, asks for a status (the playback clock, the tracking, a follower that ran out
-    /// of keyframes). Returns the time it was queued at.
+    /// of keyframes). Returns the keyframe's time in the recording.
     fn pushed(
         &mut self,
         driver: &mut Driver,
@@ -448,6 +443,10 @@ impl Streamer {
         joints: Option<&[f64]>,
     ) -> Result<f64> {
         let time = push(driver, time, at, self.last_time, &mut self.figures)?;
+        // On the clock of the playback it went into, taken now: the status read below can find
+        // that playback ended and move the recording's offset on for the next one, which would
+        // put this keyframe after the next ones in the file.
+        let recorded = self.recorded_time(time);
         let queued_at = Instant::now();
         if !self.playing {
             // The first keyframe starts the playback clock at zero; statuses tell where it stands.
@@ -479,7 +478,7 @@ impl Streamer {
             self.since_status = 0;
             self.look(driver)?;
         }
-        Ok(time)
+        Ok(recorded)
     }
 
     /// Asks for a status: where the playback clock stands, how well the setpoint tracks, and
