@@ -14,13 +14,14 @@ use armctl::arm::servos::ServoSetup;
 use armctl::arm::ArmSpec;
 use armctl::drive::connection::{open, Connection, Target};
 use armctl::link::arm_config::configure_messages;
-use armctl::link::client::LinkClient;
-use armctl::link::ready::{request_when_ready, wait_idle};
+use armctl::link::client::{LinkClient, LinkError};
 use armctl::link::Transport;
 use armctl::places::qemu::{self, Qemu, QemuConfig};
 use armctl::sim::so101_bus;
 use armctl::sim::{Faults, PtyServer, SimConfig};
-use firmware::link::message::{CartesianTarget, HostMessage, JointKeyframe, RunState, Status, Timing};
+use firmware::link::message::{
+    CartesianTarget, FirmwareMessage, HostMessage, JointKeyframe, NakReason, RunState, Status, Timing,
+};
 
 type Client = LinkClient<Box<dyn Transport>>;
 
@@ -72,6 +73,37 @@ fn rig() -> Option<Rig> {
     let rig = rig_on(so101_bus(Faults::default()), None)?;
     assert_eq!(rig.link.info.arm_name.as_str(), "so101");
     Some(rig)
+}
+
+/// Sends `message`, again after each `NotReady` for up to `waits` read timeouts (the firmware
+/// reads every servo first after a reset, and takes a new arm only once the torque is off).
+fn request_when_ready(c: &mut Client, message: &HostMessage, waits: usize) -> Result<FirmwareMessage, LinkError> {
+    let mut waited = 0;
+    loop {
+        match c.request(message) {
+            Err(LinkError::Nak(NakReason::NotReady)) if waited < waits => {
+                waited += 1;
+                c.wait_once()?;
+            }
+            other => return other,
+        }
+    }
+}
+
+/// Polls status until the arm is at rest, at most `polls` times.
+fn wait_idle(c: &mut Client, polls: usize) -> Result<Status, String> {
+    let mut status = c.status().map_err(|e| e.to_string())?;
+    for _ in 0..polls {
+        if status.state == RunState::Idle {
+            return Ok(status);
+        }
+        c.wait_once().map_err(|e| e.to_string())?;
+        status = c.status().map_err(|e| e.to_string())?;
+    }
+    match status.state {
+        RunState::Idle => Ok(status),
+        other => Err(format!("still {other:?} after {polls} status polls")),
+    }
 }
 
 fn torque_on(c: &mut Client) {
@@ -145,7 +177,7 @@ fn the_real_firmware_reaches_targets_and_follows_a_streamed_trajectory() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let Some(mut rig) = rig() else { return };
     let arm = rig.link.arm.clone();
-    let c = &mut rig.link.client;
+    let c = rig.link.session.client();
     torque_on(c);
     for target in [[0.2f32, 0.05, 0.15], [0.25, -0.05, 0.1]] {
         move_to(c, &arm, target);
@@ -176,7 +208,7 @@ fn faults_on_the_servo_side_are_reported_and_survived() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let Some(mut rig) = rig() else { return };
     let arm = rig.link.arm.clone();
-    let c = &mut rig.link.client;
+    let c = rig.link.session.client();
     // The arm sent over the link, joint by joint, replaces the built-in one (the firmware's
     // deepest path: a whole new controller).
     let so101 = ArmSpec::load("so101", None).unwrap();
@@ -233,7 +265,7 @@ fn the_real_firmware_closes_the_gripper_on_an_object_and_opens_it() {
     let Some(mut rig) = rig() else { return };
     let gripper = ServoSetup::for_arm("so101").unwrap().gripper.unwrap();
     rig.bus.put_object(gripper.id, Some(armctl::sim::Jaw::for_object(&gripper, 30.0).unwrap()));
-    let c = &mut rig.link.client;
+    let c = rig.link.session.client();
     torque_on(c);
     c.request(&HostMessage::Gripper { opening: 0.0, effort: None }).unwrap();
     let held = poll_until(c, Duration::from_secs(5), |s| s.gripper.is_some_and(|g| g.holding));
@@ -288,7 +320,7 @@ fn tool_at(arm: &ArmSpec, q: &[f32]) -> [f32; 3] {
 fn any_arm_on_the_real_firmware(arm: &str) {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let Some((mut rig, spec)) = rig_for(arm) else { return };
-    let c = &mut rig.link.client;
+    let c = rig.link.session.client();
     torque_on(c);
     for fractions in [|j: usize| 0.3 * ((j + 1) as f64).sin(), |j: usize| -0.25 * ((j + 2) as f64).cos()] {
         move_to(c, &spec, tool_at(&spec, &inside(&spec, fractions)));
@@ -337,7 +369,7 @@ fn any_arm_on_the_real_firmware(arm: &str) {
     let path = rig.board.link_path().to_string();
     let mut link = open(Target::Port { path, baud: 1_000_000 }, Some(arm), &mut std::io::sink()).unwrap();
     assert_eq!(link.info.arm_name.as_str(), spec.name);
-    let c = &mut link.client;
+    let c = link.session.client();
     let status = c.status().unwrap();
     assert_eq!(status.state, RunState::Idle, "torque still on, holding");
     assert!(status.measured.iter().zip(&held).all(|(a, b)| (a - b).abs() < 0.01));
@@ -471,8 +503,8 @@ fn each_reset_does_to_the_servos_torque_what_the_board_decides() {
     board.wait_started(qemu::START_TIMEOUT).unwrap();
     logged(&board.log().lines(), &["reset by power-on: the servos' torque goes off"]);
     let mut link = reopen(&board);
-    torque_on(&mut link.client);
-    settles_in(&mut link.client, RunState::Idle);
+    torque_on(link.session.client());
+    settles_in(link.session.client(), RunState::Idle);
     assert!(servo_torque_becomes(&bus, 1, true), "torque on did not reach servo 1");
 
     // The reset button: held where it stands.
@@ -483,10 +515,10 @@ fn each_reset_does_to_the_servos_torque_what_the_board_decides() {
     gdb.resume().unwrap();
     logged(&restarted(&board, seen), &["reset by the reset pin: servos found torqued are held where they stand"]);
     let mut link = reopen(&board);
-    settles_in(&mut link.client, RunState::Idle);
+    settles_in(link.session.client(), RunState::Idle);
     std::thread::sleep(Duration::from_millis(500));
     assert!(servo_torque_becomes(&bus, 1, true), "the reset button took servo 1's torque off");
-    assert_eq!(link.client.status().unwrap().state, RunState::Idle);
+    assert_eq!(link.session.client().status().unwrap().state, RunState::Idle);
 
     // The control loop stops (the core spins on `b .`): the watchdog resets the board, limp.
     drop(link);
@@ -499,11 +531,11 @@ fn each_reset_does_to_the_servos_torque_what_the_board_decides() {
     logged(&lines, &["watchdog: the control loop stopped", "reset by the watchdog: the servos' torque goes off"]);
     let mut link = reopen(&board);
     assert!(!servo_torque_becomes(&bus, 1, false), "servo 1 kept its torque after the watchdog's reset");
-    settles_in(&mut link.client, RunState::TorqueOff);
+    settles_in(link.session.client(), RunState::TorqueOff);
 
     // A fault (an undefined instruction, `udf #254`): logged where, then the watchdog, limp.
-    torque_on(&mut link.client);
-    settles_in(&mut link.client, RunState::Idle);
+    torque_on(link.session.client());
+    settles_in(link.session.client(), RunState::Idle);
     assert!(servo_torque_becomes(&bus, 1, true));
     drop(link);
     let seen = board.log().lines().len();
@@ -515,11 +547,11 @@ fn each_reset_does_to_the_servos_torque_what_the_board_decides() {
     logged(&lines, &["HardFault: pc 0x20300000", "reset by a fault (then the watchdog): the servos' torque goes off"]);
     let mut link = reopen(&board);
     assert!(!servo_torque_becomes(&bus, 1, false), "servo 1 kept its torque after the fault");
-    settles_in(&mut link.client, RunState::TorqueOff);
+    settles_in(link.session.client(), RunState::TorqueOff);
 
     // Power-on: the board starts anew (a new QEMU) on servos still torqued.
-    torque_on(&mut link.client);
-    settles_in(&mut link.client, RunState::Idle);
+    torque_on(link.session.client());
+    settles_in(link.session.client(), RunState::Idle);
     assert!(servo_torque_becomes(&bus, 1, true));
     drop(link);
     drop(board);
@@ -528,7 +560,7 @@ fn each_reset_does_to_the_servos_torque_what_the_board_decides() {
     logged(&board.log().lines(), &["reset by power-on: the servos' torque goes off"]);
     let mut link = reopen(&board);
     assert!(!servo_torque_becomes(&bus, 1, false), "servo 1 kept its torque after a power-on");
-    settles_in(&mut link.client, RunState::TorqueOff);
+    settles_in(link.session.client(), RunState::TorqueOff);
     drop(link);
     drop(board);
     bus.stop().unwrap();

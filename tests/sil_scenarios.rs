@@ -7,6 +7,7 @@ use armctl::arm::servos::ServoSetup;
 use armctl::arm::ArmSpec;
 use armctl::link::arm_config::configure_messages;
 use armctl::link::client::{LinkClient, LinkConfig, LinkError};
+use armctl::link::session::Session;
 use armctl::places::sil::{Sil, SilOptions};
 use firmware::link::frame::{decode_payload, encode_message, FrameDecoder, FrameKind, MAX_ENCODED, MAX_FRAME};
 use firmware::link::message::{
@@ -468,8 +469,9 @@ max_acceleration = 6.0
     )
     .unwrap();
     let options = SilOptions::new("open-manipulator-x").unwrap();
-    let mut c = LinkClient::new(Sil::new(&options).unwrap(), LinkConfig::default());
-    let (info, arm) = armctl::drive::connection::handshake(&mut c, Some(file.to_str().unwrap())).unwrap();
+    let mut session = Session::over(Sil::new(&options).unwrap());
+    let (info, arm) = armctl::drive::connection::handshake(&mut session, Some(file.to_str().unwrap())).unwrap();
+    let mut c = session.into_client();
     assert_eq!(info.arm_name.as_str(), "my-arm");
     torque_on(&mut c);
     // Joint 3 reads -100 ticks off its zero: the firmware knows its mapping.

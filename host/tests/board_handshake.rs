@@ -6,7 +6,7 @@ use armctl::arm::servos::servos_of;
 use armctl::arm::ArmSpec;
 use armctl::drive::connection::handshake_with;
 use armctl::link::arm_config::arm_digest;
-use armctl::link::client::{LinkClient, LinkConfig};
+use armctl::link::session::Session;
 use armctl::places::sil::{Sil, SilOptions};
 
 /// The SO-101 with its servos' zero offsets moved (as a calibration does): the same name, another
@@ -21,7 +21,7 @@ fn recalibrated(offset: i32) -> ArmSpec {
 
 #[test]
 fn a_board_is_sent_the_arm_it_does_not_run_and_never_loses_one_sent_by_another() {
-    let mut c = LinkClient::new(Sil::new(&SilOptions::new("so101").unwrap()).unwrap(), LinkConfig::default());
+    let mut c = Session::over(Sil::new(&SilOptions::new("so101").unwrap()).unwrap());
     // The preset as shipped is what the built-in arm is: nothing to send.
     let (info, _) = handshake_with(&mut c, Some(ArmSpec::load("so101", None).unwrap())).unwrap();
     assert_eq!(info.arm_digest, firmware::builtin::DIGEST);

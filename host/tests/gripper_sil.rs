@@ -10,8 +10,9 @@ use firmware::link::message::{
 
 fn client(arm: &str, object_mm: Option<f64>) -> LinkClient<Sil> {
     let options = SilOptions { object_mm, ..SilOptions::new(arm).unwrap() };
-    let mut c = LinkClient::new(Sil::new(&options).unwrap(), LinkConfig::default());
-    armctl::drive::connection::handshake(&mut c, Some(arm)).unwrap();
+    let mut session = armctl::link::session::Session::over(Sil::new(&options).unwrap());
+    armctl::drive::connection::handshake(&mut session, Some(arm)).unwrap();
+    let mut c = session.into_client();
     // Until every servo has been read, torque on is refused as not ready.
     for _ in 0..10 {
         match c.request(&HostMessage::Torque { on: true }) {
@@ -141,13 +142,15 @@ fn bad_gripper_values_are_refused() {
 #[test]
 fn an_arm_without_a_gripper_says_so() {
     let options = SilOptions::new("so101").unwrap();
-    let mut c = LinkClient::new(Sil::new(&options).unwrap(), LinkConfig::default());
+    let c = LinkClient::new(Sil::new(&options).unwrap(), LinkConfig::default());
     let mut spec = armctl::arm::ArmSpec::load("so101", None).unwrap();
     let mut servos = armctl::arm::servos::servos_of(&spec).unwrap();
     spec.name = "so101-no-gripper".into();
     servos.gripper = None;
     spec.servos = Some(servos);
-    armctl::drive::connection::handshake_with(&mut c, Some(spec)).unwrap();
+    let mut session = armctl::link::session::Session::new(c);
+    armctl::drive::connection::handshake_with(&mut session, Some(spec)).unwrap();
+    let mut c = session.into_client();
     c.wait_once().unwrap();
     let reply = c.request(&HostMessage::Gripper { opening: 10.0, effort: None });
     assert!(matches!(reply, Err(LinkError::Nak(NakReason::NoGripper))), "{reply:?}");

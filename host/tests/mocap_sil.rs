@@ -9,7 +9,7 @@
 
 use armctl::arm::dof::DynArm;
 use armctl::arm::ArmSpec;
-use armctl::link::client::{LinkClient, LinkConfig, LinkError};
+use armctl::link::client::{LinkClient, LinkError};
 use armctl::mocap::retarget::{retarget, Options, Retargeted, Spread};
 use armctl::places::sil::{Sil, SilOptions};
 use firmware::link::message::{HostMessage, JointKeyframe, NakReason, RunState};
@@ -54,8 +54,9 @@ struct Played {
 /// Streams `r`'s keyframes to a SIL board running `arm` and measures the tool against the targets.
 fn play(arm_name: &str, arm: &dyn DynArm, r: &Retargeted) -> Played {
     let options = SilOptions::new(arm_name).unwrap();
-    let mut c = LinkClient::new(Sil::new(&options).unwrap(), LinkConfig::default());
-    armctl::drive::connection::handshake_with(&mut c, Some(options.arm.clone())).unwrap();
+    let mut session = armctl::link::session::Session::over(Sil::new(&options).unwrap());
+    armctl::drive::connection::handshake_with(&mut session, Some(options.arm.clone())).unwrap();
+    let mut c = session.into_client();
     torque_on(&mut c);
     c.transport().record();
     let mut start = None;

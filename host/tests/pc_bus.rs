@@ -459,18 +459,18 @@ fn connect(server: &PtyServer, arm: &str, protocol: Protocol) -> connection::Con
 }
 
 fn status(conn: &mut connection::Connection) -> Status {
-    conn.client.status().unwrap()
+    conn.session.client().status().unwrap()
 }
 
 fn move_joints(conn: &mut connection::Connection, q: &[f64], duration: Option<f32>) {
     let positions = Joints::from_slice(&q.iter().map(|&x| x as f32).collect::<Vec<_>>()).unwrap();
     let timing = duration.map_or(Timing::MaxSpeed(10.0), Timing::Duration);
-    let reply = conn.client.request(&HostMessage::MoveJoints { positions, timing }).unwrap();
+    let reply = conn.session.client().request(&HostMessage::MoveJoints { positions, timing }).unwrap();
     assert!(matches!(reply, FirmwareMessage::Ack { .. }), "{reply:?}");
 }
 
 fn torque_on(conn: &mut connection::Connection) {
-    let reply = conn.client.request(&HostMessage::Torque { on: true }).unwrap();
+    let reply = conn.session.client().request(&HostMessage::Torque { on: true }).unwrap();
     assert!(matches!(reply, FirmwareMessage::Ack { .. }), "{reply:?}");
 }
 

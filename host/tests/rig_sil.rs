@@ -4,8 +4,9 @@
 
 use std::path::Path;
 
+use armctl::link::session::Keyframe;
 use armctl::rig::{play, Rig, RigSpec};
-use firmware::link::message::{HostMessage, JointKeyframe, RunState};
+use firmware::link::message::{JointKeyframe, RunState};
 use serde_json::Value;
 
 /// `armctl ARGS` in process: exit code, stdout, stderr.
@@ -129,16 +130,15 @@ fn stop_stops_every_arm_in_the_middle_of_a_play() {
         for k in 1..=20 {
             let t = k as f32 * 0.5;
             let positions = (0..5).map(|_| 0.4 * (t / 10.0)).collect();
-            let message =
-                HostMessage::PushKeyframe(JointKeyframe { time: t, positions, velocities: None, gripper: None });
+            let keyframe = Keyframe::Joints(JointKeyframe { time: t, positions, velocities: None, gripper: None });
             if arm.driver.free_slots() == 0 {
                 break;
             }
-            arm.driver.push(&message).unwrap();
+            arm.driver.session().push(&keyframe).unwrap();
         }
     }
     for arm in &mut rig.arms {
-        arm.driver.request(&HostMessage::Start).unwrap();
+        arm.driver.session().start().unwrap();
     }
     // Both move for a second of the shared clock, each polled (its link watchdog hears the host).
     let t0 = rig.sim.as_ref().unwrap().now_s();

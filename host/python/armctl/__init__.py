@@ -16,7 +16,6 @@ implemented twice: the native module ``armctl._armctl`` calls the project's Rust
 
 from __future__ import annotations
 
-import json
 from typing import Any, Iterable, Sequence
 
 import numpy as np
@@ -220,7 +219,7 @@ class Stream:
         """Ends the stream where it was (at rest) and returns its figures. A stream a failed send
         already ended (the arm was stopped, and the send raised why) has no figures: ``{}``."""
         if self.figures is None:
-            self.figures = json.loads(self._arm._a.stream_end()) if self._arm._a.streaming_now else {}
+            self.figures = self._arm._a.stream_end() if self._arm._a.streaming_now else {}
         return self.figures
 
     def __enter__(self) -> "Stream":
@@ -288,7 +287,7 @@ class Arm:
 
     def status(self) -> dict[str, Any]:
         """State, ``measured`` and ``setpoints`` joints, ``tool`` position, gripper, queue, errors."""
-        return json.loads(self._a.status())
+        return self._a.status()
 
     def joints(self) -> Array:
         """The measured joint values, rad or m."""
@@ -299,14 +298,14 @@ class Arm:
                 timeout: float = 60.0) -> dict[str, Any]:
         """The tool to ``position`` (m), oriented by ``quaternion_wxyz`` if given; ``path`` auto
         (a straight line where it is clear, else by joints), line or joint. Waits until at rest."""
-        return json.loads(self._a.move_to(_vector(position, "position"),
+        return self._a.move_to(_vector(position, "position"),
                                           None if quaternion_wxyz is None else _vector(quaternion_wxyz, "quaternion_wxyz"),
-                                          speed, duration, path, timeout))
+                                          speed, duration, path, timeout)
 
     def move_joints(self, q: npt.ArrayLike, *, speed: float | None = None, duration: float | None = None,
                     timeout: float = 60.0) -> dict[str, Any]:
         """Every joint to ``q`` (rad or m), arriving together. Waits until at rest."""
-        return json.loads(self._a.move_joints(_vector(q, "q"), speed, duration, timeout))
+        return self._a.move_joints(_vector(q, "q"), speed, duration, timeout)
 
     def play(self, keyframes: str | None = None, *, times: npt.ArrayLike | None = None,
              positions: npt.ArrayLike | None = None, gripper: npt.ArrayLike | None = None,
@@ -317,7 +316,7 @@ class Arm:
         if keyframes is not None:
             if times is not None or positions is not None or gripper is not None:
                 raise ArmctlError("play takes a keyframe file or times and positions, not both")
-            return json.loads(self._a.play(str(keyframes), None, "keyframes", timeout))
+            return self._a.play(str(keyframes), None, "keyframes", timeout)
         if times is None or positions is None:
             raise ArmctlError("play needs a keyframe file, or times and positions")
         t = np.asarray(times, dtype=np.float64)
@@ -334,7 +333,7 @@ class Arm:
             header.append("gripper")
         rows = np.hstack(columns)
         text = ",".join(header) + "\n" + "".join(",".join(repr(float(x)) for x in row) + "\n" for row in rows)
-        return json.loads(self._a.play(None, text, "keyframes", timeout))
+        return self._a.play(None, text, "keyframes", timeout)
 
     def stream(self, rate: float, lead_ms: float | None = None,
                max_step: float | Sequence[float] | None = None) -> Stream:
@@ -348,21 +347,20 @@ class Arm:
 
     def stop(self) -> dict[str, Any]:
         """Decelerates within the limits and holds (ends an open stream)."""
-        return json.loads(self._a.stop())
+        return self._a.stop()
 
     def torque(self, on: bool) -> dict[str, Any]:
-        return json.loads(self._a.torque(bool(on)))
+        return self._a.torque(bool(on))
 
     def gripper(self, action: str | float, effort: float | None = None, timeout: float = 10.0) -> dict[str, Any]:
         """``"open"``, ``"close"``, or an opening in percent (0 closed to 100 open)."""
         if isinstance(action, str):
-            return json.loads(self._a.gripper(action, None, effort, timeout))
-        return json.loads(self._a.gripper("set", float(action), effort, timeout))
+            return self._a.gripper(action, None, effort, timeout)
+        return self._a.gripper("set", float(action), effort, timeout)
 
     def monitor(self) -> dict[str, Any] | None:
         """For ``sim``: the safety monitor's goals checked and violations; None otherwise."""
-        text = self._a.monitor()
-        return None if text is None else json.loads(text)
+        return self._a.monitor()
 
     def close(self, torque_off: bool = False) -> None:
         """Ends an open stream at rest, then the connection; ``torque_off`` lets the servos go limp."""

@@ -1,7 +1,9 @@
 //! An arm driven through the firmware core, for Python: opened as every drive command opens it
-//! (`sim`, `port`, or `bus` + `protocol`, with `arm` and `calibration`), and driven by the same
-//! requests ([`armctl::drive::commands`]), whose answers are the commands' JSON lines. A stream of
-//! readings (a policy's actions, a teleoperation) feeds the player through
+//! (`sim`, `port`, or `bus` + `protocol`, with `arm` and `calibration`: a
+//! [`armctl::drive::connection::Place`]), and driven by the same typed operations
+//! ([`armctl::drive`]): each method builds the operation's request from its arguments and returns
+//! its report as a dict, with no command line, text or JSON in between. A stream of readings (a
+//! policy's actions, a teleoperation) feeds the player through
 //! [`armctl::teleop::stream::Streamer`], as `armctl teleop` does.
 //!
 //! `sim` runs the core on this PC in real time against simulated servos on a pseudo-terminal (as
@@ -12,22 +14,19 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, Result};
-use armctl::args::bus::ProtocolArg;
-use armctl::drive::args::{
-    DriveCommand, GripperAction, GripperArgs, JointsArgs, LinkArgs, MoveArgs, OnOff, OnlyLinkArgs, PathArg, PlayArgs,
-    TorqueArgs,
-};
-use armctl::drive::commands::{self, Request};
-use armctl::drive::interrupt;
+use armctl::drive::connection::{protocol_named, Place};
+use armctl::drive::gripper::{GripperGoal, GripperRequest};
+use armctl::drive::joints::JointsRequest;
+use armctl::drive::move_to::MoveRequest;
 use armctl::drive::play::Plan;
 use armctl::drive::session::Driver;
+use armctl::drive::{gripper, joints, move_to, play, state, DriveError, DriveResult};
 use armctl::sim::PtyServer;
 use armctl::teleop::leader::Reading;
-use armctl::teleop::stream::{quantile, refused, Settings, Streamer};
-use clap::ValueEnum;
-use firmware::link::message::CartesianTarget;
+use armctl::teleop::stream::{refused, Settings, Streamer};
+use firmware::link::message::{CartesianTarget, MovePath};
 use pyo3::prelude::*;
-use serde_json::json;
+use serde::Serialize;
 
 use crate::errors::{interrupted, to_py, OrRaise};
 
@@ -54,10 +53,36 @@ fn released<T>(py: Python<'_>, f: impl FnOnce() -> T) -> T {
     py.detach(move || f.call()).into_inner()
 }
 
-/// A number as the command line would have been given it (`{:?}` writes every f64 exactly, and
-/// NaN and infinities as the words the parser refuses with its message).
-fn numbers(values: &[f64]) -> String {
-    values.iter().map(|x| format!("{x:?}")).collect::<Vec<_>>().join(",")
+/// A report as Python's own objects (dicts, lists, floats), converted from its serde form.
+fn python<T: Serialize>(py: Python<'_>, report: &T) -> PyResult<Py<PyAny>> {
+    Ok(pythonize::pythonize(py, report).map_err(|e| to_py(anyhow!("{e}")))?.unbind())
+}
+
+/// An operation's failure as Python's exception: Ctrl-C stopped the arm (`KeyboardInterrupt`,
+/// Python's own if its handler raised one), anything else `ArmctlError` with the command line's
+/// line.
+fn raised(e: DriveError) -> PyErr {
+    match e {
+        DriveError::Interrupted { said } => {
+            interrupted().unwrap_or_else(|| pyo3::exceptions::PyKeyboardInterrupt::new_err(said))
+        }
+        other => to_py(other.into()),
+    }
+}
+
+/// Exactly `N` values, as the command line's parser would have read them (its words when not).
+fn fixed<const N: usize>(values: &[f64], what: &str) -> PyResult<[f64; N]> {
+    <[f64; N]>::try_from(values)
+        .map_err(|_| to_py(anyhow!("{what}: expected {N} comma-separated numbers, got {}", values.len())))
+}
+
+/// The simulated servos' safety monitor, for Python.
+#[derive(Serialize)]
+struct MonitorSummary {
+    goals: u64,
+    violations: u64,
+    max_step_ratio: f64,
+    first_violations: Vec<String>,
 }
 
 /// A stream's settings before it opens: its rate, lead and step clamp as given.
@@ -85,32 +110,20 @@ impl Arm {
         self.driver.as_mut().ok_or_else(|| to_py(anyhow!("the arm is closed")))
     }
 
-    /// Runs one drive command's request, refused while a stream is open; returns its JSON line.
-    fn command(&mut self, py: Python<'_>, command: DriveCommand) -> PyResult<String> {
-        let request = Request::parse(&command).or_raise()?;
-        self.run(py, request)
-    }
-
-    /// Runs a checked request (see [`Arm::command`]).
-    fn run(&mut self, py: Python<'_>, request: Request) -> PyResult<String> {
+    /// Runs one operation with the GIL released, refused while a stream is open; returns its
+    /// report as Python objects.
+    fn run<T: Serialize>(
+        &mut self,
+        py: Python<'_>,
+        operation: impl FnOnce(&mut Driver, &mut dyn std::io::Write) -> DriveResult<T>,
+    ) -> PyResult<Py<PyAny>> {
         if self.stream.is_some() {
             return Err(to_py(anyhow!("a stream is open: close it before other commands (nothing was sent)")));
         }
         let driver = self.driver()?;
-        let (mut out, mut err) = (Vec::new(), Vec::new());
-        let code = released(py, || commands::run(driver, request, true, &mut out, &mut err)).or_raise()?;
-        match code {
-            0 => Ok(String::from_utf8_lossy(&out).trim().to_string()),
-            interrupt::EXIT_CODE => {
-                Err(interrupted()
-                    .unwrap_or_else(|| pyo3::exceptions::PyKeyboardInterrupt::new_err("stopped by Ctrl-C")))
-            }
-            _ => {
-                let said = String::from_utf8_lossy(&err);
-                let last = said.lines().last().unwrap_or("the command failed").trim_start_matches("error: ");
-                Err(to_py(anyhow!("{last}")))
-            }
-        }
+        // Notes (torque switched on, a progress bar) are the command line's; Python has the report.
+        let report = released(py, || operation(driver, &mut std::io::sink())).map_err(raised)?;
+        python(py, &report)
     }
 
     fn open_stream(&mut self, py: Python<'_>, request: StreamRequest) -> PyResult<()> {
@@ -173,20 +186,12 @@ impl Arm {
         calibration: Option<PathBuf>,
         baud: Option<u32>,
     ) -> PyResult<Self> {
-        let protocol = protocol
-            .map(|p| {
-                ProtocolArg::from_str(p, true)
-                    .map_err(|_| anyhow!("protocol {p:?}: sts (Feetech) or dxl2 (Dynamixel 2.0)"))
-            })
-            .transpose()
-            .or_raise()?;
-        let link =
-            LinkArgs { port, bus, protocol, baud, sim, arm, calibration, object_mm: None, rig: None, json: true };
+        let protocol = protocol.map(protocol_named).transpose().or_raise()?;
+        let place = Place { port, bus, protocol, baud, sim, arm, calibration, object_mm: None };
         let mut said = Vec::new();
         let (driver, servos) = released(py, || -> Result<(Driver, Option<PtyServer>)> {
-            let (target, arm) = link.target()?;
-            let (target, servos) = target.in_real_time()?;
-            Ok((Driver::open(target, arm, &mut said)?, servos))
+            let (target, servos) = place.target()?.in_real_time()?;
+            Ok((Driver::open(target, place.arm_name(), &mut said)?, servos))
         })
         .or_raise()?;
         let connected = String::from_utf8_lossy(&said).trim().to_string();
@@ -241,15 +246,11 @@ impl Arm {
     }
 
     /// `armctl status --json`: the controller's state, measured joints, setpoints, tool, gripper,
-    /// queue and error counts.
-    fn status(&mut self, py: Python<'_>) -> PyResult<String> {
-        if self.stream.is_some() {
-            // Read between a stream's keyframes (a LeRobot observation): the same answer.
-            let driver = self.driver()?;
-            let status = released(py, || driver.status()).or_raise()?;
-            return Ok(commands::status_json(driver, &status).or_raise()?.to_string());
-        }
-        self.command(py, DriveCommand::Status(OnlyLinkArgs { link: LinkArgs::default() }))
+    /// queue and error counts. Read between a stream's keyframes too (a LeRobot observation).
+    fn status(&mut self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        let driver = self.driver()?;
+        let report = released(py, || state::status(driver)).map_err(raised)?;
+        python(py, &report)
     }
 
     /// `armctl move`: the tool to `position` (m), with `quaternion_wxyz` if given; waits until the
@@ -265,21 +266,17 @@ impl Arm {
         duration: Option<f64>,
         path: &str,
         timeout: f64,
-    ) -> PyResult<String> {
-        let path = PathArg::from_str(path, true).map_err(|_| to_py(anyhow!("path {path:?}: auto, line or joint")))?;
-        if speed.is_some() && duration.is_some() {
-            return Err(to_py(anyhow!("give speed or duration, not both (nothing was sent)")));
-        }
-        let args = MoveArgs {
-            link: LinkArgs::default(),
-            to: vec![numbers(&position)],
-            quat: quaternion_wxyz.as_deref().map(numbers).into_iter().collect(),
-            speed,
-            duration,
-            path,
-            timeout,
+    ) -> PyResult<Py<PyAny>> {
+        let path = match path.to_ascii_lowercase().as_str() {
+            "auto" => MovePath::Auto,
+            "line" => MovePath::Line,
+            "joint" => MovePath::Joint,
+            _ => return Err(to_py(anyhow!("path {path:?}: auto, line or joint"))),
         };
-        self.command(py, DriveCommand::Move(args))
+        let position = fixed::<3>(&position, "--to")?;
+        let orientation = quaternion_wxyz.as_deref().map(|q| fixed::<4>(q, "--quat")).transpose()?;
+        let request = MoveRequest::new(position, orientation, speed, duration, path, timeout).map_err(raised)?;
+        self.run(py, |driver, notes| move_to::move_to(driver, &request, notes))
     }
 
     /// `armctl joints`: every joint to `q` (rad or m), arriving together; waits until at rest.
@@ -291,12 +288,9 @@ impl Arm {
         speed: Option<f64>,
         duration: Option<f64>,
         timeout: f64,
-    ) -> PyResult<String> {
-        if speed.is_some() && duration.is_some() {
-            return Err(to_py(anyhow!("give speed or duration, not both (nothing was sent)")));
-        }
-        let args = JointsArgs { link: LinkArgs::default(), q: numbers(&q), duration, speed, timeout };
-        self.command(py, DriveCommand::Joints(args))
+    ) -> PyResult<Py<PyAny>> {
+        let request = JointsRequest::new(q, speed, duration, timeout).map_err(raised)?;
+        self.run(py, |driver, notes| joints::joints(driver, &request, notes))
     }
 
     /// `armctl play`: a keyframe file (joint `t,q1,...,qN[,v1,...,vN][,gripper]` or Cartesian),
@@ -310,32 +304,29 @@ impl Arm {
         text: Option<String>,
         name: &str,
         timeout: f64,
-    ) -> PyResult<String> {
-        let command = match (path, text) {
-            (Some(file), None) => DriveCommand::Play(PlayArgs { link: LinkArgs::default(), file, timeout }),
-            (None, Some(text)) => {
-                if !(timeout.is_finite() && timeout > 0.0) {
-                    return Err(to_py(anyhow!("timeout: {timeout} s must be a positive number")));
-                }
-                let plan = Plan::parse(&text, std::path::Path::new(name), timeout).or_raise()?;
-                return self.run(py, Request::Play(plan));
-            }
-            _ => return Err(to_py(anyhow!("play takes a file's path or its text, one of them"))),
-        };
-        self.command(py, command)
+    ) -> PyResult<Py<PyAny>> {
+        let plan = match (path, text) {
+            (Some(file), None) => Plan::read(&file, timeout),
+            (None, Some(text)) => match timeout.is_finite() && timeout > 0.0 {
+                true => Plan::parse(&text, std::path::Path::new(name), timeout),
+                false => Err(anyhow!("timeout: {timeout} s must be a positive number")),
+            },
+            _ => Err(anyhow!("play takes a file's path or its text, one of them")),
+        }
+        .or_raise()?;
+        self.run(py, |driver, notes| play::play(driver, &plan, notes))
     }
 
     /// `armctl stop`: decelerates within the limits and holds; waits until at rest. Closes an
     /// open stream first.
-    fn stop(&mut self, py: Python<'_>) -> PyResult<String> {
+    fn stop(&mut self, py: Python<'_>) -> PyResult<Py<PyAny>> {
         self.stream = None;
-        self.command(py, DriveCommand::Stop(OnlyLinkArgs { link: LinkArgs::default() }))
+        self.run(py, |driver, _| state::stop(driver))
     }
 
     /// `armctl torque on|off`.
-    fn torque(&mut self, py: Python<'_>, on: bool) -> PyResult<String> {
-        let state = if on { OnOff::On } else { OnOff::Off };
-        self.command(py, DriveCommand::Torque(TorqueArgs { state, link: LinkArgs::default() }))
+    fn torque(&mut self, py: Python<'_>, on: bool) -> PyResult<Py<PyAny>> {
+        self.run(py, |driver, _| state::torque(driver, on))
     }
 
     /// `armctl gripper open|close|set PERCENT [--effort E]`; waits until the jaws stop.
@@ -347,11 +338,21 @@ impl Arm {
         percent: Option<f64>,
         effort: Option<f64>,
         timeout: f64,
-    ) -> PyResult<String> {
-        let action = GripperAction::from_str(action, true)
-            .map_err(|_| to_py(anyhow!("gripper action {action:?}: open, close or set")))?;
-        let args = GripperArgs { action, percent, effort, timeout, link: LinkArgs::default() };
-        self.command(py, DriveCommand::Gripper(args))
+    ) -> PyResult<Py<PyAny>> {
+        let goal = match (action.to_ascii_lowercase().as_str(), percent) {
+            ("open", None) => GripperGoal::Open,
+            ("close", None) => GripperGoal::Close,
+            ("set", Some(p)) => GripperGoal::Set(p),
+            ("set", None) => {
+                return Err(to_py(anyhow!("gripper set: give the opening in percent, 0 closed to 100 open")))
+            }
+            (action @ ("open" | "close"), Some(_)) => {
+                return Err(to_py(anyhow!("gripper {action}: takes no percent (use `gripper set PERCENT`)")))
+            }
+            _ => return Err(to_py(anyhow!("gripper action {action:?}: open, close or set"))),
+        };
+        let request = GripperRequest::new(goal, effort, timeout).map_err(raised)?;
+        self.run(py, |driver, notes| gripper::gripper(driver, &request, notes))
     }
 
     /// Opens a stream at `rate` readings a second: each reading is a keyframe due `lead_ms` after
@@ -446,35 +447,28 @@ impl Arm {
     }
 
     /// Ends the stream: a last keyframe at rest where it was, then waits until the arm holds.
-    /// Returns the stream's figures as JSON (keyframes, latency, underruns, clamps, tracking).
-    fn stream_end(&mut self, py: Python<'_>) -> PyResult<String> {
+    /// Returns the stream's figures (keyframes, latency, underruns, clamps, tracking).
+    fn stream_end(&mut self, py: Python<'_>) -> PyResult<Py<PyAny>> {
         let Some(stream) = self.stream.take() else {
             return Err(to_py(anyhow!("no stream is open")));
         };
         let driver = self.driver()?;
-        let (f, _) = released(py, || stream.finish(driver)).or_raise()?;
+        let (figures, _) = released(py, || stream.finish(driver)).or_raise()?;
         released(py, || driver.wait_until_rest(10.0)).or_raise()?;
-        let value = json!({
-            "keyframes": f.keyframes, "seconds": f.seconds, "rate_hz": f.rate_hz(),
-            "latency_ms": {"queued_p50": quantile(&f.queued_ms, 0.5), "queued_p99": quantile(&f.queued_ms, 0.99),
-                "goal_p50": quantile(&f.goal_ms, 0.5), "goal_p99": quantile(&f.goal_ms, 0.99)},
-            "late_keyframes": f.late_keyframes, "underruns": f.underruns, "restarts": f.restarts, "retimed": f.retimed,
-            "clamped_steps": f.clamped_steps, "limited_values": f.limited_values,
-            "tracking_rad": {"p50": quantile(&f.tracking, 0.5), "p99": quantile(&f.tracking, 0.99), "max": quantile(&f.tracking, 1.0)},
-        });
-        Ok(value.to_string())
+        python(py, &figures.summary())
     }
 
-    /// The simulated servos' safety monitor (for `sim`) as JSON: goals checked, violations (the
-    /// first 100 in words), the largest step against the limit; None for a real arm.
-    fn monitor(&self) -> Option<String> {
-        let report = self.servos.as_ref()?.monitor()?;
-        let violations: Vec<String> = report.violations.iter().map(ToString::to_string).collect();
-        Some(
-            json!({"goals": report.checked, "violations": report.violation_count, "max_step_ratio": report.max_step_ratio,
-                "first_violations": violations})
-            .to_string(),
-        )
+    /// The simulated servos' safety monitor (for `sim`): goals checked, violations (the first 100
+    /// in words), the largest step against the limit; None for a real arm.
+    fn monitor(&self, py: Python<'_>) -> PyResult<Option<Py<PyAny>>> {
+        let Some(report) = self.servos.as_ref().and_then(PtyServer::monitor) else { return Ok(None) };
+        let summary = MonitorSummary {
+            goals: report.checked,
+            violations: report.violation_count,
+            max_step_ratio: report.max_step_ratio,
+            first_violations: report.violations.iter().map(ToString::to_string).collect(),
+        };
+        python(py, &summary).map(Some)
     }
 
     /// The simulated servos' pseudo-terminal (for `sim`), or None.

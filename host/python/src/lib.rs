@@ -1,6 +1,7 @@
 //! `armctl._armctl`, the native half of the `armctl` Python package: the project's crates bound
 //! with PyO3, nothing of their own. The pure-Python half (`armctl/__init__.py`) turns numpy arrays
-//! into the plain lists these functions take, and their answers (JSON, lists) back.
+//! into the plain lists these functions take, and their answers (dicts and lists, converted from
+//! the operations' typed reports) back.
 //!
 //! - [`model`]: an arm's kinematics (forward kinematics, Jacobian, IK) and trajectory sampling;
 //! - [`arm`]: an arm driven through the firmware core, as every drive command drives it;

@@ -149,6 +149,52 @@ def test_through_a_port_served_by_armctl_serve(armctl_bin):
         serve.wait(timeout=10)
 
 
+def same_to_the_last_bit(python, cli, where="answer"):
+    """Python's answer against the command line's JSON line: the same keys, and every number the
+    same value. A number the firmware sent as an f32 is exactly that f32 in Python; the command
+    line writes it as the shortest text of the f32, which reads back as a nearby f64: the two are
+    then the same f32 to the last bit."""
+    if isinstance(cli, dict):
+        assert isinstance(python, dict) and sorted(python) == sorted(cli), (where, python, cli)
+        for key in cli:
+            same_to_the_last_bit(python[key], cli[key], f"{where}.{key}")
+    elif isinstance(cli, list):
+        assert isinstance(python, list) and len(python) == len(cli), (where, python, cli)
+        for i, (p, c) in enumerate(zip(python, cli)):
+            same_to_the_last_bit(p, c, f"{where}[{i}]")
+    elif isinstance(cli, float) and python != cli:
+        assert float(np.float32(python)) == python, (where, python, "differs and is no f32")
+        assert np.float32(python) == np.float32(cli), (where, python, cli)
+    else:
+        assert type(python) is type(cli) and python == cli, (where, python, cli)
+
+
+def test_answers_are_the_command_lines_to_the_last_bit(armctl_bin, cli_json):
+    # One simulated arm behind `armctl serve`, asked the same at rest by both front ends.
+    serve = subprocess.Popen([armctl_bin, "serve", "--sim"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        port = serve.stdout.readline().strip()
+        assert port.startswith("/dev/"), serve.stderr.read()
+        with armctl.Arm(port=port) as a:
+            q = [0.1, 0.2, -0.3, 0.1, 0.0]
+            a.move_joints(q, duration=0.5)
+            for call, args in [
+                (lambda: a.torque(True), ["torque", "on"]),
+                (a.stop, ["stop"]),
+                (lambda: a.move_joints(q), ["joints", "--q", ",".join(map(str, q))]),
+            ]:
+                python = call()
+                line = cli_json("--port", port, "--json", *args)
+                python.pop("time_s", None), line.pop("time_s", None)  # how long each took
+                same_to_the_last_bit(python, line, args[0])
+            status, line = a.status(), cli_json("--port", port, "--json", "status")
+            for key in ("arm", "state", "measured", "setpoints", "tool", "queued", "free_slots", "gripper"):
+                same_to_the_last_bit(status[key], line[key], key)
+    finally:
+        serve.terminate()
+        serve.wait(timeout=10)
+
+
 def test_play_timed_keyframes_with_the_gripper_and_a_file(arm, tmp_path):
     arm.move_joints([0, 0, 0, 0, 0], duration=1.0)
     times = [0.0, 0.6, 1.2]

@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use firmware::link::message::{FirmwareMessage, HostMessage, Joints, RunState, Timing};
+use firmware::link::message::{Joints, RunState, Timing};
 use serde_json::json;
 
 use crate::args::bus::{model_for, ProtocolArg};
@@ -65,18 +65,11 @@ fn arm(args: &PcBenchArgs) -> Result<ArmSpec> {
     Ok(spec)
 }
 
-fn request(conn: &mut Connection, message: &HostMessage) -> Result<()> {
-    match conn.client.request(message)? {
-        FirmwareMessage::Nak { reason } => bail!("the firmware refused {message:?}: {reason:?}"),
-        _ => Ok(()),
-    }
-}
-
 /// Polls until the arm rests (at most `limit`).
 fn until_rest(conn: &mut Connection, limit: Duration) -> Result<firmware::link::message::Status> {
     let started = Instant::now();
     loop {
-        let status = conn.client.status()?;
+        let status = conn.session.status()?;
         if status.state == RunState::Idle {
             return Ok(status);
         }
@@ -124,7 +117,7 @@ pub fn run(args: &PcBenchArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resu
     let pc = conn.pc.as_ref().context("a --bus connection has its core")?;
     let connected = pc.connected().clone();
     let shared = pc.shared();
-    request(&mut conn, &HostMessage::Torque { on: true })?;
+    conn.session.torque_on(0).context("torque on")?;
     until_rest(&mut conn, Duration::from_secs(2))?;
     let ticks_before = shared.summary();
     let started = Instant::now();
@@ -132,7 +125,7 @@ pub fn run(args: &PcBenchArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resu
     while started.elapsed().as_secs_f64() < args.seconds {
         let q: Vec<f32> = (0..args.servos).map(|j| sign * if j % 2 == 0 { 0.6 } else { -0.6 }).collect();
         let positions = Joints::from_slice(&q).map_err(|_| anyhow::anyhow!("joint count"))?;
-        request(&mut conn, &HostMessage::MoveJoints { positions, timing: Timing::MaxSpeed(10.0) })?;
+        conn.session.move_joints(positions, Timing::MaxSpeed(10.0)).context("joints")?;
         until_rest(&mut conn, Duration::from_secs(10))?;
         sign = -sign;
     }

@@ -2,6 +2,7 @@
 //!
 //! Every failure is one line on `err` starting with `error:` and a non-zero exit code.
 
+pub mod drive;
 mod ik;
 pub mod retarget;
 pub mod serve;
@@ -378,7 +379,7 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
             if let Some(rig) = &merged.rig {
                 return crate::rig::commands::run(rig, &merged, command, out, err);
             }
-            return crate::drive::run(link, command, out, err);
+            return drive::run(link, command, out, err);
         }
         Command::Demo(args) => return crate::demo::run(&args, out),
         Command::Retarget(args) => return retarget::run(link, args, out, err),

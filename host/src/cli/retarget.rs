@@ -270,7 +270,7 @@ pub fn run(global: &LinkArgs, args: RetargetArgs, out: &mut dyn Write, err: &mut
     // with flow control, Ctrl-C stopping the arm. Its report follows as a second JSON line.
     let play_link = LinkArgs { json: true, ..link };
     let command = DriveCommand::Play(PlayArgs { link: LinkArgs::default(), file: path.clone(), timeout: args.timeout });
-    let code = crate::drive::run(&play_link, command, out, err);
+    let code = super::drive::run(&play_link, command, out, err);
     if args.out.is_none() {
         let _ = std::fs::remove_file(&path);
     }

@@ -19,7 +19,7 @@ use crate::arm::ArmSpec;
 use crate::drive::args::{calibrated, default_bus_arm, DEFAULT_SIM_ARM};
 use crate::drive::connection::handshake_with;
 use crate::drive::interrupt;
-use crate::link::client::{LinkClient, LinkConfig};
+use crate::link::session::Session;
 use crate::places::pc::{Pc, PcOptions};
 use crate::places::serve::PtyLink;
 use crate::sim::PtyServer;
@@ -70,7 +70,7 @@ pub fn run(args: ServeArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
     }
     let arm_name = match (&args.arm, args.protocol) {
         (Some(arm), _) => arm.clone(),
-        (None, Some(protocol)) => default_bus_arm(protocol).to_string(),
+        (None, Some(protocol)) => default_bus_arm(protocol.into()).to_string(),
         (None, None) if args.sim => DEFAULT_SIM_ARM.to_string(),
         (None, None) => bail!("--bus needs --protocol: sts (Feetech) or dxl2 (Dynamixel)"),
     };
@@ -98,8 +98,8 @@ pub fn run(args: ServeArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
     let shared = pc.shared();
     // The arm is configured now, so that the first client finds it running.
     let link = pc.take_link().ok_or_else(|| anyhow!("the core's link was taken"))?;
-    let mut client = LinkClient::new(link, LinkConfig::default());
-    handshake_with(&mut client, Some(options.arm.clone()))?;
+    let mut session = Session::over(link);
+    handshake_with(&mut session, Some(options.arm.clone()))?;
     let started = Instant::now();
     while !shared.ready() {
         if started.elapsed() > READY_TIMEOUT || pc.is_finished() {
@@ -107,7 +107,7 @@ pub fn run(args: ServeArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
         }
         std::thread::sleep(Duration::from_millis(1));
     }
-    let pty = PtyLink::spawn(client.into_transport())?;
+    let pty = PtyLink::spawn(session.into_transport())?;
     if args.json {
         super::print_json(out, &serde_json::json!({ "pty": pty.path() }))?;
     } else {

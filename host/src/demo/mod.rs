@@ -19,16 +19,18 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
-use firmware::link::message::{CartesianKeyframe, CartesianTarget, HostMessage, NakReason, RunState, Status, Timing};
+use firmware::link::message::{CartesianKeyframe, CartesianTarget, MovePath, Timing};
 use serde_json::{json, Value};
 
 use crate::arm::dof::DynArm;
 use crate::demo::grasp::Grasp;
 use crate::demo::plot::{write_demo_png, DemoTrace, GripperTrace};
-use crate::drive::connection::handshake_with;
-use crate::link::client::{LinkClient, LinkConfig, LinkError};
+use crate::drive::connection::open_sil;
+use crate::drive::path;
+use crate::drive::session::Driver;
+use crate::link::session::Keyframe;
 use crate::places::sil::{Sil, SilOptions, TraceSample};
 use scenario::Scenario;
 
@@ -58,8 +60,6 @@ pub struct DemoArgs {
     pub json: bool,
 }
 
-type Client = LinkClient<Sil>;
-
 /// One point-to-point move's outcome.
 struct Reached {
     target: [f32; 3],
@@ -79,59 +79,44 @@ fn tool(arm: &dyn DynArm, q: &[f64]) -> Result<[f64; 3]> {
     Ok([p.x, p.y, p.z])
 }
 
+/// Controller seconds a move to a target may take before the demo gives up.
+const MOVE_TIMEOUT_S: f64 = 20.0;
+/// Controller seconds the pick-and-place path may take beyond its keyframes.
+const PLAY_TIMEOUT_S: f64 = 60.0;
+
+/// The demo's simulated board behind the driver.
+fn sil(d: &mut Driver) -> Result<&mut Sil> {
+    d.sil().context("the demo runs on the simulated board")
+}
+
 fn to_f64(q: &[f32]) -> Vec<f64> {
     q.iter().map(|x| f64::from(*x)).collect()
 }
 
-/// Torque on once the firmware has read every servo (it refuses before).
-fn torque_on(c: &mut Client) -> Result<()> {
-    for _ in 0..100 {
-        match c.request(&HostMessage::Torque { on: true }) {
-            Ok(_) => return Ok(()),
-            Err(LinkError::Nak(NakReason::NotReady)) => c.transport().run_for(0.01),
-            Err(e) => return Err(e.into()),
-        }
-    }
-    bail!("the simulated servos never reported their positions")
-}
-
-/// Polls status every 20 ms of virtual time until the arm is at rest.
-fn wait_rest(c: &mut Client, timeout_s: f64) -> Result<Status> {
-    let end = c.transport().now_s() + timeout_s;
-    loop {
-        let s = c.status()?;
-        if s.state == RunState::Idle {
-            return Ok(s);
-        }
-        if c.transport().now_s() > end {
-            bail!("the arm did not come to rest within {timeout_s} s (state {:?})", s.state);
-        }
-        c.transport().run_for(0.02);
-    }
-}
-
 /// Moves the tool to each target in turn and measures how it got there.
+///
+/// Each goes as `armctl move` goes ([`crate::drive::path`]: the straight line checked on the host,
+/// the firmware's IK tracking it, the host's solution by joints where the firmware finds none),
+/// and is waited for as `armctl move` waits.
 fn reach_targets(
-    c: &mut Client,
+    d: &mut Driver,
     arm: &dyn DynArm,
     scenario: &Scenario,
     trace: &mut Vec<TraceSample>,
 ) -> Result<Vec<Reached>> {
     let mut out = Vec::new();
     for &target in &scenario.targets {
-        let start = c.transport().now_s();
-        trace.extend(c.transport().take_trace());
+        let start = sil(d)?.now_s();
+        trace.extend(sil(d)?.take_trace());
         let first_tick = trace.len();
-        let message = HostMessage::MoveTo {
-            path: firmware::link::message::MovePath::Auto,
-            target: CartesianTarget { position: target, orientation: None },
-            timing: Timing::MaxSpeed(scenario.speed),
-        };
-        c.request(&message).with_context(|| format!("move to {target:?}"))?;
+        let from = d.status()?;
+        let goal = CartesianTarget { position: target, orientation: None };
+        path::take(d, &from, goal, Timing::MaxSpeed(scenario.speed), MovePath::Auto)
+            .map_err(|refused| anyhow!("move to {target:?}: {}", refused.reason))?;
         // The status right after the move was accepted reports the IK solve that accepted it.
-        let ik_iterations = c.status()?.ik.iterations;
-        let end = wait_rest(c, 20.0)?;
-        trace.extend(c.transport().take_trace());
+        let ik_iterations = d.status()?.ik.iterations;
+        let end = d.rest(MOVE_TIMEOUT_S)?;
+        trace.extend(sil(d)?.take_trace());
         let mut ticks_to_1mm = None;
         for (i, sample) in trace[first_tick..].iter().enumerate() {
             if distance(tool(arm, &sample.measured)?, target) < 1e-3 {
@@ -144,7 +129,7 @@ fn reach_targets(
             target,
             reached,
             error_mm: distance(reached, target) * 1e3,
-            time_s: c.transport().now_s() - start,
+            time_s: sil(d)?.now_s() - start,
             ticks_to_1mm,
             ik_iterations,
         });
@@ -170,7 +155,7 @@ struct Streamed {
 /// control by the client), starts once the queue holds a second of path, and measures the
 /// tracking and the grasp while it plays.
 fn pick_and_place(
-    c: &mut Client,
+    d: &mut Driver,
     arm: &dyn DynArm,
     scenario: &Scenario,
     trace: &mut Vec<TraceSample>,
@@ -178,29 +163,29 @@ fn pick_and_place(
     let gripper = crate::arm::servos::servos_of(arm.spec()).and_then(|s| s.gripper);
     if let Some(width) = scenario.object_mm {
         let follower = crate::arm::dof::build(arm.spec().clone())?;
-        c.transport().put_object(follower, width, scenario.pick.map(f64::from))?;
+        sil(d)?.put_object(follower, width, scenario.pick.map(f64::from))?;
     }
-    trace.extend(c.transport().take_trace());
+    trace.extend(sil(d)?.take_trace());
     let first_tick = trace.len();
-    let start = c.transport().now_s();
+    let start = sil(d)?.now_s();
     let keyframes = scenario.keyframes();
     let mut acked = 0;
     let mut started = false;
     for &(time, position, opening) in &keyframes {
         let target = CartesianTarget { position, orientation: None };
-        let k = CartesianKeyframe { time, target, gripper: opening };
-        c.push(&HostMessage::PushCartesianKeyframe(k)).with_context(|| format!("keyframe at {time} s"))?;
+        let k = Keyframe::Pose(CartesianKeyframe { time, target, gripper: opening });
+        d.session().push(&k).with_context(|| format!("keyframe at {time} s"))?;
         acked += 1;
         if !started && time >= 1.0 {
-            c.request(&HostMessage::Start)?;
+            d.session().start()?;
             started = true;
         }
     }
     if !started {
-        c.request(&HostMessage::Start)?;
+        d.session().start()?;
     }
-    let end = wait_rest(c, 60.0)?;
-    trace.extend(c.transport().take_trace());
+    let end = d.rest(PLAY_TIMEOUT_S)?;
+    trace.extend(sil(d)?.take_trace());
     let (mut tool_sq, mut tool_max, mut joint_sq, mut joint_max, mut n) = (0.0, 0.0f64, 0.0, 0.0f64, 0usize);
     for s in &trace[first_tick..] {
         let e = distance(tool(arm, &s.measured)?, tool(arm, &s.setpoints)?.map(|x| x as f32)) * 1e3;
@@ -214,7 +199,7 @@ fn pick_and_place(
     }
     let joints = arm.spec().dof().max(1);
     let last = keyframes.last().map_or([0.0; 3], |k| k.1);
-    let grasp = match (&gripper, c.transport().object()) {
+    let grasp = match (&gripper, sil(d)?.object()) {
         (Some(gripper), Some(object)) => {
             let object = object.position();
             Some(grasp::measure(&trace[first_tick..], start, arm, gripper, scenario, object)?)
@@ -229,7 +214,7 @@ fn pick_and_place(
         joint_rms: (joint_sq / (n.max(1) * joints) as f64).sqrt(),
         joint_max,
         final_error_mm: distance(tool(arm, &to_f64(&end.measured))?, last) * 1e3,
-        duration_s: c.transport().now_s() - start,
+        duration_s: sil(d)?.now_s() - start,
         grasp,
     })
 }
@@ -295,33 +280,33 @@ pub fn run(args: &DemoArgs, out: &mut dyn Write) -> Result<i32> {
     }
     let wall = Instant::now();
     let options = SilOptions::new(args.arm.as_deref().unwrap_or(DEFAULT_ARM))?;
-    let mut sil = Sil::new(&options)?;
-    sil.record();
-    let mut c = LinkClient::new(sil, LinkConfig::default());
-    let (info, spec) = handshake_with(&mut c, Some(options.arm.clone()))?;
-    let gripper = crate::arm::servos::servos_of(&spec).and_then(|s| s.gripper);
-    let arm = crate::arm::dof::build(spec)?;
-    torque_on(&mut c)?;
-    let start = to_f64(&c.status()?.measured);
+    let mut board = Sil::new(&options)?;
+    board.record();
+    let mut d = Driver::on(open_sil(board, options.arm.clone())?)?;
+    let info = d.info().clone();
+    let gripper = d.gripper();
+    let arm = crate::arm::dof::build(d.arm().clone())?;
+    d.torque_on().context("the simulated servos never reported their positions")?;
+    let start = to_f64(&d.status()?.measured);
     let scenario = Scenario::for_arm(arm.as_ref(), &start, gripper.as_ref())?;
     let mut trace = Vec::new();
-    let t_targets = c.transport().now_s();
-    let reached = reach_targets(&mut c, arm.as_ref(), &scenario, &mut trace)?;
-    let t_stream = c.transport().now_s();
-    let streamed = pick_and_place(&mut c, arm.as_ref(), &scenario, &mut trace)?;
-    let status = c.status()?;
-    trace.extend(c.transport().take_trace());
+    let t_targets = sil(&mut d)?.now_s();
+    let reached = reach_targets(&mut d, arm.as_ref(), &scenario, &mut trace)?;
+    let t_stream = sil(&mut d)?.now_s();
+    let streamed = pick_and_place(&mut d, arm.as_ref(), &scenario, &mut trace)?;
+    let status = d.status()?;
+    trace.extend(sil(&mut d)?.take_trace());
     let plot_path = (!args.no_plot)
         .then(|| args.plot.clone().unwrap_or_else(|| PathBuf::from(format!("demo-{}.png", arm.spec().name))));
     if let Some(path) = &plot_path {
         let phases = vec![(t_targets, "move to targets".to_string()), (t_stream, "pick and place".to_string())];
         plot(path, arm.as_ref(), &scenario, &trace, phases)?;
     }
-    let sil = c.transport();
-    let stats = sil.stats();
-    let monitor = sil.monitor().clone();
-    let simulated_s = sil.now_s();
-    let link = c.stats();
+    let link = d.session().stats();
+    let board = sil(&mut d)?;
+    let stats = board.stats();
+    let monitor = board.monitor().clone();
+    let simulated_s = board.now_s();
     let servos = crate::arm::servos::servos_of(&options.arm).context("the simulated arm's servos")?;
     let model = servos.model;
     let bus = format!(

@@ -7,22 +7,10 @@ use std::path::PathBuf;
 use anyhow::{bail, Result};
 use clap::{Args, Subcommand, ValueEnum};
 
-use super::connection::Target;
+use super::connection::{Place, Target};
 use crate::args::bus::ProtocolArg;
-use crate::places::pc::PcOptions;
 
-/// The simulated arm of `--sim` when `--arm` is not given.
-pub const DEFAULT_SIM_ARM: &str = "so101";
-/// The baud rate of `--port` and `--bus` when `--baud` is not given.
-pub const DEFAULT_BAUD: u32 = 1_000_000;
-
-/// The arm of `--bus` when `--arm` is not given: the preset whose servos speak the protocol.
-pub fn default_bus_arm(protocol: ProtocolArg) -> &'static str {
-    match protocol {
-        ProtocolArg::Sts => "so101",
-        ProtocolArg::Dxl2 => "open-manipulator-x",
-    }
-}
+pub use super::connection::{calibrated, default_bus_arm, DEFAULT_BAUD, DEFAULT_SIM_ARM};
 
 /// Which arm to drive. Accepted before the command or after it (`armctl --sim move --to ... --json`
 /// as well as `armctl move --sim --to ...`), as global options are. Before another command, each
@@ -139,57 +127,21 @@ impl LinkArgs {
         if self.rig.is_some() {
             bail!("--rig drives status, stop, torque, move and play so far; this command drives one arm");
         }
-        if self.object_mm.is_some() && !self.sim {
-            bail!("--object-mm puts an object between the simulated gripper's jaws: it needs --sim");
-        }
-        if let Some(path) = &self.bus {
-            if self.port.is_some() || self.sim {
-                bail!("--bus, --port and --sim exclude each other: give one");
-            }
-            let Some(protocol) = self.protocol else {
-                bail!(
-                    "--bus needs --protocol: sts (Feetech, SO-100/SO-101) or dxl2 (Dynamixel, Koch, OpenManipulator-X)"
-                )
-            };
-            let arm = self.arm.as_deref().unwrap_or(default_bus_arm(protocol));
-            let spec = calibrated(crate::arm::ArmSpec::load(arm, None)?, self.calibration.as_deref())?;
-            let options = PcOptions {
-                path: path.clone(),
-                protocol: protocol.into(),
-                // The arm file's rate unless --baud names one.
-                baud: self.baud.or(spec.bus_baud()).unwrap_or(DEFAULT_BAUD),
-                arm: spec,
-                calibration_file: self.calibration.as_ref().map(|f| f.display().to_string()),
-            };
-            return Ok((Target::Bus(Box::new(options)), Some(arm)));
-        }
-        if self.protocol.is_some() {
-            bail!("--protocol is the servo protocol of --bus, which is missing");
-        }
-        if self.calibration.is_some() {
-            bail!("--calibration applies to --bus (the core on this PC) only for now");
-        }
-        match (&self.port, self.sim) {
-            (Some(path), false) => {
-                Ok((Target::Port { path: path.clone(), baud: self.baud.unwrap_or(DEFAULT_BAUD) }, self.arm.as_deref()))
-            }
-            (None, true) if self.baud.is_some() => bail!("--baud is the baud rate of --port; --sim has none"),
-            (None, true) => {
-                let arm = self.arm.as_deref().unwrap_or(DEFAULT_SIM_ARM);
-                let options = crate::places::sil::SilOptions {
-                    object_mm: self.object_mm,
-                    ..crate::places::sil::SilOptions::new(arm)?
-                };
-                Ok((Target::Sim(Box::new(options)), Some(arm)))
-            }
-            (Some(_), true) => bail!("--port and --sim exclude each other: give one"),
-            (None, false) if self.baud.is_some() => {
-                bail!("--baud is the baud rate of --port or --bus, which is missing")
-            }
-            (None, false) => bail!(
-                "this command drives an arm: give --port PORT (a board running the firmware), --bus PORT --protocol \
-                 sts|dxl2 (servos on a USB adapter) or --sim (the simulated arm) before it, e.g. `armctl --sim status`"
-            ),
+        let place = self.place();
+        Ok((place.target()?, self.arm.as_deref().or_else(|| place.default_arm())))
+    }
+
+    /// Where the arm is, as typed.
+    pub fn place(&self) -> Place {
+        Place {
+            port: self.port.clone(),
+            bus: self.bus.clone(),
+            protocol: self.protocol.map(Into::into),
+            baud: self.baud,
+            sim: self.sim,
+            arm: self.arm.clone(),
+            calibration: self.calibration.clone(),
+            object_mm: self.object_mm,
         }
     }
 }
@@ -200,18 +152,6 @@ pub fn either<T: PartialEq + std::fmt::Debug>(name: &str, a: Option<T>, b: Optio
         (Some(x), Some(y)) if x != y => bail!("{name} is given twice, with different values ({x:?} and {y:?})"),
         (a, b) => Ok(a.or(b)),
     }
-}
-
-/// `arm` with the LeRobot calibration in `file`, if one is given: each servo's entry found by its
-/// id. Errors name the file.
-pub fn calibrated(mut arm: crate::arm::ArmSpec, file: Option<&std::path::Path>) -> Result<crate::arm::ArmSpec> {
-    let Some(file) = file else { return Ok(arm) };
-    let calibration = crate::arm::calibration::lerobot::read(file)?;
-    let mut servos = crate::arm::servos::servos_of(&arm)
-        .ok_or_else(|| anyhow::anyhow!("arm {} has no servo mapping to calibrate", arm.name))?;
-    servos.calibrate(&calibration).map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))?;
-    arm.servos = Some(servos);
-    Ok(arm)
 }
 
 /// The arm-driving commands.
@@ -301,6 +241,16 @@ pub enum PathArg {
     Line,
     /// By joints, to the joint values IK found for the target.
     Joint,
+}
+
+impl From<PathArg> for firmware::link::message::MovePath {
+    fn from(path: PathArg) -> Self {
+        match path {
+            PathArg::Auto => Self::Auto,
+            PathArg::Line => Self::Line,
+            PathArg::Joint => Self::Joint,
+        }
+    }
 }
 
 /// `armctl move`.

@@ -2,19 +2,145 @@
 //! run on this PC against the servos of a USB adapter (`--bus`), with the handshake and, when
 //! asked, the arm configuration.
 
+use std::path::PathBuf;
 use std::time::Duration;
 
 use anyhow::{anyhow, bail, Context, Result};
+use firmware::bus::Protocol;
 use firmware::link::message::Info;
 
 use crate::arm::servos::servos_of;
 use crate::arm::ArmSpec;
-use crate::link::arm_config::configure_messages;
-use crate::link::client::{LinkClient, LinkConfig};
 use crate::link::serial::open_error;
+use crate::link::session::Session;
 use crate::link::Transport;
 use crate::places::pc::{Pc, PcOptions};
 use crate::places::sil::{Sil, SilOptions};
+
+/// The simulated arm of `--sim` when `--arm` is not given.
+pub const DEFAULT_SIM_ARM: &str = "so101";
+/// The baud rate of `--port` and `--bus` when `--baud` is not given.
+pub const DEFAULT_BAUD: u32 = 1_000_000;
+
+/// The arm of `--bus` when `--arm` is not given: the preset whose servos speak the protocol.
+pub fn default_bus_arm(protocol: Protocol) -> &'static str {
+    match protocol {
+        Protocol::Feetech => "so101",
+        Protocol::Dxl2 => "open-manipulator-x",
+    }
+}
+
+/// A servo protocol by the name people give it: `sts` (Feetech) or `dxl2` (Dynamixel 2.0).
+pub fn protocol_named(name: &str) -> Result<Protocol> {
+    match name.to_ascii_lowercase().as_str() {
+        "sts" => Ok(Protocol::Feetech),
+        "dxl2" => Ok(Protocol::Dxl2),
+        _ => bail!("protocol {name:?}: sts (Feetech) or dxl2 (Dynamixel 2.0)"),
+    }
+}
+
+/// `arm` with the LeRobot calibration in `file`, if one is given: each servo's entry found by its
+/// id. Errors name the file.
+pub fn calibrated(mut arm: ArmSpec, file: Option<&std::path::Path>) -> Result<ArmSpec> {
+    let Some(file) = file else { return Ok(arm) };
+    let calibration = crate::arm::calibration::lerobot::read(file)?;
+    let mut servos =
+        servos_of(&arm).ok_or_else(|| anyhow::anyhow!("arm {} has no servo mapping to calibrate", arm.name))?;
+    servos.calibrate(&calibration).map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))?;
+    arm.servos = Some(servos);
+    Ok(arm)
+}
+
+/// Where the arm to drive is, as a person names it (the command line's `--port`, `--bus`,
+/// `--protocol`, `--baud`, `--sim`, `--arm`, `--calibration`, `--object-mm`; Python's `Arm`'s
+/// keywords): checked and turned into a [`Target`] by [`Place::target`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Place {
+    /// A board running the firmware on this serial port.
+    pub port: Option<String>,
+    /// Servos on this USB adapter's port, driven by the core on this PC.
+    pub bus: Option<String>,
+    /// The servos' protocol, with `bus`.
+    pub protocol: Option<Protocol>,
+    /// The baud rate of `port` or `bus`.
+    pub baud: Option<u32>,
+    /// The simulated arm.
+    pub sim: bool,
+    /// The arm: a preset or an arm file.
+    pub arm: Option<String>,
+    /// A LeRobot calibration file, with `bus`.
+    pub calibration: Option<PathBuf>,
+    /// With `sim`: an object this wide (mm) between the jaws.
+    pub object_mm: Option<f64>,
+}
+
+impl Place {
+    /// The arm to configure on the firmware: the one named, else [`Place::default_arm`].
+    pub fn arm_name(&self) -> Option<&str> {
+        self.arm.as_deref().or_else(|| self.default_arm())
+    }
+
+    /// The arm of `--bus` and `--sim` when none is named (`None` for a board, which keeps the arm
+    /// it runs).
+    pub fn default_arm(&self) -> Option<&'static str> {
+        match (&self.bus, self.protocol, self.sim) {
+            (Some(_), Some(protocol), _) => Some(default_bus_arm(protocol)),
+            (None, _, true) => Some(DEFAULT_SIM_ARM),
+            _ => None,
+        }
+    }
+
+    /// The board or simulation to connect to; every option checked against the others.
+    pub fn target(&self) -> Result<Target> {
+        if self.object_mm.is_some() && !self.sim {
+            bail!("--object-mm puts an object between the simulated gripper's jaws: it needs --sim");
+        }
+        if let Some(path) = &self.bus {
+            if self.port.is_some() || self.sim {
+                bail!("--bus, --port and --sim exclude each other: give one");
+            }
+            let Some(protocol) = self.protocol else {
+                bail!(
+                    "--bus needs --protocol: sts (Feetech, SO-100/SO-101) or dxl2 (Dynamixel, Koch, OpenManipulator-X)"
+                )
+            };
+            let arm = self.arm.as_deref().unwrap_or(default_bus_arm(protocol));
+            let spec = calibrated(ArmSpec::load(arm, None)?, self.calibration.as_deref())?;
+            let options = PcOptions {
+                path: path.clone(),
+                protocol,
+                // The arm file's rate unless --baud names one.
+                baud: self.baud.or(spec.bus_baud()).unwrap_or(DEFAULT_BAUD),
+                arm: spec,
+                calibration_file: self.calibration.as_ref().map(|f| f.display().to_string()),
+            };
+            return Ok(Target::Bus(Box::new(options)));
+        }
+        if self.protocol.is_some() {
+            bail!("--protocol is the servo protocol of --bus, which is missing");
+        }
+        if self.calibration.is_some() {
+            bail!("--calibration applies to --bus (the core on this PC) only for now");
+        }
+        match (&self.port, self.sim) {
+            (Some(path), false) => Ok(Target::Port { path: path.clone(), baud: self.baud.unwrap_or(DEFAULT_BAUD) }),
+            (None, true) if self.baud.is_some() => bail!("--baud is the baud rate of --port; --sim has none"),
+            (None, true) => {
+                let arm = self.arm.as_deref().unwrap_or(DEFAULT_SIM_ARM);
+                let options = SilOptions { object_mm: self.object_mm, ..SilOptions::new(arm)? };
+                Ok(Target::Sim(Box::new(options)))
+            }
+            (Some(_), true) => bail!("--port and --sim exclude each other: give one"),
+            (None, false) if self.baud.is_some() => {
+                bail!("--baud is the baud rate of --port or --bus, which is missing")
+            }
+            (None, false) => bail!(
+                "this command drives an arm: give --port PORT (a board running the firmware), --bus PORT --protocol \
+                 sts|dxl2 (servos on a USB adapter) or --sim (the simulated arm) before it, e.g. `armctl --sim status`"
+            ),
+        }
+    }
+}
 
 /// How long the PC-hosted core may take, once it has its arm, to read every servo and its torque.
 const CORE_READY_TIMEOUT: Duration = Duration::from_secs(2);
@@ -58,8 +184,8 @@ impl Target {
 
 /// An open link after the handshake.
 pub struct Connection {
-    /// The link client.
-    pub client: LinkClient<Box<dyn Transport>>,
+    /// The session over the link.
+    pub session: Session<Box<dyn Transport>>,
     /// The firmware's answer to the handshake (after any configuration).
     pub info: Info,
     /// The arm the firmware runs, for forward kinematics on the host.
@@ -72,8 +198,8 @@ impl Connection {
     /// Ends the link (for `--bus`, after the core has written what the last request asked for)
     /// and says on `err` what the core's control loop did.
     pub fn close(self, err: &mut dyn std::io::Write) -> Result<()> {
-        let Connection { client, pc, .. } = self;
-        drop(client);
+        let Connection { session, pc, .. } = self;
+        drop(session);
         if let Some(pc) = pc {
             let shared = pc.shared();
             drop(pc);
@@ -84,7 +210,7 @@ impl Connection {
 }
 
 /// Sends `arm` to the firmware (joint by joint) and repeats the handshake.
-fn configure<T: Transport>(client: &mut LinkClient<T>, arm: &ArmSpec) -> Result<Info> {
+fn configure<T: Transport>(session: &mut Session<T>, arm: &ArmSpec) -> Result<Info> {
     let servos = servos_of(arm).ok_or_else(|| {
         anyhow!(
             "arm {} has no servo mapping: add a [servos] table to its arm file (the presets so101 and \
@@ -92,10 +218,8 @@ fn configure<T: Transport>(client: &mut LinkClient<T>, arm: &ArmSpec) -> Result<
             arm.name
         )
     })?;
-    for message in configure_messages(arm, &servos)? {
-        client.request(&message).with_context(|| format!("configuring arm {}", arm.name))?;
-    }
-    Ok(client.hello()?)
+    session.configure_arm(arm, &servos, 0).with_context(|| format!("configuring arm {}", arm.name))?;
+    Ok(session.hello()?)
 }
 
 /// Opens `target`, shakes hands and makes sure the firmware runs an arm: `arm` if given (sent to
@@ -128,6 +252,12 @@ pub fn open(target: Target, arm: Option<&str>, err: &mut dyn std::io::Write) -> 
     connect(transport, loaded_arm, arm, pc)
 }
 
+/// The link to a simulated board already made (the demo's, recording its ticks), with `arm` (the
+/// one the board was made for) sent as it is.
+pub fn open_sil(sil: Sil, arm: ArmSpec) -> Result<Connection> {
+    connect(Box::new(sil), Some(arm), None, None)
+}
+
 /// Opens the link of board `index` of a group of simulated boards on one clock (a rig's arms in
 /// SIL), with `arm` (the one the board was made for) sent as it is.
 pub fn open_in_group(group: &crate::places::sil::group::SilGroup, index: usize, arm: ArmSpec) -> Result<Connection> {
@@ -143,10 +273,10 @@ fn connect(
     arm: Option<&str>,
     pc: Option<Pc>,
 ) -> Result<Connection> {
-    let mut client = LinkClient::new(transport, LinkConfig::default());
+    let mut session = Session::over(transport);
     let (info, spec) = match loaded_arm {
-        Some(spec) => handshake_with(&mut client, Some(spec))?,
-        None => handshake(&mut client, arm)?,
+        Some(spec) => handshake_with(&mut session, Some(spec))?,
+        None => handshake(&mut session, arm)?,
     };
     if let Some(core) = &pc {
         // Until every servo and its torque are read, the status would call a torqued arm limp.
@@ -159,7 +289,7 @@ fn connect(
             std::thread::sleep(Duration::from_millis(1));
         }
     }
-    Ok(Connection { client, info, arm: spec, pc })
+    Ok(Connection { session, info, arm: spec, pc })
 }
 
 /// The handshake over an open link: makes sure the firmware runs `arm` if given, else any arm this
@@ -170,22 +300,22 @@ fn connect(
 /// ([`crate::link::arm_config::digest_of`]). A board running another arm of the same name (another
 /// calibration, an edited file, sent by another host or by `armctl serve`) is not overwritten:
 /// that is an error, which says what to do.
-pub fn handshake<T: Transport>(client: &mut LinkClient<T>, arm: Option<&str>) -> Result<(Info, ArmSpec)> {
-    handshake_with(client, arm.map(|name| ArmSpec::load(name, None)).transpose()?)
+pub fn handshake<T: Transport>(session: &mut Session<T>, arm: Option<&str>) -> Result<(Info, ArmSpec)> {
+    handshake_with(session, arm.map(|name| ArmSpec::load(name, None)).transpose()?)
 }
 
 /// [`handshake`] with the arm already loaded.
-pub fn handshake_with<T: Transport>(client: &mut LinkClient<T>, arm: Option<ArmSpec>) -> Result<(Info, ArmSpec)> {
-    let mut info = client.hello().context("handshake with the firmware")?;
+pub fn handshake_with<T: Transport>(session: &mut Session<T>, arm: Option<ArmSpec>) -> Result<(Info, ArmSpec)> {
+    let mut info = session.hello().context("handshake with the firmware")?;
     let spec = match arm {
         Some(spec) => {
             if info.arm_name.as_str() != spec.name {
-                info = configure(client, &spec)?;
+                info = configure(session, &spec)?;
             } else if let Some(servos) = servos_of(&spec) {
                 let digest = crate::link::arm_config::arm_digest(&spec, &servos)?;
                 if info.arm_digest == firmware::builtin::DIGEST && digest != info.arm_digest {
                     // The default the board starts with gives way to the arm the host names.
-                    info = configure(client, &spec)?;
+                    info = configure(session, &spec)?;
                 } else if digest != info.arm_digest {
                     bail!(
                         "the board runs another arm named {} (another calibration or an edited file): not replaced; \

@@ -9,10 +9,10 @@
 use std::io::Write;
 
 use anyhow::{bail, Result};
-use firmware::link::message::{GripperStatus, HostMessage, Status};
-use serde_json::json;
+use firmware::link::message::{GripperStatus, Status};
+use serde::Serialize;
 
-use super::args::{GripperAction, GripperArgs};
+use super::error::{DriveError, DriveResult};
 use super::interrupt;
 use super::session::Driver;
 
@@ -29,6 +29,28 @@ const STILL_POLLS: u32 = 15;
 /// the contact before the grasp is seen: under 0.1 s of travel at the default speed.
 const HOLD_SETTLE_S: f32 = 0.15;
 
+/// Where the jaws go.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum GripperGoal {
+    /// Fully open (100 %).
+    Open,
+    /// Closed (0 %), stopping on whatever is between the jaws.
+    Close,
+    /// To an opening, percent (0 closed to 100 open).
+    Set(f64),
+}
+
+impl GripperGoal {
+    /// As the command line and Python name it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Open => "open",
+            Self::Close => "close",
+            Self::Set(_) => "set",
+        }
+    }
+}
+
 /// A checked gripper request.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GripperRequest {
@@ -40,8 +62,8 @@ pub struct GripperRequest {
     pub timeout: f64,
 }
 
-/// A percentage from the command line: finite, within `0..=100` (above 0 for an effort).
-fn percent(value: f64, what: &str, above_zero: bool) -> Result<f32> {
+/// A percentage: finite, within `0..=100` (above 0 for an effort).
+fn percent(value: f64, what: &str, above_zero: bool) -> anyhow::Result<f32> {
     if !value.is_finite() || !(0.0..=100.0).contains(&value) || (above_zero && value == 0.0) {
         let range = if above_zero { "above 0 and at most 100" } else { "from 0 (closed) to 100 (open)" };
         bail!("{what}: {value} is not a percent {range}");
@@ -50,21 +72,36 @@ fn percent(value: f64, what: &str, above_zero: bool) -> Result<f32> {
 }
 
 impl GripperRequest {
-    /// Checks the arguments (nothing is connected yet).
-    pub fn parse(args: &GripperArgs) -> Result<Self> {
-        let opening = match (args.action, args.percent) {
-            (GripperAction::Open, None) => 100.0,
-            (GripperAction::Close, None) => 0.0,
-            (GripperAction::Set, Some(p)) => percent(p, "gripper set", false)?,
-            (GripperAction::Set, None) => bail!("gripper set: give the opening in percent, 0 closed to 100 open"),
-            (action, Some(_)) => bail!("gripper {}: takes no percent (use `gripper set PERCENT`)", action.name()),
+    /// Checks the values (nothing is connected yet).
+    pub fn new(goal: GripperGoal, effort: Option<f64>, timeout: f64) -> DriveResult<Self> {
+        let check = || -> anyhow::Result<Self> {
+            let opening = match goal {
+                GripperGoal::Open => 100.0,
+                GripperGoal::Close => 0.0,
+                GripperGoal::Set(p) => percent(p, "gripper set", false)?,
+            };
+            let effort = effort.map(|e| percent(e, "--effort", true)).transpose()?;
+            if !(timeout.is_finite() && timeout > 0.0) {
+                bail!("--timeout: {timeout} s must be a positive number");
+            }
+            Ok(Self { opening, effort, timeout })
         };
-        let effort = args.effort.map(|e| percent(e, "--effort", true)).transpose()?;
-        if !(args.timeout.is_finite() && args.timeout > 0.0) {
-            bail!("--timeout: {} s must be a positive number", args.timeout);
-        }
-        Ok(Self { opening, effort, timeout: args.timeout })
+        check().map_err(DriveError::Input)
     }
+}
+
+/// What `gripper` did.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct GripperReport {
+    /// Always "gripper".
+    pub command: &'static str,
+    /// Where the jaws stopped (opening), their goal, the load, whether they hold something.
+    #[serde(flatten)]
+    pub jaws: GripperStatus,
+    /// The opening in mm, if the arm's gripper span is known.
+    pub opening_mm: Option<f64>,
+    /// The effort limit sent, percent.
+    pub effort: Option<f32>,
 }
 
 /// The gripper of a status, or the error that the arm has none.
@@ -74,31 +111,32 @@ fn of(driver: &Driver, status: &Status) -> Result<GripperStatus> {
     })
 }
 
+impl GripperReport {
+    /// The report as `armctl gripper` prints it.
+    pub fn text(&self) -> String {
+        format!("gripper: {}", describe(&self.jaws, self.opening_mm))
+    }
+}
+
 /// Sends the request and waits until the gripper is at its goal, has held something for
-/// [`HOLD_SETTLE_S`] or stands still; prints where it stopped. Returns the exit code.
-pub fn run(
-    driver: &mut Driver,
-    request: GripperRequest,
-    json: bool,
-    out: &mut dyn Write,
-    err: &mut dyn Write,
-) -> Result<i32> {
+/// [`HOLD_SETTLE_S`] or stands still. Torque is switched on if it is off (said on `notes`).
+pub fn gripper(driver: &mut Driver, request: &GripperRequest, notes: &mut dyn Write) -> DriveResult<GripperReport> {
     let status = driver.status()?;
     of(driver, &status)?;
     let (start, switched) = driver.ready_to_move()?;
     interrupt::catch();
-    let message = HostMessage::Gripper { opening: request.opening, effort: request.effort };
-    if let Err(e) = driver.request(&message) {
-        bail!("gripper to {} %: {e}; nothing moved{}", request.opening, driver.undo_torque(switched));
+    if let Err(e) = driver.session().gripper(request.opening, request.effort) {
+        let undone = driver.undo_torque(switched);
+        return Err(DriveError::failed(format!("gripper to {} %: {e}; nothing moved{undone}", request.opening)));
     }
-    Driver::note_torque(switched, err)?;
+    Driver::note_torque(switched, notes)?;
     let mut last = of(driver, &start)?;
     let mut still = 0;
     let mut held_since = None;
     let first = start.time;
     let status = loop {
         if interrupt::requested() {
-            return driver.stop_after_interrupt(err);
+            return Err(driver.interrupted(""));
         }
         driver.pause()?;
         let status = driver.status()?;
@@ -112,26 +150,15 @@ pub fn run(
             break status;
         }
         if f64::from(status.time - first) > request.timeout {
-            bail!("gripper: timed out after {} s at {:.1} % (goal {:.1} %)", request.timeout, g.opening, g.goal);
+            return Err(DriveError::failed(format!(
+                "gripper: timed out after {} s at {:.1} % (goal {:.1} %)",
+                request.timeout, g.opening, g.goal
+            )));
         }
     };
     let g = of(driver, &status)?;
     let mm = driver.gripper().map(|spec| f64::from(g.opening).clamp(0.0, 100.0) / 100.0 * spec.opening_mm);
-    if json {
-        let v = json!({
-            "command": "gripper",
-            "goal": g.goal,
-            "opening": g.opening,
-            "opening_mm": mm,
-            "load": g.load,
-            "holding": g.holding,
-            "effort": request.effort,
-        });
-        writeln!(out, "{v}")?;
-    } else {
-        writeln!(out, "gripper: {}", describe(&g, mm))?;
-    }
-    Ok(0)
+    Ok(GripperReport { command: "gripper", jaws: g, opening_mm: mm, effort: request.effort })
 }
 
 /// One line about the gripper: `at 41.2 % (37.1 mm), goal 0.0 %, load 48 %, holding something`.

@@ -1,38 +1,103 @@
-//! Driving an arm through the host link: `armctl --port PORT ...` for a board running the
-//! firmware, `armctl --sim ...` for the same firmware core simulated on this PC (software in the
-//! loop).
+//! Driving an arm through the host link: one typed operation per command, over a [`Driver`]
+//! (a connection to the firmware core, wherever it runs: a board on a port, `--sim`, `--bus`).
 //!
-//! The commands: `move` (tool to a point or pose, IK on the firmware), `joints` (to joint values),
-//! `play` (a keyframe file, joint or Cartesian, streamed with flow control), `status`, `stop`,
-//! `torque on|off` and `gripper open|close|set PERCENT`. Every command checks what the user typed before anything is sent, so bad input
-//! changes nothing; a request the firmware refuses changes nothing either (the link's contract).
-//! `move`, `joints` and `play` wait until the arm is at rest again; Ctrl-C while they wait stops
-//! the arm (decelerating within its limits) and exits with code 130.
+//! Each operation takes a checked request and returns a report (`serde::Serialize`: the
+//! command line's `--json` line, Python's dict) or a [`DriveError`]: [`move_to`] (the tool to a
+//! point or pose, IK on the firmware, by the path [`path`] decides), [`joints`], [`play`] (a
+//! keyframe file, joint or Cartesian, streamed with flow control), [`state`] (`status`, `stop`,
+//! `torque`) and [`gripper`]. Each request's constructor checks its values before anything is
+//! sent, so bad input changes nothing; a request the firmware refuses changes nothing either
+//! (the link's contract). The moves wait until the arm is at rest; Ctrl-C while they wait stops
+//! the arm (decelerating within its limits) and ends in [`DriveError::Interrupted`].
+//!
+//! The command line (`cli::drive`), the Python binding, the view and a rig call these same
+//! operations.
+//!
+//! [`Driver`]: session::Driver
 
 pub mod args;
-pub mod commands;
 pub mod connection;
-mod gripper;
+pub mod error;
+pub mod gripper;
 pub mod interrupt;
-pub(crate) mod path;
+pub mod joints;
+pub mod move_to;
+pub mod path;
 pub mod play;
 mod progress;
 pub mod session;
+pub mod state;
 
 use std::io::Write;
 
-use anyhow::Result;
+use serde::Serialize;
 
-use args::{DriveCommand, LinkArgs};
+pub use error::{DriveError, DriveResult};
+use session::Driver;
 
-/// Runs an arm-driving command; returns the exit code.
-pub fn run(link: &LinkArgs, command: DriveCommand, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
-    // Everything the user typed is checked before connecting, so bad input changes nothing.
-    let link = link.merged(command.link())?;
-    let request = commands::Request::parse(&command)?;
-    let (target, arm) = link.target()?;
-    let mut driver = session::Driver::open(target, arm, err)?;
-    let code = commands::run(&mut driver, request, link.json, out, err)?;
-    driver.close(err)?;
-    Ok(code)
+/// A drive operation with its request checked.
+pub enum Operation {
+    /// `move`.
+    Move(move_to::MoveRequest),
+    /// `joints`.
+    Joints(joints::JointsRequest),
+    /// `play`.
+    Play(play::Plan),
+    /// `status`.
+    Status,
+    /// `stop`.
+    Stop,
+    /// `torque on|off`.
+    Torque(bool),
+    /// `gripper`.
+    Gripper(gripper::GripperRequest),
+}
+
+/// An operation's report.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum Report {
+    /// `move`.
+    Move(move_to::MoveReport),
+    /// `joints`.
+    Joints(joints::JointsReport),
+    /// `play`.
+    Play(play::PlayReport),
+    /// `status`.
+    Status(state::StatusReport),
+    /// `stop`.
+    Stop(state::StopReport),
+    /// `torque`.
+    Torque(state::TorqueReport),
+    /// `gripper`.
+    Gripper(gripper::GripperReport),
+}
+
+impl Report {
+    /// The report as the command line prints it without `--json`.
+    pub fn text(&self) -> String {
+        match self {
+            Report::Move(r) => r.text(),
+            Report::Joints(r) => r.text(),
+            Report::Play(r) => r.text(),
+            Report::Status(r) => r.text(),
+            Report::Stop(r) => r.text(),
+            Report::Torque(r) => r.text(),
+            Report::Gripper(r) => r.text(),
+        }
+    }
+}
+
+/// Carries out `operation` on the connected firmware; notes on the way (torque switched on, a
+/// progress bar, warnings) go to `notes`.
+pub fn carry_out(driver: &mut Driver, operation: &Operation, notes: &mut dyn Write) -> DriveResult<Report> {
+    Ok(match operation {
+        Operation::Move(request) => Report::Move(move_to::move_to(driver, request, notes)?),
+        Operation::Joints(request) => Report::Joints(joints::joints(driver, request, notes)?),
+        Operation::Play(plan) => Report::Play(play::play(driver, plan, notes)?),
+        Operation::Status => Report::Status(state::status(driver)?),
+        Operation::Stop => Report::Stop(state::stop(driver)?),
+        Operation::Torque(on) => Report::Torque(state::torque(driver, *on)?),
+        Operation::Gripper(request) => Report::Gripper(gripper::gripper(driver, request, notes)?),
+    })
 }

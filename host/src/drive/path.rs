@@ -1,10 +1,13 @@
-//! The path of a Cartesian move, decided on the host before anything is sent: the straight line is
-//! checked by IK as the firmware will track it, and where it is blocked the move goes by joints
-//! (or, with `--path line`, is refused), with the reason in words. `armctl move` and the live
-//! target of `armctl view` decide alike.
+//! The path of a Cartesian move, decided in this one place for every front end (`armctl move`,
+//! the demo, a rig, the view's live target). Before anything is sent, the straight line is checked
+//! by IK as the firmware will track it; where it is blocked the move goes by joints (or, asked for
+//! the line only, is refused), with the reason in words. The firmware's IK (f32, a budget sized for
+//! its loop) can miss a solution that exists: where it refuses the target as unreachable, the
+//! host's solution is sent as a joint move. After the move, [`outcome`] says which way the arm
+//! went.
 
 use anyhow::Result;
-use firmware::link::message::{CartesianTarget, HostMessage, MovePath, NakReason, Status, Timing, MAX_SPEED};
+use firmware::link::message::{CartesianTarget, MovePath, NakReason, Status, Timing, MAX_SPEED};
 use kinematics::ik::IkStatus;
 
 use super::session::{check_joints, Driver};
@@ -12,61 +15,145 @@ use crate::link::client::LinkError;
 use crate::motion::line::{Blocked, Line};
 use crate::motion::reach;
 
-/// The path to send for a move asked to go by `asked`, and where the line is blocked if it is:
-/// a blocked line goes by joints (for `Line` too: the caller refuses it instead, with the reason).
-pub(crate) fn decide(
-    driver: &Driver,
-    start: &Status,
-    target: &CartesianTarget,
-    asked: MovePath,
-) -> Result<(MovePath, Option<Blocked>)> {
-    if asked == MovePath::Joint {
-        return Ok((MovePath::Joint, None));
+/// Said where the host's solution was sent: why the arm went by joints.
+pub const SOLVED_ON_HOST: &str =
+    "the firmware's IK found no solution from here, so the arm went by joints to the host's";
+
+/// How a move was sent.
+#[derive(Clone, Debug)]
+pub struct Route {
+    /// The path the firmware was asked to take.
+    pub sent: MovePath,
+    /// Where the host's check found the straight line blocked, if it did (the arm then goes by
+    /// joints from the start).
+    pub blocked_ahead: Option<Blocked>,
+    /// Whether the host's IK solution went as a joint move, the firmware having found none.
+    pub solved_on_host: bool,
+}
+
+/// A move that was not sent, or that the firmware refused: nothing moved.
+#[derive(Debug)]
+pub struct Refused {
+    /// Why, in words.
+    pub reason: String,
+    /// What to try instead ("; --path auto or joint goes there by joints"), or nothing.
+    pub hint: &'static str,
+    /// Who said no: the host's check, the firmware, or a link that failed.
+    pub by: RefusedBy,
+}
+
+/// Who refused a move.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RefusedBy {
+    /// The host's check, before anything was sent.
+    Host,
+    /// The firmware (a nak).
+    Firmware,
+    /// Nobody: the link failed.
+    Link,
+}
+
+impl Refused {
+    fn because(reason: impl std::fmt::Display) -> Self {
+        Self { reason: reason.to_string(), hint: "", by: RefusedBy::Host }
     }
-    match check_line(driver, start, target)? {
-        Ok(_) => Ok((asked, None)),
-        Err(blocked) => Ok((MovePath::Joint, Some(blocked))),
+
+    fn link(e: LinkError) -> Self {
+        let by = if matches!(e, LinkError::Nak(_)) { RefusedBy::Firmware } else { RefusedBy::Link };
+        Self { reason: e.to_string(), hint: "", by }
     }
 }
 
-/// Sends the move to `target` by `path` (as [`decide`] chose it). The firmware's IK (f32, a budget
-/// sized for its loop) can miss a solution that exists: where it refuses the target as unreachable
-/// (but for `Line`, which asks for the firmware's tracking), the host's solution is tried, and the
-/// arm goes there by a joint move. `Ok(Ok(true))` if the host's solution was sent, `Ok(Err(_))`
-/// with the firmware's refusal if not even the host finds one, `Err` for a host-side failure.
-pub(crate) fn send(
+/// Decides the way to `target` for a move asked to go by `asked`, and sends it from where the arm
+/// stands (`start`).
+pub fn take(
     driver: &mut Driver,
     start: &Status,
     target: CartesianTarget,
     timing: Timing,
-    path: MovePath,
-) -> Result<Result<bool, LinkError>> {
-    match driver.request(&HostMessage::MoveTo { target, timing, path }) {
-        Ok(_) => Ok(Ok(false)),
-        Err(LinkError::Nak(NakReason::Unreachable)) if path != MovePath::Line => {
-            let Some(q) = host_solution(driver, start, &target)? else {
-                return Ok(Err(LinkError::Nak(NakReason::Unreachable)));
+    asked: MovePath,
+) -> Result<Route, Refused> {
+    let mut route = Route { sent: asked, blocked_ahead: None, solved_on_host: false };
+    if asked != MovePath::Joint {
+        match check_line(driver, start, &target).map_err(|e| Refused::because(format!("{e:#}")))? {
+            Ok(_) => {}
+            Err(blocked) if asked == MovePath::Line => {
+                return Err(Refused {
+                    reason: where_blocked(driver.arm(), &blocked),
+                    hint: "; --path auto or joint goes there by joints",
+                    by: RefusedBy::Host,
+                })
+            }
+            Err(blocked) => (route.sent, route.blocked_ahead) = (MovePath::Joint, Some(blocked)),
+        }
+    }
+    match driver.session().move_to(target, timing, route.sent) {
+        Ok(()) => Ok(route),
+        Err(LinkError::Nak(NakReason::Unreachable)) if route.sent != MovePath::Line => {
+            let unreachable = LinkError::Nak(NakReason::Unreachable);
+            let solved = host_solution(driver, start, &target).map_err(|e| Refused::because(format!("{e:#}")))?;
+            let Some(q) = solved else {
+                let reason = format!("{unreachable}, and the host's IK finds no solution either");
+                return Err(Refused { reason, hint: "", by: RefusedBy::Firmware });
             };
-            let positions = check_joints(driver, &q, "the host's solution")?;
+            let positions =
+                check_joints(driver, &q, "the host's solution").map_err(|e| Refused::because(format!("{e:#}")))?;
             // A tool speed means nothing to a joint move: as fast as the limits allow, as
             // `armctl joints` goes by default; a duration is kept.
             let timing = match timing {
                 Timing::MaxSpeed(_) => Timing::MaxSpeed(MAX_SPEED),
                 other => other,
             };
-            Ok(driver.request(&HostMessage::MoveJoints { positions, timing }).map(|_| true))
+            driver.session().move_joints(positions, timing).map_err(Refused::link)?;
+            route.solved_on_host = true;
+            Ok(route)
         }
-        Err(e) => Ok(Err(e)),
+        Err(e) => Err(Refused::link(e)),
     }
 }
 
-/// Said where the host's solution was sent: why the arm went by joints.
-pub(crate) const SOLVED_ON_HOST: &str =
-    "the firmware's IK found no solution from here, so the arm went by joints to the host's";
+/// Which way a move went, and why it went by joints if it did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Outcome {
+    /// "line", "line, then joints" or "joint".
+    pub path: &'static str,
+    /// Why by joints, in words, if so.
+    pub why: Option<String>,
+}
+
+/// How the move sent by `route` went, read once the arm is at rest (`end`, from `start`; the tool
+/// `error_mm` from the target). A line asked for alone that ran into the joint limits is an error.
+pub fn outcome(driver: &Driver, route: &Route, start: &Status, end: &Status, error_mm: f64) -> Result<Outcome, String> {
+    // The firmware follows the straight line, and finishes by joints where the line runs into the
+    // joint limits (it counts each time it does); with --path line it stops there.
+    let fell_back = end.errors.line_fallbacks > start.errors.line_fallbacks;
+    if route.sent == MovePath::Line && error_mm > 1.0 {
+        return Err(format!(
+            "the straight line ran into the joint limits: stopped {error_mm:.1} mm short{}; \
+             --path auto finishes such a move by joints",
+            at_limits(driver.arm(), end.measured.iter().map(|&x| f64::from(x)))
+        ));
+    }
+    let path = match route.sent {
+        MovePath::Joint => "joint",
+        _ if route.solved_on_host => "joint",
+        _ if fell_back => "line, then joints",
+        _ => "line",
+    };
+    let why = match (&route.blocked_ahead, route.solved_on_host, fell_back) {
+        (Some(b), ..) => Some(format!("{}, so the arm went by joints", where_blocked(driver.arm(), b))),
+        (None, true, _) => Some(SOLVED_ON_HOST.to_string()),
+        (None, false, true) => {
+            Some("the straight line ran into the joint limits, so the arm went the rest of the way by joints".into())
+        }
+        (None, false, false) => None,
+    };
+    Ok(Outcome { path, why })
+}
 
 /// The joints that put the tool on `target`, solved on the host from where the arm is
 /// ([`reach::solve`]), or `None` if it finds none within the limits.
-pub(crate) fn host_solution(driver: &Driver, start: &Status, target: &CartesianTarget) -> Result<Option<Vec<f64>>> {
+pub fn host_solution(driver: &Driver, start: &Status, target: &CartesianTarget) -> Result<Option<Vec<f64>>> {
     let seed = start.measured.iter().map(|&x| f64::from(x)).collect();
     let position = target.position.map(f64::from);
     let solved = reach::solve(driver.model(), position, target.orientation.map(|o| o.map(f64::from)), Some(seed))?;
@@ -75,11 +162,7 @@ pub(crate) fn host_solution(driver: &Driver, start: &Status, target: &CartesianT
 
 /// The straight line from the tool (at the joints of `start`) to `target`, checked by IK as the
 /// firmware will track it ([`Line::follow`]).
-pub(crate) fn check_line(
-    driver: &Driver,
-    start: &Status,
-    target: &CartesianTarget,
-) -> Result<Result<Vec<f64>, Blocked>> {
+pub fn check_line(driver: &Driver, start: &Status, target: &CartesianTarget) -> Result<Result<Vec<f64>, Blocked>> {
     let q: Vec<f64> = start.measured.iter().map(|&x| f64::from(x)).collect();
     let line = Line {
         from: driver.tool_position(&start.measured)?,
@@ -91,7 +174,7 @@ pub(crate) fn check_line(
 
 /// Where the host's check found the line blocked, in words ("the straight line is blocked 75 mm
 /// along its 145 mm, joint 1 (shoulder_pan) at its upper limit 1.920").
-pub(crate) fn where_blocked(arm: &crate::arm::ArmSpec, b: &Blocked) -> String {
+pub fn where_blocked(arm: &crate::arm::ArmSpec, b: &Blocked) -> String {
     format!(
         "the straight line is blocked {:.0} mm along its {:.0} mm{}",
         b.along * 1e3,
@@ -102,7 +185,7 @@ pub(crate) fn where_blocked(arm: &crate::arm::ArmSpec, b: &Blocked) -> String {
 
 /// The joints within 0.02 rad (or m) of a limit at `q`, in words (", joint 2 (shoulder_lift) at its
 /// upper limit 1.745"), or nothing.
-pub(crate) fn at_limits(arm: &crate::arm::ArmSpec, q: impl IntoIterator<Item = f64>) -> String {
+pub fn at_limits(arm: &crate::arm::ArmSpec, q: impl IntoIterator<Item = f64>) -> String {
     const NEAR: f64 = 0.02;
     let words: Vec<String> = arm
         .joints

@@ -13,14 +13,15 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{anyhow, bail, Context, Result};
 use firmware::link::message::{
-    CartesianKeyframe, CartesianTarget, FirmwareMessage, HostMessage, JointKeyframe, Joints, RunState, Status,
-    MAX_JOINT_VELOCITY, MAX_TIME,
+    CartesianKeyframe, CartesianTarget, JointKeyframe, Joints, RunState, Status, MAX_JOINT_VELOCITY, MAX_TIME,
 };
-use serde_json::json;
+use serde::Serialize;
 
+use super::error::{DriveError, DriveResult};
 use super::interrupt;
 use super::progress::Progress;
 use super::session::{check_joints, fmt3, Driver};
+use crate::link::session::Keyframe;
 use crate::motion::cartesian_file::{self, parse_cartesian_keyframes, CartesianKeyframes};
 use crate::motion::trajectory::{self, Keyframes};
 
@@ -151,8 +152,8 @@ impl Plan {
         }
     }
 
-    /// The push messages with their file lines, checked against the connected arm.
-    pub(crate) fn messages(&self, driver: &Driver) -> Result<Vec<(usize, HostMessage)>> {
+    /// The keyframes with their file lines, checked against the connected arm.
+    pub fn keyframes(&self, driver: &Driver) -> Result<Vec<(usize, Keyframe)>> {
         let column = match &self.frames {
             Frames::Joint(k) => k.gripper.as_ref(),
             Frames::Cartesian(k) => k.gripper.as_ref(),
@@ -181,7 +182,7 @@ impl Plan {
                         }
                     };
                     let keyframe = JointKeyframe { time: k.times[i] as f32, positions, velocities, gripper: gripper(i) };
-                    Ok((k.lines[i], HostMessage::PushKeyframe(keyframe)))
+                    Ok((k.lines[i], Keyframe::Joints(keyframe)))
                 })
                 .collect(),
             Frames::Cartesian(k) => {
@@ -193,19 +194,11 @@ impl Plan {
                         orientation: k.orientations.as_ref().map(|o| o[i].map(|x| x as f32)),
                     };
                     let keyframe = CartesianKeyframe { time: k.times[i] as f32, target, gripper: gripper(i) };
-                    (k.lines[i], HostMessage::PushCartesianKeyframe(keyframe))
+                    (k.lines[i], Keyframe::Pose(keyframe))
                 })
                 .collect())
             }
         }
-    }
-}
-
-/// Pushes one keyframe; fails unless it was acknowledged.
-pub(crate) fn push(driver: &mut Driver, message: &HostMessage) -> Result<()> {
-    match driver.push(message)? {
-        FirmwareMessage::Ack { .. } => Ok(()),
-        other => bail!("unexpected reply {other:?} to a keyframe push"),
     }
 }
 
@@ -217,19 +210,67 @@ fn failed_at(driver: &mut Driver) -> String {
     }
 }
 
-/// Plays a checked plan; returns the exit code.
-pub fn run(driver: &mut Driver, plan: Plan, json: bool, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
-    let messages = plan.messages(driver)?;
-    let total = messages.len();
+/// What `play` did.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PlayReport {
+    /// Always "play".
+    pub command: &'static str,
+    /// The file (or the name the keyframes were given).
+    pub file: String,
+    /// "joint" or "cartesian".
+    pub format: &'static str,
+    /// Keyframes in the file.
+    pub keyframes: usize,
+    /// Keyframes pushed and acknowledged.
+    pub pushed: usize,
+    /// The last keyframe's time (s).
+    pub trajectory_s: f64,
+    /// Controller seconds from the start to rest.
+    pub time_s: f64,
+    /// Times the queue ran dry.
+    pub underruns: u32,
+    /// How far the arm ended from the last keyframe: rad (joint) or m (Cartesian).
+    pub end_error: f64,
+    /// The tool position at rest (m).
+    pub tool: [f64; 3],
+    /// The measured joints at rest.
+    pub joints: Vec<f32>,
+}
+
+impl PlayReport {
+    /// The report as `armctl play` prints it.
+    pub fn text(&self) -> String {
+        format!(
+            "play {}: {} of {} {} keyframes pushed and acknowledged, {:.2} s of trajectory in {:.2} s; the arm is at {} m",
+            self.file,
+            self.pushed,
+            self.keyframes,
+            self.format,
+            self.trajectory_s,
+            self.time_s,
+            fmt3(&self.tool)
+        )
+    }
+}
+
+/// Plays a checked plan, streaming its keyframes with flow control, and waits until the arm is
+/// at rest. Notes (keyframes left from before dropped, torque switched on, the progress bar,
+/// warnings) go to `notes`.
+pub fn play(driver: &mut Driver, plan: &Plan, notes: &mut dyn Write) -> DriveResult<PlayReport> {
+    let keyframes = plan.keyframes(driver).map_err(DriveError::Input)?;
+    let total = keyframes.len();
     let status = driver.status()?;
     if !matches!(status.state, RunState::Idle | RunState::TorqueOff) {
-        bail!("the arm is busy ({:?}): wait, or `stop` it first; nothing was sent", status.state);
+        return Err(DriveError::failed(format!(
+            "the arm is busy ({:?}): wait, or `stop` it first; nothing was sent",
+            status.state
+        )));
     }
     let (status, switched) = driver.ready_to_move()?;
     if status.queued > 0 {
         // Left over from an interrupted run: playing them first would not be what the file says.
-        driver.request(&HostMessage::Stop)?;
-        writeln!(err, "dropped {} keyframes left in the queue from before", status.queued)?;
+        driver.session().stop()?;
+        writeln!(notes, "dropped {} keyframes left in the queue from before", status.queued)?;
     }
     interrupt::catch();
     let underruns_before = status.errors.underruns;
@@ -241,30 +282,30 @@ pub fn run(driver: &mut Driver, plan: Plan, json: bool, out: &mut dyn Write, err
     // the joints' queue).
     while pushed < total.min(driver.queue_capacity().max(1)) && (pushed == 0 || driver.free_slots() > 0) {
         if interrupt::requested() {
-            driver.request(&HostMessage::Stop)?;
+            driver.session().stop()?;
             let undone = driver.undo_torque(switched);
-            writeln!(
-                err,
-                "stopped by Ctrl-C before the start: nothing moved; {pushed} of {total} keyframes were queued and \
-                 dropped{undone}"
-            )?;
-            return Ok(interrupt::EXIT_CODE);
+            return Err(DriveError::Interrupted {
+                said: format!(
+                    "stopped by Ctrl-C before the start: nothing moved; {pushed} of {total} keyframes were queued \
+                     and dropped{undone}"
+                ),
+            });
         }
-        let (line, message) = &messages[pushed];
-        if let Err(e) = push(driver, message) {
-            let dropped = driver.request(&HostMessage::Stop).is_ok();
-            bail!(
-                "{}: {e:#}; nothing moved{}{}",
+        let (line, keyframe) = &keyframes[pushed];
+        if let Err(e) = driver.session().push(keyframe) {
+            let dropped = driver.session().stop().is_ok();
+            let undone = driver.undo_torque(switched);
+            return Err(DriveError::failed(format!(
+                "{}: {e:#}; nothing moved{}{undone}",
                 plan.at(*line),
                 if dropped { ", the queued keyframes were dropped" } else { "" },
-                driver.undo_torque(switched)
-            );
+            )));
         }
         pushed += 1;
     }
     let start = driver.status()?;
-    driver.request(&HostMessage::Start)?;
-    Driver::note_torque(switched, err)?;
+    driver.session().start()?;
+    Driver::note_torque(switched, notes)?;
     let played = |s: &Status, pushed: usize| pushed.saturating_sub(usize::from(s.queued));
     let clock = |s: &Status| f64::from(s.time - start.time);
 
@@ -274,64 +315,63 @@ pub fn run(driver: &mut Driver, plan: Plan, json: bool, out: &mut dyn Write, err
     let mut restarts = 0u32;
     let last = loop {
         if interrupt::requested() {
-            progress.clear(err);
-            writeln!(err, "play: {pushed} of {total} keyframes had been pushed")?;
-            return driver.stop_after_interrupt(err);
+            progress.clear(notes);
+            return Err(driver.interrupted(&format!("play: {pushed} of {total} keyframes had been pushed\n")));
         }
         if pushed < total && driver.free_slots() > 0 {
-            let (line, message) = &messages[pushed];
-            if let Err(e) = push(driver, message) {
-                progress.clear(err);
-                let stopped = driver.request(&HostMessage::Stop).is_ok();
-                bail!(
+            let (line, keyframe) = &keyframes[pushed];
+            if let Err(e) = driver.session().push(keyframe) {
+                progress.clear(notes);
+                let stopped = driver.session().stop().is_ok();
+                return Err(DriveError::failed(format!(
                     "{}: {e:#}; {} after {pushed} of {total} keyframes, {}",
                     plan.at(*line),
                     if stopped { "stopped the arm" } else { "could not stop the arm" },
                     failed_at(driver)
-                );
+                )));
             }
             pushed += 1;
             continue;
         }
         let status = driver.status()?;
-        progress.update(err, played(&status, pushed), clock(&status));
+        progress.update(notes, played(&status, pushed), clock(&status));
         match status.state {
             RunState::Idle if pushed == total && status.queued == 0 => break driver.settle(status)?,
             RunState::Idle if status.queued > 0 => {
                 // The player ran dry (an underrun) and the controller went to hold: go on.
                 restarts += 1;
-                driver.request(&HostMessage::Start)?;
+                driver.session().start()?;
             }
             RunState::TorqueOff | RunState::EStopped => {
-                progress.clear(err);
-                bail!(
+                progress.clear(notes);
+                return Err(DriveError::failed(format!(
                     "the arm stopped ({:?}) after {} of {total} keyframes; {pushed} had been pushed",
                     status.state,
                     played(&status, pushed)
-                );
+                )));
             }
             _ => {}
         }
         let waited = clock(&status);
         if waited > deadline || started.elapsed().as_secs_f64() > 4.0 * deadline + 10.0 {
-            progress.clear(err);
-            let stopped = driver.request(&HostMessage::Stop).is_ok();
-            bail!(
+            progress.clear(notes);
+            let stopped = driver.session().stop().is_ok();
+            return Err(DriveError::failed(format!(
                 "timed out after {waited:.1} s with the arm still {:?}; {}",
                 status.state,
                 if stopped { "sent stop" } else { "stop was not acknowledged" }
-            );
+            )));
         }
         if status.free_slots == 0 || pushed == total {
             driver.pause()?;
         }
     };
     let took = clock(&last);
-    progress.finish(err, total, plan.seconds());
+    progress.finish(notes, total, plan.seconds());
     let underruns = last.errors.underruns.saturating_sub(underruns_before);
     if underruns > 0 || restarts > 0 {
         writeln!(
-            err,
+            notes,
             "warning: the queue ran dry {underruns} times (restarted {restarts} times): keyframes came too slowly"
         )?;
     }
@@ -343,34 +383,21 @@ pub fn run(driver: &mut Driver, plan: Plan, json: bool, out: &mut dyn Write, err
     };
     if end_error > tolerance {
         writeln!(
-            err,
+            notes,
             "warning: the arm ended {end_error:.4} {unit} from the last keyframe (beyond {tolerance} {unit})"
         )?;
     }
-    if json {
-        let v = json!({
-            "command": "play",
-            "file": plan.path.display().to_string(),
-            "format": format,
-            "keyframes": total,
-            "pushed": pushed,
-            "trajectory_s": plan.seconds(),
-            "time_s": took,
-            "underruns": underruns,
-            "end_error": end_error,
-            "tool": tool,
-            "joints": last.measured,
-        });
-        writeln!(out, "{v}")?;
-    } else {
-        writeln!(
-            out,
-            "play {}: {pushed} of {total} {format} keyframes pushed and acknowledged, {:.2} s of trajectory in {took:.2} s; \
-             the arm is at {} m",
-            plan.path.display(),
-            plan.seconds(),
-            fmt3(&tool)
-        )?;
-    }
-    Ok(0)
+    Ok(PlayReport {
+        command: "play",
+        file: plan.path.display().to_string(),
+        format,
+        keyframes: total,
+        pushed,
+        trajectory_s: plan.seconds(),
+        time_s: took,
+        underruns,
+        end_error,
+        tool,
+        joints: last.measured.to_vec(),
+    })
 }

@@ -1,36 +1,21 @@
-//! [`Driver`]: a connection to the firmware with what every arm-driving command needs: status
-//! polling until the arm is at rest, torque on before a move, forward kinematics of the measured
-//! joints on the host, and stopping the arm after Ctrl-C.
+//! [`Driver`]: a connection to the firmware with what every arm-driving command needs beside the
+//! link's [`Session`]: the arm it runs and its kinematics on the host, torque switched on before a
+//! move (and off again if the move is refused), and Ctrl-C between the polls of a wait.
 
 use std::io::Write;
-use std::time::Instant;
 
 use anyhow::{anyhow, bail, Result};
-use firmware::link::message::{FirmwareMessage, HostMessage, Joints, RunState, Status, MAX_JOINTS};
+use firmware::link::message::{Joints, RunState, Status, MAX_JOINTS};
 use kinematics::JointKind;
 
 use super::connection::{self, Connection, Target};
+use super::error::{DriveError, DriveResult};
 use super::interrupt;
 use crate::arm::dof::{self, DynArm};
 use crate::arm::ArmSpec;
-use crate::link::client::LinkError;
-
-/// Longest wait for the arm to come to rest after a stop (controller seconds).
-const STOP_TIMEOUT: f64 = 30.0;
-/// A joint this close to its setpoint (rad or m) has arrived.
-pub const SETTLED: f32 = 1e-3;
-/// A joint that moved less than this between two polls (rad or m) stands still.
-const STILL: f32 = 1e-4;
-/// Longest wait for the servos to catch up with a resting setpoint (controller seconds).
-const SETTLE_TIMEOUT: f32 = 2.0;
-
-/// How a wait ended.
-pub enum Waited {
-    /// At rest (holding), with this status.
-    Done(Status),
-    /// Ctrl-C was pressed; nothing was sent about it yet.
-    Interrupted,
-}
+use crate::link::session::{Session, TORQUE_ON_WAITS};
+pub use crate::link::session::{Waited, SETTLED};
+use crate::link::Transport;
 
 /// A connected firmware and the arm it runs.
 pub struct Driver {
@@ -57,6 +42,18 @@ impl Driver {
         self.conn.close(err)
     }
 
+    /// The session over the link: every request to the firmware.
+    pub fn session(&mut self) -> &mut Session<Box<dyn Transport>> {
+        &mut self.conn.session
+    }
+
+    /// The simulated board, when the firmware core runs in SIL on this process (`--sim`): its
+    /// virtual clock, trace and scene.
+    pub fn sil(&mut self) -> Option<&mut crate::places::sil::Sil> {
+        let transport: &mut dyn Transport = &mut **self.conn.session.transport();
+        transport.as_any_mut().downcast_mut()
+    }
+
     /// The host's kinematics of the arm the firmware runs (forward kinematics, IK).
     pub fn model(&self) -> &dyn DynArm {
         self.fk.as_ref()
@@ -77,35 +74,30 @@ impl Driver {
         usize::from(self.conn.info.joints)
     }
 
+    /// The firmware's answer to the handshake.
+    pub fn info(&self) -> &firmware::link::message::Info {
+        &self.conn.info
+    }
+
     /// Keyframe queue capacity of the firmware.
     pub fn queue_capacity(&self) -> usize {
         usize::from(self.conn.info.queue_capacity)
     }
 
-    /// Sends one request (no flow control).
-    pub fn request(&mut self, message: &HostMessage) -> Result<FirmwareMessage, LinkError> {
-        self.conn.client.request(message)
-    }
-
-    /// Pushes a keyframe, waiting for a free slot (the client's flow control).
-    pub fn push(&mut self, message: &HostMessage) -> Result<FirmwareMessage, LinkError> {
-        self.conn.client.push(message)
-    }
-
     /// Free keyframe slots by the firmware's last report.
     pub fn free_slots(&self) -> u16 {
-        self.conn.client.free_slots()
+        self.conn.session.free_slots()
     }
 
     /// Waits one read timeout of the link (the pause between status polls: in the simulation's
     /// virtual time for --sim, so a simulated move takes no wall-clock time waiting).
     pub fn pause(&mut self) -> Result<()> {
-        Ok(self.conn.client.wait_once()?)
+        Ok(self.conn.session.pause()?)
     }
 
     /// The controller's status.
     pub fn status(&mut self) -> Result<Status> {
-        Ok(self.conn.client.status()?)
+        Ok(self.conn.session.status()?)
     }
 
     /// The tool pose for joint values, by the host's forward kinematics of the arm.
@@ -137,11 +129,10 @@ impl Driver {
         }
     }
 
-    /// Switches torque on. Right after the board starts or gets a new arm, the firmware has not
-    /// read every servo yet and refuses (`NotReady`) for a tick or two: that is retried for up to
-    /// 25 read timeouts (0.5 s) before it counts as a failure.
-    pub fn torque_on(&mut self) -> Result<FirmwareMessage, LinkError> {
-        crate::link::ready::request_when_ready(&mut self.conn.client, &HostMessage::Torque { on: true }, 25)
+    /// Switches torque on, through the `NotReady` of a firmware that has not read every servo
+    /// yet ([`TORQUE_ON_WAITS`]).
+    pub fn torque_on(&mut self) -> Result<(), crate::link::client::LinkError> {
+        self.conn.session.torque_on(TORQUE_ON_WAITS)
     }
 
     /// Switches torque off again if [`Driver::ready_to_move`] switched it on, so that a refused
@@ -149,7 +140,7 @@ impl Driver {
     pub fn undo_torque(&mut self, switched_on: bool) -> &'static str {
         match switched_on {
             false => "",
-            true if self.request(&HostMessage::Torque { on: false }).is_ok() => " (torque is off again, as it was)",
+            true if self.conn.session.torque_off().is_ok() => " (torque is off again, as it was)",
             true => " (torque was switched on and could not be switched off again)",
         }
     }
@@ -162,90 +153,58 @@ impl Driver {
         Ok(())
     }
 
-    /// Polls status until the arm is at rest and holding.
-    /// Gives up after `timeout` seconds of controller time (stopping the arm first); fails if the
-    /// arm ends up limp or emergency-stopped.
+    /// Polls status until the arm is at rest and holding ([`Session::wait_at_rest`]), ending
+    /// early on Ctrl-C.
     pub fn wait_until_rest(&mut self, timeout: f64) -> Result<Waited> {
-        let started = Instant::now();
-        let mut first: Option<f32> = None;
-        loop {
-            if interrupt::requested() {
-                return Ok(Waited::Interrupted);
-            }
-            let status = self.status()?;
-            match status.state {
-                RunState::Idle => return Ok(Waited::Done(self.settle(status)?)),
-                RunState::TorqueOff => bail!("the arm went limp (torque off) before reaching the target"),
-                RunState::EStopped => bail!("the arm was emergency-stopped before reaching the target"),
-                _ => {}
-            }
-            let t0 = *first.get_or_insert(status.time);
-            let waited = f64::from(status.time - t0);
-            // The wall clock is a backstop for a controller whose clock stands still.
-            if waited > timeout || started.elapsed().as_secs_f64() > 4.0 * timeout + 10.0 {
-                let stopped = self.request(&HostMessage::Stop).is_ok();
-                bail!(
-                    "timed out after {waited:.1} s with the arm still {:?}; {}",
-                    status.state,
-                    if stopped { "sent stop" } else { "stop was not acknowledged" }
-                );
-            }
-            self.pause()?;
-        }
-    }
-
-    /// Once the setpoint rests: waits until the servos have caught up with it (every measured
-    /// joint within [`SETTLED`] of its setpoint) or stand still (a servo held back by a load), at
-    /// most [`SETTLE_TIMEOUT`]. Returns the last status.
-    pub fn settle(&mut self, mut status: Status) -> Result<Status> {
-        let t0 = status.time;
-        loop {
-            let lag = status.measured.iter().zip(&status.setpoints).map(|(m, s)| (m - s).abs()).fold(0.0, f32::max);
-            if lag <= SETTLED || status.state != RunState::Idle || status.time - t0 > SETTLE_TIMEOUT {
-                return Ok(status);
-            }
-            self.pause()?;
-            let next = self.status()?;
-            let moved = next.measured.iter().zip(&status.measured).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
-            let still = moved <= STILL;
-            status = next;
-            if still {
-                return Ok(status);
-            }
-        }
+        Ok(self.conn.session.wait_at_rest(timeout, &mut interrupt::requested)?)
     }
 
     /// Sends stop and waits until the arm no longer moves (holding, limp or emergency-stopped).
     pub fn stop(&mut self) -> Result<Status> {
-        self.request(&HostMessage::Stop)?;
-        let mut first = None;
-        let started = Instant::now();
-        loop {
-            let status = self.status()?;
-            let t0 = *first.get_or_insert(status.time);
-            if !matches!(status.state, RunState::Moving | RunState::Stopping | RunState::Paused) {
-                return self.settle(status);
-            }
-            if f64::from(status.time - t0) > STOP_TIMEOUT || started.elapsed().as_secs_f64() > 4.0 * STOP_TIMEOUT {
-                bail!("sent stop, but the arm was still {:?} after {STOP_TIMEOUT} s", status.state);
-            }
-            self.pause()?;
+        Ok(self.conn.session.stop_and_wait()?)
+    }
+
+    /// Waits until the servos have caught up with a resting setpoint ([`Session::settle`]).
+    pub fn settle(&mut self, status: Status) -> Result<Status> {
+        Ok(self.conn.session.settle(status)?)
+    }
+
+    /// Waits until the arm is at rest ([`Driver::wait_until_rest`]); after Ctrl-C, stops it and
+    /// fails with where it stopped.
+    pub fn rest(&mut self, timeout: f64) -> DriveResult<Status> {
+        match self.wait_until_rest(timeout)? {
+            Waited::Done(status) => Ok(status),
+            Waited::Interrupted => Err(self.interrupted("")),
         }
     }
 
-    /// After Ctrl-C: stops the arm, waits until it is at rest, and says where it stopped.
-    /// Returns the exit code.
+    /// After Ctrl-C: stops the arm, waits until it is at rest, and says where it stopped, after
+    /// `before` (a line of what had been done, or nothing).
+    pub fn interrupted(&mut self, before: &str) -> DriveError {
+        let said = self.stop().and_then(|status| {
+            let at = self.tool_position(&status.measured)?;
+            Ok(format!(
+                "{before}stopped by Ctrl-C at {} m (joints {}), state {:?}",
+                fmt3(&at),
+                fmt_list(&status.measured),
+                status.state
+            ))
+        });
+        match said {
+            Ok(said) => DriveError::Interrupted { said },
+            Err(e) => DriveError::Failed(anyhow!("Ctrl-C: {e:#}")),
+        }
+    }
+
+    /// After Ctrl-C: [`Driver::interrupted`], said on `err`. Returns the exit code.
     pub fn stop_after_interrupt(&mut self, err: &mut dyn Write) -> Result<i32> {
-        let status = self.stop().map_err(|e| anyhow::anyhow!("Ctrl-C: {e:#}"))?;
-        let at = self.tool_position(&status.measured)?;
-        writeln!(
-            err,
-            "stopped by Ctrl-C at {} m (joints {}), state {:?}",
-            fmt3(&at),
-            fmt_list(&status.measured),
-            status.state
-        )?;
-        Ok(interrupt::EXIT_CODE)
+        match self.interrupted("") {
+            DriveError::Interrupted { said } => {
+                writeln!(err, "{said}")?;
+                Ok(interrupt::EXIT_CODE)
+            }
+            other => Err(other.into()),
+        }
     }
 }
 

@@ -8,14 +8,13 @@ use std::path::Path;
 use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
-use firmware::link::message::{CartesianTarget, HostMessage, JointKeyframe, Timing};
+use firmware::link::message::{CartesianTarget, JointKeyframe, Timing};
 use serde::Serialize;
 
 use crate::arm::servos::ServoSetup;
 use crate::arm::ArmSpec;
 use crate::drive::connection::{open, Target};
-use crate::link::arm_config::configure_messages;
-use crate::link::ready::{request_when_ready, wait_idle};
+use crate::link::session::Keyframe;
 use crate::places::qemu::{DefmtLog, Qemu, QemuConfig};
 use crate::sim::{so101_bus, Faults, PtyServer};
 
@@ -45,20 +44,20 @@ pub fn measure(elf: &Path) -> Result<MeasuredStack> {
     board.wait_started(crate::places::qemu::START_TIMEOUT)?;
     let mut link =
         open(Target::Port { path: board.link_path().to_string(), baud: 1_000_000 }, None, &mut std::io::sink())?;
-    let c = &mut link.client;
-    request_when_ready(c, &HostMessage::Torque { on: true }, NOT_READY_WAITS).context("torque on")?;
-    c.request(&HostMessage::MoveTo {
-        path: firmware::link::message::MovePath::Auto,
-        target: CartesianTarget { position: [0.2, 0.05, 0.15], orientation: None },
-        timing: Timing::MaxSpeed(0.2),
-    })?;
-    wait_idle(c, 2000)?;
+    let c = &mut link.session;
+    c.torque_on(NOT_READY_WAITS).context("torque on")?;
+    c.move_to(
+        CartesianTarget { position: [0.2, 0.05, 0.15], orientation: None },
+        Timing::MaxSpeed(0.2),
+        firmware::link::message::MovePath::Auto,
+    )?;
+    c.wait_idle(2000)?;
     // More keyframes than the queue holds, streamed as slots free (as `armctl play` does).
     for k in 1..=40 {
         let t = k as f32 * 0.1;
         let positions = (0..5)
             .map(|j| 0.3 * (std::f32::consts::TAU * t / 3.0 + j as f32 * 0.5).sin() - 0.3 * (j as f32 * 0.5).sin());
-        c.push(&HostMessage::PushKeyframe(JointKeyframe {
+        c.push(&Keyframe::Joints(JointKeyframe {
             time: t,
             positions: positions.collect(),
             velocities: None,
@@ -66,17 +65,15 @@ pub fn measure(elf: &Path) -> Result<MeasuredStack> {
         }))
         .with_context(|| format!("keyframe {k}"))?;
         if k == 15 {
-            c.request(&HostMessage::Start)?;
+            c.start()?;
         }
     }
-    wait_idle(c, 5000)?;
+    c.wait_idle(5000)?;
     // The firmware takes a new arm only with the torque off.
-    c.request(&HostMessage::Torque { on: false })?;
+    c.torque_off()?;
     let so101 = ArmSpec::load("so101", None)?;
     let servos = ServoSetup::for_arm("so101").context("no servo set-up for so101")?;
-    for message in configure_messages(&so101, &servos)? {
-        request_when_ready(c, &message, NOT_READY_WAITS).context("sending the so101 arm over the link")?;
-    }
+    c.configure_arm(&so101, &servos, NOT_READY_WAITS).context("sending the so101 arm over the link")?;
     std::thread::sleep(SETTLE);
     let log = board.log();
     let measured = MeasuredStack {

@@ -1,14 +1,16 @@
 //! The host side of the link protocol ([`firmware::link`]): a client that sends requests with
-//! retransmission and keyframe flow control over any byte transport, and the arm configuration
-//! messages built from the host's arm description, and [`serial`]: a real serial port as a byte
-//! stream.
+//! retransmission and keyframe flow control over any byte transport, the arm configuration
+//! messages built from the host's arm description, [`session`]: the one session that builds every
+//! request the product sends and waits on the firmware, and [`serial`]: a real serial port as a
+//! byte stream.
 
 pub mod arm_config;
 pub mod channel;
 pub mod client;
-pub mod ready;
 pub mod serial;
+pub mod session;
 
+use std::any::Any;
 use std::io::{Read, Write};
 use std::time::Duration;
 
@@ -17,6 +19,14 @@ use std::time::Duration;
 pub const READ_TIMEOUT: Duration = Duration::from_millis(20);
 
 /// A byte transport to a board: a serial port, or the SIL harness (`places::sil`).
-pub trait Transport: Read + Write {}
+pub trait Transport: Read + Write + Any {
+    /// The transport as `Any`: behind a `Box<dyn Transport>`, a simulated board's clock, trace and
+    /// scene stay reachable (the demo records them).
+    fn as_any_mut(&mut self) -> &mut dyn Any;
+}
 
-impl<T: Read + Write> Transport for T {}
+impl<T: Read + Write + Any> Transport for T {
+    fn as_any_mut(&mut self) -> &mut dyn Any {
+        self
+    }
+}

@@ -5,18 +5,20 @@
 use std::io::Write;
 
 use anyhow::{bail, Context, Result};
-use firmware::link::message::{CartesianTarget, HostMessage, MovePath, Timing};
+use firmware::link::message::{CartesianTarget, MovePath, Timing};
 use kinematics::Pose;
 use serde_json::json;
 
 use super::columns::{self, ArmPart};
 use super::play::stop_all;
 use super::{Rig, RigSpec};
+use crate::args::numbers as parse;
 use crate::drive::args::{DriveCommand, LinkArgs, MoveArgs, OnOff};
-use crate::drive::commands::{parse_motion, parse_position, parse_quaternion, print_status, status_json};
 use crate::drive::interrupt;
-use crate::drive::path::{decide, host_solution, send};
+use crate::drive::move_to::{check_position, check_quaternion, positive, tool_timing};
+use crate::drive::path::{self, host_solution};
 use crate::drive::session::{check_joints, fmt3};
+use crate::drive::state;
 
 /// One arm's tool target of a rig move (world frame).
 struct ArmTarget {
@@ -96,7 +98,11 @@ fn parse_move(spec: &RigSpec, args: &MoveArgs) -> Result<RigRequest> {
         if targets.iter().any(|t| t.arm == arm) {
             bail!("--to: arm {} is given twice", spec.arms[arm].name);
         }
-        targets.push(ArmTarget { arm, position: parse_position(values, "--to")?, orientation: None });
+        targets.push(ArmTarget {
+            arm,
+            position: check_position(parse::fixed::<3>(values, "--to")?, "--to")?,
+            orientation: None,
+        });
     }
     for text in &args.quat {
         let (arm, values) = named(spec, text, "--quat")?;
@@ -106,9 +112,11 @@ fn parse_move(spec: &RigSpec, args: &MoveArgs) -> Result<RigRequest> {
         if target.orientation.is_some() {
             bail!("--quat: arm {} is given twice", spec.arms[arm].name);
         }
-        target.orientation = Some(parse_quaternion(values, "--quat")?);
+        target.orientation = Some(check_quaternion(parse::fixed::<4>(values, "--quat")?, "--quat")?);
     }
-    let (timing, path) = parse_motion(args)?;
+    let timing = tool_timing(args.speed, args.duration)?;
+    positive(args.timeout, f64::from(firmware::link::message::MAX_TIME), "--timeout", "s")?;
+    let path = MovePath::from(args.path);
     if spec.arms.iter().any(|a| a.mount.is_some()) {
         // One tree: solved on the host, each arm's share sent as a joint move.
         if targets.iter().any(|t| t.orientation.is_some()) {
@@ -143,13 +151,14 @@ fn execute(rig: &mut Rig, request: RigRequest, json: bool, out: &mut dyn Write, 
                 let status = rig.arms[i].driver.status()?;
                 let tool = rig.tool_in_world(i, &status.measured)?;
                 let arm = &rig.arms[i];
+                let report = state::report(&arm.driver, status)?;
                 if json {
-                    let mut v = status_json(&arm.driver, &status)?;
+                    let mut v = serde_json::to_value(&report)?;
                     v["tool_world"] = json!(tool);
                     arms.insert(arm.name.clone(), v);
                 } else {
                     writeln!(out, "== {} (tool at {} m in the world frame)", arm.name, fmt3(&tool))?;
-                    print_status(&arm.driver, &status, false, out)?;
+                    writeln!(out, "{}", report.text())?;
                 }
             }
             if json {
@@ -185,7 +194,7 @@ fn execute(rig: &mut Rig, request: RigRequest, json: bool, out: &mut dyn Write, 
         RigRequest::Torque(on) => {
             let mut arms = serde_json::Map::new();
             for arm in &mut rig.arms {
-                let result = if on { arm.driver.torque_on() } else { arm.driver.request(&HostMessage::Torque { on }) };
+                let result = if on { arm.driver.torque_on() } else { arm.driver.session().torque_off() };
                 result
                     .map_err(|e| anyhow::anyhow!("arm {}: torque {}: {e}", arm.name, if on { "on" } else { "off" }))?;
                 let state = arm.driver.status()?.state;
@@ -253,8 +262,7 @@ fn move_tree(
         let (_, on) = arm.driver.ready_to_move().with_context(|| format!("arm {}", arm.name))?;
         switched.push(on);
         let positions = check_joints(&arm.driver, &solved.q[a], &format!("arm {}", arm.name))?;
-        let message = HostMessage::MoveJoints { positions, timing: Timing::Duration(seconds) };
-        if let Err(e) = arm.driver.request(&message) {
+        if let Err(e) = arm.driver.session().move_joints(positions, Timing::Duration(seconds)) {
             let name = arm.name.clone();
             let stopped = stop_all(rig);
             bail!("move: arm {name} refused its joints: {e}; {stopped}");
@@ -326,12 +334,12 @@ fn move_arms(
         let shown = format!("{} to {} m (world)", arm.name, fmt3(&target.position.map(f64::from)));
         let sent = (|| -> Result<(firmware::link::message::Status, bool)> {
             let (start, switched) = arm.driver.ready_to_move()?;
-            let (decided, _) = decide(&arm.driver, &start, &local, path)?;
-            match send(&mut arm.driver, &start, local, timing, decided)? {
+            // As `armctl move` goes: the one rule of drive::path.
+            match path::take(&mut arm.driver, &start, local, timing, path) {
                 Ok(_) => Ok((start, switched)),
-                Err(e) => {
+                Err(refused) => {
                     let undone = arm.driver.undo_torque(switched);
-                    bail!("{e}{undone}")
+                    bail!("{}{undone}{}", refused.reason, refused.hint)
                 }
             }
         })();

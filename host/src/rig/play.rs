@@ -13,18 +13,19 @@ use std::io::Write;
 use std::time::Instant;
 
 use anyhow::{bail, Result};
-use firmware::link::message::{HostMessage, RunState, Status};
+use firmware::link::message::{RunState, Status};
 use serde_json::json;
 
 use super::columns::ArmPart;
 use super::Rig;
 use crate::drive::interrupt;
 use crate::drive::session::fmt3;
+use crate::link::session::Keyframe;
 
 /// One arm's playback.
 struct Track {
     arm: usize,
-    messages: Vec<(usize, HostMessage)>,
+    messages: Vec<(usize, Keyframe)>,
     pushed: usize,
     switched: bool,
     /// Controller time at which its playback clock was zero, as first seen (s).
@@ -34,8 +35,8 @@ struct Track {
 }
 
 /// Pushes one keyframe to arm `arm`; fails unless it was acknowledged.
-fn push(rig: &mut Rig, arm: usize, message: &HostMessage) -> Result<()> {
-    crate::drive::play::push(&mut rig.arms[arm].driver, message)
+fn push(rig: &mut Rig, arm: usize, keyframe: &Keyframe) -> Result<()> {
+    Ok(rig.arms[arm].driver.session().push(keyframe)?)
 }
 
 /// Stops every arm (each stop sent before waiting for any); words for an error message.
@@ -43,7 +44,7 @@ pub fn stop_all(rig: &mut Rig) -> String {
     let failed: Vec<String> = rig
         .arms
         .iter_mut()
-        .filter_map(|a| a.driver.request(&HostMessage::Stop).err().map(|e| format!("{}: {e}", a.name)))
+        .filter_map(|a| a.driver.session().stop().err().map(|e| format!("{}: {e}", a.name)))
         .collect();
     if failed.is_empty() {
         "every arm was stopped".to_string()
@@ -135,7 +136,7 @@ pub fn play(rig: &mut Rig, parts: Vec<ArmPart>, err: &mut dyn Write) -> Result<O
     let mut tracks = Vec::new();
     for part in &parts {
         let driver = &rig.arms[part.arm].driver;
-        let messages = part.plan.messages(driver)?;
+        let messages = part.plan.keyframes(driver)?;
         tracks.push(Track {
             arm: part.arm,
             messages,
@@ -159,7 +160,7 @@ pub fn play(rig: &mut Rig, parts: Vec<ArmPart>, err: &mut dyn Write) -> Result<O
             Ok((status, switched)) => {
                 tracks[i].switched = switched;
                 if status.queued > 0 {
-                    arm.driver.request(&HostMessage::Stop)?;
+                    arm.driver.session().stop()?;
                     writeln!(err, "{}: dropped {} keyframes left in the queue from before", arm.name, status.queued)?;
                 }
             }
@@ -190,7 +191,7 @@ pub fn play(rig: &mut Rig, parts: Vec<ArmPart>, err: &mut dyn Write) -> Result<O
     }
     let mut start_acks = Vec::new();
     for t in &tracks {
-        rig.arms[t.arm].driver.request(&HostMessage::Start)?;
+        rig.arms[t.arm].driver.session().start()?;
         start_acks.push(Instant::now());
     }
     let host_gap_s = match (start_acks.first(), start_acks.last()) {
@@ -237,7 +238,7 @@ pub fn play(rig: &mut Rig, parts: Vec<ArmPart>, err: &mut dyn Write) -> Result<O
                 RunState::Idle if t.pushed == t.messages.len() && status.queued == 0 => {}
                 RunState::Idle if status.queued > 0 => {
                     t.restarts += 1;
-                    arm.driver.request(&HostMessage::Start)?;
+                    arm.driver.session().start()?;
                     done = false;
                 }
                 RunState::TorqueOff | RunState::EStopped => {

@@ -23,15 +23,14 @@ use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, Result};
-use firmware::link::message::{
-    CartesianKeyframe, CartesianTarget, FirmwareMessage, HostMessage, JointKeyframe, Joints, NakReason, RunState,
-};
+use firmware::link::message::{CartesianKeyframe, CartesianTarget, JointKeyframe, Joints, NakReason, RunState};
 
 use super::leader::Reading;
 use super::record::Recorder;
 use crate::arm::servos::servos_of;
 use crate::drive::session::Driver;
 use crate::link::client::LinkError;
+use crate::link::session::Keyframe;
 
 /// Statuses whose offsets are kept for the playback clock (about 1.6 s at one per 5 periods).
 const OFFSET_WINDOW: usize = 32;
@@ -134,6 +133,87 @@ impl Figures {
             self.keyframes as f64 / self.seconds
         } else {
             0.0
+        }
+    }
+}
+
+/// A stream's figures in summary, as a stream of actions reports them when it ends (Python's
+/// `Stream.close`): counts, and the latencies and tracking by their quantiles.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Summary {
+    /// Keyframes pushed.
+    pub keyframes: u64,
+    /// Wall time of the stream, s.
+    pub seconds: f64,
+    /// Keyframes per second.
+    pub rate_hz: f64,
+    /// Reading to keyframe queued and to keyframe due, ms: median and 99th percentile.
+    pub latency_ms: Latency,
+    /// Keyframes acknowledged after the previous one was due.
+    pub late_keyframes: u64,
+    /// Underruns the follower counted.
+    pub underruns: u32,
+    /// Playbacks started again after the follower ran dry.
+    pub restarts: u64,
+    /// Pushes retimed after an underrun.
+    pub retimed: u64,
+    /// Joint values moved back by the step clamp.
+    pub clamped_steps: u64,
+    /// Joint values moved back into the follower's range.
+    pub limited_values: u64,
+    /// The follower's setpoint against the reading one lead earlier, rad: median, 99th
+    /// percentile, largest.
+    pub tracking_rad: Tracking,
+}
+
+/// Latencies of a stream, ms.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Latency {
+    /// Reading to queued, median.
+    pub queued_p50: f64,
+    /// Reading to queued, 99th percentile.
+    pub queued_p99: f64,
+    /// Reading to due, median.
+    pub goal_p50: f64,
+    /// Reading to due, 99th percentile.
+    pub goal_p99: f64,
+}
+
+/// Tracking of a stream, rad.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Tracking {
+    /// Median.
+    pub p50: f64,
+    /// 99th percentile.
+    pub p99: f64,
+    /// Largest.
+    pub max: f64,
+}
+
+impl Figures {
+    /// The figures in summary.
+    pub fn summary(&self) -> Summary {
+        Summary {
+            keyframes: self.keyframes,
+            seconds: self.seconds,
+            rate_hz: self.rate_hz(),
+            latency_ms: Latency {
+                queued_p50: quantile(&self.queued_ms, 0.5),
+                queued_p99: quantile(&self.queued_ms, 0.99),
+                goal_p50: quantile(&self.goal_ms, 0.5),
+                goal_p99: quantile(&self.goal_ms, 0.99),
+            },
+            late_keyframes: self.late_keyframes,
+            underruns: self.underruns,
+            restarts: self.restarts,
+            retimed: self.retimed,
+            clamped_steps: self.clamped_steps,
+            limited_values: self.limited_values,
+            tracking_rad: Tracking {
+                p50: quantile(&self.tracking, 0.5),
+                p99: quantile(&self.tracking, 0.99),
+                max: quantile(&self.tracking, 1.0),
+            },
         }
     }
 }
@@ -241,14 +321,13 @@ const MAX_RETIMES: u32 = 100;
 fn push(
     driver: &mut Driver,
     mut time: f64,
-    at: &dyn Fn(f32) -> HostMessage,
+    at: &dyn Fn(f32) -> Keyframe,
     last_time: f64,
     figures: &mut Figures,
 ) -> Result<f64> {
     for _ in 0..MAX_RETIMES {
-        match driver.push(&at(time as f32)) {
-            Ok(FirmwareMessage::Ack { .. }) => return Ok(time),
-            Ok(other) => bail!("the follower answered {other:?} to a keyframe"),
+        match driver.session().push(&at(time as f32)) {
+            Ok(()) => return Ok(time),
             Err(LinkError::Nak(NakReason::KeyframeTime)) => {
                 figures.retimed += 1;
                 time += RETIME_STEP;
@@ -313,7 +392,7 @@ impl Streamer {
         }
         let (status, _) = driver.ready_to_move()?;
         if status.queued > 0 {
-            driver.request(&HostMessage::Stop)?;
+            driver.session().stop()?;
         }
         let started = Instant::now();
         Ok(Self {
@@ -394,7 +473,7 @@ impl Streamer {
         let gripper = reading.gripper.filter(|_| self.settings.gripper).map(|g| g.clamp(0.0, 100.0) as f32);
         let (positions, velocities) = (joints(&q)?, joints(&v)?);
         let at = |time: f32| {
-            HostMessage::PushKeyframe(JointKeyframe {
+            Keyframe::Joints(JointKeyframe {
                 time,
                 positions: positions.clone(),
                 velocities: Some(velocities.clone()),
@@ -421,7 +500,7 @@ impl Streamer {
         }
         let time = self.due(driver, read_at)?;
         let gripper = gripper.filter(|_| self.settings.gripper).map(|g| g.clamp(0.0, 100.0) as f32);
-        let at = |time: f32| HostMessage::PushCartesianKeyframe(CartesianKeyframe { time, target, gripper });
+        let at = |time: f32| Keyframe::Pose(CartesianKeyframe { time, target, gripper });
         let recorded = self.pushed(driver, time, &at, read_at, None)?;
         Ok(Sent { time: recorded, joints: Vec::new(), gripper: gripper.map(f64::from) })
     }
@@ -438,7 +517,7 @@ impl Streamer {
         &mut self,
         driver: &mut Driver,
         time: f64,
-        at: &dyn Fn(f32) -> HostMessage,
+        at: &dyn Fn(f32) -> Keyframe,
         read_at: Instant,
         joints: Option<&[f64]>,
     ) -> Result<f64> {
@@ -450,7 +529,7 @@ impl Streamer {
         let queued_at = Instant::now();
         if !self.playing {
             // The first keyframe starts the playback clock at zero; statuses tell where it stands.
-            driver.request(&HostMessage::Start)?;
+            driver.session().start()?;
             self.playing = true;
             self.clock = PlayClock::new(Instant::now());
             self.statuses_left = 20;
@@ -492,7 +571,7 @@ impl Streamer {
                 if status.queued > 0 {
                     // Keyframes left from the playback that ran dry are timed on its clock; the
                     // new playback starts its own at zero, so they go (the arm holds where it is).
-                    driver.request(&HostMessage::Stop)?;
+                    driver.session().stop()?;
                 }
                 self.figures.restarts += 1;
                 self.playing = false;
@@ -527,7 +606,7 @@ impl Streamer {
                 velocities: Some(joints(&vec![0.0; self.previous.len()])?),
                 gripper: None,
             };
-            driver.push(&HostMessage::PushKeyframe(keyframe))?;
+            driver.session().push(&Keyframe::Joints(keyframe))?;
             last = Some(Sent { time: self.recorded_time(time), joints: self.previous.clone(), gripper: None });
         }
         let status = driver.status()?;

@@ -15,9 +15,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use anyhow::Result;
-use firmware::link::message::{
-    CartesianTarget, FirmwareMessage, HostMessage, MovePath, RunState, Status, Timing, MAX_SPEED,
-};
+use firmware::link::message::{CartesianTarget, MovePath, RunState, Status, Timing, MAX_SPEED};
 use serde_json::{json, Value};
 
 use super::api::{ApiError, Request};
@@ -26,10 +24,11 @@ use super::telemetry::{self, Extras, LastSecond, Latest, Placement};
 use crate::arm::dof::DynArm;
 use crate::arm::ArmSpec;
 use crate::drive::connection::Target;
-use crate::drive::path;
+use crate::drive::path::{self, RefusedBy};
 use crate::drive::play::Plan;
 use crate::drive::session::{check_joints, Driver};
 use crate::link::client::LinkError;
+use crate::link::session::Keyframe;
 
 /// The poll period: the firmware's control period, so the telemetry shows every setpoint.
 pub const PERIOD: Duration = Duration::from_millis(10);
@@ -46,7 +45,7 @@ const EXIT_STOP_TIME: Duration = Duration::from_secs(10);
 struct Playing {
     name: String,
     plan_seconds: f64,
-    messages: Vec<(usize, HostMessage)>,
+    messages: Vec<(usize, Keyframe)>,
     /// Line numbers' owner, for messages.
     plan: Plan,
     pushed: usize,
@@ -276,7 +275,7 @@ impl LoopState {
         let mut stop_sent = false;
         loop {
             if torque_off.load(Ordering::SeqCst) {
-                self.driver.request(&HostMessage::Torque { on: false })?;
+                self.driver.session().torque_off()?;
                 // The last telemetry says so, for a page still connected.
                 if let Ok(status) = self.driver.status() {
                     self.publish(&status);
@@ -284,7 +283,7 @@ impl LoopState {
                 return Ok("second signal: torque off".to_string());
             }
             if !stop_sent {
-                self.driver.request(&HostMessage::Stop)?;
+                self.driver.session().stop()?;
                 stop_sent = true;
             }
             let status = self.driver.status()?;
@@ -340,15 +339,12 @@ impl LoopState {
                     p.done = true;
                     p.error = Some(format!("stopped after {} of {} keyframes were pushed", p.pushed, p.messages.len()));
                 }
-                self.driver.request(&HostMessage::Stop).map_err(link_error)?;
+                self.driver.session().stop().map_err(link_error)?;
                 ok()
             }
             Request::Torque(on) => {
-                let answer = match on {
-                    true => self.driver.torque_on(),
-                    false => self.driver.request(&HostMessage::Torque { on: false }),
-                };
-                answer.map_err(link_error)?;
+                // As `armctl torque` does it.
+                crate::drive::state::torque(&mut self.driver, on).map_err(|e| ApiError::new(503, e.to_string()))?;
                 ok()
             }
             Request::Gripper(percent) => {
@@ -356,9 +352,7 @@ impl LoopState {
                     return Err(ApiError::bad(format!("the arm {} has no gripper", self.driver.arm().name)));
                 }
                 self.ready()?;
-                self.driver
-                    .request(&HostMessage::Gripper { opening: percent as f32, effort: None })
-                    .map_err(link_error)?;
+                self.driver.session().gripper(percent as f32, None).map_err(link_error)?;
                 ok()
             }
             Request::Joints { q, speed } => {
@@ -366,7 +360,7 @@ impl LoopState {
                 let positions = check_joints(&self.driver, &q, "q").map_err(|e| ApiError::bad(format!("{e:#}")))?;
                 self.ready()?;
                 let timing = Timing::MaxSpeed(speed.map_or(MAX_SPEED, |s| s as f32));
-                self.driver.request(&HostMessage::MoveJoints { positions, timing }).map_err(link_error)?;
+                self.driver.session().move_joints(positions, timing).map_err(link_error)?;
                 self.extras.last_error = None;
                 ok()
             }
@@ -396,26 +390,27 @@ impl LoopState {
                     // As `armctl move` decides: the straight line checked first, and a blocked one
                     // gone by joints from the start, saying so, rather than tracked into a limit.
                     let start = self.driver.status().map_err(|e| ApiError::new(503, format!("{e:#}")))?;
-                    let (path, blocked) = path::decide(&self.driver, &start, &target, MovePath::Auto)
-                        .map_err(|e| ApiError::bad(format!("{e:#}")))?;
-                    let (taken, how) = match &blocked {
-                        Some(b) => (
-                            "joint",
-                            format!("{}, so the arm goes by joints", path::where_blocked(self.driver.arm(), b)),
-                        ),
-                        None => ("line", "the straight line".to_string()),
-                    };
-                    describe(&mut self.extras.target, taken, &how);
-                    let sent = path::send(&mut self.driver, &start, target, Timing::MaxSpeed(TARGET_SPEED), path)
-                        .map_err(|e| ApiError::bad(format!("{e:#}")))?;
-                    match sent {
-                        Ok(false) => describe(&mut solution, taken, &how),
-                        Ok(true) => {
-                            describe(&mut self.extras.target, "joint", path::SOLVED_ON_HOST);
-                            describe(&mut solution, "joint", path::SOLVED_ON_HOST);
+                    match path::take(&mut self.driver, &start, target, Timing::MaxSpeed(TARGET_SPEED), MovePath::Auto) {
+                        Ok(route) => {
+                            let (taken, how) = match (&route.blocked_ahead, route.solved_on_host) {
+                                (Some(b), _) => (
+                                    "joint",
+                                    format!("{}, so the arm goes by joints", path::where_blocked(self.driver.arm(), b)),
+                                ),
+                                (None, true) => ("joint", path::SOLVED_ON_HOST.to_string()),
+                                (None, false) => ("line", "the straight line".to_string()),
+                            };
+                            describe(&mut self.extras.target, taken, &how);
+                            describe(&mut solution, taken, &how);
                         }
-                        Err(e) => {
-                            let e = link_error(e);
+                        Err(refused) => {
+                            let e = match refused.by {
+                                RefusedBy::Host => ApiError::bad(refused.reason),
+                                RefusedBy::Firmware => ApiError::new(422, refused.reason),
+                                RefusedBy::Link => {
+                                    ApiError::new(503, format!("the firmware did not answer: {}", refused.reason))
+                                }
+                            };
                             self.extras.target["reachable"] = json!(false);
                             self.extras.target["reason"] = json!(e.message);
                             return Err(e);
@@ -429,7 +424,7 @@ impl LoopState {
                 self.busy_playing()?;
                 let plan = Plan::parse(&csv, std::path::Path::new(&name), PLAY_MARGIN)
                     .map_err(|e| ApiError::bad(format!("{e:#}")))?;
-                let messages = plan.messages(&self.driver).map_err(|e| ApiError::bad(format!("{e:#}")))?;
+                let messages = plan.keyframes(&self.driver).map_err(|e| ApiError::bad(format!("{e:#}")))?;
                 let path = plan.tool_path(&self.driver).map_err(|e| ApiError::bad(format!("{e:#}")))?;
                 let path: Vec<[f64; 3]> = path.into_iter().map(|p| self.seat.placement.point(p)).collect();
                 if messages.is_empty() {
@@ -445,7 +440,7 @@ impl LoopState {
                 self.ready()?;
                 if status.queued > 0 {
                     // Left over from an interrupted run: not what this file says.
-                    self.driver.request(&HostMessage::Stop).map_err(link_error)?;
+                    self.driver.session().stop().map_err(link_error)?;
                 }
                 let seconds = plan.seconds();
                 let answer = json!({"keyframes": messages.len(), "seconds": seconds, "path": path});
@@ -478,16 +473,13 @@ impl LoopState {
         let Some(p) = self.playing.as_mut().filter(|p| !p.done) else { return };
         while p.pushed < p.messages.len() && (p.pushed == 0 || self.driver.free_slots() > 0) {
             let (line, message) = &p.messages[p.pushed];
-            match self.driver.push(message) {
-                Ok(FirmwareMessage::Ack { .. }) => p.pushed += 1,
-                Ok(other) => {
-                    return fail(p, &mut self.driver, format!("{}: unexpected reply {other:?}", p.plan.at(*line)))
-                }
+            match self.driver.session().push(message) {
+                Ok(()) => p.pushed += 1,
                 Err(e) => return fail(p, &mut self.driver, format!("{}: {e}", p.plan.at(*line))),
             }
         }
         if !p.started {
-            match self.driver.request(&HostMessage::Start) {
+            match self.driver.session().start() {
                 Ok(_) => p.started = true,
                 Err(e) => fail(p, &mut self.driver, format!("start: {e}")),
             }
@@ -502,7 +494,7 @@ impl LoopState {
             RunState::Idle if p.pushed == p.messages.len() && status.queued == 0 => p.done = true,
             RunState::Idle if status.queued > 0 => {
                 // The player ran dry and went to hold: go on.
-                if let Err(e) = self.driver.request(&HostMessage::Start) {
+                if let Err(e) = self.driver.session().start() {
                     fail(p, &mut self.driver, format!("restart: {e}"));
                 }
             }
@@ -524,7 +516,7 @@ impl LoopState {
 
 /// Ends a file with an error, stopping the arm.
 fn fail(p: &mut Playing, driver: &mut Driver, why: String) {
-    let stopped = driver.request(&HostMessage::Stop).is_ok();
+    let stopped = driver.session().stop().is_ok();
     p.done = true;
     p.error = Some(format!("{why}; {}", if stopped { "stopped the arm" } else { "could not stop the arm" }));
 }
