@@ -65,7 +65,8 @@ fn each_end_effector_is_the_chain_to_its_leaf() {
         let tree_jacobian = run(&["jacobian", "--arm", URDF, "--q", &join(&q)]);
         assert_eq!(tree_fk["arm"], "bimanual_torso");
         assert_eq!(tree_fk["effectors"].as_object().unwrap().len(), 3);
-        let columns: Vec<&str> = tree_jacobian["joints"].as_array().unwrap().iter().map(|n| n.as_str().unwrap()).collect();
+        let columns: Vec<&str> =
+            tree_jacobian["joints"].as_array().unwrap().iter().map(|n| n.as_str().unwrap()).collect();
         assert_eq!(columns, joints.names);
         for leaf in LEAVES {
             // The chain to this leaf (its joints by name, from the chain's reader), its values

@@ -116,7 +116,12 @@ impl TreeIkOutcome {
 
 /// The kinematics crate's joint for `spec` (the chain's construction, [`crate::ArmSpec::chain`]).
 fn joint(spec: &crate::JointSpec) -> Joint<f64> {
-    Joint { origin: spec.origin, axis: spec.axis.into(), kind: spec.kind, limits: Limits::from_f64(spec.lower, spec.upper) }
+    Joint {
+        origin: spec.origin,
+        axis: spec.axis.into(),
+        kind: spec.kind,
+        limits: Limits::from_f64(spec.lower, spec.upper),
+    }
 }
 
 impl DynTree {
@@ -192,7 +197,8 @@ impl DynTree {
     fn padded(&self, q: &[f64]) -> Result<SVector<f64, MAX_JOINTS>> {
         if q.len() != self.dof() {
             bail!(
-                "tree {} has {} joints (every joint on the paths to {}) but {} joint values were given",
+                "tree {} has {} joints (every joint on the paths to {}) but {} joint values were given; a tip \
+                 (--tip LINK) reads the chain to one of them",
                 self.spec.name,
                 self.dof(),
                 self.effector_names().join(", "),

@@ -149,7 +149,10 @@ pub(crate) fn run(args: &IkArgs, out: &mut dyn Write, err: &mut dyn Write) -> Re
     };
     let config = config(args, CHAIN_MAX_ITERATIONS)?;
     if args.priority.is_some() {
-        bail!("--priority ranks the targets of a tree's end effectors; arm {} is a chain with one tool", arm.spec().name);
+        bail!(
+            "--priority ranks the targets of a tree's end effectors; arm {} is a chain with one tool",
+            arm.spec().name
+        );
     }
     if args.target.len() > 1 {
         bail!(

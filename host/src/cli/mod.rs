@@ -9,8 +9,8 @@ pub mod sim;
 mod tree;
 
 use crate::args::numbers as parse;
-use crate::arm::dof::{self, DynArm, Scalar};
 use crate::arm::body::Body;
+use crate::arm::dof::{self, DynArm, Scalar};
 use crate::arm::dyn_tree::DynTree;
 use crate::arm::ArmSpec;
 use crate::bench::ik::{self as bench, Protocol};

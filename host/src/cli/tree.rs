@@ -18,7 +18,8 @@ use crate::arm::dyn_tree::{DynTree, NamedGoal, TreeIkRequest};
 
 /// A pose as a chain's `fk` prints its tool.
 fn pose_json(p: &Pose<f64>) -> Value {
-    let rotation: Vec<[f64; 3]> = (0..3).map(|r| [p.rotation[(r, 0)], p.rotation[(r, 1)], p.rotation[(r, 2)]]).collect();
+    let rotation: Vec<[f64; 3]> =
+        (0..3).map(|r| [p.rotation[(r, 0)], p.rotation[(r, 1)], p.rotation[(r, 2)]]).collect();
     json!({"position": vec3(p), "quaternion_wxyz": p.quaternion_wxyz(), "rotation": rotation})
 }
 
