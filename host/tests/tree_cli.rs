@@ -101,8 +101,11 @@ fn each_end_effector_is_the_chain_to_its_leaf() {
     }
 }
 
+/// A target: the end effector's link, its position and its quaternion (w first) if any.
+type Target = (&'static str, Vec<f64>, Option<Vec<f64>>);
+
 /// `q` is within the limits and each target reached by FK of the answer.
-fn check_reached(joints: &TreeJoints, answer: &Value, targets: &[(&str, Vec<f64>, Option<Vec<f64>>)]) {
+fn check_reached(joints: &TreeJoints, answer: &Value, targets: &[Target]) {
     assert_eq!(answer["status"], "converged", "{answer}");
     assert_eq!(answer["solver"], "dls");
     let q = numbers(&answer["q"]);
@@ -140,7 +143,7 @@ fn both_hands_reach_random_reachable_targets_at_once() {
         for _ in 0..4 {
             let q = random_q(&joints, &mut rng, 0.05);
             let fk = run(&["fk", "--arm", URDF, "--q", &join(&q)]);
-            let targets: Vec<(&str, Vec<f64>, Option<Vec<f64>>)> = ["left_tip", "right_tip"]
+            let targets: Vec<Target> = ["left_tip", "right_tip"]
                 .into_iter()
                 .map(|leaf| {
                     let e = &fk["effectors"][leaf];

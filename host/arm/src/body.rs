@@ -11,6 +11,9 @@ use crate::tree::TreeSpec;
 use crate::{read_urdf, urdf, ArmSpec};
 
 /// An arm description: a chain to one tool, or a tree.
+// An arm's servo setup makes the chain the larger variant; a body is read once per command, so
+// boxing it would buy nothing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug, PartialEq)]
 pub enum Body {
     /// One chain from the base to the tool.

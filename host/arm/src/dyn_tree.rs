@@ -366,11 +366,12 @@ mod tests {
                 assert!((tool.translation - poses.effectors[e].translation).amax() < 1e-12);
                 assert!((tool.rotation - poses.effectors[e].rotation).amax() < 1e-12);
                 let (tree_j, chain_j) = (&tree.jacobians(&q).unwrap()[e], arm.jacobian(&on_path).unwrap());
-                for r in 0..6 {
-                    assert_eq!(tree_j[r].len(), 11);
-                    for k in 0..11 {
+                assert_eq!(tree_j.len(), 6);
+                for (r, row) in tree_j.iter().enumerate() {
+                    assert_eq!(row.len(), 11);
+                    for (k, value) in row.iter().enumerate() {
                         let want = path.iter().position(|&p| p == k).map_or(0.0, |c| chain_j[r][c]);
-                        assert!((tree_j[r][k] - want).abs() < 1e-12, "row {r} column {k}");
+                        assert!((value - want).abs() < 1e-12, "row {r} column {k}");
                     }
                 }
             }

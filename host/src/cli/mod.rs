@@ -308,7 +308,8 @@ pub(crate) fn load(arm: &ArmArgs) -> Result<Box<dyn DynArm>> {
 /// `--tip`, [`Body::load`]).
 pub(crate) enum Loaded {
     Chain(Box<dyn DynArm>),
-    Tree(DynTree),
+    /// Boxed: the tree is held in its full fixed capacity, kilobytes.
+    Tree(Box<DynTree>),
 }
 
 pub(crate) fn load_body(arm: &ArmArgs) -> Result<Loaded> {
@@ -317,7 +318,7 @@ pub(crate) fn load_body(arm: &ArmArgs) -> Result<Loaded> {
     };
     Ok(match Body::load(name, arm.tip.as_deref())? {
         Body::Chain(spec) => Loaded::Chain(dof::build(spec)?),
-        Body::Tree(spec) => Loaded::Tree(DynTree::build(spec)?),
+        Body::Tree(spec) => Loaded::Tree(Box::new(DynTree::build(spec)?)),
     })
 }
 

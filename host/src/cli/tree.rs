@@ -78,9 +78,9 @@ fn named_goal(tree: &DynTree, text: &str) -> Result<NamedGoal> {
     let link = link.trim();
     let what = format!("--target {link}");
     let v = parse::numbers(values, &what)?;
-    let (position, quaternion_wxyz) = match v.as_slice() {
-        &[x, y, z] => ([x, y, z], None),
-        &[x, y, z, w, i, j, k] => ([x, y, z], Some([w, i, j, k])),
+    let (position, quaternion_wxyz) = match *v.as_slice() {
+        [x, y, z] => ([x, y, z], None),
+        [x, y, z, w, i, j, k] => ([x, y, z], Some([w, i, j, k])),
         _ => bail!("{what}: expected 3 numbers (x,y,z) or 7 (x,y,z,qw,qx,qy,qz), got {}", v.len()),
     };
     Ok(NamedGoal { link: link.to_string(), position, quaternion_wxyz })
