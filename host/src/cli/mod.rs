@@ -297,11 +297,16 @@ where
     }
 }
 
+/// `--arm`'s value, or the error for its absence.
+fn arm_name(arm: &ArmArgs) -> Result<&str> {
+    match &arm.arm {
+        Some(name) => Ok(name),
+        None => bail!("--arm is missing: a preset name or a .urdf or .toml arm file"),
+    }
+}
+
 pub(crate) fn load(arm: &ArmArgs) -> Result<Box<dyn DynArm>> {
-    let Some(name) = &arm.arm else {
-        bail!("--arm is missing: a preset name or a .urdf or .toml arm file");
-    };
-    dof::build(ArmSpec::load(name, arm.tip.as_deref())?)
+    dof::build(ArmSpec::load(arm_name(arm)?, arm.tip.as_deref())?)
 }
 
 /// What `fk`, `jacobian` and `ik` work on: a chain, or a tree (a URDF with several leaves and no
@@ -313,10 +318,7 @@ pub(crate) enum Loaded {
 }
 
 pub(crate) fn load_body(arm: &ArmArgs) -> Result<Loaded> {
-    let Some(name) = &arm.arm else {
-        bail!("--arm is missing: a preset name or a .urdf or .toml arm file");
-    };
-    Ok(match Body::load(name, arm.tip.as_deref())? {
+    Ok(match Body::load(arm_name(arm)?, arm.tip.as_deref())? {
         Body::Chain(spec) => Loaded::Chain(dof::build(spec)?),
         Body::Tree(spec) => Loaded::Tree(Box::new(DynTree::build(spec)?)),
     })
