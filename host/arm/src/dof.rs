@@ -294,16 +294,23 @@ impl<const N: usize> DynArm for Arm<N> {
     }
 }
 
+/// Refuses a typed target quaternion (w first) whose norm is not 1 within
+/// [`QUATERNION_NORM_TOLERANCE`]: a mistake rather than rounding. Chains and trees ask the same.
+pub fn check_unit_quaternion(quat: [f64; 4]) -> Result<()> {
+    let norm = quat.iter().map(|v| v * v).sum::<f64>().sqrt();
+    if (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE || norm.is_nan() {
+        bail!("the target quaternion w,x,y,z is not a unit quaternion (norm {norm})");
+    }
+    Ok(())
+}
+
 /// The request as the kinematics crate's problem, in `T`.
 fn problem_in<T: Real, const N: usize>(request: &IkRequest, seed: SVector<f64, N>) -> Result<IkProblem<T, N>> {
     let position = request.position.map(T::of);
     let target = match request.quaternion_wxyz {
         None => Target::Position(position.into()),
         Some(quat) => {
-            let norm = quat.iter().map(|v| v * v).sum::<f64>().sqrt();
-            if (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE || norm.is_nan() {
-                bail!("the target quaternion w,x,y,z is not a unit quaternion (norm {norm})");
-            }
+            check_unit_quaternion(quat)?;
             Target::pose_wxyz(position, quat.map(T::of))
                 .ok_or_else(|| anyhow!("the target quaternion must be finite and non-zero"))?
         }

@@ -4,8 +4,10 @@
 
 #![warn(missing_docs)]
 
+pub mod body;
 pub mod calibration;
 pub mod dof;
+pub mod dyn_tree;
 pub mod presets;
 pub mod servos;
 pub mod toml_file;
@@ -127,7 +129,7 @@ impl ArmSpec {
                 bail!("--tip applies only to .urdf arms, not to {arm}")
             }
             Some("urdf") => {
-                let text = std::fs::read_to_string(path).with_context(|| format!("cannot read URDF {arm}"))?;
+                let text = read_urdf(arm)?;
                 urdf::parse(&text, tip).with_context(|| format!("URDF {arm}"))
             }
             Some("toml") => {
@@ -137,6 +139,11 @@ impl ArmSpec {
             _ => presets::by_name(arm),
         }
     }
+}
+
+/// The text of the URDF file `arm`.
+fn read_urdf(arm: &str) -> Result<String> {
+    std::fs::read_to_string(arm).with_context(|| format!("cannot read URDF {arm}"))
 }
 
 fn cast_pose<T: Real>(p: &Pose<f64>) -> Pose<T> {

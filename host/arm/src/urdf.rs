@@ -211,6 +211,14 @@ pub fn parse(text: &str, tip: Option<&str>) -> Result<ArmSpec> {
     Ok(ArmSpec { name: robot.name.to_string(), joints: specs, tool: pending, servos: None })
 }
 
+/// The leaf links of URDF `text` (no joint starts from them), by name: one for an arm, several
+/// for a tree. Fails as [`parse`] does on a file it cannot read as a robot.
+pub fn leaves(text: &str) -> Result<Vec<String>> {
+    let doc = Document::parse(text).map_err(|e| anyhow!("not well-formed XML: {e}"))?;
+    let robot = Robot::read(&doc)?;
+    Ok(robot.leaves().into_iter().map(str::to_string).collect())
+}
+
 /// Reads a tree from URDF `text`: every joint on the paths from the root to the links `tips` (by
 /// default every leaf), each an end effector named by its link. Fixed joints are folded into the
 /// next moving joint's origin, or into the end effector's offset; the joints come parents first.

@@ -24,7 +24,8 @@ import numpy.typing as npt
 from . import _armctl
 from ._armctl import ArmctlError, calibrate
 
-__all__ = ["Arm", "ArmctlError", "IkResult", "Model", "Stream", "Trajectory", "calibrate", "sample", "__version__"]
+__all__ = ["Arm", "ArmctlError", "IkResult", "Model", "Stream", "Trajectory", "TreeIkResult", "TreeModel", "calibrate",
+           "sample", "__version__"]
 __version__: str = _armctl.__version__
 
 Array = npt.NDArray[np.float64]
@@ -69,10 +70,22 @@ class IkResult:
 class Model:
     """An arm's kinematics: a preset (``so101``, ``open-manipulator-x``, ``ur5e``, ``puma560``,
     ``iiwa14``, ``planar:N``), a URDF file (``tip`` names the link the chain ends at) or an arm
-    file (``.toml``), with a LeRobot ``calibration`` file if given."""
+    file (``.toml``), with a LeRobot ``calibration`` file if given.
+
+    A URDF with several leaves and no ``tip`` is a tree: ``Model`` then gives a :class:`TreeModel`
+    (several end effectors on shared joints), as ``armctl fk --arm FILE.urdf`` reads it."""
+
+    def __new__(cls, arm: str, tip: str | None = None, calibration: str | None = None):
+        native = _armctl.model(str(arm), tip, None if calibration is None else str(calibration))
+        tree = isinstance(native, _armctl.TreeModel)
+        if cls is TreeModel and not tree:
+            raise ArmctlError(f"{arm} is a chain, not a tree (a URDF with several leaves and no tip): use armctl.Model")
+        self = super().__new__(TreeModel if tree else cls)
+        self._m = native
+        return self
 
     def __init__(self, arm: str, tip: str | None = None, calibration: str | None = None):
-        self._m = _armctl.Model(arm, tip, None if calibration is None else str(calibration))
+        """Read by ``__new__``, which chooses between a chain and a tree."""
 
     @property
     def name(self) -> str:
@@ -157,6 +170,105 @@ class Model:
             if warm:
                 s = r.q
         return out
+
+
+class TreeIkResult:
+    """A tree's IK answer: joint values, the overall status and each target's outcome."""
+
+    __slots__ = ("q", "status", "effectors", "iterations")
+
+    def __init__(self, q: Array, status: str, effectors: dict[str, dict[str, Any]], iterations: int):
+        self.q = q
+        #: ``converged`` (every target reached, checked by FK), ``best_effort``, ``iteration_limit``.
+        self.status = status
+        #: Per end effector with a target: ``reached``, ``position_error`` (m),
+        #: ``orientation_error`` (rad, None for a position target) and ``priority``.
+        self.effectors = effectors
+        #: Iterations over every restart.
+        self.iterations = iterations
+
+    @property
+    def converged(self) -> bool:
+        return self.status == "converged"
+
+    def __repr__(self) -> str:
+        reached = {name: e["reached"] for name, e in self.effectors.items()}
+        return f"TreeIkResult(q={np.array2string(self.q, precision=4)}, status={self.status!r}, reached={reached})"
+
+
+def _tree_targets(targets: dict[str, Any]) -> list[tuple[str, list[float], list[float] | None]]:
+    """``{link: position}`` or ``{link: (position, quaternion_wxyz)}`` as the native module's list."""
+    if not isinstance(targets, dict) or not targets:
+        raise ArmctlError("targets: expected a dict {end effector: position or (position, quaternion_wxyz)}")
+    out = []
+    for name, value in targets.items():
+        if isinstance(value, tuple) and len(value) == 2:
+            position, quat = value
+            out.append((str(name), _vector(position, f"targets[{name!r}] position", 3),
+                        None if quat is None else _vector(quat, f"targets[{name!r}] quaternion_wxyz", 4)))
+        else:
+            out.append((str(name), _vector(value, f"targets[{name!r}]", 3), None))
+    return out
+
+
+class TreeModel(Model):
+    """A tree's kinematics (a URDF with several leaves, read by ``Model(path)``): several end
+    effectors, named by their links (:attr:`effectors`), on joints some of them share. ``fk`` and
+    ``jacobian`` answer for every end effector, as dicts keyed by link; ``ik`` solves one target
+    per end effector at once."""
+
+    @property
+    def effectors(self) -> list[str]:
+        """The end effectors' links."""
+        return self._m.effector_names
+
+    @property
+    def has_gripper(self) -> bool:
+        return False
+
+    @property
+    def closed_form(self) -> str | None:
+        return None
+
+    def fk(self, q: npt.ArrayLike) -> dict[str, Array]:
+        """Each end effector's pose at ``q``: ``{link: 4 x 4}``; ``(n, dof)`` gives ``{link: (n, 4, 4)}``."""
+        a = np.asarray(q, dtype=np.float64)
+        if a.ndim == 2:
+            poses = np.array([self._m.fk(_vector(row, "q", self.dof)) for row in a]).reshape(len(a), -1, 4, 4)
+            return {name: poses[:, e] for e, name in enumerate(self.effectors)}
+        poses = self._m.fk(_vector(a, "q", self.dof))
+        return {name: np.array(p) for name, p in zip(self.effectors, poses)}
+
+    def jacobian(self, q: npt.ArrayLike) -> dict[str, Array]:
+        """Each end effector's 6 x dof geometric Jacobian at ``q``, over every joint of the tree
+        (zero in the columns of the joints that do not move it): ``{link: 6 x dof}``."""
+        return {name: np.array(j) for name, j in zip(self.effectors, self._m.jacobian(_vector(q, "q", self.dof)))}
+
+    def solve(self, targets: dict[str, Any], seed: npt.ArrayLike | None = None,
+              priority: str | Sequence[str] | None = None, position_tolerance: float | None = None,
+              orientation_tolerance: float | None = None) -> TreeIkResult:
+        """Solves every target at once and says how it went (never raises for an unreachable
+        target). ``targets``: ``{link: position}`` or ``{link: (position, quaternion_wxyz)}``;
+        ``priority``: the links whose targets are met first, the others then only in the null
+        space those leave (None: every target weighs alike)."""
+        first = None if priority is None else [priority] if isinstance(priority, str) else [str(p) for p in priority]
+        q, status, effectors, iterations = self._m.ik(
+            _tree_targets(targets), None if seed is None else _vector(seed, "seed", self.dof), first,
+            position_tolerance, orientation_tolerance)
+        outcomes = {name: {"reached": reached, "position_error": pe, "orientation_error": oe, "priority": rank}
+                    for name, reached, pe, oe, rank in effectors}
+        return TreeIkResult(np.array(q), status, outcomes, iterations)
+
+    def ik(self, targets: dict[str, Any], seed: npt.ArrayLike | None = None,
+           priority: str | Sequence[str] | None = None) -> Array:
+        """Joint values reaching every target at once (see :meth:`solve`). Raises
+        :class:`ArmctlError` naming the targets not reached."""
+        r = self.solve(targets, seed, priority)
+        if not r.converged:
+            missed = ", ".join(f"{name} {e['position_error'] * 1e3:.2f} mm short"
+                               for name, e in r.effectors.items() if not e["reached"])
+            raise ArmctlError(f"targets not reached: {r.status}, {missed}")
+        return r.q
 
 
 class Trajectory:

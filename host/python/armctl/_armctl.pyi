@@ -33,6 +33,30 @@ class Model:
         orientation_tolerance: Optional[float] = None,
     ) -> tuple[list[float], str, float, float, str]: ...
 
+class TreeModel:
+    @property
+    def name(self) -> str: ...
+    @property
+    def joint_names(self) -> list[str]: ...
+    @property
+    def limits(self) -> list[tuple[float, float]]: ...
+    @property
+    def effector_names(self) -> list[str]: ...
+    def fk(self, q: list[float]) -> list[list[list[float]]]: ...
+    def frames(self, q: list[float]) -> list[list[list[float]]]: ...
+    def jacobian(self, q: list[float]) -> list[list[list[float]]]: ...
+    def ik(
+        self,
+        targets: list[tuple[str, list[float], Optional[list[float]]]],
+        seed: Optional[list[float]] = None,
+        priority: Optional[list[str]] = None,
+        position_tolerance: Optional[float] = None,
+        orientation_tolerance: Optional[float] = None,
+    ) -> tuple[list[float], str, list[tuple[str, bool, float, Optional[float], int]], int]: ...
+
+def model(arm: str, tip: Optional[str] = None, calibration: Optional[str] = None) -> Model | TreeModel:
+    """A chain's Model, or a TreeModel for a URDF with several leaves and no tip."""
+
 def sample(
     times: list[float],
     positions: list[list[float]],

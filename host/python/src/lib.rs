@@ -4,6 +4,7 @@
 //! the operations' typed reports) back.
 //!
 //! - [`model`]: an arm's kinematics (forward kinematics, Jacobian, IK) and trajectory sampling;
+//! - [`tree_model`]: a tree's (a URDF with several leaves): every end effector at once;
 //! - [`arm`]: an arm driven through the firmware core, as every drive command drives it;
 //! - [`calibrate`]: LeRobot's calibration procedure, answered on standard input;
 //! - [`errors`]: `ArmctlError`, carrying the command line's one-line messages, and Ctrl-C.
@@ -12,6 +13,7 @@ mod arm;
 mod calibrate;
 mod errors;
 mod model;
+mod tree_model;
 
 use pyo3::prelude::*;
 
@@ -21,6 +23,8 @@ fn _armctl(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("ArmctlError", m.py().get_type::<errors::ArmctlError>())?;
     m.add_class::<model::Model>()?;
     m.add_function(wrap_pyfunction!(model::sample, m)?)?;
+    m.add_class::<tree_model::TreeModel>()?;
+    m.add_function(wrap_pyfunction!(tree_model::model, m)?)?;
     m.add_class::<arm::Arm>()?;
     m.add_function(wrap_pyfunction!(calibrate::calibrate, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

@@ -13,9 +13,9 @@ use pyo3::prelude::*;
 use crate::errors::OrRaise;
 
 /// 4 x 4 homogeneous matrix, row by row.
-type Matrix4 = [[f64; 4]; 4];
+pub(crate) type Matrix4 = [[f64; 4]; 4];
 
-fn homogeneous(p: &kinematics::Pose<f64>) -> Matrix4 {
+pub(crate) fn homogeneous(p: &kinematics::Pose<f64>) -> Matrix4 {
     let mut m = [[0.0; 4]; 4];
     for (r, row) in m.iter_mut().enumerate().take(3) {
         for (c, value) in row.iter_mut().enumerate().take(3) {
@@ -41,7 +41,7 @@ fn by_name<T: ValueEnum>(name: &str, what: &str) -> anyhow::Result<T> {
 
 /// `q` itself, or the error naming its first value that is not finite (NaN or infinite joint
 /// values would give a pose of NaNs, not an error).
-fn finite(q: Vec<f64>) -> PyResult<Vec<f64>> {
+pub(crate) fn finite(q: Vec<f64>) -> PyResult<Vec<f64>> {
     match q.iter().position(|x| !x.is_finite()) {
         Some(i) => Err(crate::errors::to_py(anyhow::anyhow!("q: value {} ({}) is not a finite number", i + 1, q[i]))),
         None => Ok(q),
@@ -60,8 +60,7 @@ impl Model {
     #[new]
     #[pyo3(signature = (arm, tip = None, calibration = None))]
     fn new(arm: &str, tip: Option<&str>, calibration: Option<PathBuf>) -> PyResult<Self> {
-        let spec = ArmSpec::load(arm, tip).and_then(|s| armctl::drive::args::calibrated(s, calibration.as_deref()));
-        Ok(Self { arm: spec.and_then(dof::build).or_raise()? })
+        Self::of(ArmSpec::load(arm, tip).or_raise()?, calibration.as_deref())
     }
 
     /// The arm's name.
@@ -139,6 +138,12 @@ impl Model {
 }
 
 impl Model {
+    /// The chain of `spec`, with the LeRobot `calibration` file if given.
+    pub(crate) fn of(spec: ArmSpec, calibration: Option<&std::path::Path>) -> PyResult<Self> {
+        let spec = armctl::drive::args::calibrated(spec, calibration);
+        Ok(Self { arm: spec.and_then(dof::build).or_raise()? })
+    }
+
     fn request(
         &self,
         position: [f64; 3],
@@ -149,18 +154,28 @@ impl Model {
         orientation_tolerance: Option<f64>,
     ) -> PyResult<IkRequest> {
         let solver: SolverName = by_name(solver, "solver").or_raise()?;
-        let (p, o) = Scalar::F64.default_tolerances();
-        let config = IkConfig {
-            position_tolerance: position_tolerance.unwrap_or(p),
-            orientation_tolerance: orientation_tolerance.unwrap_or(o),
-            ..IkConfig::default()
-        };
-        let positive = |v: f64| v.is_finite() && v > 0.0;
-        if !(positive(config.position_tolerance) && positive(config.orientation_tolerance)) {
-            return Err(crate::errors::to_py(anyhow::anyhow!("tolerances must be positive finite numbers")));
-        }
+        let config = ik_config(position_tolerance, orientation_tolerance)?;
         Ok(IkRequest { position, quaternion_wxyz, seed, solver, config, scalar: Scalar::F64 })
     }
+}
+
+/// The IK's tolerances (f64's defaults where not given), refused unless positive and finite; a
+/// chain's and a tree's IK take the same.
+pub(crate) fn ik_config(
+    position_tolerance: Option<f64>,
+    orientation_tolerance: Option<f64>,
+) -> PyResult<IkConfig<f64>> {
+    let (p, o) = Scalar::F64.default_tolerances();
+    let config = IkConfig {
+        position_tolerance: position_tolerance.unwrap_or(p),
+        orientation_tolerance: orientation_tolerance.unwrap_or(o),
+        ..IkConfig::default()
+    };
+    let positive = |v: f64| v.is_finite() && v > 0.0;
+    if !(positive(config.position_tolerance) && positive(config.orientation_tolerance)) {
+        return Err(crate::errors::to_py(anyhow::anyhow!("tolerances must be positive finite numbers")));
+    }
+    Ok(config)
 }
 
 /// Sampled times, and positions, velocities and accelerations, one row per sample.

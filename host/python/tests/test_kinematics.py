@@ -3,6 +3,8 @@ last bit where the arithmetic is the same), against finite differences, and on b
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -106,6 +108,113 @@ def test_models_from_files(tmp_path):
     assert from_urdf.dof == 5
     assert np.isfinite(from_urdf.fk(np.zeros(5))).all()
     assert root.has_gripper and root.closed_form == "yaw_pitch"
+
+
+TREE = str(Path(__file__).resolve().parents[2] / "tests/data/bimanual_torso.urdf")
+
+
+def quaternion_wxyz(r: np.ndarray) -> list[float]:
+    """A rotation matrix's unit quaternion, w first (the tests' poses are away from w = 0)."""
+    w = np.sqrt(max(1e-12, 1 + np.trace(r))) / 2
+    q = np.array([w, (r[2, 1] - r[1, 2]) / (4 * w), (r[0, 2] - r[2, 0]) / (4 * w), (r[1, 0] - r[0, 1]) / (4 * w)])
+    return (q / np.linalg.norm(q)).tolist()
+
+
+def text(values) -> str:
+    return ",".join(repr(float(x)) for x in values)
+
+
+def test_a_urdf_with_branches_is_a_tree_whose_effectors_are_the_chains_to_its_leaves(cli_json):
+    tree = armctl.Model(TREE)
+    assert isinstance(tree, armctl.TreeModel) and isinstance(tree, armctl.Model)
+    assert tree.effectors == ["camera_link", "left_tip", "right_tip"]
+    assert tree.dof == 11 and tree.closed_form is None and not tree.has_gripper
+    chains = {leaf: armctl.Model(TREE, tip=leaf) for leaf in tree.effectors}
+    assert not any(isinstance(c, armctl.TreeModel) for c in chains.values())
+    for q in random_q(tree, 3):
+        poses, jacobians = tree.fk(q), tree.jacobian(q)
+        fk = cli_json("fk", "--arm", TREE, "--q", text(q))
+        jac = cli_json("jacobian", "--arm", TREE, "--q", text(q))
+        for leaf, chain in chains.items():
+            path = [tree.joint_names.index(name) for name in chain.joint_names]
+            np.testing.assert_allclose(poses[leaf], chain.fk(q[path]), rtol=0, atol=1e-12)
+            np.testing.assert_allclose(poses[leaf][:3, 3], fk["effectors"][leaf]["position"], rtol=0, atol=1e-12)
+            np.testing.assert_allclose(poses[leaf][:3, :3], fk["effectors"][leaf]["rotation"], rtol=0, atol=1e-12)
+            expected = np.zeros((6, tree.dof))
+            expected[:, path] = chain.jacobian(q[path])
+            np.testing.assert_allclose(jacobians[leaf], expected, rtol=0, atol=1e-12)
+            np.testing.assert_allclose(jacobians[leaf], jac["effectors"][leaf]["jacobian"], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(tree.frames(q)[:, :3, 3], [f["position"] for f in fk["frames"]], atol=1e-12)
+    batch = random_q(tree, 4)
+    poses = tree.fk(batch)
+    assert poses["left_tip"].shape == (4, 4, 4)
+    np.testing.assert_allclose(poses["right_tip"][2], tree.fk(batch[2])["right_tip"], rtol=0, atol=0)
+
+
+def test_tree_ik_reaches_random_reachable_targets_and_equals_the_command_line(cli_json):
+    tree = armctl.Model(TREE)
+    for i, q in enumerate(random_q(tree, 4)):
+        poses = tree.fk(q)
+        left, right = poses["left_tip"], poses["right_tip"]
+        # A full pose for the left hand, and the right's position only on every other case.
+        targets = {"left_tip": (left[:3, 3], quaternion_wxyz(left[:3, :3])),
+                   "right_tip": right[:3, 3] if i % 2 else (right[:3, 3], quaternion_wxyz(right[:3, :3]))}
+        r = tree.solve(targets)
+        assert r.converged, r
+        assert set(r.effectors) == {"left_tip", "right_tip"}
+        assert np.all(r.q >= tree.limits[:, 0] - 1e-12) and np.all(r.q <= tree.limits[:, 1] + 1e-12)
+        reached = tree.fk(r.q)
+        for leaf in targets:
+            assert np.linalg.norm(reached[leaf][:3, 3] - poses[leaf][:3, 3]) <= 1e-5
+            assert r.effectors[leaf]["reached"]
+        np.testing.assert_allclose(reached["left_tip"][:3, :3], left[:3, :3], atol=1e-4)
+        assert (r.effectors["right_tip"]["orientation_error"] is None) == bool(i % 2)
+        args = ["ik", "--arm", TREE]
+        for leaf, target in targets.items():
+            values = list(target[0]) + list(target[1]) if isinstance(target, tuple) else list(target)
+            args += ["--target", f"{leaf}={text(values)}"]
+        out = cli_json(*args)
+        assert out["status"] == r.status
+        np.testing.assert_allclose(r.q, out["q"], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(tree.ik(targets), r.q, rtol=0, atol=0)
+
+
+def test_tree_priority_keeps_the_first_target():
+    tree = armctl.Model(TREE)
+    q = random_q(tree, 1)[0]
+    left = tree.fk(q)["left_tip"][:3, 3]
+    r = tree.solve({"left_tip": left, "right_tip": [2.0, -0.2, 0.3]}, priority="left_tip")
+    assert r.status == "best_effort"
+    assert r.effectors["left_tip"]["reached"] and r.effectors["left_tip"]["priority"] == 0
+    assert not r.effectors["right_tip"]["reached"] and r.effectors["right_tip"]["priority"] == 1
+    assert r.effectors["right_tip"]["position_error"] > 1.0
+    assert np.linalg.norm(tree.fk(r.q)["left_tip"][:3, 3] - left) <= 1e-5
+    with pytest.raises(armctl.ArmctlError, match="not reached: best_effort, right_tip"):
+        tree.ik({"left_tip": left, "right_tip": [2.0, -0.2, 0.3]}, priority=["left_tip"])
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda: armctl.Model(TREE).fk([0] * 5), "expected 11 values"),
+        (lambda: armctl.Model(TREE).jacobian([0] * 10 + [np.nan]), "not a finite number"),
+        (lambda: armctl.Model(TREE).solve({"nope": [0.3, 0.2, 0.4]}), "no end effector \"nope\""),
+        (lambda: armctl.Model(TREE).solve({"left_tip": [np.nan, 0.2, 0.4]}), "not a finite number"),
+        (lambda: armctl.Model(TREE).solve({"left_tip": [0.3, 0.2]}), "expected 3 values"),
+        (lambda: armctl.Model(TREE).solve({"left_tip": ([0.3, 0.2, 0.4], [1, 1, 0, 0])}), "not a unit quaternion"),
+        (lambda: armctl.Model(TREE).solve({}), "targets: expected a dict"),
+        (lambda: armctl.Model(TREE).solve({"left_tip": [0.3, 0.2, 0.4]}, seed=[0, 0]), "expected 11 values"),
+        (lambda: armctl.Model(TREE).solve({"left_tip": [0.3, 0.2, 0.4]}, priority="left_tip"), "must leave some"),
+        (lambda: armctl.Model(TREE).solve({"left_tip": [0.3, 0.2, 0.4], "right_tip": [0.3, -0.2, 0.4]},
+                                          priority="camera_link"), "camera_link has no target"),
+        (lambda: armctl.Model(TREE, calibration="my_arm.json"), "is a tree"),
+        (lambda: armctl.TreeModel("so101"), "is a chain, not a tree"),
+    ],
+)
+def test_bad_tree_input_raises_one_line(call, message):
+    with pytest.raises(armctl.ArmctlError, match=message) as e:
+        call()
+    assert "\n" not in str(e.value)
 
 
 @pytest.mark.parametrize(

@@ -1,4 +1,5 @@
-//! `armctl ik`: one target, or a JSON-lines file of them (`--batch`).
+//! `armctl ik`: one target, or a JSON-lines file of them (`--batch`); on a tree, one target per
+//! end effector solved at once (`super::tree`).
 
 use std::io::{Read, Write};
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TryRecvError};
@@ -10,19 +11,22 @@ use kinematics::ik::{IkConfig, IkStatus};
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 
-use super::{load, print_json, ArmArgs};
+use super::tree::{self, TreeIk};
+use super::{load_body, print_json, ArmArgs, Loaded};
 use crate::args::json_lines::{self, Line, Parsed};
 use crate::args::numbers as parse;
 use crate::arm::dof::{DynArm, IkOutcome, IkRequest, Scalar, SolverName};
+use crate::arm::dyn_tree::{self, DynTree};
 use crate::bench::ik as bench;
 
 #[derive(Args, Debug)]
 pub(crate) struct IkArgs {
     #[command(flatten)]
     pub(super) arm: ArmArgs,
-    /// Target tool position x,y,z (m).
+    /// Target tool position x,y,z (m). For a tree (a URDF with several leaves and no --tip):
+    /// NAME=x,y,z[,qw,qx,qy,qz], once per end effector with a target (NAME its link).
     #[arg(long, allow_hyphen_values = true, required_unless_present = "batch", conflicts_with = "batch")]
-    target: Option<String>,
+    target: Vec<String>,
     /// Target orientation as a unit quaternion w,x,y,z (omit for a position-only target).
     #[arg(long, allow_hyphen_values = true, conflicts_with = "batch")]
     quat: Option<String>,
@@ -52,21 +56,31 @@ pub(crate) struct IkArgs {
     /// Metres of position error one radian of orientation error is worth in the residual.
     #[arg(long, default_value_t = 1.0)]
     orientation_weight: f64,
-    /// Iteration budget over all restarts.
-    #[arg(long, default_value_t = 1000)]
-    max_iterations: u32,
+    /// A tree's priority mode: the end effectors (NAME,NAME...) whose targets are met first; the
+    /// other targets only in the null space those leave, as far as they can be without
+    /// disturbing them. Without it every target weighs alike.
+    #[arg(long)]
+    priority: Option<String>,
+    /// Iteration budget over all restarts [default: 1000; for a tree 6000].
+    #[arg(long)]
+    max_iterations: Option<u32>,
     /// Changes nothing: every result is one line of JSON already.
     #[arg(long)]
     pub(super) json: bool,
 }
 
-fn config(args: &IkArgs) -> Result<IkConfig<f64>> {
+/// A chain's iteration budget unless `--max-iterations` is given.
+const CHAIN_MAX_ITERATIONS: u32 = 1000;
+
+/// The solver's settings from the options; `max_iterations` is the budget where
+/// `--max-iterations` is not given.
+fn config(args: &IkArgs, max_iterations: u32) -> Result<IkConfig<f64>> {
     let (p, o) = args.scalar.default_tolerances();
     let config = IkConfig {
         position_tolerance: args.position_tolerance.unwrap_or(p),
         orientation_tolerance: args.orientation_tolerance.unwrap_or(o),
         orientation_weight: args.orientation_weight,
-        max_iterations: args.max_iterations,
+        max_iterations: args.max_iterations.unwrap_or(max_iterations),
         ..IkConfig::default()
     };
     let positive = |v: f64| v.is_finite() && v > 0.0;
@@ -129,8 +143,25 @@ fn refusal(outcome: &IkOutcome, scalar: Scalar) -> Option<String> {
 /// Runs `armctl ik`; returns the exit code.
 pub(crate) fn run(args: &IkArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
     let started = Instant::now();
-    let arm = load(&args.arm)?;
-    let config = config(args)?;
+    let arm = match load_body(&args.arm)? {
+        Loaded::Chain(arm) => arm,
+        Loaded::Tree(tree) => return run_tree(&tree, args, out, err),
+    };
+    let config = config(args, CHAIN_MAX_ITERATIONS)?;
+    if args.priority.is_some() {
+        bail!(
+            "--priority ranks the targets of a tree's end effectors; arm {} is a chain with one tool",
+            arm.spec().name
+        );
+    }
+    if args.target.len() > 1 {
+        bail!(
+            "--target is given {} times; arm {} is a chain with one tool (several --target NAME=... are for a tree: a \
+             URDF with several leaves, without --tip)",
+            args.target.len(),
+            arm.spec().name
+        );
+    }
     let request = |position, quaternion_wxyz, seed| IkRequest {
         position,
         quaternion_wxyz,
@@ -141,7 +172,7 @@ pub(crate) fn run(args: &IkArgs, out: &mut dyn Write, err: &mut dyn Write) -> Re
     };
     let Some(batch) = &args.batch else {
         // `target` is required by clap whenever `batch` is absent.
-        let position = parse::fixed::<3>(args.target.as_deref().unwrap_or_default(), "--target")?;
+        let position = parse::fixed::<3>(args.target.first().map(String::as_str).unwrap_or_default(), "--target")?;
         let quat = args.quat.as_deref().map(|q| parse::fixed::<4>(q, "--quat")).transpose()?;
         let seed = args.seed.as_deref().map(|s| parse::numbers(s, "--seed")).transpose()?;
         if args.all_solutions {
@@ -234,6 +265,34 @@ pub(crate) fn run(args: &IkArgs, out: &mut dyn Write, err: &mut dyn Write) -> Re
         100.0 * solved as f64 / total.max(1) as f64
     )?;
     Ok(if rejected > 0 { 1 } else { 0 })
+}
+
+/// `armctl ik` on a tree: the options a tree's solve has no use for are refused, not ignored.
+fn run_tree(tree: &DynTree, args: &IkArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+    let name = &tree.spec().name;
+    let one_per_target = "one --target NAME=x,y,z[,qw,qx,qy,qz] per end effector";
+    if args.batch.is_some() {
+        bail!("--batch is for chains; tree {name} takes its targets on the command line, {one_per_target}");
+    }
+    if args.quat.is_some() {
+        bail!("--quat is for chains; a tree's target carries its own quaternion, {one_per_target}");
+    }
+    if args.all_solutions {
+        bail!("--all-solutions lists a chain's closed-form solutions; tree {name} has no closed form");
+    }
+    if args.scalar == Scalar::F32 {
+        bail!("--scalar f32: tree {name} is solved in f64 only");
+    }
+    if !matches!(args.solver, SolverName::Auto | SolverName::Dls) {
+        bail!("--solver: tree {name} is solved by damped least squares over every target (auto or dls)");
+    }
+    let request = TreeIk {
+        targets: &args.target,
+        seed: args.seed.as_deref(),
+        priority: args.priority.as_deref(),
+        config: config(args, dyn_tree::DEFAULT_MAX_ITERATIONS)?,
+    };
+    tree::ik(tree, request, out, err)
 }
 
 /// `ik --all-solutions`: every closed-form solution, and the time they took together.

@@ -7,9 +7,12 @@ mod ik;
 pub mod retarget;
 pub mod serve;
 pub mod sim;
+mod tree;
 
 use crate::args::numbers as parse;
+use crate::arm::body::Body;
 use crate::arm::dof::{self, DynArm, Scalar};
+use crate::arm::dyn_tree::DynTree;
 use crate::arm::ArmSpec;
 use crate::bench::ik::{self as bench, Protocol};
 use crate::drive::args::LinkArgs;
@@ -48,6 +51,8 @@ enum Command {
     /// over.
     Demo(crate::demo::DemoArgs),
     /// Forward kinematics: the tool's pose and every joint's frame for joint values (JSON)
+    ///
+    /// For a tree (a URDF with several leaves and no --tip), every end effector's pose.
     Fk {
         #[command(flatten)]
         arm: ArmArgs,
@@ -60,7 +65,8 @@ enum Command {
     },
     /// The 6 x N geometric Jacobian at joint values (JSON)
     ///
-    /// Rows linear x, y, z then angular x, y, z; one column per joint.
+    /// Rows linear x, y, z then angular x, y, z; one column per joint. For a tree (a URDF with
+    /// several leaves and no --tip), each end effector's, over every joint of the tree.
     Jacobian {
         #[command(flatten)]
         arm: ArmArgs,
@@ -208,7 +214,8 @@ pub(crate) struct ArmArgs {
     /// .toml arm file (required; may come before the command too).
     #[arg(long)]
     arm: Option<String>,
-    /// Tip link of a URDF arm (needed when the URDF tree has several leaves).
+    /// Tip link of a URDF arm: the chain to it. Without it, a URDF with several leaves is a tree
+    /// (fk, jacobian and ik answer for every end effector; other commands need --tip).
     #[arg(long)]
     tip: Option<String>,
 }
@@ -291,11 +298,31 @@ where
     }
 }
 
+/// `--arm`'s value, or the error for its absence.
+fn arm_name(arm: &ArmArgs) -> Result<&str> {
+    match &arm.arm {
+        Some(name) => Ok(name),
+        None => bail!("--arm is missing: a preset name or a .urdf or .toml arm file"),
+    }
+}
+
 pub(crate) fn load(arm: &ArmArgs) -> Result<Box<dyn DynArm>> {
-    let Some(name) = &arm.arm else {
-        bail!("--arm is missing: a preset name or a .urdf or .toml arm file");
-    };
-    dof::build(ArmSpec::load(name, arm.tip.as_deref())?)
+    dof::build(ArmSpec::load(arm_name(arm)?, arm.tip.as_deref())?)
+}
+
+/// What `fk`, `jacobian` and `ik` work on: a chain, or a tree (a URDF with several leaves and no
+/// `--tip`, [`Body::load`]).
+pub(crate) enum Loaded {
+    Chain(Box<dyn DynArm>),
+    /// Boxed: the tree is held in its full fixed capacity, kilobytes.
+    Tree(Box<DynTree>),
+}
+
+pub(crate) fn load_body(arm: &ArmArgs) -> Result<Loaded> {
+    Ok(match Body::load(arm_name(arm)?, arm.tip.as_deref())? {
+        Body::Chain(spec) => Loaded::Chain(dof::build(spec)?),
+        Body::Tree(spec) => Loaded::Tree(Box::new(DynTree::build(spec)?)),
+    })
 }
 
 /// The command as typed, subcommands included: `fk`, `bench ik`, `servo scan`.
@@ -386,7 +413,10 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
         Command::Teleop(args) => return crate::teleop::run(link, args, out, err),
         Command::View(args) => return crate::view::run(link, args, out, err),
         Command::Fk { arm, q, json: _ } => {
-            let arm = load(&arm)?;
+            let arm = match load_body(&arm)? {
+                Loaded::Chain(arm) => arm,
+                Loaded::Tree(tree) => return tree::fk(&tree, &q, out),
+            };
             let q = parse::numbers(&q, "--q")?;
             let tool = arm.tool_pose(&q)?;
             let frames: Vec<Value> = arm
@@ -409,7 +439,10 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
             )?;
         }
         Command::Jacobian { arm, q, json: _ } => {
-            let arm = load(&arm)?;
+            let arm = match load_body(&arm)? {
+                Loaded::Chain(arm) => arm,
+                Loaded::Tree(tree) => return tree::jacobian(&tree, &q, out),
+            };
             let q = parse::numbers(&q, "--q")?;
             print_json(out, &json!({"arm": arm.spec().name, "jacobian": arm.jacobian(&q)?}))?;
         }

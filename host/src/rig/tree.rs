@@ -3,24 +3,18 @@
 //! then one IK problem over every joint of the tree ([`kinematics::tree`]), solved here on the host,
 //! and each arm's core gets its share as a joint move, all timed to arrive together.
 //!
-//! The tree is built in fixed capacity: [`MAX_JOINTS`] joints and [`MAX_EFFECTORS`] end effectors,
-//! the unused ones padded (a joint of zero range under no end effector, an end effector on the
-//! root without a target), so one instance of the solver serves every rig.
+//! The tree is the one every tree of the host is: [`DynTree`], of fixed capacity (its
+//! [`MAX_JOINTS`] joints and [`MAX_EFFECTORS`] end effectors, the unused ones padded), so one
+//! instance of the solver serves every rig and every URDF with branches.
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use kinematics::ik::IkConfig;
-use kinematics::nalgebra::{SVector, Vector3};
-use kinematics::tree::{Effector, EffectorTarget, Tree, TreeProblem};
-use kinematics::{Joint, JointKind, Limits, Pose};
+use kinematics::Pose;
 
+use crate::arm::dyn_tree::{DynTree, EffectorGoal, TreeIkRequest};
+pub use crate::arm::dyn_tree::{MAX_EFFECTORS, MAX_JOINTS};
+use crate::arm::tree::{EffectorSpec, TreeSpec};
 use crate::arm::ArmSpec;
-
-/// The most joints of a rig's tree.
-pub const MAX_JOINTS: usize = 16;
-/// The most arms of a rig's tree.
-pub const MAX_EFFECTORS: usize = 4;
-
-type RigTreeOf = Tree<f64, MAX_JOINTS, MAX_EFFECTORS>;
 
 /// One arm as the tree sees it.
 pub struct TreeArm<'a> {
@@ -35,7 +29,7 @@ pub struct TreeArm<'a> {
 /// The rig's arms as one tree: arm `a`'s joints are tree joints `first[a]..first[a] + count[a]`,
 /// and its tool is end effector `a`.
 pub struct RigTree {
-    tree: RigTreeOf,
+    tree: DynTree,
     first: Vec<usize>,
     count: Vec<usize>,
 }
@@ -46,10 +40,6 @@ pub struct TreeMove {
     pub q: Vec<Vec<f64>>,
     /// Each arm's tool distance from its target (0 for an arm without one).
     pub errors: Vec<f64>,
-}
-
-fn joint(spec: &crate::arm::JointSpec, origin: Pose<f64>) -> Joint<f64> {
-    Joint { origin, axis: spec.axis.into(), kind: spec.kind, limits: Limits::from_f64(spec.lower, spec.upper) }
 }
 
 impl RigTree {
@@ -63,45 +53,45 @@ impl RigTree {
                 arms.len()
             );
         }
-        let padding = Joint {
-            origin: Pose::identity(),
-            axis: Vector3::z(),
-            kind: JointKind::Revolute,
-            limits: Limits::from_f64(0.0, 0.0),
-        };
-        let mut joints = [padding; MAX_JOINTS];
-        let mut parents = [None; MAX_JOINTS];
-        let mut effectors = [Effector { joint: None, offset: Pose::identity() }; MAX_EFFECTORS];
+        let mut spec = TreeSpec { name: "rig".into(), joints: Vec::new(), parents: Vec::new(), effectors: Vec::new() };
         let (mut first, mut count) = (Vec::new(), Vec::new());
-        let mut k = 0;
         for (a, arm) in arms.iter().enumerate() {
-            first.push(k);
+            first.push(spec.joints.len());
             count.push(arm.arm.dof());
-            // The arm's first joint hangs from its mount's last joint, through that arm's tool
-            // frame and the mount offset; or from the root, through its base.
+            // The arm's first joint hangs where its mount's tool is (that arm's end effector),
+            // through the mount offset; or from the root, through its base.
             let (parent, to_first) = match arm.mount {
                 Some(m) if m < a => {
-                    let last = first[m] + count[m] - 1;
-                    (Some(last), arms[m].arm.tool.compose(&arm.base))
+                    let tool: &EffectorSpec = &spec.effectors[m];
+                    (tool.joint, tool.offset.compose(&arm.base))
                 }
                 Some(_) => bail!("arm {} is mounted on an arm that is not before it", arm.arm.name),
                 None => (None, arm.base),
             };
-            for (j, spec) in arm.arm.joints.iter().enumerate() {
-                let (origin, up) =
-                    if j == 0 { (to_first.compose(&spec.origin), parent) } else { (spec.origin, Some(k - 1)) };
-                joints[k] = joint(spec, origin);
-                parents[k] = up;
-                k += 1;
+            for (j, joint) in arm.arm.joints.iter().enumerate() {
+                let (origin, up) = if j == 0 {
+                    (to_first.compose(&joint.origin), parent)
+                } else {
+                    (joint.origin, Some(spec.joints.len() - 1))
+                };
+                spec.joints.push(crate::arm::JointSpec { origin, ..joint.clone() });
+                spec.parents.push(up);
             }
-            effectors[a] = Effector { joint: Some(k - 1), offset: arm.arm.tool };
+            // The tool on the arm's last joint; an arm without joints is its tool, fixed where its
+            // first joint would be.
+            let (joint, offset) = match arm.arm.joints.is_empty() {
+                false => (Some(spec.joints.len() - 1), arm.arm.tool),
+                true => (parent, to_first.compose(&arm.arm.tool)),
+            };
+            spec.effectors.push(EffectorSpec { link: arm.arm.name.clone(), joint, offset });
         }
-        let tree = Tree::new(joints, parents, effectors).map_err(|e| anyhow::anyhow!("the rig's tree: {e}"))?;
+        let tree = DynTree::build(spec).context("the rig's tree")?;
         Ok(Self { tree, first, count })
     }
 
-    fn pack(&self, q: &[Vec<f64>]) -> SVector<f64, MAX_JOINTS> {
-        let mut v = SVector::zeros();
+    /// Every arm's joint values as one vector over the tree's joints.
+    fn pack(&self, q: &[Vec<f64>]) -> Vec<f64> {
+        let mut v = vec![0.0; self.tree.dof()];
         for (a, values) in q.iter().enumerate() {
             for (j, x) in values.iter().take(self.count[a]).enumerate() {
                 v[self.first[a] + j] = *x;
@@ -110,14 +100,15 @@ impl RigTree {
         v
     }
 
-    fn unpack(&self, v: &SVector<f64, MAX_JOINTS>) -> Vec<Vec<f64>> {
-        (0..self.first.len()).map(|a| (0..self.count[a]).map(|j| v[self.first[a] + j]).collect()).collect()
+    fn unpack(&self, v: &[f64]) -> Vec<Vec<f64>> {
+        (0..self.first.len()).map(|a| v[self.first[a]..self.first[a] + self.count[a]].to_vec()).collect()
     }
 
     /// Every arm's tool in the world frame at joint values `q` (one vector per arm).
     pub fn tools(&self, q: &[Vec<f64>]) -> Vec<[f64; 3]> {
-        let frames = self.tree.forward(&self.pack(q));
-        (0..self.first.len()).map(|a| frames.effectors[a].translation.into()).collect()
+        // `pack` gives one value per joint of the tree, so forward kinematics cannot refuse it.
+        let poses = self.tree.forward(&self.pack(q)).expect("one value per joint of the tree");
+        poses.effectors.iter().map(|p| p.translation.into()).collect()
     }
 
     /// Solves for `targets` (world-frame tool positions, one per arm or `None`) from `q`, at the
@@ -143,16 +134,17 @@ impl RigTree {
     /// target out of reach is no error: the answer is the closest the solver came, with whether
     /// each arm reached its target (an arm without one always has).
     pub fn solve_free(&self, q: &[Vec<f64>], targets: &[Option<[f64; 3]>]) -> (TreeMove, Vec<bool>) {
-        let mut problem = TreeProblem {
-            targets: [None; MAX_EFFECTORS],
-            seed: self.pack(q),
+        let mut goals = vec![None; self.first.len()];
+        for (goal, target) in goals.iter_mut().zip(targets) {
+            *goal = target.map(|position| EffectorGoal { position, quaternion_wxyz: None, priority: 0 });
+        }
+        let request = TreeIkRequest {
+            goals,
+            seed: Some(self.pack(q)),
             config: IkConfig { position_tolerance: 1e-4, orientation_tolerance: 1e-3, ..IkConfig::default() },
         };
-        for (a, target) in targets.iter().enumerate() {
-            problem.targets[a] =
-                target.map(|p| EffectorTarget { position: p.into(), rotation: None, weight: 1.0, priority: 0 });
-        }
-        let solution = self.tree.solve(&problem);
+        // One goal per arm, a seed of one value per joint, no quaternion: nothing the solve refuses.
+        let solution = self.tree.solve(&request).expect("a rig's request is always posed");
         let errors: Vec<f64> = (0..targets.len()).map(|a| solution.effectors[a].position_error).collect();
         let reached = (0..targets.len()).map(|a| targets[a].is_none() || solution.effectors[a].reached).collect();
         (TreeMove { q: self.unpack(&solution.q), errors }, reached)
