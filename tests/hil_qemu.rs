@@ -14,16 +14,14 @@ use armctl::arm::servos::ServoSetup;
 use armctl::arm::ArmSpec;
 use armctl::drive::connection::{open, Connection, Target};
 use armctl::link::arm_config::configure_messages;
-use armctl::link::client::{LinkClient, LinkError};
+use armctl::link::session::{Keyframe, Session};
 use armctl::link::Transport;
 use armctl::places::qemu::{self, Qemu, QemuConfig};
 use armctl::sim::so101_bus;
 use armctl::sim::{Faults, PtyServer, SimConfig};
-use firmware::link::message::{
-    CartesianTarget, FirmwareMessage, HostMessage, JointKeyframe, NakReason, RunState, Status, Timing,
-};
+use firmware::link::message::{CartesianTarget, HostMessage, JointKeyframe, MovePath, RunState, Status, Timing};
 
-type Client = LinkClient<Box<dyn Transport>>;
+type Client = Session<Box<dyn Transport>>;
 
 /// One QEMU at a time: on a two-core machine, parallel emulators would slow each other into bus
 /// timeouts that say nothing about the firmware.
@@ -75,39 +73,12 @@ fn rig() -> Option<Rig> {
     Some(rig)
 }
 
-/// Sends `message`, again after each `NotReady` for up to `waits` read timeouts (the firmware
-/// reads every servo first after a reset, and takes a new arm only once the torque is off).
-fn request_when_ready(c: &mut Client, message: &HostMessage, waits: usize) -> Result<FirmwareMessage, LinkError> {
-    let mut waited = 0;
-    loop {
-        match c.request(message) {
-            Err(LinkError::Nak(NakReason::NotReady)) if waited < waits => {
-                waited += 1;
-                c.wait_once()?;
-            }
-            other => return other,
-        }
-    }
-}
-
-/// Polls status until the arm is at rest, at most `polls` times.
-fn wait_idle(c: &mut Client, polls: usize) -> Result<Status, String> {
-    let mut status = c.status().map_err(|e| e.to_string())?;
-    for _ in 0..polls {
-        if status.state == RunState::Idle {
-            return Ok(status);
-        }
-        c.wait_once().map_err(|e| e.to_string())?;
-        status = c.status().map_err(|e| e.to_string())?;
-    }
-    match status.state {
-        RunState::Idle => Ok(status),
-        other => Err(format!("still {other:?} after {polls} status polls")),
-    }
-}
+/// Read timeouts a request waits through `NotReady` (4 s at 20 ms: after a reset the firmware
+/// reads every servo first, and it takes a new arm only once the torque is off).
+const NOT_READY_WAITS: usize = 200;
 
 fn torque_on(c: &mut Client) {
-    request_when_ready(c, &HostMessage::Torque { on: true }, 200).unwrap();
+    c.torque_on(NOT_READY_WAITS).unwrap();
 }
 
 /// Polls status for about `duration` of wall time (the firmware runs at about real-time pace).
@@ -118,7 +89,7 @@ fn poll_for(c: &mut Client, duration: Duration) -> Status {
         if std::time::Instant::now() >= end {
             return status;
         }
-        c.wait_once().unwrap();
+        c.pause().unwrap();
     }
 }
 
@@ -135,13 +106,9 @@ fn tool_error(arm: &ArmSpec, q: &[f32], target: [f32; 3]) -> f64 {
 }
 
 fn move_to(c: &mut Client, arm: &ArmSpec, target: [f32; 3]) {
-    c.request(&HostMessage::MoveTo {
-        path: firmware::link::message::MovePath::Auto,
-        target: CartesianTarget { position: target, orientation: None },
-        timing: Timing::MaxSpeed(0.2),
-    })
-    .unwrap();
-    let status = wait_idle(c, 2000).unwrap();
+    let target_at = CartesianTarget { position: target, orientation: None };
+    c.move_to(target_at, Timing::MaxSpeed(0.2), MovePath::Auto).unwrap();
+    let status = c.wait_idle(2000).unwrap();
     assert_eq!(status.state, RunState::Idle);
     let error = tool_error(arm, &status.measured, target);
     assert!(error < 1e-3, "target {target:?} missed by {error} m");
@@ -153,12 +120,12 @@ fn move_to(c: &mut Client, arm: &ArmSpec, target: [f32; 3]) {
 fn stream(c: &mut Client, keyframes: &[JointKeyframe]) -> Status {
     let before = c.status().unwrap();
     for (i, k) in keyframes.iter().enumerate() {
-        c.push(&HostMessage::PushKeyframe(k.clone())).unwrap_or_else(|e| panic!("keyframe {i}: {e}"));
+        c.push(&Keyframe::Joints(k.clone())).unwrap_or_else(|e| panic!("keyframe {i}: {e}"));
         if i == 15 {
-            c.request(&HostMessage::Start).unwrap();
+            c.start().unwrap();
         }
     }
-    let status = wait_idle(c, 5000).unwrap();
+    let status = c.wait_idle(5000).unwrap();
     assert_eq!(status.state, RunState::Idle);
     assert_eq!(status.errors.underruns, before.errors.underruns, "the host kept the queue fed");
     for (j, (m, k)) in status.measured.iter().zip(&keyframes.last().unwrap().positions).enumerate() {
@@ -177,7 +144,7 @@ fn the_real_firmware_reaches_targets_and_follows_a_streamed_trajectory() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let Some(mut rig) = rig() else { return };
     let arm = rig.link.arm.clone();
-    let c = rig.link.session.client();
+    let c = &mut rig.link.session;
     torque_on(c);
     for target in [[0.2f32, 0.05, 0.15], [0.25, -0.05, 0.1]] {
         move_to(c, &arm, target);
@@ -208,20 +175,14 @@ fn faults_on_the_servo_side_are_reported_and_survived() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let Some(mut rig) = rig() else { return };
     let arm = rig.link.arm.clone();
-    let c = rig.link.session.client();
+    let c = &mut rig.link.session;
     // The arm sent over the link, joint by joint, replaces the built-in one (the firmware's
     // deepest path: a whole new controller).
     let so101 = ArmSpec::load("so101", None).unwrap();
-    for message in configure_messages(&so101, &ServoSetup::for_arm("so101").unwrap()).unwrap() {
-        c.request(&message).unwrap();
-    }
+    c.configure_arm(&so101, &ServoSetup::for_arm("so101").unwrap(), 0).unwrap();
     torque_on(c);
     // A servo falls silent mid-move: reported lost, then back, and the move completes.
-    c.request(&HostMessage::MoveJoints {
-        positions: [0.5, 0.3, -0.3, 0.2, 0.0].into_iter().collect(),
-        timing: Timing::Duration(3.0),
-    })
-    .unwrap();
+    c.move_joints([0.5, 0.3, -0.3, 0.2, 0.0].into_iter().collect(), Timing::Duration(3.0)).unwrap();
     poll_for(c, Duration::from_millis(300));
     rig.bus.set_faults(Faults { silent: vec![3], ..Faults::default() });
     let status = poll_for(c, Duration::from_millis(500));
@@ -229,7 +190,7 @@ fn faults_on_the_servo_side_are_reported_and_survived() {
     assert!(status.errors.bus_timeouts >= 5);
     rig.bus.set_faults(Faults::default());
     poll_for(c, Duration::from_millis(300));
-    let status = wait_idle(c, 2000).unwrap();
+    let status = c.wait_idle(2000).unwrap();
     assert_eq!(status.lost_servos, 0, "servo 3 back");
     assert_eq!(status.state, RunState::Idle);
     assert!((status.measured[2] + 0.3).abs() < 0.01, "joint 3 reached its goal: {}", status.measured[2]);
@@ -252,7 +213,7 @@ fn poll_until(c: &mut Client, timeout: Duration, done: impl Fn(&Status) -> bool)
         if done(&status) || std::time::Instant::now() >= end {
             return status;
         }
-        c.wait_once().unwrap();
+        c.pause().unwrap();
     }
 }
 
@@ -265,16 +226,16 @@ fn the_real_firmware_closes_the_gripper_on_an_object_and_opens_it() {
     let Some(mut rig) = rig() else { return };
     let gripper = ServoSetup::for_arm("so101").unwrap().gripper.unwrap();
     rig.bus.put_object(gripper.id, Some(armctl::sim::Jaw::for_object(&gripper, 30.0).unwrap()));
-    let c = rig.link.session.client();
+    let c = &mut rig.link.session;
     torque_on(c);
-    c.request(&HostMessage::Gripper { opening: 0.0, effort: None }).unwrap();
+    c.gripper(0.0, None).unwrap();
     let held = poll_until(c, Duration::from_secs(5), |s| s.gripper.is_some_and(|g| g.holding));
     let g = held.gripper.expect("the built-in SO-101 has a gripper");
     assert!(g.holding, "no grasp: {g:?}");
     let contact = 30.0 / gripper.opening_mm * 100.0;
     assert!((f64::from(g.opening) - contact).abs() < 0.3, "stopped at {g:?}, the object at {contact:.1} %");
     assert!(g.load.abs() >= 10.0, "load {g:?}");
-    c.request(&HostMessage::Gripper { opening: 100.0, effort: None }).unwrap();
+    c.gripper(100.0, None).unwrap();
     let open = poll_until(c, Duration::from_secs(5), |s| s.gripper.is_some_and(|g| g.opening > 99.0));
     let g = open.gripper.unwrap();
     assert!(!g.holding && g.opening > 99.0, "{g:?}");
@@ -320,7 +281,7 @@ fn tool_at(arm: &ArmSpec, q: &[f32]) -> [f32; 3] {
 fn any_arm_on_the_real_firmware(arm: &str) {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let Some((mut rig, spec)) = rig_for(arm) else { return };
-    let c = rig.link.session.client();
+    let c = &mut rig.link.session;
     torque_on(c);
     for fractions in [|j: usize| 0.3 * ((j + 1) as f64).sin(), |j: usize| -0.25 * ((j + 2) as f64).cos()] {
         move_to(c, &spec, tool_at(&spec, &inside(&spec, fractions)));
@@ -344,10 +305,10 @@ fn any_arm_on_the_real_firmware(arm: &str) {
     // Waits in wall time: under QEMU the firmware's clock runs slower than the wall's while it
     // busy-waits for replies (1 ns of virtual time per instruction emulated), and Dynamixel's
     // 500 µs return delays make that most of a tick.
-    c.request(&HostMessage::Gripper { opening: 0.0, effort: None }).unwrap();
+    c.gripper(0.0, None).unwrap();
     let closed = poll_until(c, Duration::from_secs(20), |s| s.gripper.is_some_and(|g| g.opening < 1.0));
     assert!(closed.gripper.is_some_and(|g| g.opening < 1.0 && !g.holding), "{:?}", closed.gripper);
-    c.request(&HostMessage::Gripper { opening: 100.0, effort: None }).unwrap();
+    c.gripper(100.0, None).unwrap();
     let opened = poll_until(c, Duration::from_secs(20), |s| s.gripper.is_some_and(|g| g.opening > 99.0));
     assert!(opened.gripper.is_some_and(|g| g.opening > 99.0), "{:?}", opened.gripper);
     assert_eq!((opened.errors.bus_errors, opened.errors.watchdog_trips), (0, 0));
@@ -369,21 +330,22 @@ fn any_arm_on_the_real_firmware(arm: &str) {
     let path = rig.board.link_path().to_string();
     let mut link = open(Target::Port { path, baud: 1_000_000 }, Some(arm), &mut std::io::sink()).unwrap();
     assert_eq!(link.info.arm_name.as_str(), spec.name);
-    let c = link.session.client();
+    let c = &mut link.session;
     let status = c.status().unwrap();
     assert_eq!(status.state, RunState::Idle, "torque still on, holding");
     assert!(status.measured.iter().zip(&held).all(|(a, b)| (a - b).abs() < 0.01));
 
     // Refused sendings change nothing: one cut short (no joints), and one on a bus faster than the
     // MPS2's UART reaches.
-    c.request(&HostMessage::Torque { on: false }).unwrap();
+    c.torque_off().unwrap();
     poll_until(c, Duration::from_secs(1), |s| s.state == RunState::TorqueOff);
+    // An arm cut short is what the product never sends: the raw requests of the link's client.
     let so101 = ArmSpec::load("so101", None).unwrap();
     let messages = configure_messages(&so101, &ServoSetup::for_arm("so101").unwrap()).unwrap();
     for m in messages.iter().take(3) {
-        c.request(m).unwrap();
+        c.client().request(m).unwrap();
     }
-    let refused = c.request(&HostMessage::ConfigureCommit).unwrap_err().to_string();
+    let refused = c.client().request(&HostMessage::ConfigureCommit).unwrap_err().to_string();
     assert!(refused.contains("not possible"), "{refused}");
     let mut fast = ServoSetup::for_arm("open-manipulator-x").unwrap();
     fast.baud = 2_000_000;
@@ -391,17 +353,10 @@ fn any_arm_on_the_real_firmware(arm: &str) {
     // The status says TorqueOff as soon as the request is taken, but the torque goes off at the
     // firmware's next tick, and until then a commit is refused "not possible": under QEMU on a
     // loaded machine that tick can come after the messages above, so each is sent again while
-    // not ready (link::ready, made for this). Only the commit is refused, for its bus.
-    let mut refusals = Vec::new();
-    for m in configure_messages(&omx, &fast).unwrap() {
-        if let Err(e) = request_when_ready(c, &m, 200) {
-            refusals.push(format!("{m:?}: {e}"));
-        }
-    }
-    assert!(
-        refusals.len() == 1 && refusals[0].starts_with("ConfigureCommit") && refusals[0].contains("servo bus"),
-        "{refusals:#?}"
-    );
+    // not ready (the session's configure_arm, made for this). Only the commit is refused, for
+    // its bus: every message before it was taken.
+    let refused = format!("{:#}", c.configure_arm(&omx, &fast, NOT_READY_WAITS).unwrap_err());
+    assert!(refused.contains("servo bus"), "{refused}");
     assert_eq!(c.hello().unwrap().arm_name.as_str(), spec.name);
     torque_on(c);
     move_to(c, &spec, tool_at(&spec, &inside(&spec, |j| 0.2 * ((j + 3) as f64).sin())));
@@ -503,8 +458,8 @@ fn each_reset_does_to_the_servos_torque_what_the_board_decides() {
     board.wait_started(qemu::START_TIMEOUT).unwrap();
     logged(&board.log().lines(), &["reset by power-on: the servos' torque goes off"]);
     let mut link = reopen(&board);
-    torque_on(link.session.client());
-    settles_in(link.session.client(), RunState::Idle);
+    torque_on(&mut link.session);
+    settles_in(&mut link.session, RunState::Idle);
     assert!(servo_torque_becomes(&bus, 1, true), "torque on did not reach servo 1");
 
     // The reset button: held where it stands.
@@ -515,10 +470,10 @@ fn each_reset_does_to_the_servos_torque_what_the_board_decides() {
     gdb.resume().unwrap();
     logged(&restarted(&board, seen), &["reset by the reset pin: servos found torqued are held where they stand"]);
     let mut link = reopen(&board);
-    settles_in(link.session.client(), RunState::Idle);
+    settles_in(&mut link.session, RunState::Idle);
     std::thread::sleep(Duration::from_millis(500));
     assert!(servo_torque_becomes(&bus, 1, true), "the reset button took servo 1's torque off");
-    assert_eq!(link.session.client().status().unwrap().state, RunState::Idle);
+    assert_eq!(link.session.status().unwrap().state, RunState::Idle);
 
     // The control loop stops (the core spins on `b .`): the watchdog resets the board, limp.
     drop(link);
@@ -531,11 +486,11 @@ fn each_reset_does_to_the_servos_torque_what_the_board_decides() {
     logged(&lines, &["watchdog: the control loop stopped", "reset by the watchdog: the servos' torque goes off"]);
     let mut link = reopen(&board);
     assert!(!servo_torque_becomes(&bus, 1, false), "servo 1 kept its torque after the watchdog's reset");
-    settles_in(link.session.client(), RunState::TorqueOff);
+    settles_in(&mut link.session, RunState::TorqueOff);
 
     // A fault (an undefined instruction, `udf #254`): logged where, then the watchdog, limp.
-    torque_on(link.session.client());
-    settles_in(link.session.client(), RunState::Idle);
+    torque_on(&mut link.session);
+    settles_in(&mut link.session, RunState::Idle);
     assert!(servo_torque_becomes(&bus, 1, true));
     drop(link);
     let seen = board.log().lines().len();
@@ -547,11 +502,11 @@ fn each_reset_does_to_the_servos_torque_what_the_board_decides() {
     logged(&lines, &["HardFault: pc 0x20300000", "reset by a fault (then the watchdog): the servos' torque goes off"]);
     let mut link = reopen(&board);
     assert!(!servo_torque_becomes(&bus, 1, false), "servo 1 kept its torque after the fault");
-    settles_in(link.session.client(), RunState::TorqueOff);
+    settles_in(&mut link.session, RunState::TorqueOff);
 
     // Power-on: the board starts anew (a new QEMU) on servos still torqued.
-    torque_on(link.session.client());
-    settles_in(link.session.client(), RunState::Idle);
+    torque_on(&mut link.session);
+    settles_in(&mut link.session, RunState::Idle);
     assert!(servo_torque_becomes(&bus, 1, true));
     drop(link);
     drop(board);
@@ -560,7 +515,7 @@ fn each_reset_does_to_the_servos_torque_what_the_board_decides() {
     logged(&board.log().lines(), &["reset by power-on: the servos' torque goes off"]);
     let mut link = reopen(&board);
     assert!(!servo_torque_becomes(&bus, 1, false), "servo 1 kept its torque after a power-on");
-    settles_in(link.session.client(), RunState::TorqueOff);
+    settles_in(&mut link.session, RunState::TorqueOff);
     drop(link);
     drop(board);
     bus.stop().unwrap();
