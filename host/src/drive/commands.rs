@@ -5,8 +5,8 @@ use std::io::Write;
 
 use anyhow::{anyhow, bail, Result};
 use firmware::link::message::{
-    CartesianTarget, HostMessage, MovePath, NakReason, RunState, Status, Timing, MAX_REACH, MAX_SPEED, MAX_TIME,
-    QUATERNION_TOLERANCE,
+    CartesianTarget, HostMessage, MoveOutcome, MovePath, NakReason, PathTaken, RunState, Status, Timing, MAX_REACH,
+    MAX_SPEED, MAX_TIME, QUATERNION_TOLERANCE,
 };
 use serde_json::json;
 
@@ -342,6 +342,22 @@ pub fn status_json(driver: &Driver, s: &Status) -> Result<serde_json::Value> {
     Ok(v)
 }
 
+/// The firmware's account of its last move, as `armctl status` words it.
+fn last_move(outcome: Option<&MoveOutcome>) -> String {
+    let Some(m) = outcome else { return "none since the arm was configured".to_string() };
+    let mm = |m: f32| f64::from(m) * 1e3;
+    let blocked = |at: f32| format!("blocked {:.0} mm along its {:.0} mm", mm(at), mm(m.line_length));
+    match (m.path, m.blocked_at) {
+        (PathTaken::Line, _) => format!("line ({:.0} mm)", mm(m.line_length)),
+        (PathTaken::Joints, _) => "joints".to_string(),
+        (PathTaken::LineThenJoints, Some(at)) => format!("line, then joints ({})", blocked(at)),
+        (PathTaken::LineStopped, Some(at)) => format!("line, stopped there ({})", blocked(at)),
+        // The firmware always says where it gave a line up; worded without it all the same.
+        (PathTaken::LineThenJoints, None) => "line, then joints".to_string(),
+        (PathTaken::LineStopped, None) => "line, stopped where it was blocked".to_string(),
+    }
+}
+
 /// Prints a status as `armctl status` does (one line of JSON with `json`).
 pub fn print_status(driver: &Driver, s: &Status, json: bool, out: &mut dyn Write) -> Result<()> {
     if json {
@@ -362,6 +378,7 @@ pub fn print_status(driver: &Driver, s: &Status, json: bool, out: &mut dyn Write
     writeln!(out, "setpoints  {}", fmt_list(&s.setpoints))?;
     writeln!(out, "tool       {} m (measured)", fmt3(&tool))?;
     writeln!(out, "queue      {} queued, {} free", s.queued, s.free_slots)?;
+    writeln!(out, "last move  {}", last_move(s.last_move.as_ref()))?;
     if let Some(g) = &s.gripper {
         let mm = driver.gripper().map(|spec| f64::from(g.opening).clamp(0.0, 100.0) / 100.0 * spec.opening_mm);
         writeln!(out, "gripper    {}", super::gripper::describe(g, mm))?;
@@ -392,4 +409,27 @@ pub fn print_status(driver: &Driver, s: &Status, json: bool, out: &mut dyn Write
         e.link_dropped, e.link_overruns
     )?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{last_move, MoveOutcome, PathTaken};
+
+    /// `armctl status`'s line for each way a move can go, in whole millimetres.
+    #[test]
+    fn the_last_move_in_words() {
+        let outcome = |path, blocked_at| MoveOutcome { path, blocked_at, line_length: 0.1449 };
+        assert_eq!(last_move(None), "none since the arm was configured");
+        assert_eq!(last_move(Some(&outcome(PathTaken::Line, None))), "line (145 mm)");
+        assert_eq!(
+            last_move(Some(&outcome(PathTaken::LineThenJoints, Some(0.0752)))),
+            "line, then joints (blocked 75 mm along its 145 mm)"
+        );
+        assert_eq!(
+            last_move(Some(&outcome(PathTaken::LineStopped, Some(0.0962)))),
+            "line, stopped there (blocked 96 mm along its 145 mm)"
+        );
+        let joints = MoveOutcome { path: PathTaken::Joints, blocked_at: None, line_length: 0.0 };
+        assert_eq!(last_move(Some(&joints)), "joints");
+    }
 }
