@@ -9,7 +9,8 @@ use firmware::bus::mapping::JointMapping;
 use firmware::bus::master::{BusConfig, Master, NoDirectionPin};
 use firmware::bus::table::STS3215;
 use firmware::controller::{
-    joint_limits, minimum_period_us, Command, Config, Controller, Fault, Mode, Pace, Refusal, TickReport,
+    joint_limits, minimum_period_us, Command, Config, Controller, Fault, Mode, MoveOutcome, Pace, PathTaken, Refusal,
+    TickReport,
 };
 use kinematics::nalgebra::SVector;
 use kinematics::trajectory::PlayerKeyframe;
@@ -158,6 +159,7 @@ fn move_joints_reaches_the_target_within_limits() {
     let error = max_abs(&(r.present() - target));
     println!("move_joints: {ticks} ticks, final error {error:.5} rad, largest goal step {} ticks", r.max_step);
     assert!(ticks >= 150, "arrived before the requested duration: {ticks}");
+    assert_eq!(r.ctl.last_move(), Some(MoveOutcome { path: PathTaken::Joints, blocked_at: None, line_length: 0.0 }));
     assert_eq!(r.ctl.counters().deadline_misses, 0);
     assert_eq!(r.ctl.counters().missing_replies, 0);
 }
@@ -171,6 +173,8 @@ fn move_tool_reaches_a_reachable_point_within_a_millimetre() {
     let chain = builtin::arm().unwrap();
     let goal = chain.tool_pose(&SVector::from([0.4, -0.7, 0.9, 0.5, 0.0])).translation;
     let from = chain.tool_pose(r.ctl.measured()).translation;
+    // The line starts at the tool at the setpoint, by the controller's own forward kinematics.
+    let length = (goal - chain.forward(&r.ctl.setpoint().position).tool.translation).norm();
     r.command(Command::MoveTool {
         path: firmware::controller::ToolPath::Auto,
         position: goal.into(),
@@ -194,6 +198,9 @@ fn move_tool_reaches_a_reachable_point_within_a_millimetre() {
         r.ctl.counters().ik_failures
     );
     assert!(error < 1e-3);
+    // A free line: the outcome says so, with its length, and no place where it was blocked.
+    assert_eq!(r.ctl.last_move(), Some(MoveOutcome { path: PathTaken::Line, blocked_at: None, line_length: length }));
+    assert!(length > 0.05, "a line of {length} m");
 }
 
 #[test]
@@ -637,6 +644,17 @@ fn random_reachable_moves(moves: usize, fraction: f32, seed: u64) -> (usize, usi
                     r.tick();
                 }
                 let error = (chain.tool_pose(&r.present()).translation - goal).norm();
+                // The outcome says what the counter says: by joints exactly when the line fell
+                // back, and where, within the line.
+                let outcome = r.ctl.last_move().expect("a move was accepted");
+                let fell_back = r.ctl.counters().line_fallbacks > fallbacks_before;
+                assert_eq!(outcome.path == PathTaken::LineThenJoints, fell_back, "move {i}: {outcome:?}");
+                if fell_back {
+                    let at = outcome.blocked_at.expect("a line given up says where");
+                    assert!((0.0..=outcome.line_length).contains(&at), "move {i}: {outcome:?}");
+                } else {
+                    assert_eq!((outcome.path, outcome.blocked_at), (PathTaken::Line, None), "move {i}");
+                }
                 if r.ctl.mode() == Mode::Holding && error < 1e-3 {
                     arrived += 1;
                 } else {
@@ -692,6 +710,8 @@ fn a_blocked_line_by_each_path() {
         r.command(Command::MoveTool { path, position: goal.into(), orientation: None, pace: Pace::Speed(0.2) })
             .unwrap();
         let first = r.ctl.mode();
+        let line_length = (goal - chain.forward(&r.ctl.setpoint().position).tool.translation).norm();
+        let accepted = r.ctl.last_move();
         r.run_until(2000, |r, rep| rep.mode == Mode::Holding && r.ctl.setpoint().velocity.iter().all(|v| *v == 0.0));
         let short = (chain.tool_pose(&r.ctl.setpoint().position).translation - goal).norm();
         let fallbacks = r.ctl.counters().line_fallbacks;
@@ -703,6 +723,31 @@ fn a_blocked_line_by_each_path() {
             ToolPath::Auto => assert!(short < 1e-3 && fallbacks == 1 && first == Mode::Tracking),
             ToolPath::Line => assert!(short > 0.01 && fallbacks == 0 && first == Mode::Tracking),
             ToolPath::Joint => assert!(short < 1e-3 && fallbacks == 0 && first == Mode::Playing),
+        }
+        // The outcome: a tracked line when accepted; then given up (by joints, or stopped) where
+        // the tool stood on it, strictly inside the line; by joints from the start for `Joint`.
+        let outcome = r.ctl.last_move().unwrap();
+        println!("{path:?}: accepted as {accepted:?}, ended as {outcome:?}");
+        let line = Some(MoveOutcome { path: PathTaken::Line, blocked_at: None, line_length });
+        let given_up = |taken| {
+            assert_eq!((outcome.path, outcome.line_length), (taken, line_length), "{path:?}");
+            let at = outcome.blocked_at.unwrap();
+            assert!(at > 0.0 && at < line_length, "{path:?}: blocked {at} m along {line_length} m");
+        };
+        let joints = Some(MoveOutcome { path: PathTaken::Joints, blocked_at: None, line_length: 0.0 });
+        match path {
+            ToolPath::Auto => {
+                assert_eq!(accepted, line);
+                given_up(PathTaken::LineThenJoints);
+            }
+            ToolPath::Line => {
+                assert_eq!(accepted, line);
+                given_up(PathTaken::LineStopped);
+            }
+            ToolPath::Joint => {
+                assert_eq!(accepted, joints);
+                assert_eq!(Some(outcome), joints);
+            }
         }
     }
 }

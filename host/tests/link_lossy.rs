@@ -100,6 +100,7 @@ impl Toy {
             errors: ErrorCounters::default(),
             lost_servos: 0,
             gripper: None,
+            last_move: None,
         }
     }
 

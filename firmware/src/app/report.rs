@@ -1,11 +1,14 @@
-//! The status the firmware reports: run state, joints, queue, IK, loop timing and error counters.
+//! The status the firmware reports: run state, joints, queue, IK, loop timing, error counters and
+//! how the last move went.
 
 use heapless::Vec;
 
 use super::Core;
-use crate::controller::Mode;
+use crate::controller::{self, Mode};
 use crate::link::frame::FrameStats;
-use crate::link::message::{ErrorCounters, GripperStatus, IkStatus, Joints, LoopTiming, RunState, Status};
+use crate::link::message::{
+    ErrorCounters, GripperStatus, IkStatus, Joints, LoopTiming, MoveOutcome, PathTaken, RunState, Status,
+};
 use crate::link::session::SessionStats;
 
 /// Loop time statistics between status reports.
@@ -97,6 +100,7 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
                 errors,
                 lost_servos: 0,
                 gripper: None,
+                last_move: None,
             };
         };
         let counters = c.counters();
@@ -145,6 +149,16 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
                 goal: g.goal,
                 load: g.load,
                 holding: g.holding,
+            }),
+            last_move: c.last_move().map(|m| MoveOutcome {
+                path: match m.path {
+                    controller::PathTaken::Line => PathTaken::Line,
+                    controller::PathTaken::LineThenJoints => PathTaken::LineThenJoints,
+                    controller::PathTaken::Joints => PathTaken::Joints,
+                    controller::PathTaken::LineStopped => PathTaken::LineStopped,
+                },
+                blocked_at: m.blocked_at,
+                line_length: m.line_length,
             }),
         }
     }

@@ -35,9 +35,9 @@ const CHUNK: usize = 64;
 /// 5.1 ms of ticking), and counts it. A host that waits for each reply, as armctl does, never
 /// has more than one frame (256 bytes) in flight. A flood delays a due
 /// tick by at most 512 bytes' work: about 5 ms when each request is answered by a reply of about
-/// its length (sent at the same 1 Mbps), about 77 ms at worst, when every request is a 7-byte
-/// `GetStatus` answered by a 105-byte status (5 joints and the gripper: 73 of them); the F411's
-/// watchdog allows 150 ms.
+/// its length (sent at the same 1 Mbps), about 85 ms at worst, when every request is a 7-byte
+/// `GetStatus` answered by a 116-byte status (5 joints, the gripper and a line given up, as
+/// protocol 7 reports it: 73 of them); the F411's watchdog allows 150 ms.
 pub const DRAIN_PER_PASS: usize = 512;
 
 /// The firmware, its bus master and its link's received bytes, on one schedule.

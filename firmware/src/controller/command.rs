@@ -6,7 +6,7 @@ use kinematics::nalgebra::{SVector, Vector3};
 use kinematics::trajectory::{PlayerKeyframe, PushError};
 
 use super::refusal::Refusal;
-use super::{Controller, IkSummary, Mode, ToolGoal};
+use super::{Controller, IkSummary, Mode, MoveOutcome, PathTaken, ToolGoal};
 use crate::tracking::Tracker;
 
 /// How fast the tool goes to a Cartesian goal.
@@ -171,7 +171,11 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
                 }
                 Ok(())
             }
-            Command::MoveJoints { q, duration } => self.move_joints(SVector::from(q), duration),
+            Command::MoveJoints { q, duration } => {
+                self.move_joints(SVector::from(q), duration)?;
+                self.last_move = Some(MoveOutcome::JOINTS);
+                Ok(())
+            }
             Command::MoveTool { position, orientation, pace, path } => {
                 self.move_tool(position, orientation, pace, path)
             }
@@ -384,12 +388,16 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         let speed = if is_speed { value } else { (distance / value).max(1e-6) };
         if path == ToolPath::Joint {
             // At the line's pace, or as fast as the limits allow if that is slower.
-            return self.move_joints(solution, distance / speed);
+            self.move_joints(solution, distance / speed)?;
+            self.last_move = Some(MoveOutcome::JOINTS);
+            return Ok(());
         }
         self.reset_player();
         self.tracker = Tracker::new(self.setpoint.position, self.config.ik_iterations_per_tick);
-        self.tool = Some(ToolGoal { target, via: start, speed, solution, best: f32::INFINITY, stalled: 0.0, path });
+        self.tool =
+            Some(ToolGoal { target, via: start, speed, solution, best: f32::INFINITY, stalled: 0.0, path, start });
         self.mode = Mode::Tracking;
+        self.last_move = Some(MoveOutcome { path: PathTaken::Line, blocked_at: None, line_length: distance });
         Ok(())
     }
 

@@ -98,6 +98,38 @@ impl IkSummary {
     }
 }
 
+/// The way the tool went on the last move (the link reports it as its `PathTaken`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PathTaken {
+    /// Along the straight line, not given up: under way, arrived, or ended by a stop.
+    Line,
+    /// Along the line until it was blocked ([`ToolPath::Auto`]), then by joints.
+    LineThenJoints,
+    /// By joints from the start ([`Command::MoveJoints`], or [`ToolPath::Joint`]).
+    Joints,
+    /// Along the line until it was blocked ([`ToolPath::Line`]), then stopped there.
+    LineStopped,
+}
+
+/// The last move accepted by [`Controller::command`] and how it went, kept until the next move
+/// (keyframes leave it as it is): a host reads it instead of inferring the way from counters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MoveOutcome {
+    /// The way it went.
+    pub path: PathTaken,
+    /// Where the line was given up (m from its start, within `0..=line_length`): the tool at
+    /// the tracker's last solution, projected onto the line. `Some` exactly when the line was
+    /// given up.
+    pub blocked_at: Option<f32>,
+    /// The line's length (m), from the tool at acceptance to the target; 0 for a joint move.
+    pub line_length: f32,
+}
+
+impl MoveOutcome {
+    /// A move by joints from the start.
+    const JOINTS: Self = Self { path: PathTaken::Joints, blocked_at: None, line_length: 0.0 };
+}
+
 impl PlayClock {
     /// At time 0, not running.
     const STOPPED: Self = Self { time: 0.0, rate: 0.0, paused: false, queued_fresh: false };
@@ -117,6 +149,9 @@ struct ToolGoal<const N: usize> {
     stalled: f32,
     /// What to do when the line is blocked: finish by joints ([`ToolPath::Auto`]) or stop.
     path: ToolPath,
+    /// Where the tool was when the move was accepted: the line's start, from which the place
+    /// where it is given up is measured.
+    start: Vector3<f32>,
 }
 
 /// The control loop of an arm of `N` joints with a keyframe queue of `Q` keyframes.
@@ -167,6 +202,8 @@ pub struct Controller<const N: usize, const Q: usize> {
     queue_tail: SVector<f32, N>,
     /// The gripper, if the arm has one.
     gripper: Option<gripper::Gripper<Q>>,
+    /// The last move accepted and how it went.
+    last_move: Option<MoveOutcome>,
 }
 
 impl<const N: usize, const Q: usize> Controller<N, Q> {
@@ -238,6 +275,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             last_ik: None,
             queue_tail: zero,
             gripper: None,
+            last_move: None,
         });
     }
 
@@ -308,6 +346,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         self.last_ik = None;
         self.queue_tail = start;
         self.gripper = gripper.map(gripper::Gripper::new);
+        self.last_move = None;
         Ok(())
     }
 
@@ -425,6 +464,11 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
     /// The last IK solve, if any.
     pub fn last_ik(&self) -> Option<IkSummary> {
         self.last_ik
+    }
+
+    /// The last move accepted and how it went, if there was one since the arm was configured.
+    pub fn last_move(&self) -> Option<MoveOutcome> {
+        self.last_move
     }
 
     /// The arm's own joints: the first this many; the rest, up to `N`, pad the build (fixed

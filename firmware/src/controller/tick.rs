@@ -9,7 +9,7 @@ use kinematics::Pose;
 
 use super::health::{Fault, TickReport};
 use super::limiter::{limit_step, Setpoint};
-use super::{Controller, Mode, ToolPath};
+use super::{Controller, Mode, MoveOutcome, PathTaken, ToolGoal, ToolPath};
 
 /// How long a Cartesian move may make no progress before it goes the rest of the way by joints
 /// (s): a few ticks of IK that cannot follow the point are normal at a singularity's edge.
@@ -394,12 +394,14 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
                     if goal.path == ToolPath::Line {
                         // The line only: stop where it is blocked (the host says why).
                         self.begin_stop();
+                        self.last_move = Some(self.given_up(&goal, PathTaken::LineStopped));
                         return (self.setpoint.position, SVector::zeros());
                     }
                     // The rest of the way by joints, to the solution found before moving, at the
                     // line's pace (or as fast as the limits allow, if that is slower).
                     if self.move_joints(goal.solution, left / goal.speed).is_ok() {
                         self.counters.line_fallbacks = self.counters.line_fallbacks.saturating_add(1);
+                        self.last_move = Some(self.given_up(&goal, PathTaken::LineThenJoints));
                         return (self.setpoint.position, SVector::zeros());
                     }
                 }
@@ -419,6 +421,17 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
                 (desired, velocity)
             }
         }
+    }
+
+    /// The outcome of `goal`'s line, given up now and ending by `path`: it was blocked where the
+    /// tool stands at the tracker's last solution, projected onto the line (and kept within it).
+    fn given_up(&self, goal: &ToolGoal<N>, path: PathTaken) -> MoveOutcome {
+        let line = goal.target.position() - goal.start;
+        let length = line.norm();
+        let along = (self.tool_position(&self.tracker.q) - goal.start).dot(&line);
+        // A line of no length (the tool turning in place) is blocked at its start.
+        let at = if length > 0.0 { (along / length).max(0.0).min(length) } else { 0.0 };
+        MoveOutcome { path, blocked_at: Some(at), line_length: length }
     }
 
     /// Mode changes that depend on where the limited step ended.

@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 use super::frame::{FrameError, MAX_FRAME};
 
 /// The protocol version carried by the handshake; bumped on any change to the wire format.
-pub const PROTOCOL_VERSION: u16 = 6;
+pub const PROTOCOL_VERSION: u16 = 7;
 /// The most joints a message carries.
 pub const MAX_JOINTS: usize = 8;
 /// The longest arm name, in bytes of UTF-8.
@@ -458,6 +458,42 @@ pub struct Status {
     pub lost_servos: u32,
     /// The gripper, if the arm has one.
     pub gripper: Option<GripperStatus>,
+    // Added in protocol version 7.
+    /// The last move the firmware accepted (`MoveTo` or `MoveJoints`) and the way it went; `None`
+    /// until one is accepted (and after a new arm). Keyframes do not change it: it tells a host
+    /// how its last move went without comparing counters before and after.
+    pub last_move: Option<MoveOutcome>,
+}
+
+/// The way the tool went on a move (protocol version 7).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum PathTaken {
+    /// Along the straight line, tracked by IK, and not given up (yet): under way, arrived, or
+    /// ended by a stop, the watchdog or an emergency stop (the run state and the tool say which).
+    Line,
+    /// Along the straight line until it ran into the joint limits ([`MovePath::Auto`]), then the
+    /// rest of the way by joints to the solution found before moving.
+    LineThenJoints,
+    /// By joints from the start: a `MoveJoints`, or a `MoveTo` with [`MovePath::Joint`].
+    Joints,
+    /// Along the straight line until it ran into the joint limits ([`MovePath::Line`]), then
+    /// stopped there, short of the target.
+    LineStopped,
+}
+
+/// The last move and how it went (protocol version 7): set when the firmware accepts a `MoveTo`
+/// or `MoveJoints`, updated when it gives a line up.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MoveOutcome {
+    /// The way it went.
+    pub path: PathTaken,
+    /// Where the line was given up (m along it from the start, 0..=`line_length`): the tool's
+    /// place, projected onto the line, when the firmware found it blocked. `Some` exactly for
+    /// [`PathTaken::LineThenJoints`] and [`PathTaken::LineStopped`].
+    pub blocked_at: Option<f32>,
+    /// The straight line's length (m): from where the tool was when the move was accepted to the
+    /// target. 0 for a move by joints from the start.
+    pub line_length: f32,
 }
 
 /// Which field of a message a [`ValueError`] is about.

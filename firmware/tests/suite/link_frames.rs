@@ -108,6 +108,8 @@ fn status(n: usize) -> Status {
         },
         lost_servos: u32::MAX,
         gripper: Some(GripperStatus { opening: 41.5, goal: 0.0, load: -35.2, holding: true }),
+        // The largest outcome: a line given up, with both lengths (protocol 7).
+        last_move: Some(MoveOutcome { path: PathTaken::LineThenJoints, blocked_at: Some(0.075), line_length: 0.145 }),
     }
 }
 
@@ -249,7 +251,8 @@ fn every_message_round_trips_within_a_frame() {
 }
 
 /// The largest status (8 joints, the gripper, every counter at u32::MAX, the link's receive
-/// losses of protocol 6 included) fits a frame, and the margin is printed.
+/// losses of protocol 6 and the last move's outcome of protocol 7 included) fits a frame, and the
+/// margin is printed.
 #[test]
 fn the_largest_status_fits_a_frame() {
     let largest = FirmwareMessage::Telemetry(status(MAX_JOINTS));
@@ -262,6 +265,47 @@ fn the_largest_status_fits_a_frame() {
     five.errors = ErrorCounters::default();
     let typical = round_trip(1, FrameKind::Reply, &FirmwareMessage::Status(five));
     println!("largest status: payload {payload} of {MAX_PAYLOAD} bytes, frame {wire} of {MAX_FRAME}; 5 joints, counters 0: frame {typical}");
+}
+
+/// The last move's outcome, byte for byte: postcard writes an `Option` as a 0 or 1 byte before
+/// its value, an enum as its variant's index (a varint: one byte here), an f32 as its four
+/// little-endian bytes. Each way a move can go, at the end of a status, and decoded back.
+#[test]
+fn the_last_move_bytes() {
+    // 0.145 is E1 7A 14 3E as an f32, 0.075 9A 99 99 3D, 0.5 00 00 00 3F.
+    let cases: [(Option<MoveOutcome>, &[u8]); 5] = [
+        (None, &[0x00]),
+        (
+            Some(MoveOutcome { path: PathTaken::Line, blocked_at: None, line_length: 0.145 }),
+            &[0x01, 0x00, 0x00, 0xE1, 0x7A, 0x14, 0x3E],
+        ),
+        (
+            Some(MoveOutcome { path: PathTaken::LineThenJoints, blocked_at: Some(0.075), line_length: 0.145 }),
+            &[0x01, 0x01, 0x01, 0x9A, 0x99, 0x99, 0x3D, 0xE1, 0x7A, 0x14, 0x3E],
+        ),
+        (
+            Some(MoveOutcome { path: PathTaken::Joints, blocked_at: None, line_length: 0.0 }),
+            &[0x01, 0x02, 0x00, 0x00, 0x00, 0x00, 0x00],
+        ),
+        (
+            Some(MoveOutcome { path: PathTaken::LineStopped, blocked_at: Some(0.0), line_length: 0.5 }),
+            &[0x01, 0x03, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x3F],
+        ),
+    ];
+    let mut without = status(5);
+    without.last_move = None;
+    let mut buf = [0u8; MAX_PAYLOAD];
+    let before = postcard::to_slice(&FirmwareMessage::Status(without.clone()), &mut buf).unwrap().to_vec();
+    for (outcome, bytes) in cases {
+        let mut out = [0u8; 16];
+        assert_eq!(postcard::to_slice(&outcome, &mut out).unwrap(), bytes, "{outcome:?}");
+        assert_eq!(postcard::from_bytes::<Option<MoveOutcome>>(bytes), Ok(outcome));
+        // The field is the status's last: its bytes follow those of a status as protocol 6 had it.
+        let status = Status { last_move: outcome, ..without.clone() };
+        let encoded = postcard::to_slice(&FirmwareMessage::Status(status.clone()), &mut buf).unwrap().to_vec();
+        assert_eq!(encoded, [&before[..before.len() - 1], bytes].concat(), "{outcome:?}");
+        assert_eq!(round_trip(3, FrameKind::Reply, &FirmwareMessage::Status(status)), encoded.len() + OVERHEAD);
+    }
 }
 
 /// The figure for the report: a 6-joint keyframe push with velocities.

@@ -107,7 +107,9 @@ pub struct MoveReport {
     pub command: &'static str,
     /// The way the tool went: "line", "line, then joints" or "joint".
     pub path: &'static str,
-    /// Where the host's check found the straight line blocked (mm along it), if it did.
+    /// Where the straight line was found blocked (mm along it), if it was: by the host's check
+    /// before the move (the arm then went by joints), or by the firmware on the way (it went the
+    /// rest of the way by joints), as its status reports.
     pub line_blocked_mm: Option<f64>,
     /// Whether the arm went by joints to the host's IK solution, the firmware's having found none.
     pub solved_on_host: bool,
@@ -171,12 +173,12 @@ pub fn move_to(driver: &mut Driver, request: &MoveRequest, notes: &mut dyn Write
     let error_mm = 1e3 * (0..3).map(|i| (reached[i] - goal[i]).powi(2)).sum::<f64>().sqrt();
     let orientation_error_deg =
         target.orientation.map(|q| angle(&q.map(f64::from), &pose.quaternion_wxyz()).to_degrees());
-    let outcome = path::outcome(driver, &route, &start, &status, error_mm)
+    let outcome = path::outcome(driver.arm(), &route, &status, error_mm)
         .map_err(|e| DriveError::failed(format!("move to {shown} m: {e}")))?;
     Ok(MoveReport {
         command: "move",
         path: outcome.path,
-        line_blocked_mm: route.blocked_ahead.as_ref().map(|b| b.along * 1e3),
+        line_blocked_mm: outcome.blocked_at.map(|at| at * 1e3),
         solved_on_host: route.solved_on_host,
         target: goal,
         quaternion_wxyz: target.orientation,

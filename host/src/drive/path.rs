@@ -7,10 +7,11 @@
 //! went.
 
 use anyhow::Result;
-use firmware::link::message::{CartesianTarget, MovePath, NakReason, Status, Timing, MAX_SPEED};
+use firmware::link::message::{CartesianTarget, MovePath, NakReason, PathTaken, Status, Timing, MAX_SPEED};
 use kinematics::ik::IkStatus;
 
 use super::session::{check_joints, Driver};
+use crate::arm::ArmSpec;
 use crate::link::client::LinkError;
 use crate::motion::line::{Blocked, Line};
 use crate::motion::reach;
@@ -117,38 +118,56 @@ pub fn take(
 pub struct Outcome {
     /// "line", "line, then joints" or "joint".
     pub path: &'static str,
+    /// Where the straight line was found blocked, m along it: by the host's check before the move,
+    /// or by the firmware on the way (its status says where it gave the line up).
+    pub blocked_at: Option<f64>,
     /// Why by joints, in words, if so.
     pub why: Option<String>,
 }
 
-/// How the move sent by `route` went, read once the arm is at rest (`end`, from `start`; the tool
-/// `error_mm` from the target). A line asked for alone that ran into the joint limits is an error.
-pub fn outcome(driver: &Driver, route: &Route, start: &Status, end: &Status, error_mm: f64) -> Result<Outcome, String> {
-    // The firmware follows the straight line, and finishes by joints where the line runs into the
-    // joint limits (it counts each time it does); with --path line it stops there.
-    let fell_back = end.errors.line_fallbacks > start.errors.line_fallbacks;
-    if route.sent == MovePath::Line && error_mm > 1.0 {
+/// How the move sent by `route` went, by the firmware's own account in the status at rest (`end`:
+/// its last move, [`firmware::link::message::MoveOutcome`]), with the tool `error_mm` from the target. A line asked for
+/// alone that the firmware stopped where it was blocked, or that ended short, is an error.
+pub fn outcome(arm: &ArmSpec, route: &Route, end: &Status, error_mm: f64) -> Result<Outcome, String> {
+    let reported = end.last_move;
+    let given_up = reported.and_then(|m| m.blocked_at.map(|at| (f64::from(at), f64::from(m.line_length))));
+    let along = |(at, length): (f64, f64)| format!(" (blocked {:.0} mm along its {:.0} mm)", at * 1e3, length * 1e3);
+    let stopped = reported.is_some_and(|m| m.path == PathTaken::LineStopped);
+    if route.sent == MovePath::Line && (stopped || error_mm > 1.0) {
         return Err(format!(
-            "the straight line ran into the joint limits: stopped {error_mm:.1} mm short{}; \
+            "the straight line ran into the joint limits{}: stopped {error_mm:.1} mm short{}; \
              --path auto finishes such a move by joints",
-            at_limits(driver.arm(), end.measured.iter().map(|&x| f64::from(x)))
+            given_up.map(along).unwrap_or_default(),
+            at_limits(arm, end.measured.iter().map(|&x| f64::from(x)))
         ));
     }
-    let path = match route.sent {
-        MovePath::Joint => "joint",
-        _ if route.solved_on_host => "joint",
-        _ if fell_back => "line, then joints",
-        _ => "line",
-    };
-    let why = match (&route.blocked_ahead, route.solved_on_host, fell_back) {
-        (Some(b), ..) => Some(format!("{}, so the arm went by joints", where_blocked(driver.arm(), b))),
-        (None, true, _) => Some(SOLVED_ON_HOST.to_string()),
-        (None, false, true) => {
-            Some("the straight line ran into the joint limits, so the arm went the rest of the way by joints".into())
-        }
-        (None, false, false) => None,
-    };
-    Ok(Outcome { path, why })
+    if let Some(b) = &route.blocked_ahead {
+        let why = format!("{}, so the arm went by joints", where_blocked(arm, b));
+        return Ok(Outcome { path: "joint", blocked_at: Some(b.along), why: Some(why) });
+    }
+    if route.solved_on_host {
+        return Ok(Outcome { path: "joint", blocked_at: None, why: Some(SOLVED_ON_HOST.to_string()) });
+    }
+    // What was sent, where the firmware says nothing (it always does for a move it took).
+    let path = reported.map_or(
+        match route.sent {
+            MovePath::Joint => PathTaken::Joints,
+            _ => PathTaken::Line,
+        },
+        |m| m.path,
+    );
+    Ok(match path {
+        PathTaken::Joints => Outcome { path: "joint", blocked_at: None, why: None },
+        PathTaken::LineThenJoints => Outcome {
+            path: "line, then joints",
+            blocked_at: given_up.map(|(at, _)| at),
+            why: Some(format!(
+                "the straight line ran into the joint limits{}, so the arm went the rest of the way by joints",
+                given_up.map(along).unwrap_or_default()
+            )),
+        },
+        PathTaken::Line | PathTaken::LineStopped => Outcome { path: "line", blocked_at: None, why: None },
+    })
 }
 
 /// The joints that put the tool on `target`, solved on the host from where the arm is
@@ -207,5 +226,67 @@ pub fn at_limits(arm: &crate::arm::ArmSpec, q: impl IntoIterator<Item = f64>) ->
     match words.is_empty() {
         true => String::new(),
         false => format!(", {}", words.join(", ")),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use firmware::link::message::{MoveOutcome, RunState};
+
+    use super::*;
+    use crate::link::session::tests::status;
+
+    fn at_rest(reported: Option<MoveOutcome>) -> Status {
+        let mut s = status(1.0, RunState::Idle, &[0.0; 5], &[0.0; 5]);
+        s.last_move = reported;
+        s
+    }
+
+    fn route(sent: MovePath) -> Route {
+        Route { sent, blocked_ahead: None, solved_on_host: false }
+    }
+
+    /// The way a move went is the firmware's account, and the words say where the line was given
+    /// up; a line asked for alone and stopped is an error that says so.
+    #[test]
+    fn the_outcome_is_what_the_firmware_reports() {
+        let arm = ArmSpec::load("so101", None).unwrap();
+        let moved = |path, blocked_at| Some(MoveOutcome { path, blocked_at, line_length: 0.1449 });
+        let line = outcome(&arm, &route(MovePath::Auto), &at_rest(moved(PathTaken::Line, None)), 0.2).unwrap();
+        assert_eq!(line, Outcome { path: "line", blocked_at: None, why: None });
+
+        let fell_back = at_rest(moved(PathTaken::LineThenJoints, Some(0.0752)));
+        let o = outcome(&arm, &route(MovePath::Auto), &fell_back, 0.2).unwrap();
+        assert_eq!((o.path, o.blocked_at.map(|b| (b * 1e4).round())), ("line, then joints", Some(752.0)));
+        assert_eq!(
+            o.why.as_deref(),
+            Some(
+                "the straight line ran into the joint limits (blocked 75 mm along its 145 mm), so the arm went \
+                 the rest of the way by joints"
+            )
+        );
+
+        let stopped = at_rest(moved(PathTaken::LineStopped, Some(0.0962)));
+        let e = outcome(&arm, &route(MovePath::Line), &stopped, 48.7).unwrap_err();
+        assert!(
+            e.starts_with(
+                "the straight line ran into the joint limits (blocked 96 mm along its 145 mm): stopped 48.7 mm short"
+            ) && e.ends_with("--path auto finishes such a move by joints"),
+            "{e}"
+        );
+        // Short of the target along the line without a word from the firmware: an error too.
+        assert!(outcome(&arm, &route(MovePath::Line), &at_rest(moved(PathTaken::Line, None)), 3.0).is_err());
+
+        let joints = at_rest(Some(MoveOutcome { path: PathTaken::Joints, blocked_at: None, line_length: 0.0 }));
+        let by_host = Route { solved_on_host: true, ..route(MovePath::Auto) };
+        assert_eq!(outcome(&arm, &by_host, &joints, 0.1).unwrap().why.as_deref(), Some(SOLVED_ON_HOST));
+        let ahead = Route {
+            sent: MovePath::Joint,
+            blocked_ahead: Some(Blocked { along: 0.075, length: 0.145, q: vec![0.0; 5] }),
+            solved_on_host: false,
+        };
+        let o = outcome(&arm, &ahead, &joints, 0.1).unwrap();
+        assert_eq!((o.path, o.blocked_at), ("joint", Some(0.075)));
+        assert!(o.why.unwrap().starts_with("the straight line is blocked 75 mm along its 145 mm"));
     }
 }

@@ -1,7 +1,7 @@
 //! `status`, `stop` and `torque`: the controller's state, and the two requests that change it
 //! without a target.
 
-use firmware::link::message::{RunState, Status};
+use firmware::link::message::{MoveOutcome, PathTaken, RunState, Status};
 use serde::Serialize;
 
 use super::error::{DriveError, DriveResult};
@@ -41,6 +41,7 @@ impl StatusReport {
             format!("setpoints  {}", fmt_list(&s.setpoints)),
             format!("tool       {} m (measured)", fmt3(&self.tool)),
             format!("queue      {} queued, {} free", s.queued, s.free_slots),
+            format!("last move  {}", last_move(s.last_move.as_ref())),
         ];
         if let Some(g) = &s.gripper {
             lines.push(format!("gripper    {}", super::gripper::describe(g, self.gripper_mm)));
@@ -67,6 +68,22 @@ impl StatusReport {
             e.link_dropped, e.link_overruns
         ));
         lines.join("\n")
+    }
+}
+
+/// The firmware's account of its last move, as `armctl status` words it.
+fn last_move(outcome: Option<&MoveOutcome>) -> String {
+    let Some(m) = outcome else { return "none since the arm was configured".to_string() };
+    let mm = |m: f32| f64::from(m) * 1e3;
+    let blocked = |at: f32| format!("blocked {:.0} mm along its {:.0} mm", mm(at), mm(m.line_length));
+    match (m.path, m.blocked_at) {
+        (PathTaken::Line, _) => format!("line ({:.0} mm)", mm(m.line_length)),
+        (PathTaken::Joints, _) => "joints".to_string(),
+        (PathTaken::LineThenJoints, Some(at)) => format!("line, then joints ({})", blocked(at)),
+        (PathTaken::LineStopped, Some(at)) => format!("line, stopped there ({})", blocked(at)),
+        // The firmware always says where it gave a line up; worded without it all the same.
+        (PathTaken::LineThenJoints, None) => "line, then joints".to_string(),
+        (PathTaken::LineStopped, None) => "line, stopped where it was blocked".to_string(),
     }
 }
 
@@ -137,4 +154,27 @@ pub fn torque(driver: &mut Driver, on: bool) -> DriveResult<TorqueReport> {
     result.map_err(|e| DriveError::failed(format!("torque {}: {e}", if on { "on" } else { "off" })))?;
     let state = driver.status()?.state;
     Ok(TorqueReport { command: "torque", on, state })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{last_move, MoveOutcome, PathTaken};
+
+    /// `armctl status`'s line for each way a move can go, in whole millimetres.
+    #[test]
+    fn the_last_move_in_words() {
+        let outcome = |path, blocked_at| MoveOutcome { path, blocked_at, line_length: 0.1449 };
+        assert_eq!(last_move(None), "none since the arm was configured");
+        assert_eq!(last_move(Some(&outcome(PathTaken::Line, None))), "line (145 mm)");
+        assert_eq!(
+            last_move(Some(&outcome(PathTaken::LineThenJoints, Some(0.0752)))),
+            "line, then joints (blocked 75 mm along its 145 mm)"
+        );
+        assert_eq!(
+            last_move(Some(&outcome(PathTaken::LineStopped, Some(0.0962)))),
+            "line, stopped there (blocked 96 mm along its 145 mm)"
+        );
+        let joints = MoveOutcome { path: PathTaken::Joints, blocked_at: None, line_length: 0.0 };
+        assert_eq!(last_move(Some(&joints)), "joints");
+    }
 }

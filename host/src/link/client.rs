@@ -190,6 +190,9 @@ pub struct LinkClient<T: Read + Write> {
 }
 
 /// What came in while waiting for a reply.
+// A reply is a status at its largest (208 bytes since protocol 7's `last_move`), held for one
+// call on the stack: boxing it would allocate for every reply, to save nothing worth having.
+#[allow(clippy::large_enum_variant)]
 enum Heard {
     Reply(FirmwareMessage),
     /// The firmware received a broken frame: retransmit now.

@@ -367,7 +367,7 @@ impl<T: Transport> Session<T> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     //! The session against a scripted firmware: every method sends exactly the request it names
     //! (decoded from the bytes on the wire), waits where it should, and reads the answer as its
     //! type says.
@@ -426,13 +426,14 @@ mod tests {
         Session::over(Scripted { replies: replies.into(), ..Scripted::default() })
     }
 
-    fn status(time: f32, state: RunState, measured: &[f32], setpoints: &[f32]) -> FirmwareMessage {
+    /// A status at `time` in `state` (other fields of an idle arm).
+    pub(crate) fn status(time: f32, state: RunState, measured: &[f32], setpoints: &[f32]) -> Status {
         let FirmwareMessage::Status(mut s) = firmware_status() else { unreachable!() };
         s.time = time;
         s.state = state;
         s.measured = Joints::from_slice(measured).unwrap();
         s.setpoints = Joints::from_slice(setpoints).unwrap();
-        FirmwareMessage::Status(s)
+        s
     }
 
     /// A status of an idle arm with no joints: the fields the tests set are set by [`status`].
@@ -450,6 +451,7 @@ mod tests {
             errors: Default::default(),
             lost_servos: 0,
             gripper: None::<GripperStatus>,
+            last_move: None,
         })
     }
 
@@ -510,11 +512,11 @@ mod tests {
     fn a_wait_ends_at_rest_once_the_servos_caught_up_and_times_out_on_the_controller_clock() {
         let (q, goal) = ([0.0, 0.0], [0.5, 0.5]);
         let mut s = session(vec![
-            status(0.0, RunState::Moving, &q, &goal),
-            status(0.1, RunState::Moving, &[0.3, 0.3], &goal),
+            FirmwareMessage::Status(status(0.0, RunState::Moving, &q, &goal)),
+            FirmwareMessage::Status(status(0.1, RunState::Moving, &[0.3, 0.3], &goal)),
             // At rest, but the servos lag: settle waits until they are within SETTLED.
-            status(0.2, RunState::Idle, &[0.49, 0.49], &goal),
-            status(0.3, RunState::Idle, &[0.4995, 0.4995], &goal),
+            FirmwareMessage::Status(status(0.2, RunState::Idle, &[0.49, 0.49], &goal)),
+            FirmwareMessage::Status(status(0.3, RunState::Idle, &[0.4995, 0.4995], &goal)),
         ]);
         let Waited::Done(end) = s.wait_at_rest(5.0, &mut || false).unwrap() else { panic!("interrupted") };
         assert_eq!(end.time, 0.3);
@@ -523,7 +525,8 @@ mod tests {
 
         // Still moving past 2 s of controller time (at the 22nd poll): a stop is sent, and the
         // wait says so.
-        let moving: Vec<_> = (0..22).map(|k| status(k as f32 * 0.1, RunState::Moving, &q, &goal)).collect();
+        let moving: Vec<_> =
+            (0..22).map(|k| FirmwareMessage::Status(status(k as f32 * 0.1, RunState::Moving, &q, &goal))).collect();
         let mut s = session(moving);
         let e = s.wait_at_rest(2.0, &mut || false).unwrap_err();
         assert!(matches!(e, WaitError::TimedOut { stopped: true, .. }), "{e}");
@@ -531,7 +534,7 @@ mod tests {
         assert!(e.to_string().starts_with("timed out after 2.1 s with the arm still Moving; sent stop"), "{e}");
 
         // Limp, or interrupted before the first poll: nothing else is sent.
-        let mut s = session(vec![status(0.0, RunState::TorqueOff, &q, &q)]);
+        let mut s = session(vec![FirmwareMessage::Status(status(0.0, RunState::TorqueOff, &q, &q))]);
         assert!(matches!(s.wait_at_rest(2.0, &mut || false), Err(WaitError::WentLimp)));
         let mut s = session(Vec::new());
         assert!(matches!(s.wait_at_rest(2.0, &mut || true), Ok(Waited::Interrupted)));
