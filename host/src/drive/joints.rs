@@ -56,6 +56,7 @@ pub struct JointsReport {
     /// The largest difference between the two (rad or m).
     pub max_error: f32,
     /// The tool's position at rest (m).
+    #[serde(serialize_with = "super::as_list")]
     pub tool: [f64; 3],
     /// Controller seconds from the request to rest.
     pub time_s: f64,

@@ -35,6 +35,26 @@ use serde::Serialize;
 pub use error::{DriveError, DriveResult};
 use session::Driver;
 
+/// A fixed-size array serialised as a sequence (what it is in JSON anyway), so that front ends
+/// that tell tuples from lists (Python) get a list, as they would from the JSON line.
+pub(crate) fn as_list<S: serde::Serializer, T: Serialize, const N: usize>(
+    values: &[T; N],
+    serializer: S,
+) -> Result<S::Ok, S::Error> {
+    serializer.collect_seq(values)
+}
+
+/// [`as_list`] for an optional array.
+pub(crate) fn as_optional_list<S: serde::Serializer, T: Serialize, const N: usize>(
+    values: &Option<[T; N]>,
+    serializer: S,
+) -> Result<S::Ok, S::Error> {
+    match values {
+        Some(values) => serializer.collect_seq(values),
+        None => serializer.serialize_none(),
+    }
+}
+
 /// A drive operation with its request checked.
 pub enum Operation {
     /// `move`.

@@ -114,10 +114,13 @@ pub struct MoveReport {
     /// Whether the arm went by joints to the host's IK solution, the firmware's having found none.
     pub solved_on_host: bool,
     /// The target (m).
+    #[serde(serialize_with = "super::as_list")]
     pub target: [f64; 3],
     /// The target orientation, w first.
+    #[serde(serialize_with = "super::as_optional_list")]
     pub quaternion_wxyz: Option<[f32; 4]>,
     /// The tool's position at rest (m), by forward kinematics of the measured joints.
+    #[serde(serialize_with = "super::as_list")]
     pub reached: [f64; 3],
     /// Its distance from the target (mm).
     pub error_mm: f64,

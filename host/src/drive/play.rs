@@ -232,6 +232,7 @@ pub struct PlayReport {
     /// How far the arm ended from the last keyframe: rad (joint) or m (Cartesian).
     pub end_error: f64,
     /// The tool position at rest (m).
+    #[serde(serialize_with = "super::as_list")]
     pub tool: [f64; 3],
     /// The measured joints at rest.
     pub joints: Vec<f32>,

@@ -17,6 +17,7 @@ pub struct StatusReport {
     /// The arm's name.
     pub arm: String,
     /// The tool position (m), by forward kinematics of the measured joints.
+    #[serde(serialize_with = "super::as_list")]
     pub tool: [f64; 3],
     /// The gripper's opening in mm, if the arm has a gripper whose span is known.
     #[serde(skip)]
@@ -110,6 +111,7 @@ pub struct StopReport {
     /// The state it came to rest in.
     pub state: RunState,
     /// The tool position at rest (m).
+    #[serde(serialize_with = "super::as_list")]
     pub tool: [f64; 3],
     /// The measured joints at rest.
     pub joints: Vec<f32>,
