@@ -392,12 +392,14 @@ impl LoopState {
                     let start = self.driver.status().map_err(|e| ApiError::new(503, format!("{e:#}")))?;
                     match path::take(&mut self.driver, &start, target, Timing::MaxSpeed(TARGET_SPEED), MovePath::Auto) {
                         Ok(route) => {
+                            // The last word on the way is the firmware's refusal, if the host's
+                            // solution went instead.
                             let (taken, how) = match (&route.blocked_ahead, route.solved_on_host) {
-                                (Some(b), _) => (
+                                (_, true) => ("joint", path::SOLVED_ON_HOST.to_string()),
+                                (Some(b), false) => (
                                     "joint",
                                     format!("{}, so the arm goes by joints", path::where_blocked(self.driver.arm(), b)),
                                 ),
-                                (None, true) => ("joint", path::SOLVED_ON_HOST.to_string()),
                                 (None, false) => ("line", "the straight line".to_string()),
                             };
                             describe(&mut self.extras.target, taken, &how);
