@@ -1,5 +1,5 @@
 //! Hardware in the loop, simulated: the real firmware binary for the MPS2 AN386 (Cortex-M4F) runs
-//! under `qemu-system-arm -icount shift=0` (`armctl::places::qemu`), its UART1 on the simulated servo bus's
+//! under `qemu-system-arm -icount shift=0` (`armctl::runtime::qemu`), its UART1 on the simulated servo bus's
 //! pty and its UART0 on a pty that the host opens as a serial port (the serialport crate), exactly
 //! as `armctl --port` does with a board. The SIL scenarios' expectations are checked again here:
 //! targets within a millimetre, a streamed trajectory with no keyframe lost, faults on the servo
@@ -12,11 +12,11 @@ use std::time::Duration;
 
 use armctl::arm::servos::ServoSetup;
 use armctl::arm::ArmSpec;
-use armctl::drive::connection::{open, Connection, Target};
 use armctl::link::arm_config::configure_messages;
 use armctl::link::session::{Keyframe, Session};
 use armctl::link::Transport;
-use armctl::places::qemu::{self, Qemu, QemuConfig};
+use armctl::runtime::connection::{open, Connection, Target};
+use armctl::runtime::qemu::{self, Qemu, QemuConfig};
 use armctl::sim::so101_bus;
 use armctl::sim::{Faults, PtyServer, SimConfig};
 use firmware::link::message::{CartesianTarget, HostMessage, JointKeyframe, MovePath, RunState, Status, Timing};
@@ -38,7 +38,7 @@ struct Rig {
 /// [--arm ARM]` opens a board's; `None` (after saying so) where qemu-system-arm is missing.
 fn rig_on(servos: SimConfig, arm: Option<&str>) -> Option<Rig> {
     if !qemu::available() {
-        armctl::untested::skip(env!("CARGO_TARGET_TMPDIR"), "qemu-system-arm", "apt-get install qemu-system-arm");
+        armctl_test_support::skip(env!("CARGO_TARGET_TMPDIR"), "qemu-system-arm", "apt-get install qemu-system-arm");
         return None;
     }
     let elf = qemu::build(qemu::FIRMWARE_BIN).unwrap();
@@ -54,7 +54,7 @@ fn rig_on(servos: SimConfig, arm: Option<&str>) -> Option<Rig> {
     Some(Rig { link, bus, board })
 }
 
-/// Asserts that the pty at `path` is its owner's alone, as `armctl::pty_owner` leaves every pty
+/// Asserts that the pty at `path` is its owner's alone, as `armctl::support::pty_owner` leaves every pty
 /// armctl opens or has QEMU open: mode 0600, owned by this user (the owner of /proc/self,
 /// proc(5)). Where devpts gives new ptys 0620 (a desktop's mount), only armctl's chmod makes this
 /// hold.
@@ -136,7 +136,7 @@ fn stream(c: &mut Client, keyframes: &[JointKeyframe]) -> Status {
 
 /// The control loop's stack high-water mark, as the firmware logged it last.
 fn logged_stack(board: &Qemu) -> u64 {
-    armctl::footprint::measure::logged_bytes(board.log(), "control loop stack high-water").unwrap()
+    armctl::commands::footprint::measure::logged_bytes(board.log(), "control loop stack high-water").unwrap()
 }
 
 #[test]
@@ -448,7 +448,7 @@ fn logged(lines: &[String], texts: &[&str]) {
 fn each_reset_does_to_the_servos_torque_what_the_board_decides() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     if !qemu::available() {
-        armctl::untested::skip(env!("CARGO_TARGET_TMPDIR"), "qemu-system-arm", "apt-get install qemu-system-arm");
+        armctl_test_support::skip(env!("CARGO_TARGET_TMPDIR"), "qemu-system-arm", "apt-get install qemu-system-arm");
         return;
     }
     let elf = qemu::build(qemu::FIRMWARE_BIN).unwrap();

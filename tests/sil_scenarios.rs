@@ -1,5 +1,5 @@
 //! SIL scenarios: the firmware application behind the host link, on simulated servos, driven by
-//! the host's link client, all on one virtual clock (`armctl::places::sil`). The safety monitor checks
+//! the host's link client, all on one virtual clock (`armctl::runtime::sil`). The safety monitor checks
 //! every goal the simulated servos receive against the joint limits and the per-period velocity
 //! limit; every scenario ends by asserting it saw nothing wrong.
 
@@ -8,7 +8,7 @@ use armctl::arm::ArmSpec;
 use armctl::link::arm_config::configure_messages;
 use armctl::link::client::{LinkClient, LinkConfig, LinkError};
 use armctl::link::session::Session;
-use armctl::places::sil::{Sil, SilOptions};
+use armctl::runtime::sil::{Sil, SilOptions};
 use firmware::link::frame::{decode_payload, encode_message, FrameDecoder, FrameKind, MAX_ENCODED, MAX_FRAME};
 use firmware::link::message::{
     CartesianKeyframe, CartesianTarget, FirmwareMessage, HostMessage, JointKeyframe, NakReason, RunState, Status,
@@ -470,7 +470,7 @@ max_acceleration = 6.0
     .unwrap();
     let options = SilOptions::new("open-manipulator-x").unwrap();
     let mut session = Session::over(Sil::new(&options).unwrap());
-    let (info, arm) = armctl::drive::connection::handshake(&mut session, Some(file.to_str().unwrap())).unwrap();
+    let (info, arm) = armctl::runtime::connection::handshake(&mut session, Some(file.to_str().unwrap())).unwrap();
     let mut c = session.into_client();
     assert_eq!(info.arm_name.as_str(), "my-arm");
     torque_on(&mut c);

@@ -24,9 +24,9 @@ const OPERATIONS: [&str; 12] = [
 ];
 
 fn qemu_available() -> bool {
-    let found = armctl::places::qemu::available();
+    let found = armctl::runtime::qemu::available();
     if !found {
-        armctl::untested::skip(env!("CARGO_TARGET_TMPDIR"), "qemu-system-arm", "apt-get install qemu-system-arm");
+        armctl_test_support::skip(env!("CARGO_TARGET_TMPDIR"), "qemu-system-arm", "apt-get install qemu-system-arm");
     }
     found
 }

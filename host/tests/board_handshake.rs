@@ -4,10 +4,10 @@
 
 use armctl::arm::servos::servos_of;
 use armctl::arm::ArmSpec;
-use armctl::drive::connection::handshake_with;
 use armctl::link::arm_config::arm_digest;
 use armctl::link::session::Session;
-use armctl::places::sil::{Sil, SilOptions};
+use armctl::runtime::connection::handshake_with;
+use armctl::runtime::sil::{Sil, SilOptions};
 
 /// The SO-101 with its servos' zero offsets moved (as a calibration does): the same name, another
 /// arm.

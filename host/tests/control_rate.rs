@@ -4,7 +4,7 @@
 //! simulated servos on the virtual clock (`armctl bench rate`'s library function), not on the wall
 //! clock.
 
-use armctl::bench::rate::{measure, RateReport, RateRun, RateSetup, SERVOS};
+use armctl::commands::bench::rate::{measure, RateReport, RateRun, RateSetup, SERVOS};
 use firmware::bus::table::{Model, STS3215, XM430_W350};
 use firmware::bus::timing::cycle_bytes;
 

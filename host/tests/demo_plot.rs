@@ -1,7 +1,7 @@
 //! The `armctl demo` plot: a synthetic trace becomes a PNG of the documented size; bad traces give
 //! one-line errors and leave no file; odd but valid traces draw without panicking.
 
-use armctl::demo::plot::{write_demo_png, DemoTrace, GripperTrace, MIN_HEIGHT, WIDTH};
+use armctl::commands::demo::plot::{write_demo_png, DemoTrace, GripperTrace, MIN_HEIGHT, WIDTH};
 
 mod support;
 

@@ -3,7 +3,7 @@
 //! servos receive, the gripper's included, is checked by the SIL's safety monitor.
 
 use armctl::link::client::{LinkClient, LinkConfig, LinkError};
-use armctl::places::sil::{Sil, SilOptions};
+use armctl::runtime::sil::{Sil, SilOptions};
 use firmware::link::message::{
     Field, FirmwareMessage, GripperStatus, HostMessage, JointKeyframe, Joints, NakReason, Status,
 };
@@ -11,7 +11,7 @@ use firmware::link::message::{
 fn client(arm: &str, object_mm: Option<f64>) -> LinkClient<Sil> {
     let options = SilOptions { object_mm, ..SilOptions::new(arm).unwrap() };
     let mut session = armctl::link::session::Session::over(Sil::new(&options).unwrap());
-    armctl::drive::connection::handshake(&mut session, Some(arm)).unwrap();
+    armctl::runtime::connection::handshake(&mut session, Some(arm)).unwrap();
     let mut c = session.into_client();
     // Until every servo has been read, torque on is refused as not ready.
     for _ in 0..10 {
@@ -149,7 +149,7 @@ fn an_arm_without_a_gripper_says_so() {
     servos.gripper = None;
     spec.servos = Some(servos);
     let mut session = armctl::link::session::Session::new(c);
-    armctl::drive::connection::handshake_with(&mut session, Some(spec)).unwrap();
+    armctl::runtime::connection::handshake_with(&mut session, Some(spec)).unwrap();
     let mut c = session.into_client();
     c.wait_once().unwrap();
     let reply = c.request(&HostMessage::Gripper { opening: 10.0, effort: None });

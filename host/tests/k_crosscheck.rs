@@ -1,10 +1,10 @@
 //! Our forward kinematics against an independent library's: every preset and the example TOML arm
-//! are built a second time as a chain of openrr's `k` crate (`armctl::bench::k::KArm`), and the
+//! are built a second time as a chain of openrr's `k` crate (`armctl::commands::bench::k::KArm`), and the
 //! two tool poses must agree to 1e-12 at random joint vectors within the limits.
 
 use armctl::arm::dof;
 use armctl::arm::ArmSpec;
-use armctl::bench::k::KArm;
+use armctl::commands::bench::k::KArm;
 use kinematics::SplitMix64;
 
 const TOLERANCE: f64 = 1e-12;

@@ -10,8 +10,8 @@
 use armctl::arm::dof::DynArm;
 use armctl::arm::ArmSpec;
 use armctl::link::client::{LinkClient, LinkError};
-use armctl::mocap::retarget::{retarget, Options, Retargeted, Spread};
-use armctl::places::sil::{Sil, SilOptions};
+use armctl::motion::mocap::retarget::{retarget, Options, Retargeted, Spread};
+use armctl::runtime::sil::{Sil, SilOptions};
 use firmware::link::message::{HostMessage, JointKeyframe, NakReason, RunState};
 use std::path::Path;
 
@@ -23,7 +23,7 @@ fn cmu(path: &str) -> Option<&Path> {
     if path.exists() {
         return Some(path);
     }
-    armctl::untested::skip(
+    armctl_test_support::skip(
         env!("CARGO_TARGET_TMPDIR"),
         &path.display().to_string(),
         "apt-get install assimp-testmodels",
@@ -55,7 +55,7 @@ struct Played {
 fn play(arm_name: &str, arm: &dyn DynArm, r: &Retargeted) -> Played {
     let options = SilOptions::new(arm_name).unwrap();
     let mut session = armctl::link::session::Session::over(Sil::new(&options).unwrap());
-    armctl::drive::connection::handshake_with(&mut session, Some(options.arm.clone())).unwrap();
+    armctl::runtime::connection::handshake_with(&mut session, Some(options.arm.clone())).unwrap();
     let mut c = session.into_client();
     torque_on(&mut c);
     c.transport().record();
@@ -105,7 +105,7 @@ fn play(arm_name: &str, arm: &dyn DynArm, r: &Retargeted) -> Played {
 
 fn run(arm_name: &str, seconds: f64) -> Option<(Retargeted, Played)> {
     let path = cmu(CMU_01_01)?;
-    let bvh = armctl::mocap::bvh::read(path).unwrap();
+    let bvh = armctl::motion::mocap::bvh::read(path).unwrap();
     let spec = ArmSpec::load(arm_name, None).unwrap();
     let arm = armctl::arm::dof::build(spec).unwrap();
     let r = retarget(&bvh, arm.as_ref(), &Options { seconds: Some(seconds), ..Options::default() }).unwrap();

@@ -12,8 +12,8 @@ use std::time::{Duration, Instant};
 
 use armctl::arm::servos::servos_of;
 use armctl::arm::ArmSpec;
-use armctl::drive::connection::{self, Target};
-use armctl::places::pc::PcOptions;
+use armctl::runtime::connection::{self, Target};
+use armctl::runtime::pc::PcOptions;
 use armctl::sim::{Faults, PtyServer, SimConfig};
 use firmware::bus::Protocol;
 use firmware::link::message::{FirmwareMessage, HostMessage, Joints, RunState, Status, Timing};
@@ -264,7 +264,7 @@ fn serve(args: &[&str]) -> (Child, String, std::thread::JoinHandle<String>) {
     (child, path, errors)
 }
 
-/// Asserts that the pty at `path` is its owner's alone, as `armctl::pty_owner` leaves every pty
+/// Asserts that the pty at `path` is its owner's alone, as `armctl::support::pty_owner` leaves every pty
 /// armctl opens: mode 0600, owned by this user (the owner of /proc/self, proc(5)). Where devpts
 /// gives new ptys 0620 (a desktop's mount), only armctl's own chmod makes this hold.
 fn assert_private(path: &str) {

@@ -4,7 +4,7 @@
 //! in a user and mount namespace of its own, with a devpts instance mounted `mode=620` on its
 //! /dev/pts, as on a desktop, and look at the ptys from outside through `/proc/PID/root`. In that
 //! instance every pty is one armctl opened. Where unprivileged namespaces are not allowed (or
-//! `unshare` is missing) the tests say so and skip: the unit tests of `armctl::pty_owner` and
+//! `unshare` is missing) the tests say so and skip: the unit tests of `armctl::support::pty_owner` and
 //! the mode checks in sim_servos.rs and pc_bus.rs still run.
 
 use std::io::{BufRead, BufReader, Read};
@@ -31,7 +31,7 @@ fn namespaces_allowed() -> bool {
         Ok(out) => {
             let why = String::from_utf8_lossy(&out.stderr);
             let what = format!("a devpts of its own in a user namespace ({})", why.trim());
-            armctl::untested::skip(
+            armctl_test_support::skip(
                 env!("CARGO_TARGET_TMPDIR"),
                 &what,
                 "sysctl kernel.unprivileged_userns_clone=1, or a machine that allows user namespaces",
@@ -39,7 +39,7 @@ fn namespaces_allowed() -> bool {
             false
         }
         Err(e) => {
-            armctl::untested::skip(
+            armctl_test_support::skip(
                 env!("CARGO_TARGET_TMPDIR"),
                 &format!("unshare ({e})"),
                 "apt-get install util-linux",

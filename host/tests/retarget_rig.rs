@@ -12,9 +12,9 @@ use std::path::{Path, PathBuf};
 
 use armctl::arm::dof::DynArm;
 use armctl::arm::ArmSpec;
-use armctl::mocap::chain::{self, Side};
-use armctl::mocap::retarget::timebase::{retarget_arms, Job, Retargets};
-use armctl::mocap::retarget::{Options, Spread};
+use armctl::motion::mocap::chain::{self, Side};
+use armctl::motion::mocap::retarget::timebase::{retarget_arms, Job, Retargets};
+use armctl::motion::mocap::retarget::{Options, Spread};
 use armctl::rig::tree::{RigTree, TreeArm};
 use armctl::rig::{columns, Rig, RigSpec};
 use kinematics::Pose;
@@ -41,7 +41,7 @@ fn cmu() -> Option<&'static Path> {
     if path.exists() {
         return Some(path);
     }
-    armctl::untested::skip(env!("CARGO_TARGET_TMPDIR"), CMU_01_01, "apt-get install assimp-testmodels");
+    armctl_test_support::skip(env!("CARGO_TARGET_TMPDIR"), CMU_01_01, "apt-get install assimp-testmodels");
     None
 }
 
@@ -206,7 +206,7 @@ struct Followed {
 /// against the scaled hand path, between two keyframes IK reached without a change of
 /// configuration (as `mocap_sil` does for one arm).
 fn follow_in_sil(path: &Path, seconds: f64) -> (Retargets, Vec<Followed>) {
-    let bvh = armctl::mocap::bvh::read(path).unwrap();
+    let bvh = armctl::motion::mocap::bvh::read(path).unwrap();
     let spec = RigSpec::load(RIG).unwrap();
     let arms: Vec<Box<dyn DynArm>> = spec
         .arms
@@ -448,7 +448,7 @@ fn torso_rig_run(file: &str, seconds: Option<f64>) -> (Value, Value, f64) {
     }
 
     // The targets: each arm alone, the torso at rest (its middle), its base carried there.
-    let bvh = armctl::mocap::bvh::read(Path::new(file)).unwrap();
+    let bvh = armctl::motion::mocap::bvh::read(Path::new(file)).unwrap();
     let arms = rig_arms(&spec);
     let rest: Vec<Pose<f64>> = [1, 2]
         .iter()

@@ -406,8 +406,8 @@ fn bad_arguments_exit_2() {
 /// simulator's in-memory line (virtual clock) instead of through `cli::main`.
 #[test]
 fn an_alert_shows_the_data_then_one_error_line_per_servo() {
-    use armctl::servo::commands;
-    use armctl::servo::session::Session;
+    use armctl::commands::servo::commands;
+    use armctl::runtime::servo_session::Session;
     use armctl::sim::{connect, SimBus};
     use firmware::bus::master::BusConfig;
 

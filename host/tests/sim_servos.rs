@@ -566,7 +566,7 @@ fn the_pty_server_answers_a_ping() {
     server.stop().unwrap();
 }
 
-/// Asserts that the pty at `path` is its owner's alone, as `armctl::pty_owner` leaves every pty
+/// Asserts that the pty at `path` is its owner's alone, as `armctl::support::pty_owner` leaves every pty
 /// armctl opens: mode 0600, owned by this user (the owner of /proc/self, proc(5)). Where devpts
 /// gives new ptys 0620 (a desktop's mount), only armctl's own chmod makes this hold.
 fn assert_private(path: &str) {
@@ -741,7 +741,7 @@ fn limits_of_maps_an_arm_as_the_firmware_does() {
     use armctl::arm::ArmSpec;
     use armctl::link::arm_config::configure_messages;
     use armctl::link::client::{LinkClient, LinkConfig};
-    use armctl::places::sil::{Sil, SilOptions};
+    use armctl::runtime::sil::{Sil, SilOptions};
     for name in ["so101", "open-manipulator-x"] {
         let arm = ArmSpec::load(name, None).unwrap();
         let mut client = LinkClient::new(Sil::new(&SilOptions::new(name).unwrap()).unwrap(), LinkConfig::default());
@@ -986,9 +986,9 @@ fn armctl_sim_servos_prints_the_violations_it_finds() {
 
 #[test]
 fn id_lists_parse() {
-    assert_eq!(armctl::args::numbers::ids("1-3,7", u8::MAX, "--ids").unwrap(), [1, 2, 3, 7]);
-    assert_eq!(armctl::args::numbers::ids("1,3,5", u8::MAX, "--ids").unwrap(), [1, 3, 5]);
-    assert!(armctl::args::numbers::ids("", u8::MAX, "--ids").is_err());
+    assert_eq!(armctl::support::numbers::ids("1-3,7", u8::MAX, "--ids").unwrap(), [1, 2, 3, 7]);
+    assert_eq!(armctl::support::numbers::ids("1,3,5", u8::MAX, "--ids").unwrap(), [1, 3, 5]);
+    assert!(armctl::support::numbers::ids("", u8::MAX, "--ids").is_err());
 }
 
 /// `armctl sim servos --arm so101 --object-mm 30`: the PC-hosted core (`--bus`) closes the

@@ -79,7 +79,7 @@ fn run_script(script: &str) -> Option<String> {
     let missing = missing(&script_dir, &chromium);
     if !missing.is_empty() {
         let (what, install): (Vec<_>, Vec<_>) = missing.into_iter().unzip();
-        armctl::untested::skip(env!("CARGO_TARGET_TMPDIR"), &what.join(", "), &install.join("; "));
+        armctl_test_support::skip(env!("CARGO_TARGET_TMPDIR"), &what.join(", "), &install.join("; "));
         return None;
     }
     let out = host.join("../target/view-e2e");

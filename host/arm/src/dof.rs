@@ -27,7 +27,7 @@ pub const MAX_JOINTS: usize = 32;
 pub const F32_MAX_JOINTS: usize = firmware::link::message::MAX_JOINTS;
 
 /// Scalar the solver runs in.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Scalar {
     /// Single precision, as on the firmware.
     F32,
@@ -56,7 +56,7 @@ impl Scalar {
 pub const QUATERNION_NORM_TOLERANCE: f64 = 1e-3;
 
 /// The IK methods by name.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SolverName {
     /// The closed form where the arm's geometry has one and it gives a solution within the limits
     /// that reaches, else damped least squares (the default).
@@ -64,7 +64,6 @@ pub enum SolverName {
     /// The closed form only (an error for an arm without one; f64 only).
     Analytic,
     /// Damped least squares with adaptive damping (Levenberg-Marquardt), the numerical solver.
-    #[value(alias = "numeric")]
     Dls,
     /// Newton steps with the pseudoinverse.
     Newton,
@@ -434,4 +433,67 @@ pub fn build(spec: ArmSpec) -> Result<Box<dyn DynArm>> {
 /// The `planar:N` preset's description.
 pub fn planar_spec(n: usize) -> Result<ArmSpec> {
     dispatch!(n, planar_n())
+}
+
+// By their command-line names, without clap (this crate is beneath the command line):
+// `armctl::cli::values` offers these names to clap, the Python binding parses them with `FromStr`.
+
+impl Scalar {
+    /// Every scalar with its name and what it is.
+    pub const NAMES: [(&'static str, Scalar, &'static str); 2] =
+        [("f32", Scalar::F32, "Single precision, as on the firmware"), ("f64", Scalar::F64, "Double precision")];
+}
+
+impl std::str::FromStr for Scalar {
+    type Err = anyhow::Error;
+
+    /// `f32` or `f64`, in any case.
+    fn from_str(name: &str) -> Result<Self> {
+        Scalar::NAMES.iter().find(|(n, _, _)| n.eq_ignore_ascii_case(name)).map(|&(_, s, _)| s).ok_or_else(|| {
+            let known: Vec<&str> = Scalar::NAMES.iter().map(|(n, _, _)| *n).collect();
+            anyhow!("scalar {name:?}: one of {}", known.join(", "))
+        })
+    }
+}
+
+impl SolverName {
+    /// Every method with its name, its other names and what it is.
+    pub const NAMES: [(&'static str, SolverName, &'static [&'static str], &'static str); 8] = [
+        (
+            "auto",
+            SolverName::Auto,
+            &[],
+            "The closed form where the arm's geometry has one and it gives a solution within the limits that reaches, else damped least squares (the default)",
+        ),
+        ("analytic", SolverName::Analytic, &[], "The closed form only (an error for an arm without one; f64 only)"),
+        (
+            "dls",
+            SolverName::Dls,
+            &["numeric"],
+            "Damped least squares with adaptive damping (Levenberg-Marquardt), the numerical solver",
+        ),
+        ("newton", SolverName::Newton, &[], "Newton steps with the pseudoinverse"),
+        ("transpose", SolverName::Transpose, &[], "Jacobian transpose with Buss's step length"),
+        ("ccd", SolverName::Ccd, &[], "Cyclic coordinate descent"),
+        ("gradient", SolverName::Gradient, &[], "Gradient descent (the tool as the one handle)"),
+        ("regularised", SolverName::Regularised, &[], "The regularised objective alpha |e|^2 + |q|^2 (alpha = 10)"),
+    ];
+}
+
+impl std::str::FromStr for SolverName {
+    type Err = anyhow::Error;
+
+    /// A method's name or one of its other names (`numeric` for `dls`), in any case.
+    fn from_str(name: &str) -> Result<Self> {
+        SolverName::NAMES
+            .iter()
+            .find(|(n, _, aliases, _)| {
+                n.eq_ignore_ascii_case(name) || aliases.iter().any(|a| a.eq_ignore_ascii_case(name))
+            })
+            .map(|&(_, s, _, _)| s)
+            .ok_or_else(|| {
+                let known: Vec<&str> = SolverName::NAMES.iter().map(|(n, _, _, _)| *n).collect();
+                anyhow!("solver {name:?}: one of {}", known.join(", "))
+            })
+    }
 }

@@ -1,10 +1,10 @@
 //! An arm driven through the firmware core, for Python: opened as every drive command opens it
 //! (`sim`, `port`, or `bus` + `protocol`, with `arm` and `calibration`: a
-//! [`armctl::drive::connection::Place`]), and driven by the same typed operations
-//! ([`armctl::drive`]): each method builds the operation's request from its arguments and returns
+//! [`armctl::runtime::connection::Place`]), and driven by the same typed operations
+//! ([`armctl::commands::drive`]): each method builds the operation's request from its arguments and returns
 //! its report as a dict, with no command line, text or JSON in between. A stream of readings (a
 //! policy's actions, a teleoperation) feeds the player through
-//! [`armctl::teleop::stream::Streamer`], as `armctl teleop` does.
+//! [`armctl::motion::teleop::stream::Streamer`], as `armctl teleop` does.
 //!
 //! `sim` runs the core on this PC in real time against simulated servos on a pseudo-terminal (as
 //! `armctl serve --sim`), so that a stream is paced by the clock it is sent on, and the
@@ -14,16 +14,16 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, Result};
-use armctl::drive::connection::{protocol_named, Place};
-use armctl::drive::gripper::{GripperGoal, GripperRequest};
-use armctl::drive::joints::JointsRequest;
-use armctl::drive::move_to::MoveRequest;
-use armctl::drive::play::Plan;
-use armctl::drive::session::Driver;
-use armctl::drive::{gripper, joints, move_to, play, state, DriveError, DriveResult};
+use armctl::commands::drive::gripper::{GripperGoal, GripperRequest};
+use armctl::commands::drive::joints::JointsRequest;
+use armctl::commands::drive::move_to::MoveRequest;
+use armctl::commands::drive::play::Plan;
+use armctl::commands::drive::{gripper, joints, move_to, play, state, DriveError, DriveResult};
+use armctl::motion::teleop::leader::Reading;
+use armctl::motion::teleop::stream::{refused, Settings, Streamer};
+use armctl::runtime::connection::{protocol_named, Place};
+use armctl::runtime::session::Driver;
 use armctl::sim::PtyServer;
-use armctl::teleop::leader::Reading;
-use armctl::teleop::stream::{refused, Settings, Streamer};
 use firmware::link::message::{CartesianTarget, MovePath};
 use pyo3::prelude::*;
 use serde::Serialize;
@@ -375,7 +375,7 @@ impl Arm {
             let lead = match lead_ms {
                 Some(ms) if ms.is_finite() && ms > 0.0 && ms <= 1000.0 => Duration::from_secs_f64(ms * 1e-3),
                 Some(ms) => bail!("lead_ms: {ms} must be above 0 and at most 1000"),
-                None => period + armctl::teleop::LEAD_MARGIN,
+                None => period + armctl::commands::teleop::LEAD_MARGIN,
             };
             if let Some(step) = max_step.iter().flatten().find(|step| !(step.is_finite() && **step > 0.0)) {
                 bail!("max_step: {step} must be a positive number of radians");

@@ -4,8 +4,8 @@
 
 use std::path::PathBuf;
 
-use armctl::args::bus::ProtocolArg;
-use armctl::servo::calibrate::{run, CalibrateArgs};
+use armctl::commands::bus_args::ProtocolArg;
+use armctl::commands::servo::calibrate::{run, CalibrateArgs};
 use clap::ValueEnum;
 use pyo3::prelude::*;
 

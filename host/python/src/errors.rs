@@ -48,7 +48,7 @@ fn python_signal() -> bool {
 /// Leaves SIGINT to Python: the project's code never installs a handler in this process, and its
 /// waiting loops ask Python whether Ctrl-C was pressed.
 pub fn keep_python_signal_handling() {
-    armctl::drive::interrupt::delegate(python_signal);
+    armctl::support::interrupt::delegate(python_signal);
 }
 
 /// The exception of a Ctrl-C taken while waiting, if there was one (the arm has been stopped).

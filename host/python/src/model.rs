@@ -140,7 +140,7 @@ impl Model {
 impl Model {
     /// The chain of `spec`, with the LeRobot `calibration` file if given.
     pub(crate) fn of(spec: ArmSpec, calibration: Option<&std::path::Path>) -> PyResult<Self> {
-        let spec = armctl::drive::args::calibrated(spec, calibration);
+        let spec = armctl::commands::drive::args::calibrated(spec, calibration);
         Ok(Self { arm: spec.and_then(dof::build).or_raise()? })
     }
 
@@ -153,7 +153,7 @@ impl Model {
         position_tolerance: Option<f64>,
         orientation_tolerance: Option<f64>,
     ) -> PyResult<IkRequest> {
-        let solver: SolverName = by_name(solver, "solver").or_raise()?;
+        let solver: SolverName = solver.parse::<SolverName>().or_raise()?;
         let config = ik_config(position_tolerance, orientation_tolerance)?;
         Ok(IkRequest { position, quaternion_wxyz, seed, solver, config, scalar: Scalar::F64 })
     }

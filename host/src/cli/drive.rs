@@ -1,5 +1,5 @@
 //! The arm-driving commands on the command line: what was typed becomes a typed operation
-//! ([`crate::drive::Operation`]) before anything is connected, so bad input changes nothing; its
+//! ([`crate::commands::drive::Operation`]) before anything is connected, so bad input changes nothing; its
 //! report is printed as text or as one line of JSON.
 
 use std::io::Write;
@@ -7,39 +7,20 @@ use std::io::Write;
 use anyhow::{bail, Result};
 use firmware::link::message::MovePath;
 
-use crate::args::numbers as parse;
-use crate::drive::args::{DriveCommand, GripperAction, JointsArgs, LinkArgs, MoveArgs, OnOff};
-use crate::drive::gripper::{GripperGoal, GripperRequest};
-use crate::drive::joints::JointsRequest;
-use crate::drive::move_to::MoveRequest;
-use crate::drive::play::Plan;
-use crate::drive::session::Driver;
-use crate::drive::{carry_out, DriveError, Operation};
+use crate::commands::drive::args::{DriveCommand, GripperAction, JointsArgs, LinkArgs, MoveArgs, OnOff};
+use crate::commands::drive::gripper::{GripperGoal, GripperRequest};
+use crate::commands::drive::joints::JointsRequest;
+use crate::commands::drive::move_to::MoveRequest;
+use crate::commands::drive::play::Plan;
+use crate::commands::drive::Operation;
+use crate::support::numbers as parse;
 
 /// Runs an arm-driving command; returns the exit code.
 pub fn run(link: &LinkArgs, command: DriveCommand, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
     // Everything the user typed is checked before connecting, so bad input changes nothing.
     let link = link.merged(command.link())?;
     let operation = operation(&command)?;
-    let (target, arm) = link.target()?;
-    let mut driver = Driver::open(target, arm, err)?;
-    let code = match carry_out(&mut driver, &operation, err) {
-        Ok(report) if link.json => {
-            writeln!(out, "{}", serde_json::to_string(&report)?)?;
-            0
-        }
-        Ok(report) => {
-            writeln!(out, "{}", report.text())?;
-            0
-        }
-        Err(DriveError::Interrupted { said }) => {
-            writeln!(err, "{said}")?;
-            crate::drive::interrupt::EXIT_CODE
-        }
-        Err(e) => return Err(e.into()),
-    };
-    driver.close(err)?;
-    Ok(code)
+    crate::commands::drive::run(&link, &operation, out, err)
 }
 
 /// The typed operation of a command as typed.

@@ -13,11 +13,11 @@ use serde_json::json;
 
 use super::tree::{self, TreeIk};
 use super::{load_body, print_json, ArmArgs, Loaded};
-use crate::args::json_lines::{self, Line, Parsed};
-use crate::args::numbers as parse;
 use crate::arm::dof::{DynArm, IkOutcome, IkRequest, Scalar, SolverName};
 use crate::arm::dyn_tree::{self, DynTree};
-use crate::bench::ik as bench;
+use crate::commands::bench::ik as bench;
+use crate::support::json_lines::{self, Line, Parsed};
+use crate::support::numbers as parse;
 
 #[derive(Args, Debug)]
 pub(crate) struct IkArgs {
@@ -38,14 +38,14 @@ pub(crate) struct IkArgs {
     batch: Option<String>,
     /// Method: auto (the closed form where the arm's geometry has one, else dls), analytic,
     /// numeric (= dls) or another numerical method.
-    #[arg(long, value_enum, default_value = "auto")]
+    #[arg(long, value_parser = crate::cli::values::solver(), default_value = "auto")]
     solver: SolverName,
     /// Print every closed-form solution of the target (one target; arms with a closed form),
     /// each with whether it is within the limits and reaches, instead of the one nearest the seed.
     #[arg(long, conflicts_with = "batch")]
     all_solutions: bool,
     /// Scalar the solver runs in.
-    #[arg(long, value_enum, default_value = "f64")]
+    #[arg(long, value_parser = crate::cli::values::scalar(), default_value = "f64")]
     scalar: Scalar,
     /// Position tolerance (m); default 1e-5 in f64, 1e-4 in f32. KDL calls it eps.
     #[arg(long, visible_alias = "tolerance")]

@@ -4,18 +4,19 @@
 
 pub mod drive;
 mod ik;
-pub mod retarget;
 pub mod serve;
+pub mod servo;
 pub mod sim;
 mod tree;
+pub mod values;
 
-use crate::args::numbers as parse;
 use crate::arm::body::Body;
 use crate::arm::dof::{self, DynArm, Scalar};
 use crate::arm::dyn_tree::DynTree;
 use crate::arm::ArmSpec;
-use crate::bench::ik::{self as bench, Protocol};
-use crate::drive::args::LinkArgs;
+use crate::commands::bench::ik::{self as bench, Protocol};
+use crate::commands::drive::args::LinkArgs;
+use crate::support::numbers as parse;
 use anyhow::{bail, Result};
 use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand};
 use serde_json::{json, Value};
@@ -49,7 +50,7 @@ enum Command {
     /// streamed pick-and-place path, then the report (--json: one line of JSON) and a plot
     /// (demo-ARM.png unless --plot or --no-plot). With --rig: two simulated arms hand an object
     /// over.
-    Demo(crate::demo::DemoArgs),
+    Demo(crate::commands::demo::DemoArgs),
     /// Forward kinematics: the tool's pose and every joint's frame for joint values (JSON)
     ///
     /// For a tree (a URDF with several leaves and no --tip), every end effector's pose.
@@ -89,7 +90,7 @@ enum Command {
     ///
     /// Builds the board binaries (or reads --elf) and measures the stack under QEMU unless
     /// --no-qemu. Needs an armctl built with the board-tools feature.
-    Footprint(crate::footprint::FootprintArgs),
+    Footprint(crate::commands::footprint::FootprintArgs),
     /// Simulated servos on a pseudo-terminal (sim servos), or the firmware under QEMU (sim --qemu)
     Sim(sim::SimArgs),
     /// Joint trajectories through keyframes: sampled at a fixed rate (trajectory sample)
@@ -113,14 +114,14 @@ enum Command {
     /// one arm whose state persists. Ctrl-C stops the arm, then exits.
     Serve(serve::ServeArgs),
     /// Serial bus servos on a port: scan, read, write, set-id, set-baud, calibration, torque
-    Servo(crate::servo::cli::ServoArgs),
+    Servo(crate::cli::servo::ServoArgs),
     /// What is wrong with a servo bus (--bus PORT): one line per finding, OK, WARN or FAIL, with the fix
     ///
     /// Ids, models, firmware, supply, temperature, error flags, return delay, the adapter's echo
     /// and latency, lost replies, stale goals, the calibration, whether a control cycle fits.
     /// Writes nothing unless --fix. Scans both protocols at the usual baud rates when --protocol
     /// and --baud are not given.
-    Doctor(crate::doctor::DoctorArgs),
+    Doctor(crate::commands::doctor::DoctorArgs),
     /// Calibrate an arm's servos as LeRobot does, each step answered with a line on stdin
     ///
     /// Homing offsets at the middle of each joint's range, the ranges moved through by hand as
@@ -128,7 +129,7 @@ enum Command {
     /// (--lerobot-json).
     Calibrate {
         #[command(flatten)]
-        args: crate::servo::calibrate::CalibrateArgs,
+        args: crate::commands::servo::calibrate::CalibrateArgs,
         /// The dialog (steps, live table, results) on stderr instead, and on stdout one line of
         /// JSON once done: the files written, each joint's limits (rad) and the calibration as
         /// LeRobot's file has it.
@@ -141,14 +142,14 @@ enum Command {
     /// tracking figures (one line of JSON); --play streams them to the arm (its report a second
     /// JSON line). With --rig RIG: the human's arms onto every arm of the rig, one keyframe file
     /// for all.
-    Retarget(retarget::RetargetArgs),
+    Retarget(crate::commands::retarget::RetargetArgs),
     /// Teleoperation: a leader arm moved by hand drives the follower (--port, --bus or --sim)
     ///
     /// The leader's servos (torque off) are read by sync read and mapped through both
     /// calibrations to keyframes the follower's firmware plays within its limits. Reports the
     /// loop's rate and latency (--json: one line of JSON); --record writes the session as a
     /// keyframe file for `armctl play`.
-    Teleop(crate::teleop::TeleopArgs),
+    Teleop(crate::commands::teleop::TeleopArgs),
     /// The arm live in a browser, and the same as a JSON API: prints the page's URL
     ///
     /// A local page with the arm in 3D, joint sliders, a target to drag (IK preview, then the
@@ -159,7 +160,7 @@ enum Command {
     // The drive commands (move, joints, play, status, stop, torque, gripper), each with the drive
     // options before or after it.
     #[command(flatten)]
-    Drive(crate::drive::args::DriveCommand),
+    Drive(crate::commands::drive::args::DriveCommand),
 }
 
 #[derive(Subcommand, Debug)]
@@ -179,7 +180,7 @@ enum BenchCommand {
         #[arg(long, default_value_t = 10_000)]
         n: usize,
         /// Scalar of our solver (tolerances 1e-5 in f64, 1e-4 m / 1e-3 rad in f32).
-        #[arg(long, value_enum, default_value = "f64")]
+        #[arg(long, value_parser = crate::cli::values::scalar(), default_value = "f64")]
         scalar: Scalar,
         /// Seed of the target sampler.
         #[arg(long, default_value_t = 1)]
@@ -194,18 +195,18 @@ enum BenchCommand {
     },
     /// Wire time of one control cycle (sync write goals + sync read positions), computed and
     /// simulated with the firmware's cycle against simulated servos.
-    Bus(crate::bench::bus::BusBenchArgs),
+    Bus(crate::commands::bench::bus::BusBenchArgs),
     /// Control rate of the firmware's controller (6 servos, a joint move in progress) against
     /// simulated servos on the virtual clock, ticking back to back and on its fixed period,
     /// compared with the bus's wire-time limit. Compute time is free on the virtual clock.
-    Rate(crate::bench::rate::RateBenchArgs),
+    Rate(crate::commands::bench::rate::RateBenchArgs),
     /// Instructions per operation on the Cortex-M4F (FK, IK, player tick, bus packets), counted by
     /// the firmware's `opcount` binary under `qemu-system-arm -icount shift=0`.
-    Mcu(crate::bench::mcu::McuBenchArgs),
+    Mcu(crate::commands::bench::mcu::McuBenchArgs),
     /// Control rate and bus time per tick of the firmware core hosted on this PC (as --bus runs it) against
     /// simulated servos on a pseudo-terminal in real time, with or without a USB adapter's burst
     /// latency.
-    Pc(crate::bench::pc::PcBenchArgs),
+    Pc(crate::commands::bench::pc::PcBenchArgs),
 }
 
 #[derive(Args, Debug)]
@@ -343,7 +344,7 @@ fn command_name(matches: &clap::ArgMatches) -> String {
 /// drive commands, teleop, view, retarget, doctor) merge them on their own. An option the command
 /// has no use for is refused in one line.
 fn take_globals(link: &LinkArgs, mut command: Command, name: &str) -> Result<Command> {
-    use crate::drive::args::either;
+    use crate::commands::drive::args::either;
     let mut rest = link.clone();
     let json = std::mem::take(&mut rest.json);
     match &mut command {
@@ -408,9 +409,9 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
             }
             return drive::run(link, command, out, err);
         }
-        Command::Demo(args) => return crate::demo::run(&args, out),
-        Command::Retarget(args) => return retarget::run(link, args, out, err),
-        Command::Teleop(args) => return crate::teleop::run(link, args, out, err),
+        Command::Demo(args) => return crate::commands::demo::run(&args, out),
+        Command::Retarget(args) => return crate::commands::retarget::run(link, args, out, err),
+        Command::Teleop(args) => return crate::commands::teleop::run(link, args, out, err),
         Command::View(args) => return crate::view::run(link, args, out, err),
         Command::Fk { arm, q, json: _ } => {
             let arm = match load_body(&arm)? {
@@ -447,16 +448,16 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
             print_json(out, &json!({"arm": arm.spec().name, "jacobian": arm.jacobian(&q)?}))?;
         }
         Command::Ik(args) => return ik::run(&args, out, err),
-        Command::Bench { what: BenchCommand::Bus(args) } => return crate::bench::bus::run(&args, out),
-        Command::Bench { what: BenchCommand::Rate(args) } => return crate::bench::rate::run(&args, out),
-        Command::Footprint(args) => return crate::footprint::run(&args, out, err),
-        Command::Bench { what: BenchCommand::Mcu(args) } => return crate::bench::mcu::run(&args, out),
-        Command::Bench { what: BenchCommand::Pc(args) } => return crate::bench::pc::run(&args, out, err),
-        Command::Servo(args) => return crate::servo::cli::run(args, out, err),
-        Command::Doctor(args) => return crate::doctor::run(link, args, out, err),
+        Command::Bench { what: BenchCommand::Bus(args) } => return crate::commands::bench::bus::run(&args, out),
+        Command::Bench { what: BenchCommand::Rate(args) } => return crate::commands::bench::rate::run(&args, out),
+        Command::Footprint(args) => return crate::commands::footprint::run(&args, out, err),
+        Command::Bench { what: BenchCommand::Mcu(args) } => return crate::commands::bench::mcu::run(&args, out),
+        Command::Bench { what: BenchCommand::Pc(args) } => return crate::commands::bench::pc::run(&args, out, err),
+        Command::Servo(args) => return crate::cli::servo::run(args, out, err),
+        Command::Doctor(args) => return crate::commands::doctor::run(link, args, out, err),
         Command::Calibrate { args, json } => return calibrate(args, json, out, err),
         Command::Ports { json } => {
-            let ports = crate::servo::ports::usb_ports(std::path::Path::new("/dev"));
+            let ports = crate::commands::servo::ports::usb_ports(std::path::Path::new("/dev"));
             if json {
                 print_json(out, &ports)?;
             } else if ports.is_empty() {
@@ -466,7 +467,7 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
                 )?;
             } else {
                 for port in &ports {
-                    writeln!(out, "{}", crate::servo::ports::describe(port))?;
+                    writeln!(out, "{}", crate::commands::servo::ports::describe(port))?;
                 }
             }
         }
@@ -516,14 +517,14 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
 /// `armctl calibrate`; with `json`, the dialog goes to `err` and its outcome, read back from the
 /// arm file written, to `out` as one line of JSON.
 fn calibrate(
-    args: crate::servo::calibrate::CalibrateArgs,
+    args: crate::commands::servo::calibrate::CalibrateArgs,
     json: bool,
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> Result<i32> {
     use crate::arm::calibration::{lerobot, record};
     if !json {
-        return crate::servo::calibrate::run(args, out, err);
+        return crate::commands::servo::calibrate::run(args, out, err);
     }
     /// One writer shared by the dialog's two streams.
     struct Shared<'a, 'b>(&'a std::cell::RefCell<&'b mut dyn Write>);
@@ -537,7 +538,7 @@ fn calibrate(
     }
     let (written, lerobot_json) = (args.out.clone(), args.lerobot_json.clone());
     let shared = std::cell::RefCell::new(err);
-    let code = crate::servo::calibrate::run(args, &mut Shared(&shared), &mut Shared(&shared))?;
+    let code = crate::commands::servo::calibrate::run(args, &mut Shared(&shared), &mut Shared(&shared))?;
     let arm = ArmSpec::load(&written.display().to_string(), None)?;
     let servos = crate::arm::servos::servos_of(&arm)
         .ok_or_else(|| anyhow::anyhow!("{} has no [servos] table after calibrating", written.display()))?;
@@ -565,18 +566,4 @@ fn vec3(p: &kinematics::Pose<f64>) -> [f64; 3] {
     p.translation.into()
 }
 
-/// Writes `value` as one line of JSON. The line is serialised in memory and written at once: into
-/// `dyn Write` directly, every key, comma and number is a call of its own (a third of the
-/// per-line cost of `ik --batch` went there). The buffer is kept from line to line.
-pub(crate) fn print_json(out: &mut dyn Write, value: &impl serde::Serialize) -> Result<()> {
-    thread_local! {
-        static LINE: std::cell::RefCell<Vec<u8>> = const { std::cell::RefCell::new(Vec::new()) };
-    }
-    LINE.with_borrow_mut(|line| {
-        line.clear();
-        serde_json::to_writer(&mut *line, value)?;
-        line.push(b'\n');
-        out.write_all(line)?;
-        Ok(())
-    })
-}
+pub(crate) use crate::support::json_out::print_json;

@@ -13,16 +13,16 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, bail, Result};
 use clap::Args;
 
-use crate::args::bus::ProtocolArg;
 use crate::arm::servos::servos_of;
 use crate::arm::ArmSpec;
-use crate::drive::args::{calibrated, default_bus_arm, DEFAULT_SIM_ARM};
-use crate::drive::connection::handshake_with;
-use crate::drive::interrupt;
+use crate::commands::bus_args::ProtocolArg;
+use crate::commands::drive::args::{calibrated, default_bus_arm, DEFAULT_SIM_ARM};
 use crate::link::session::Session;
-use crate::places::pc::{Pc, PcOptions};
-use crate::places::serve::PtyLink;
+use crate::runtime::connection::handshake_with;
+use crate::runtime::pc::{Pc, PcOptions};
+use crate::runtime::serve::PtyLink;
 use crate::sim::PtyServer;
+use crate::support::interrupt;
 
 /// How long the core may take to read its servos after the arm is configured.
 const READY_TIMEOUT: Duration = Duration::from_secs(2);
@@ -109,7 +109,7 @@ pub fn run(args: ServeArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
     }
     let pty = PtyLink::spawn(session.into_transport())?;
     if args.json {
-        super::print_json(out, &serde_json::json!({ "pty": pty.path() }))?;
+        crate::support::json_out::print_json(out, &serde_json::json!({ "pty": pty.path() }))?;
     } else {
         writeln!(out, "{}", pty.path())?;
     }

@@ -10,15 +10,15 @@ use clap::{Args, Subcommand};
 use firmware::bus::table::Model;
 use firmware::bus::{dxl2, feetech, Protocol};
 
-use crate::args::bus::{model_for, ModelArg, ProtocolArg};
 use crate::arm::servos::{servos_of, ServoSetup};
 use crate::arm::ArmSpec;
-use crate::drive::args::calibrated;
-use crate::drive::interrupt;
+use crate::commands::bus_args::{model_for, ModelArg, ProtocolArg};
+use crate::commands::drive::args::calibrated;
 #[cfg(feature = "board-tools")]
-use crate::places::qemu::{self, Qemu, QemuConfig};
+use crate::runtime::qemu::{self, Qemu, QemuConfig};
 use crate::sim::monitor::MAX_VIOLATIONS;
 use crate::sim::{limits_of, Faults, PtyServer, Recorder, ServeOptions, SimConfig};
+use crate::support::interrupt;
 
 /// Arguments of `armctl sim`: a subcommand, or `--qemu`.
 #[derive(Args, Debug)]
@@ -249,14 +249,14 @@ fn served_id(text: &str, ids: &[u8], flag: &str, part: &str) -> Result<Option<u8
 /// (`status_return_level` and `response_status_level`, `present_voltage` and
 /// `present_input_voltage`), so that one set of fault names serves both.
 fn item_named(model: &Model, name: &str) -> Option<firmware::bus::table::Item> {
-    if let Some(item) = crate::servo::items::named(model, name) {
+    if let Some(item) = crate::commands::servo::items::named(model, name) {
         return Some(item);
     }
     match name {
         "status_return_level" | "response_status_level" => Some(model.items.status_return_level),
-        "present_voltage" | "present_input_voltage" => {
-            ["present_voltage", "present_input_voltage"].iter().find_map(|n| crate::servo::items::named(model, n))
-        }
+        "present_voltage" | "present_input_voltage" => ["present_voltage", "present_input_voltage"]
+            .iter()
+            .find_map(|n| crate::commands::servo::items::named(model, n)),
         _ => None,
     }
 }
@@ -273,7 +273,7 @@ fn registers(texts: &[String], ids: &[u8], model: &Model) -> Result<Vec<crate::s
         let id = served_id(id, ids, "--register", part)?;
         let name = name.trim();
         let Some(item) = item_named(model, name) else {
-            let known: Vec<&str> = crate::servo::items::all(model).iter().map(|i| i.name).collect();
+            let known: Vec<&str> = crate::commands::servo::items::all(model).iter().map(|i| i.name).collect();
             bail!("--register {part:?}: {} has no item {name:?} (it has {})", model.name, known.join(", "));
         };
         let Ok(value) = value.trim().parse::<i64>() else {
@@ -375,7 +375,7 @@ fn prepare(args: &SimServosArgs) -> Result<(SimConfig, ServeOptions)> {
         (model, _) => model_for(protocol, model)?,
     };
     let ids = match (&args.ids, &arm) {
-        (Some(ids), _) => crate::args::numbers::ids(ids, u8::MAX, "--ids")?,
+        (Some(ids), _) => crate::support::numbers::ids(ids, u8::MAX, "--ids")?,
         (None, Some(servos)) => servos.ids.iter().copied().chain(servos.gripper.map(|g| g.id)).collect(),
         (None, None) => bail!("--ids is required (e.g. 1-6), unless --arm names an arm with servos"),
     };
@@ -426,7 +426,7 @@ pub fn run(args: SimArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i3
 /// `armctl sim --qemu`, in an armctl built without the `board-tools` feature it needs.
 #[cfg(not(feature = "board-tools"))]
 fn run_qemu(_: Option<PathBuf>, _: &FaultArgs, _: bool, _: &mut dyn Write, _: &mut dyn Write) -> Result<i32> {
-    Err(crate::places::board::without_tools("sim --qemu"))
+    Err(crate::runtime::board::without_tools("sim --qemu"))
 }
 
 /// `armctl sim --qemu`.
@@ -457,7 +457,7 @@ fn run_qemu(
     let mut board = Qemu::start(&QemuConfig { elf, bus: Some(bus.path().to_string()) })?;
     board.wait_started(qemu::START_TIMEOUT)?;
     if json {
-        super::print_json(out, &serde_json::json!({ "port": board.link_path() }))?;
+        crate::support::json_out::print_json(out, &serde_json::json!({ "port": board.link_path() }))?;
     } else {
         writeln!(out, "{}", board.link_path())?;
     }
@@ -470,7 +470,7 @@ fn run_qemu(
         link = board.link_path()
     )?;
     err.flush()?;
-    let interruptible = crate::drive::interrupt::catch();
+    let interruptible = crate::support::interrupt::catch();
     let mut logged = 0;
     loop {
         let lines = board.log().lines_from(logged);
@@ -487,9 +487,9 @@ fn run_qemu(
             bus.stop().context("the simulated bus stopped")?;
             return Ok(1);
         }
-        if interruptible && crate::drive::interrupt::requested() {
+        if interruptible && crate::support::interrupt::requested() {
             // Dropping `board` and `bus` stops QEMU and removes its working directory.
-            return Ok(crate::drive::interrupt::EXIT_CODE);
+            return Ok(crate::support::interrupt::EXIT_CODE);
         }
         std::thread::sleep(std::time::Duration::from_millis(100));
     }
@@ -522,7 +522,7 @@ fn run_servos(args: SimServosArgs, out: &mut dyn Write, err: &mut dyn Write) -> 
     }
     let server = PtyServer::spawn_with(config.clone(), options).context("cannot open a pseudo-terminal")?;
     if args.json {
-        super::print_json(out, &serde_json::json!({ "pty": server.path() }))?;
+        crate::support::json_out::print_json(out, &serde_json::json!({ "pty": server.path() }))?;
     } else {
         writeln!(out, "{}", server.path())?;
     }
@@ -618,7 +618,7 @@ impl HandLines {
     fn serve(&mut self, server: &PtyServer, poll: Duration, json: bool, out: &mut dyn Write) -> Result<()> {
         let mut answer = |key: &str, text: String| -> Result<()> {
             if json {
-                super::print_json(out, &serde_json::json!({ key: text }))
+                crate::support::json_out::print_json(out, &serde_json::json!({ key: text }))
             } else if key == "done" {
                 Ok(writeln!(out, "done {text}")?)
             } else {

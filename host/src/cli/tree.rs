@@ -13,8 +13,8 @@ use serde::Serialize;
 use serde_json::{json, Value};
 
 use super::{print_json, vec3};
-use crate::args::numbers as parse;
 use crate::arm::dyn_tree::{DynTree, NamedGoal, TreeIkRequest};
+use crate::support::numbers as parse;
 
 /// A pose as a chain's `fk` prints its tool.
 fn pose_json(p: &Pose<f64>) -> Value {

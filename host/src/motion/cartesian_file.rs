@@ -72,7 +72,7 @@ pub fn parse_cartesian_keyframes(text: &str) -> Result<CartesianKeyframes> {
         if fields.len() != names.len() {
             bail!("line {line}: {} fields, but the header has {}", fields.len(), names.len());
         }
-        let values = crate::args::numbers::csv_row(line, &fields, &names)?;
+        let values = crate::support::numbers::csv_row(line, &fields, &names)?;
         let t = values[0];
         if !(0.0..=f64::from(MAX_TIME)).contains(&t) {
             bail!("line {line}: time {t} s is outside 0..={MAX_TIME} s");

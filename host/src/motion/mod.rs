@@ -10,3 +10,5 @@ pub mod trajectory;
 pub mod trajectory_plot;
 
 pub use cartesian_file::{parse_cartesian_keyframes, CartesianKeyframes};
+pub mod mocap;
+pub mod teleop;

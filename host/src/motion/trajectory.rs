@@ -159,7 +159,7 @@ pub fn parse_keyframes(text: &str) -> Result<Keyframes> {
         if fields.len() != names.len() {
             bail!("line {line}: {} fields, but the header has {}", fields.len(), names.len());
         }
-        let values = crate::args::numbers::csv_row(line, &fields, &names)?;
+        let values = crate::support::numbers::csv_row(line, &fields, &names)?;
         let t = values[0];
         if let (Some(&previous), Some(&previous_line)) = (k.times.last(), k.lines.last()) {
             if t <= previous {
@@ -259,7 +259,7 @@ pub fn parse_limits(text: &str) -> Result<LimitSpec> {
             bail!("--limits: {item:?} is not KEY=VALUE (keys v, a, lo, hi)");
         };
         let key = key.trim();
-        let numbers = crate::args::numbers::numbers(&value.replace(':', ","), &format!("--limits {key}"))?;
+        let numbers = crate::support::numbers::numbers(&value.replace(':', ","), &format!("--limits {key}"))?;
         if numbers.is_empty() {
             bail!("--limits: {key} has no value");
         }

@@ -2,7 +2,7 @@
 //! colour per joint, keyframes marked (dots on the position panel, grey lines across all three).
 
 use super::trajectory::{Row, Sampled};
-use crate::plot::{colour, error, range, write_png, SIZE};
+use crate::support::plot::{colour, error, range, write_png, SIZE};
 use anyhow::Result;
 use plotters::coord::Shift;
 use plotters::prelude::*;

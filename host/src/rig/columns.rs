@@ -8,7 +8,7 @@
 //! Each arm's columns are those of `armctl play`'s files (`q1..qN[,v1..vN][,gripper]` or
 //! `x,y,z[,qw,qx,qy,qz][,gripper]`), so the file is split into one such file per arm, with the line
 //! numbers kept, and each part is read and checked by the one-arm reader
-//! ([`crate::drive::play::Plan`]). Cartesian columns are in the world frame and are moved into the
+//! ([`crate::commands::drive::play::Plan`]). Cartesian columns are in the world frame and are moved into the
 //! arm's base frame here. An arm without columns does not move.
 
 use std::path::{Path, PathBuf};
@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use kinematics::Pose;
 
-use crate::drive::play::Plan;
+use crate::commands::drive::play::Plan;
 use crate::motion::cartesian_file::rows;
 
 /// One arm's part of a rig keyframe file.

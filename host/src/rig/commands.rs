@@ -12,13 +12,13 @@ use serde_json::json;
 use super::columns::{self, ArmPart};
 use super::play::stop_all;
 use super::{Rig, RigSpec};
-use crate::args::numbers as parse;
-use crate::drive::args::{DriveCommand, LinkArgs, MoveArgs, OnOff};
-use crate::drive::interrupt;
-use crate::drive::move_to::{check_position, check_quaternion, positive, tool_timing};
-use crate::drive::path::{self, host_solution};
-use crate::drive::session::{check_joints, fmt3};
-use crate::drive::state;
+use crate::commands::drive::args::{DriveCommand, LinkArgs, MoveArgs, OnOff};
+use crate::commands::drive::move_to::{check_position, check_quaternion, positive, tool_timing};
+use crate::commands::drive::path::{self, host_solution};
+use crate::commands::drive::state;
+use crate::runtime::session::{check_joints, fmt3};
+use crate::support::interrupt;
+use crate::support::numbers as parse;
 
 /// One arm's tool target of a rig move (world frame).
 struct ArmTarget {

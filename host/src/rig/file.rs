@@ -27,11 +27,11 @@ use anyhow::{bail, Context, Result};
 use kinematics::Pose;
 use serde::Deserialize;
 
-use crate::args::bus::ProtocolArg;
-use crate::drive::args::LinkArgs;
+use crate::commands::bus_args::ProtocolArg;
+use crate::commands::drive::args::LinkArgs;
 
 /// The rigs built in, by name.
-const PRESETS: [(&str, &str); 1] = [("bimanual-so101", include_str!("bimanual-so101.toml"))];
+const PRESETS: [(&str, &str); 1] = [("bimanual-so101", include_str!("../../examples/rigs/bimanual-so101.toml"))];
 
 /// The most arms a rig takes (a bound for a hand-written file gone wrong, not a design limit).
 pub const MAX_ARMS: usize = 8;
@@ -267,7 +267,7 @@ impl LeaderEntry {
         };
         let arm = arm_path(dir, self.arm.as_deref().unwrap_or("so101"));
         // Loaded once here, so a bad arm or calibration is said before anything opens.
-        let spec = crate::drive::args::calibrated(
+        let spec = crate::commands::drive::args::calibrated(
             crate::arm::ArmSpec::load(&arm, None)?,
             self.calibration.as_deref().map(|c| relative(dir, c)).as_deref(),
         )?;

@@ -4,7 +4,7 @@
 //!
 //! - [`file`]: the rig file ([`RigSpec`]), and the built-in rigs.
 //! - [`Rig`]: the arms connected. Arms simulated in this process (`sim = true`) share one virtual
-//!   clock ([`crate::places::sil::group`]), so their cores run in step as two boards would.
+//!   clock ([`crate::runtime::sil::group`]), so their cores run in step as two boards would.
 //! - [`commands`]: `armctl --rig FILE status|stop|torque|move|play`.
 //! - [`columns`]: a keyframe file with every arm's columns, split into one file per arm.
 //! - [`tree`]: a rig whose arms are mounted on one another (a shared joint) as one kinematic tree.
@@ -23,11 +23,11 @@ use kinematics::Pose;
 
 pub use file::{RigArmSpec, RigSpec};
 
-use crate::drive::connection::{self, Target};
-use crate::drive::interrupt;
-use crate::drive::session::Driver;
-use crate::places::sil::group::SilGroup;
-use crate::places::sil::Sil;
+use crate::runtime::connection::{self, Target};
+use crate::runtime::session::Driver;
+use crate::runtime::sil::group::SilGroup;
+use crate::runtime::sil::Sil;
+use crate::support::interrupt;
 
 /// One arm of a connected rig.
 pub struct RigArm {

@@ -18,9 +18,9 @@ use serde_json::json;
 
 use super::columns::ArmPart;
 use super::Rig;
-use crate::drive::interrupt;
-use crate::drive::session::fmt3;
 use crate::link::session::Keyframe;
+use crate::runtime::session::fmt3;
+use crate::support::interrupt;
 
 /// One arm's playback.
 struct Track {

@@ -6,7 +6,7 @@
 //! has no baud rate, so wire time and return delays are not waited out in real time (the virtual
 //! clock of [`super::port`] is where timing is checked). The thread keeps the slave end open
 //! too, so a client closing and reopening the path does not hang up the master end. The pty is
-//! its owner's alone (mode 0600, [`crate::pty_owner`]) before [`PtyServer::spawn`] returns.
+//! its owner's alone (mode 0600, [`crate::support::pty_owner`]) before [`PtyServer::spawn`] returns.
 //!
 //! Two options make it more like a servo bus behind a USB serial adapter, for a firmware core run
 //! on the PC against the real clock: [`SimConfig::burst`] holds the replies until the adapter's
@@ -249,7 +249,7 @@ pub struct PtyServer {
 }
 
 impl PtyServer {
-    /// Opens a pty pair, makes it its owner's alone ([`crate::pty_owner::make_private`]) and
+    /// Opens a pty pair, makes it its owner's alone ([`crate::support::pty_owner::make_private`]) and
     /// serves the bus of `config` on it. A `burst` of zero is refused.
     pub fn spawn(config: SimConfig) -> std::io::Result<PtyServer> {
         Self::spawn_with(config, ServeOptions::default())
@@ -266,7 +266,7 @@ impl PtyServer {
         let (mut master, slave) = TTYPort::pair().map_err(std::io::Error::from)?;
         let path = slave.name().ok_or_else(|| std::io::Error::other("the pty has no path"))?;
         // The servos take commands through it: its owner's alone before anyone learns its path.
-        crate::pty_owner::make_private(&path).map_err(|e| std::io::Error::other(format!("{e:#}")))?;
+        crate::support::pty_owner::make_private(&path).map_err(|e| std::io::Error::other(format!("{e:#}")))?;
         master.set_timeout(IDLE_READ).map_err(std::io::Error::from)?;
         let stop = Arc::new(AtomicBool::new(false));
         let new_faults = Arc::new(Mutex::new(None));

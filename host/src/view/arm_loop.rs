@@ -23,12 +23,12 @@ use super::jobs::{Answer, JobQueue};
 use super::telemetry::{self, Extras, LastSecond, Latest, Placement};
 use crate::arm::dof::DynArm;
 use crate::arm::ArmSpec;
-use crate::drive::connection::Target;
-use crate::drive::path::{self, RefusedBy};
-use crate::drive::play::Plan;
-use crate::drive::session::{check_joints, Driver};
+use crate::commands::drive::path::{self, RefusedBy};
+use crate::commands::drive::play::Plan;
 use crate::link::client::LinkError;
 use crate::link::session::Keyframe;
+use crate::runtime::connection::Target;
+use crate::runtime::session::{check_joints, Driver};
 
 /// The poll period: the firmware's control period, so the telemetry shows every setpoint.
 pub const PERIOD: Duration = Duration::from_millis(10);
@@ -344,7 +344,8 @@ impl LoopState {
             }
             Request::Torque(on) => {
                 // As `armctl torque` does it.
-                crate::drive::state::torque(&mut self.driver, on).map_err(|e| ApiError::new(503, e.to_string()))?;
+                crate::commands::drive::state::torque(&mut self.driver, on)
+                    .map_err(|e| ApiError::new(503, e.to_string()))?;
                 ok()
             }
             Request::Gripper(percent) => {

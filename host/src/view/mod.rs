@@ -44,8 +44,8 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 
 use crate::arm::servos::servos_of;
-use crate::drive::args::LinkArgs;
-use crate::drive::interrupt;
+use crate::commands::drive::args::LinkArgs;
+use crate::support::interrupt;
 use arm_loop::ArmLoop;
 use server::{Served, ServedArm, ViewServer};
 use telemetry::Latest;

@@ -1,0 +1,78 @@
+//! `armctl footprint`: what each board binary costs the microcontroller, against the goals for a
+//! 6-joint arm (flash at most 64 KiB, static RAM at most 16 KiB, stack at most 8 KiB), and what of
+//! core's panic machinery the release firmware can reach.
+//!
+//! Flash and static RAM come from the ELF's section headers ([`elf`]). The stack is reported twice:
+//! a static bound over the direct call graph ([`disasm`]), which cannot see through trait objects,
+//! and the depth measured by stack painting under QEMU ([`measure`], MPS2 AN386 only), which sees
+//! only the paths driven. Panic paths are the call sites into `core::panicking` and the `*_fail`
+//! functions of core's checks, with their source lines: the MPS2 release firmware has none (its
+//! panic handler calls an undefined symbol, so a reachable panic fails the link), and `--elf`
+//! reports on any binary, a dev build for instance.
+//!
+//! It reads the ELF with `object` and measures under QEMU with the defmt log, so it is built with
+//! the `board-tools` feature; without it, it says so ([`crate::runtime::board::without_tools`]).
+
+pub mod disasm;
+#[cfg(feature = "board-tools")]
+pub mod elf;
+#[cfg(feature = "board-tools")]
+pub mod measure;
+#[cfg(feature = "board-tools")]
+mod report;
+#[cfg(feature = "board-tools")]
+pub use report::{BoardReport, Budget, MeasuredReport, SiteReport};
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::{Args, ValueEnum};
+
+/// Flash goal for a 6-joint arm.
+pub const FLASH_GOAL: u64 = 64 * 1024;
+/// Static RAM goal.
+pub const STATIC_RAM_GOAL: u64 = 16 * 1024;
+/// Stack goal.
+pub const STACK_GOAL: u64 = 8 * 1024;
+
+/// Arguments of `armctl footprint`.
+#[derive(Args, Debug)]
+pub struct FootprintArgs {
+    /// The board binary to report on (default: both).
+    #[arg(long, value_enum)]
+    board: Option<Board>,
+    /// Report on this firmware ELF instead of building the board binary (any Cortex-M ELF; with no
+    /// --board the board is told by its start-up and loop functions, and an ELF without them, such
+    /// as the `opcount` benchmark, is bounded from `main`).
+    #[arg(long)]
+    elf: Option<PathBuf>,
+    /// Skip the stack measurement under QEMU.
+    #[arg(long)]
+    no_qemu: bool,
+    /// One line of JSON instead of the text report.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The board binaries.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Board {
+    /// The MPS2 AN386 (Cortex-M4F) firmware that runs under QEMU.
+    #[value(name = "mps2-an386")]
+    Mps2An386,
+    /// The STM32F411 "Black Pill" firmware.
+    #[value(name = "stm32f411")]
+    Stm32f411,
+}
+
+/// Runs `armctl footprint`.
+pub fn run(args: &FootprintArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+    #[cfg(feature = "board-tools")]
+    return report::run(args, out, err);
+    #[cfg(not(feature = "board-tools"))]
+    {
+        let _ = (args, out, err);
+        Err(crate::runtime::board::without_tools("footprint"))
+    }
+}

@@ -1,0 +1,23 @@
+//! What armctl does, one folder per verb family: the typed operations that [`crate::cli`], the
+//! view, a rig and the Python binding call.
+//!
+//! - [`drive`]: move, joints, play, status, stop, torque, gripper over a connection to the
+//!   firmware, and the drive options ([`drive::args`]);
+//! - [`servo`]: `armctl servo`, `calibrate`, `ports`;
+//! - [`doctor`]: what is wrong with a servo bus;
+//! - [`bench`]: `armctl bench ik|bus|rate|mcu|pc`;
+//! - [`footprint`]: the board binaries' flash, RAM, panic sites and stack;
+//! - [`demo`]: the whole product in software in the loop;
+//! - [`teleop`]: a leader arm driving the follower;
+//! - [`retarget`]: BVH motion capture onto the arm, and `--play`;
+//! - [`bus_args`]: the servo-bus protocol and model names the commands take.
+
+pub mod bench;
+pub mod bus_args;
+pub mod demo;
+pub mod doctor;
+pub mod drive;
+pub mod footprint;
+pub mod retarget;
+pub mod servo;
+pub mod teleop;

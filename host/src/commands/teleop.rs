@@ -1,0 +1,414 @@
+//! `armctl teleop`: a leader arm moved by hand drives a follower arm, as LeRobot's
+//! `lerobot-teleoperate` does, through this project's one mechanism: the leader's joints are read
+//! on a bus of their own (sync read, torque off), passed through both arms' calibrations, and
+//! streamed to the follower's firmware as keyframes, which its player plays within its limits.
+//!
+//! - [`crate::motion::teleop::leader`]: the leader's servos, read as joint angles and a gripper opening;
+//! - [`crate::motion::teleop::hand`]: a simulated leader, turned by a scripted hand, to try it without an arm;
+//! - [`crate::motion::teleop::stream`]: the loop: its rate, the safety clamp, keyframes timed by the follower's playback
+//!   clock, and the figures;
+//! - [`crate::motion::teleop::record`]: the session as a keyframe file for `armctl play`.
+//!
+//! The follower is any drive target: `--port` (a board), `--bus` (the core on this PC with the
+//! servos on a USB adapter), or `--sim`, which here runs the core on this PC in real time against
+//! simulated servos on a pseudo-terminal (as `armctl serve --sim`), with a USB adapter's 1 ms
+//! latency and the safety monitor: teleoperation is a real-time loop, which the virtual clock of
+//! the other commands' `--sim` would not pace.
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::{bail, Result};
+use clap::Args;
+use serde_json::json;
+
+use crate::arm::ArmSpec;
+use crate::commands::bus_args::ProtocolArg;
+use crate::commands::drive::args::{calibrated, LinkArgs};
+use crate::motion::teleop::stream::{quantile, Figures, Settings};
+use crate::rig::file::LeaderSpec;
+use crate::runtime::connection::{Target, SIM_ADAPTER_LATENCY};
+use crate::runtime::session::{Driver, Waited};
+use crate::sim::PtyServer;
+use crate::support::interrupt;
+
+/// Added to one period for the default lead: the player heads for a keyframe from the previous
+/// one, so each must be queued one period before it is due, and this margin covers the leader's
+/// read, the link's delay and the loop's jitter.
+pub const LEAD_MARGIN: Duration = Duration::from_millis(8);
+
+/// `armctl teleop`.
+#[derive(Args, Debug)]
+pub struct TeleopArgs {
+    #[command(flatten)]
+    #[allow(missing_docs)]
+    pub link: LinkArgs,
+    /// The leader arm's serial port (its USB adapter), or `sim`: simulated leader servos, turned by
+    /// --leader-script.
+    #[arg(long, value_name = "PORT|sim")]
+    pub leader: Option<String>,
+    /// The leader's servo protocol [default: that of --leader-arm's servos].
+    #[arg(long, value_enum)]
+    pub leader_protocol: Option<ProtocolArg>,
+    /// The leader arm: a preset or an arm file with a [servos] table.
+    #[arg(long, value_name = "ARM", default_value = "so101")]
+    pub leader_arm: String,
+    /// A LeRobot calibration file (JSON) of the leader's servos.
+    #[arg(long, value_name = "FILE")]
+    pub leader_calibration: Option<PathBuf>,
+    /// The leader bus's baud rate [default: the leader arm file's].
+    #[arg(long)]
+    pub leader_baud: Option<u32>,
+    /// With --leader sim: the path the hand moves the leader along, a joint keyframe file
+    /// (t,q1,...,qN[,gripper], as for `armctl play`), straight from keyframe to keyframe.
+    #[arg(long, value_name = "FILE")]
+    pub leader_script: Option<PathBuf>,
+    /// Keyframes per second.
+    #[arg(long, default_value_t = 100.0)]
+    pub rate: f64,
+    /// How long after its reading a keyframe is played on the follower, ms [default: one period
+    /// plus 8].
+    #[arg(long, value_name = "MS")]
+    pub lead_ms: Option<f64>,
+    /// Largest change of a joint from one keyframe to the next, rad (LeRobot's
+    /// max_relative_target) [default: the follower's speed limit over one period].
+    #[arg(long, value_name = "RAD")]
+    pub max_step: Option<f64>,
+    /// End after this many seconds [default: at Ctrl-C; with --leader sim, when the script ends].
+    #[arg(long, value_name = "S")]
+    pub duration: Option<f64>,
+    /// Write the session as a joint keyframe file that `armctl play` replays.
+    #[arg(long, value_name = "FILE.csv")]
+    pub record: Option<PathBuf>,
+}
+
+impl TeleopArgs {
+    /// The loop's settings other than the follower's.
+    fn check(&self) -> Result<(Duration, Duration)> {
+        if !(self.rate.is_finite() && (1.0..=1000.0).contains(&self.rate)) {
+            bail!("--rate: {} must be between 1 and 1000 keyframes per second", self.rate);
+        }
+        let period = Duration::from_secs_f64(1.0 / self.rate);
+        let lead = match self.lead_ms {
+            Some(ms) if ms.is_finite() && ms > 0.0 && ms <= 1000.0 => Duration::from_secs_f64(ms * 1e-3),
+            Some(ms) => bail!("--lead-ms: {ms} must be above 0 and at most 1000"),
+            None => period + LEAD_MARGIN,
+        };
+        if let Some(step) = self.max_step {
+            if !(step.is_finite() && step > 0.0) {
+                bail!("--max-step: {step} must be a positive number of radians");
+            }
+        }
+        if let Some(d) = self.duration {
+            if !(d.is_finite() && d > 0.0) {
+                bail!("--duration: {d} must be a positive number of seconds");
+            }
+        }
+        Ok((period, lead))
+    }
+
+    /// The leader the options name, checked.
+    fn leader(&self) -> Result<LeaderSpec> {
+        let Some(port) = self.leader.clone() else {
+            bail!("--leader PORT|sim is missing: the leader arm's serial port, or sim with --leader-script");
+        };
+        match (port == "sim", &self.leader_script) {
+            (true, None) => {
+                bail!("--leader sim needs --leader-script FILE: the path the simulated hand moves it along")
+            }
+            (false, Some(_)) => bail!("--leader-script moves a simulated leader: it needs --leader sim"),
+            _ => {}
+        }
+        Ok(LeaderSpec {
+            port,
+            protocol: self.leader_protocol,
+            arm: self.leader_arm.clone(),
+            calibration: self.leader_calibration.clone(),
+            baud: self.leader_baud,
+            script: self.leader_script.clone(),
+        })
+    }
+}
+
+/// The loop's settings every follower of a session shares.
+#[derive(Clone, Copy, Debug)]
+struct LoopSettings {
+    rate: f64,
+    period: Duration,
+    lead: Duration,
+    max_step: Option<f64>,
+    duration: Option<f64>,
+}
+
+/// One leader driving one follower to the end.
+struct Session {
+    figures: Figures,
+    ending: Ending,
+    code: i32,
+}
+
+/// Runs `armctl teleop`; returns the exit code.
+pub fn run(link: &LinkArgs, args: TeleopArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+    // Everything the user typed is checked before anything is opened.
+    let link = link.merged(&args.link)?;
+    if let Some(rig) = &link.rig {
+        return run_rig(rig, &link, &args, out, err);
+    }
+    let (period, lead) = args.check()?;
+    let leader = args.leader()?;
+    let (target, arm) = link.target()?;
+    if link.object_mm.is_some() {
+        bail!("--object-mm: teleop's simulated follower has no object between its jaws");
+    }
+    let settings = LoopSettings { rate: args.rate, period, lead, max_step: args.max_step, duration: args.duration };
+    interrupt::catch();
+    let s = session(target, arm.map(str::to_string), &leader, &settings, args.record.as_deref(), err)?;
+    report(&s.figures, period, lead, &s.ending, link.json, out)?;
+    Ok(if s.ending.monitor.is_some_and(|m| m.violation_count > 0) { 1 } else { s.code })
+}
+
+/// `armctl teleop --rig RIG`: every rig arm's leader (its `[arm.leader]`) drives it, each pair in
+/// a loop of its own on a thread of its own, all on the PC's clock; the figures per arm.
+fn run_rig(rig: &str, link: &LinkArgs, args: &TeleopArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+    link.refuse_beside_rig()?;
+    let given_leader = args.leader.is_some()
+        || args.leader_protocol.is_some()
+        || args.leader_calibration.is_some()
+        || args.leader_baud.is_some()
+        || args.leader_script.is_some();
+    if given_leader {
+        bail!("with --rig, each arm's leader is in the rig file ([arm.leader]): give no --leader options");
+    }
+    if args.record.is_some() {
+        bail!("--record with --rig is not built yet: record each pair with its own `armctl teleop`");
+    }
+    let (period, lead) = args.check()?;
+    let spec = crate::rig::RigSpec::load(rig)?;
+    let mut pairs = Vec::new();
+    for arm in &spec.arms {
+        let Some(leader) = &arm.leader else {
+            bail!(
+                "rig {}: arm {} has no leader: add an [arm.leader] table (port = \"PORT\", or sim = true with script)",
+                spec.name,
+                arm.name
+            );
+        };
+        let (target, follower) = arm.link.target()?;
+        pairs.push((arm.name.clone(), target, follower.map(str::to_string), leader.clone()));
+    }
+    let settings = LoopSettings { rate: args.rate, period, lead, max_step: args.max_step, duration: args.duration };
+    interrupt::catch();
+    let results: Vec<(String, Result<Session>, Vec<u8>)> = std::thread::scope(|scope| {
+        let handles: Vec<_> = pairs
+            .into_iter()
+            .map(|(name, target, follower, source)| {
+                scope.spawn(move || {
+                    let mut said = Vec::new();
+                    let result = session(target, follower, &source, &settings, None, &mut said);
+                    (name, result, said)
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().expect("a teleop thread panicked")).collect()
+    });
+    let mut code = 0;
+    let mut arms = serde_json::Map::new();
+    let mut failed = Vec::new();
+    for (name, result, said) in results {
+        for line in String::from_utf8_lossy(&said).lines() {
+            writeln!(err, "{name}: {line}")?;
+        }
+        match result {
+            Ok(s) => {
+                if s.ending.monitor.as_ref().is_some_and(|m| m.violation_count > 0) || s.code != 0 {
+                    code = if s.code != 0 { s.code } else { 1 };
+                }
+                if link.json {
+                    arms.insert(name, report_json(&s.figures, period, lead, &s.ending));
+                } else {
+                    writeln!(out, "== {name}")?;
+                    report(&s.figures, period, lead, &s.ending, false, out)?;
+                }
+            }
+            Err(e) => failed.push(format!("{name}: {e:#}")),
+        }
+    }
+    if !failed.is_empty() {
+        bail!("{}", failed.join("; "));
+    }
+    if link.json {
+        writeln!(out, "{}", json!({"rig": spec.name, "arms": arms}))?;
+    }
+    Ok(code)
+}
+
+/// One leader driving one follower (`target`, running `arm` if named) until the duration, the
+/// script's end or Ctrl-C; then the follower brought to rest. What opening said goes to `err`.
+fn session(
+    target: Target,
+    arm: Option<String>,
+    source: &LeaderSpec,
+    settings: &LoopSettings,
+    record: Option<&std::path::Path>,
+    err: &mut dyn Write,
+) -> Result<Session> {
+    let LoopSettings { rate, period, lead, max_step, duration } = *settings;
+    let leader_arm = calibrated(ArmSpec::load(&source.arm, None)?, source.calibration.as_deref())?;
+    let bus = crate::motion::teleop::leader::bus_config(&leader_arm, source.protocol.map(Into::into), source.baud)?;
+    let mut simulated_leader = match (&source.script, source.port == "sim") {
+        (Some(script), true) => {
+            Some(crate::motion::teleop::hand::SimLeader::spawn(&leader_arm, script, Some(SIM_ADAPTER_LATENCY))?)
+        }
+        _ => None,
+    };
+    let leader_path = simulated_leader.as_ref().map_or(source.port.clone(), |l| l.path().to_string());
+    let (mut leader, leader_latency_us) = crate::motion::teleop::leader::Leader::open(&leader_path, bus, &leader_arm)?;
+
+    let (target, follower_servos) = target.in_real_time()?;
+    let mut driver = Driver::open(target, arm.as_deref(), err)?;
+    if driver.joints() != leader.joints() {
+        bail!(
+            "the leader arm {} has {} joints, the follower {} has {}: teleoperation maps joint to joint",
+            leader_arm.name,
+            leader.joints(),
+            driver.arm().name,
+            driver.joints()
+        );
+    }
+    let gripper = leader.has_gripper() && driver.gripper().is_some();
+    let settings = Settings::for_follower(&driver, period, lead, max_step, gripper)?;
+    let max_step = settings.max_step[0];
+    let mut recorder =
+        record.map(|p| crate::motion::teleop::record::Recorder::create(p, driver.joints(), gripper)).transpose()?;
+
+    let until = match (duration, &simulated_leader) {
+        (Some(d), _) => Some(Duration::from_secs_f64(d)),
+        // The script's end and a little for the follower to get there.
+        (None, Some(l)) => Some(l.duration() + Duration::from_millis(200)),
+        (None, None) => None,
+    };
+    writeln!(
+        err,
+        "teleop: leader {} on {} (adapter latency {:.1} ms) drives follower {} at {:.0} Hz, {:.1} ms ahead, at most \
+         {:.4} rad per step{}",
+        leader_arm.name,
+        source.port,
+        leader_latency_us as f64 * 1e-3,
+        driver.arm().name,
+        rate,
+        lead.as_secs_f64() * 1e3,
+        max_step,
+        if until.is_none() { "; Ctrl-C ends it" } else { "" }
+    )?;
+    if let Some(l) = simulated_leader.as_mut() {
+        l.start()?;
+    }
+    let mut read = || leader.read();
+    let mut done = |elapsed: Duration| interrupt::requested() || until.is_some_and(|u| elapsed >= u);
+    let figures = crate::motion::teleop::stream::run(&mut driver, &mut read, &settings, recorder.as_mut(), &mut done);
+    let figures = match figures {
+        Ok(f) => f,
+        Err(e) => {
+            let _ = driver.stop();
+            return Err(e);
+        }
+    };
+    let (code, rest) = if interrupt::requested() {
+        (driver.stop_after_interrupt(err)?, None)
+    } else {
+        match driver.wait_until_rest(10.0)? {
+            Waited::Done(status) => (0, Some(status.measured.iter().map(|&x| f64::from(x)).collect::<Vec<_>>())),
+            Waited::Interrupted => (driver.stop_after_interrupt(err)?, None),
+        }
+    };
+    let recorded = recorder.map(crate::motion::teleop::record::Recorder::finish).transpose()?;
+    let monitor = follower_servos.as_ref().and_then(PtyServer::monitor);
+    driver.close(err)?;
+    Ok(Session { figures, ending: Ending { rest, monitor, recorded }, code })
+}
+
+/// How a session ended.
+struct Ending {
+    /// The follower's measured joints once at rest (`None` after Ctrl-C).
+    rest: Option<Vec<f64>>,
+    /// The simulated follower servos' safety monitor.
+    monitor: Option<crate::sim::monitor::MonitorReport>,
+    /// The keyframe file written.
+    recorded: Option<PathBuf>,
+}
+
+/// The session's figures as JSON.
+fn report_json(f: &Figures, period: Duration, lead: Duration, ending: &Ending) -> serde_json::Value {
+    let (monitor, recorded) = (ending.monitor.as_ref(), ending.recorded.as_deref());
+    let (q50, q99) = (quantile(&f.queued_ms, 0.5), quantile(&f.queued_ms, 0.99));
+    let (g50, g99) = (quantile(&f.goal_ms, 0.5), quantile(&f.goal_ms, 0.99));
+    let (t50, t99, tmax) = (quantile(&f.tracking, 0.5), quantile(&f.tracking, 0.99), quantile(&f.tracking, 1.0));
+    json!({
+            "keyframes": f.keyframes, "seconds": f.seconds, "rate_hz": f.rate_hz(),
+            "period_ms": period.as_secs_f64() * 1e3, "lead_ms": lead.as_secs_f64() * 1e3,
+            "late_iterations": f.late_iterations, "read_failures": f.read_failures,
+            "latency_ms": {"read_to_queued_p50": q50, "read_to_queued_p99": q99, "read_to_goal_p50": g50, "read_to_goal_p99": g99},
+            "late_keyframes": f.late_keyframes, "underruns": f.underruns, "restarts": f.restarts, "retimed": f.retimed,
+            "clamped_steps": f.clamped_steps, "limited_values": f.limited_values,
+            "tracking_rad": {"p50": t50, "p99": t99, "max": tmax},
+            "monitor": monitor.map(|m| json!({"goals": m.checked, "violations": m.violation_count, "max_step_ratio": m.max_step_ratio})),
+            "recorded": recorded.map(|p| p.display().to_string()),
+            "follower_at_rest": ending.rest,
+    })
+}
+
+/// The session's figures: on `out`, one line of JSON with `json`, else a few lines of text.
+fn report(
+    f: &Figures,
+    period: Duration,
+    lead: Duration,
+    ending: &Ending,
+    as_json: bool,
+    out: &mut dyn Write,
+) -> Result<()> {
+    let (monitor, recorded) = (ending.monitor.as_ref(), ending.recorded.as_deref());
+    let (q50, q99) = (quantile(&f.queued_ms, 0.5), quantile(&f.queued_ms, 0.99));
+    let (g50, g99) = (quantile(&f.goal_ms, 0.5), quantile(&f.goal_ms, 0.99));
+    let (t50, t99, tmax) = (quantile(&f.tracking, 0.5), quantile(&f.tracking, 0.99), quantile(&f.tracking, 1.0));
+    if as_json {
+        writeln!(out, "{}", report_json(f, period, lead, ending))?;
+        return Ok(());
+    }
+    writeln!(
+        out,
+        "teleop: {} keyframes in {:.2} s: {:.1} Hz ({} late iterations, {} failed leader reads)",
+        f.keyframes,
+        f.seconds,
+        f.rate_hz(),
+        f.late_iterations,
+        f.read_failures
+    )?;
+    writeln!(
+        out,
+        "latency: read to goal p50 {g50:.1} ms, p99 {g99:.1} ms (read to queued on the follower p50 {q50:.1} ms, p99 \
+         {q99:.1} ms; {} keyframes queued after the player needed them); {} underruns, {} keyframes retimed after one, {} \
+         restarts",
+        f.late_keyframes, f.underruns, f.retimed, f.restarts
+    )?;
+    writeln!(
+        out,
+        "safety: {} steps clamped, {} values brought into range; follower setpoint against the leader one lead \
+         earlier: p50 {t50:.4} rad, p99 {t99:.4} rad, max {tmax:.4} rad",
+        f.clamped_steps, f.limited_values
+    )?;
+    if let Some(m) = monitor {
+        writeln!(out, "safety monitor (simulated follower servos): {}", m.summary())?;
+    }
+    if let Some(q) = &ending.rest {
+        writeln!(
+            out,
+            "follower at rest at joints {}",
+            q.iter().map(|x| format!("{x:.4}")).collect::<Vec<_>>().join(", ")
+        )?;
+    }
+    if let Some(p) = recorded {
+        writeln!(out, "recorded: {} (replay with `armctl play {}`)", p.display(), p.display())?;
+    }
+    Ok(())
+}

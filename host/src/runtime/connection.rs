@@ -1,0 +1,338 @@
+//! Opening the link to a board (a serial port), to the simulated board (SIL) or to a firmware core
+//! run on this PC against the servos of a USB adapter (`--bus`), with the handshake and, when
+//! asked, the arm configuration.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::{anyhow, bail, Context, Result};
+use firmware::bus::Protocol;
+use firmware::link::message::Info;
+
+use crate::arm::servos::servos_of;
+use crate::arm::ArmSpec;
+use crate::link::serial::open_error;
+use crate::link::session::Session;
+use crate::link::Transport;
+use crate::runtime::pc::{Pc, PcOptions};
+use crate::runtime::sil::{Sil, SilOptions};
+
+/// The simulated arm of `--sim` when `--arm` is not given.
+pub const DEFAULT_SIM_ARM: &str = "so101";
+/// The baud rate of `--port` and `--bus` when `--baud` is not given.
+pub const DEFAULT_BAUD: u32 = 1_000_000;
+
+/// The arm of `--bus` when `--arm` is not given: the preset whose servos speak the protocol.
+pub fn default_bus_arm(protocol: Protocol) -> &'static str {
+    match protocol {
+        Protocol::Feetech => "so101",
+        Protocol::Dxl2 => "open-manipulator-x",
+    }
+}
+
+/// A servo protocol by the name people give it: `sts` (Feetech) or `dxl2` (Dynamixel 2.0).
+pub fn protocol_named(name: &str) -> Result<Protocol> {
+    match name.to_ascii_lowercase().as_str() {
+        "sts" => Ok(Protocol::Feetech),
+        "dxl2" => Ok(Protocol::Dxl2),
+        _ => bail!("protocol {name:?}: sts (Feetech) or dxl2 (Dynamixel 2.0)"),
+    }
+}
+
+/// `arm` with the LeRobot calibration in `file`, if one is given: each servo's entry found by its
+/// id. Errors name the file.
+pub fn calibrated(mut arm: ArmSpec, file: Option<&std::path::Path>) -> Result<ArmSpec> {
+    let Some(file) = file else { return Ok(arm) };
+    let calibration = crate::arm::calibration::lerobot::read(file)?;
+    let mut servos =
+        servos_of(&arm).ok_or_else(|| anyhow::anyhow!("arm {} has no servo mapping to calibrate", arm.name))?;
+    servos.calibrate(&calibration).map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))?;
+    arm.servos = Some(servos);
+    Ok(arm)
+}
+
+/// Where the arm to drive is, as a person names it (the command line's `--port`, `--bus`,
+/// `--protocol`, `--baud`, `--sim`, `--arm`, `--calibration`, `--object-mm`; Python's `Arm`'s
+/// keywords): checked and turned into a [`Target`] by [`Place::target`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Place {
+    /// A board running the firmware on this serial port.
+    pub port: Option<String>,
+    /// Servos on this USB adapter's port, driven by the core on this PC.
+    pub bus: Option<String>,
+    /// The servos' protocol, with `bus`.
+    pub protocol: Option<Protocol>,
+    /// The baud rate of `port` or `bus`.
+    pub baud: Option<u32>,
+    /// The simulated arm.
+    pub sim: bool,
+    /// The arm: a preset or an arm file.
+    pub arm: Option<String>,
+    /// A LeRobot calibration file, with `bus`.
+    pub calibration: Option<PathBuf>,
+    /// With `sim`: an object this wide (mm) between the jaws.
+    pub object_mm: Option<f64>,
+}
+
+impl Place {
+    /// The arm to configure on the firmware: the one named, else [`Place::default_arm`].
+    pub fn arm_name(&self) -> Option<&str> {
+        self.arm.as_deref().or_else(|| self.default_arm())
+    }
+
+    /// The arm of `--bus` and `--sim` when none is named (`None` for a board, which keeps the arm
+    /// it runs).
+    pub fn default_arm(&self) -> Option<&'static str> {
+        match (&self.bus, self.protocol, self.sim) {
+            (Some(_), Some(protocol), _) => Some(default_bus_arm(protocol)),
+            (None, _, true) => Some(DEFAULT_SIM_ARM),
+            _ => None,
+        }
+    }
+
+    /// The board or simulation to connect to; every option checked against the others.
+    pub fn target(&self) -> Result<Target> {
+        if self.object_mm.is_some() && !self.sim {
+            bail!("--object-mm puts an object between the simulated gripper's jaws: it needs --sim");
+        }
+        if let Some(path) = &self.bus {
+            if self.port.is_some() || self.sim {
+                bail!("--bus, --port and --sim exclude each other: give one");
+            }
+            let Some(protocol) = self.protocol else {
+                bail!(
+                    "--bus needs --protocol: sts (Feetech, SO-100/SO-101) or dxl2 (Dynamixel, Koch, OpenManipulator-X)"
+                )
+            };
+            let arm = self.arm.as_deref().unwrap_or(default_bus_arm(protocol));
+            let spec = calibrated(ArmSpec::load(arm, None)?, self.calibration.as_deref())?;
+            let options = PcOptions {
+                path: path.clone(),
+                protocol,
+                // The arm file's rate unless --baud names one.
+                baud: self.baud.or(spec.bus_baud()).unwrap_or(DEFAULT_BAUD),
+                arm: spec,
+                calibration_file: self.calibration.as_ref().map(|f| f.display().to_string()),
+            };
+            return Ok(Target::Bus(Box::new(options)));
+        }
+        if self.protocol.is_some() {
+            bail!("--protocol is the servo protocol of --bus, which is missing");
+        }
+        if self.calibration.is_some() {
+            bail!("--calibration applies to --bus (the core on this PC) only for now");
+        }
+        match (&self.port, self.sim) {
+            (Some(path), false) => Ok(Target::Port { path: path.clone(), baud: self.baud.unwrap_or(DEFAULT_BAUD) }),
+            (None, true) if self.baud.is_some() => bail!("--baud is the baud rate of --port; --sim has none"),
+            (None, true) => {
+                let arm = self.arm.as_deref().unwrap_or(DEFAULT_SIM_ARM);
+                let options = SilOptions { object_mm: self.object_mm, ..SilOptions::new(arm)? };
+                Ok(Target::Sim(Box::new(options)))
+            }
+            (Some(_), true) => bail!("--port and --sim exclude each other: give one"),
+            (None, false) if self.baud.is_some() => {
+                bail!("--baud is the baud rate of --port or --bus, which is missing")
+            }
+            (None, false) => bail!(
+                "this command drives an arm: give --port PORT (a board running the firmware), --bus PORT --protocol \
+                 sts|dxl2 (servos on a USB adapter) or --sim (the simulated arm) before it, e.g. `armctl --sim status`"
+            ),
+        }
+    }
+}
+
+/// How long the PC-hosted core may take, once it has its arm, to read every servo and its torque.
+const CORE_READY_TIMEOUT: Duration = Duration::from_secs(2);
+
+pub use crate::link::READ_TIMEOUT;
+
+/// Where the firmware runs.
+pub enum Target {
+    /// A board on a serial port.
+    Port {
+        /// Its path (`/dev/ttyACM0`, `COM3`).
+        path: String,
+        /// Baud rate (ignored by USB CDC boards).
+        baud: u32,
+    },
+    /// The firmware core simulated in this process.
+    Sim(Box<SilOptions>),
+    /// The firmware core run in this process against real servos on a USB adapter.
+    Bus(Box<PcOptions>),
+}
+
+/// The latency timer of the simulated USB adapter of [`Target::in_real_time`].
+pub const SIM_ADAPTER_LATENCY: Duration = Duration::from_millis(1);
+
+impl Target {
+    /// The target for a loop that runs in real time (teleoperation, the browser view, a stream of
+    /// actions from Python): `Sim` becomes the core on this PC in real time against simulated
+    /// servos on a pseudo-terminal (as `armctl serve --sim`), with a USB adapter's 1 ms latency,
+    /// returned with it for the safety monitor's report; the virtual clock of the drive commands'
+    /// `--sim` would not pace such a loop. Other targets are returned as they are.
+    pub fn in_real_time(self) -> Result<(Target, Option<crate::sim::PtyServer>)> {
+        match self {
+            Target::Sim(options) => {
+                let (options, servos) = PcOptions::simulated(options.arm, Some(SIM_ADAPTER_LATENCY))?;
+                Ok((Target::Bus(Box::new(options)), Some(servos)))
+            }
+            other => Ok((other, None)),
+        }
+    }
+}
+
+/// An open link after the handshake.
+pub struct Connection {
+    /// The session over the link.
+    pub session: Session<Box<dyn Transport>>,
+    /// The firmware's answer to the handshake (after any configuration).
+    pub info: Info,
+    /// The arm the firmware runs, for forward kinematics on the host.
+    pub arm: ArmSpec,
+    /// The core run on this PC, for `--bus` (dropped after the client, which ends it).
+    pub pc: Option<Pc>,
+}
+
+impl Connection {
+    /// Ends the link (for `--bus`, after the core has written what the last request asked for)
+    /// and says on `err` what the core's control loop did.
+    pub fn close(self, err: &mut dyn std::io::Write) -> Result<()> {
+        let Connection { session, pc, .. } = self;
+        drop(session);
+        if let Some(pc) = pc {
+            let shared = pc.shared();
+            drop(pc);
+            writeln!(err, "bus: {}", shared.summary())?;
+        }
+        Ok(())
+    }
+}
+
+/// Sends `arm` to the firmware (joint by joint) and repeats the handshake.
+fn configure<T: Transport>(session: &mut Session<T>, arm: &ArmSpec) -> Result<Info> {
+    let servos = servos_of(arm).ok_or_else(|| {
+        anyhow!(
+            "arm {} has no servo mapping: add a [servos] table to its arm file (the presets so101 and \
+             open-manipulator-x have one)",
+            arm.name
+        )
+    })?;
+    session.configure_arm(arm, &servos, 0).with_context(|| format!("configuring arm {}", arm.name))?;
+    Ok(session.hello()?)
+}
+
+/// Opens `target`, shakes hands and makes sure the firmware runs an arm: `arm` if given (sent to
+/// the board unless it already runs it), else the one it has. What connecting to `--bus` measured
+/// and wrote is said on `err`.
+pub fn open(target: Target, arm: Option<&str>, err: &mut dyn std::io::Write) -> Result<Connection> {
+    let mut pc = None;
+    // The arm --bus or --sim loaded (with a calibration, or its servos simulated): sent as it is.
+    let mut loaded_arm = None;
+    let transport: Box<dyn Transport> = match target {
+        Target::Port { path, baud } => {
+            let port = serialport::new(&path, baud).timeout(READ_TIMEOUT).open().map_err(|e| open_error(&path, e))?;
+            Box::new(port)
+        }
+        Target::Bus(options) => {
+            let mut core = Pc::start(&options, true, err)?;
+            // Sent with the port's rate, which the core cannot change.
+            loaded_arm = Some(options.arm.at_baud(options.baud));
+            let link = core.take_link().ok_or_else(|| anyhow!("the core's link was taken"))?;
+            pc = Some(core);
+            Box::new(link)
+        }
+        Target::Sim(mut options) => {
+            options.read_timeout_ms = READ_TIMEOUT.as_millis() as u64;
+            let sil = Sil::new(&options)?;
+            loaded_arm = Some(options.arm);
+            Box::new(sil)
+        }
+    };
+    connect(transport, loaded_arm, arm, pc)
+}
+
+/// The link to a simulated board already made (the demo's, recording its ticks), with `arm` (the
+/// one the board was made for) sent as it is.
+pub fn open_sil(sil: Sil, arm: ArmSpec) -> Result<Connection> {
+    connect(Box::new(sil), Some(arm), None, None)
+}
+
+/// Opens the link of board `index` of a group of simulated boards on one clock (a rig's arms in
+/// SIL), with `arm` (the one the board was made for) sent as it is.
+pub fn open_in_group(group: &crate::runtime::sil::group::SilGroup, index: usize, arm: ArmSpec) -> Result<Connection> {
+    let member = group.member(index).ok_or_else(|| anyhow!("no simulated board {index} in the group"))?;
+    connect(Box::new(member), Some(arm), None, None)
+}
+
+/// The handshake over `transport`, with `loaded_arm` sent as it is or else `arm` by name; then,
+/// for a core on this PC, the wait until it has read every servo.
+fn connect(
+    transport: Box<dyn Transport>,
+    loaded_arm: Option<ArmSpec>,
+    arm: Option<&str>,
+    pc: Option<Pc>,
+) -> Result<Connection> {
+    let mut session = Session::over(transport);
+    let (info, spec) = match loaded_arm {
+        Some(spec) => handshake_with(&mut session, Some(spec))?,
+        None => handshake(&mut session, arm)?,
+    };
+    if let Some(core) = &pc {
+        // Until every servo and its torque are read, the status would call a torqued arm limp.
+        let shared = core.shared();
+        let started = std::time::Instant::now();
+        while !shared.ready() {
+            if started.elapsed() > CORE_READY_TIMEOUT || core.is_finished() {
+                bail!("the firmware core did not read every servo within {} s", CORE_READY_TIMEOUT.as_secs());
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+    Ok(Connection { session, info, arm: spec, pc })
+}
+
+/// The handshake over an open link: makes sure the firmware runs `arm` if given, else any arm this
+/// host knows; returns its info and description.
+///
+/// `arm` is sent when the board runs an arm of another name, or the built-in arm where `arm` differs
+/// from it (a calibrated SO-101). It is not sent when the board already runs it, digest and all
+/// ([`crate::link::arm_config::digest_of`]). A board running another arm of the same name (another
+/// calibration, an edited file, sent by another host or by `armctl serve`) is not overwritten:
+/// that is an error, which says what to do.
+pub fn handshake<T: Transport>(session: &mut Session<T>, arm: Option<&str>) -> Result<(Info, ArmSpec)> {
+    handshake_with(session, arm.map(|name| ArmSpec::load(name, None)).transpose()?)
+}
+
+/// [`handshake`] with the arm already loaded.
+pub fn handshake_with<T: Transport>(session: &mut Session<T>, arm: Option<ArmSpec>) -> Result<(Info, ArmSpec)> {
+    let mut info = session.hello().context("handshake with the firmware")?;
+    let spec = match arm {
+        Some(spec) => {
+            if info.arm_name.as_str() != spec.name {
+                info = configure(session, &spec)?;
+            } else if let Some(servos) = servos_of(&spec) {
+                let digest = crate::link::arm_config::arm_digest(&spec, &servos)?;
+                if info.arm_digest == firmware::builtin::DIGEST && digest != info.arm_digest {
+                    // The default the board starts with gives way to the arm the host names.
+                    info = configure(session, &spec)?;
+                } else if digest != info.arm_digest {
+                    bail!(
+                        "the board runs another arm named {} (another calibration or an edited file): not replaced; \
+                         leave out --arm to drive the board's, or give this arm a name of its own to send it",
+                        spec.name
+                    );
+                }
+            }
+            spec
+        }
+        None if info.arm_name.is_empty() => bail!("the board has no arm configured: pass --arm"),
+        None => ArmSpec::load(info.arm_name.as_str(), None).with_context(|| {
+            format!("the board runs arm {}, which this host does not know; pass --arm", info.arm_name)
+        })?,
+    };
+    if usize::from(info.joints) != spec.dof() {
+        bail!("the firmware drives {} joints, arm {} has {}", info.joints, spec.name, spec.dof());
+    }
+    Ok((info, spec))
+}
