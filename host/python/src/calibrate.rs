@@ -6,7 +6,8 @@ use std::path::PathBuf;
 
 use armctl::commands::bus_args::ProtocolArg;
 use armctl::commands::servo::calibrate::{run, CalibrateArgs};
-use clap::ValueEnum;
+use armctl::runtime::connection::protocol_named;
+use firmware::bus::Protocol;
 use pyo3::prelude::*;
 
 use crate::errors::{to_py, OrRaise};
@@ -25,8 +26,10 @@ pub fn calibrate(
     lerobot_json: Option<PathBuf>,
     baud: Option<u32>,
 ) -> PyResult<()> {
-    let protocol = ProtocolArg::from_str(protocol, true)
-        .map_err(|_| to_py(anyhow::anyhow!("protocol {protocol:?}: sts (Feetech) or dxl2 (Dynamixel 2.0)")))?;
+    let protocol = match protocol_named(protocol).or_raise()? {
+        Protocol::Feetech => ProtocolArg::Sts,
+        Protocol::Dxl2 => ProtocolArg::Dxl2,
+    };
     let args = CalibrateArgs {
         bus: Some(bus),
         protocol: Some(protocol),

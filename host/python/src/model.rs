@@ -6,7 +6,6 @@ use std::path::PathBuf;
 use armctl::arm::dof::{self, DynArm, IkRequest, Scalar, SolverName};
 use armctl::arm::ArmSpec;
 use armctl::motion::trajectory::{self, Ends, Keyframes, Method, Options};
-use clap::ValueEnum;
 use kinematics::ik::IkConfig;
 use pyo3::prelude::*;
 
@@ -25,18 +24,6 @@ pub(crate) fn homogeneous(p: &kinematics::Pose<f64>) -> Matrix4 {
     }
     m[3][3] = 1.0;
     m
-}
-
-/// A value of a clap enum by its command-line name (`catmull-rom`, `dls`), or the names it knows.
-fn by_name<T: ValueEnum>(name: &str, what: &str) -> anyhow::Result<T> {
-    T::from_str(name, true).map_err(|_| {
-        let known: Vec<String> = T::value_variants()
-            .iter()
-            .filter_map(|v| v.to_possible_value())
-            .map(|v| v.get_name().to_string())
-            .collect();
-        anyhow::anyhow!("{what} {name:?}: one of {}", known.join(", "))
-    })
 }
 
 /// `q` itself, or the error naming its first value that is not finite (NaN or infinite joint
@@ -193,8 +180,8 @@ pub fn sample(
     velocities: Option<Vec<Vec<f64>>>,
     ends: &str,
 ) -> PyResult<Samples> {
-    let method: Method = by_name(method, "method").or_raise()?;
-    let ends: Ends = by_name(ends, "ends").or_raise()?;
+    let method: Method = method.parse().or_raise()?;
+    let ends: Ends = ends.parse().or_raise()?;
     let keyframes: Keyframes = Keyframes::from_rows(&times, &positions, velocities.as_deref()).or_raise()?;
     let options = Options { method, tcb: [0.0; 3], ends, rate, limits: None };
     let sampled = trajectory::sample(&keyframes, &options).or_raise()?;

@@ -54,6 +54,23 @@ impl Method {
     }
 }
 
+impl std::str::FromStr for Method {
+    type Err = anyhow::Error;
+
+    /// A method by its name on the command line (any case), for front ends without clap.
+    fn from_str(name: &str) -> Result<Self> {
+        by_name(name, "method", Method::value_variants(), Method::name)
+    }
+}
+
+/// The variant of `all` whose name is `name` (any case), or the one-line error listing them.
+fn by_name<T: Copy>(name: &str, what: &str, all: &[T], named: fn(T) -> &'static str) -> Result<T> {
+    all.iter().copied().find(|v| named(*v).eq_ignore_ascii_case(name)).ok_or_else(|| {
+        let names: Vec<&str> = all.iter().map(|v| named(*v)).collect();
+        anyhow::anyhow!("{what} {name:?}: one of {}", names.join(", "))
+    })
+}
+
 /// Velocity at the first and last keyframe for `catmull-rom` and `kb`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum Ends {
@@ -61,6 +78,25 @@ pub enum Ends {
     Zero,
     /// Zero acceleration at the first and last keyframe.
     Natural,
+}
+
+impl Ends {
+    /// The name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Ends::Zero => "zero",
+            Ends::Natural => "natural",
+        }
+    }
+}
+
+impl std::str::FromStr for Ends {
+    type Err = anyhow::Error;
+
+    /// Ends by their name on the command line (any case), for front ends without clap.
+    fn from_str(name: &str) -> Result<Self> {
+        by_name(name, "ends", Ends::value_variants(), Ends::name)
+    }
 }
 
 /// Keyframes as read from a file, before the joint count is fixed at compile time.
