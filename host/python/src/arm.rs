@@ -22,7 +22,7 @@ use armctl::commands::drive::{gripper, joints, move_to, play, state, DriveError,
 use armctl::motion::teleop::leader::Reading;
 use armctl::motion::teleop::stream::{refused, Settings, Streamer};
 use armctl::runtime::connection::{protocol_named, Place};
-use armctl::runtime::session::Driver;
+use armctl::runtime::driver::Driver;
 use armctl::sim::PtyServer;
 use firmware::link::message::{CartesianTarget, MovePath};
 use pyo3::prelude::*;

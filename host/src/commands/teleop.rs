@@ -29,7 +29,7 @@ use crate::commands::drive::args::{calibrated, LinkArgs};
 use crate::motion::teleop::stream::{quantile, Figures, Settings};
 use crate::rig::file::LeaderSpec;
 use crate::runtime::connection::{Target, SIM_ADAPTER_LATENCY};
-use crate::runtime::session::{Driver, Waited};
+use crate::runtime::driver::{Driver, Waited};
 use crate::sim::PtyServer;
 use crate::support::interrupt;
 

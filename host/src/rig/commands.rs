@@ -16,7 +16,7 @@ use crate::commands::drive::args::{DriveCommand, LinkArgs, MoveArgs, OnOff};
 use crate::commands::drive::move_to::{check_position, check_quaternion, positive, tool_timing};
 use crate::commands::drive::path::{self, host_solution};
 use crate::commands::drive::state;
-use crate::runtime::session::{check_joints, fmt3};
+use crate::runtime::driver::{check_joints, fmt3};
 use crate::support::interrupt;
 use crate::support::numbers as parse;
 

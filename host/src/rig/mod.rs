@@ -24,7 +24,7 @@ use kinematics::Pose;
 pub use file::{RigArmSpec, RigSpec};
 
 use crate::runtime::connection::{self, Target};
-use crate::runtime::session::Driver;
+use crate::runtime::driver::Driver;
 use crate::runtime::sil::group::SilGroup;
 use crate::runtime::sil::Sil;
 use crate::support::interrupt;

@@ -19,7 +19,7 @@ use serde_json::json;
 use super::columns::ArmPart;
 use super::Rig;
 use crate::link::session::Keyframe;
-use crate::runtime::session::fmt3;
+use crate::runtime::driver::fmt3;
 use crate::support::interrupt;
 
 /// One arm's playback.

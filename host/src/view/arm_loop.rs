@@ -28,7 +28,7 @@ use crate::commands::drive::play::Plan;
 use crate::link::client::LinkError;
 use crate::link::session::Keyframe;
 use crate::runtime::connection::Target;
-use crate::runtime::session::{check_joints, Driver};
+use crate::runtime::driver::{check_joints, Driver};
 
 /// The poll period: the firmware's control period, so the telemetry shows every setpoint.
 pub const PERIOD: Duration = Duration::from_millis(10);

@@ -30,7 +30,7 @@ use crate::commands::demo::plot::{write_demo_png, DemoTrace, GripperTrace};
 use crate::commands::drive::path;
 use crate::link::session::Keyframe;
 use crate::runtime::connection::open_sil;
-use crate::runtime::session::Driver;
+use crate::runtime::driver::Driver;
 use crate::runtime::sil::{Sil, SilOptions, TraceSample};
 use scenario::Scenario;
 

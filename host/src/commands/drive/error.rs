@@ -2,6 +2,10 @@
 //! prints the one line after `error:` (or, after Ctrl-C, where the arm stopped) and exits with its
 //! code; Python raises `ArmctlError` with the same line, or `KeyboardInterrupt`.
 
+use firmware::link::message::Status;
+
+use crate::runtime::driver::{Driver, Waited};
+
 /// Why an operation did not finish.
 #[derive(Debug)]
 pub enum DriveError {
@@ -18,13 +22,6 @@ pub enum DriveError {
         said: String,
     },
 }
-
-use firmware::link::message::Status;
-
-use crate::runtime::session::{Driver, Waited};
-
-/// The exit code after a Ctrl-C (128 + SIGINT, as shells report it).
-pub use crate::support::interrupt::EXIT_CODE as INTERRUPTED_EXIT_CODE;
 
 impl DriveError {
     /// A failure with this message.

@@ -13,7 +13,7 @@ use firmware::link::message::{GripperStatus, Status};
 use serde::Serialize;
 
 use super::error::{interrupted, DriveError, DriveResult};
-use crate::runtime::session::Driver;
+use crate::runtime::driver::Driver;
 use crate::support::interrupt;
 
 /// How close to its goal (percent) the gripper counts as arrived.

@@ -7,7 +7,7 @@ use serde::Serialize;
 
 use super::error::{rest, DriveError, DriveResult};
 use super::move_to::{check_finite, positive};
-use crate::runtime::session::{check_joints, fmt3, fmt_list, Driver};
+use crate::runtime::driver::{check_joints, fmt3, fmt_list, Driver};
 use crate::support::interrupt;
 
 /// A checked `joints` (the count and the limits are checked against the arm once connected).

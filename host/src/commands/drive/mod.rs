@@ -13,7 +13,7 @@
 //! The command line (`cli::drive`), the Python binding, the view and a rig call these same
 //! operations.
 //!
-//! [`Driver`]: crate::runtime::session::Driver
+//! [`Driver`]: crate::runtime::driver::Driver
 
 pub mod args;
 pub mod error;
@@ -29,7 +29,7 @@ use std::io::Write;
 
 use serde::Serialize;
 
-use crate::runtime::session::Driver;
+use crate::runtime::driver::Driver;
 pub use error::{DriveError, DriveResult};
 
 /// A fixed-size array serialised as a sequence (what it is in JSON anyway), so that front ends

@@ -11,7 +11,7 @@ use serde::Serialize;
 
 use super::error::{rest, DriveError, DriveResult};
 use super::path;
-use crate::runtime::session::{fmt3, Driver};
+use crate::runtime::driver::{fmt3, Driver};
 use crate::support::interrupt;
 
 /// The tool speed of `move` without a speed or a duration (m/s): slow enough to watch.

@@ -14,7 +14,7 @@ use crate::arm::ArmSpec;
 use crate::link::client::LinkError;
 use crate::motion::line::{Blocked, Line};
 use crate::motion::reach;
-use crate::runtime::session::{check_joints, Driver};
+use crate::runtime::driver::{check_joints, Driver};
 
 /// Said where the host's solution was sent: why the arm went by joints.
 pub const SOLVED_ON_HOST: &str =

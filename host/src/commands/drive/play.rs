@@ -22,7 +22,7 @@ use super::progress::Progress;
 use crate::link::session::Keyframe;
 use crate::motion::cartesian_file::{self, parse_cartesian_keyframes, CartesianKeyframes};
 use crate::motion::trajectory::{self, Keyframes};
-use crate::runtime::session::{check_joints, fmt3, Driver};
+use crate::runtime::driver::{check_joints, fmt3, Driver};
 use crate::support::interrupt;
 
 /// The keyframes of a file, in either format.

@@ -5,7 +5,7 @@ use firmware::link::message::{MoveOutcome, PathTaken, RunState, Status};
 use serde::Serialize;
 
 use super::error::{DriveError, DriveResult};
-use crate::runtime::session::{fmt3, fmt_list, Driver};
+use crate::runtime::driver::{fmt3, fmt_list, Driver};
 
 /// `status`: the controller's status with the arm's name and the tool position of the measured
 /// joints.

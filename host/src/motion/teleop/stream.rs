@@ -30,7 +30,7 @@ use super::record::Recorder;
 use crate::arm::servos::servos_of;
 use crate::link::client::LinkError;
 use crate::link::session::Keyframe;
-use crate::runtime::session::Driver;
+use crate::runtime::driver::Driver;
 
 /// Statuses whose offsets are kept for the playback clock (about 1.6 s at one per 5 periods).
 const OFFSET_WINDOW: usize = 32;
