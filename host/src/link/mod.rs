@@ -18,7 +18,7 @@ use std::time::Duration;
 /// the client's backoff counts in these.
 pub const READ_TIMEOUT: Duration = Duration::from_millis(20);
 
-/// A byte transport to a board: a serial port, or the SIL harness (`places::sil`).
+/// A byte transport to a board: a serial port, or the SIL harness (`runtime::sil`).
 pub trait Transport: Read + Write + Any {
     /// The transport as `Any`: behind a `Box<dyn Transport>`, a simulated board's clock, trace and
     /// scene stay reachable (the demo records them).

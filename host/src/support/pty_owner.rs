@@ -2,7 +2,7 @@
 //! be its owner's alone. [`make_private`] sets a pty's mode to 0600 and checks the result, and is
 //! called as soon as each pty is opened or named, before its path is printed or connected to:
 //! `armctl serve`'s link ([`crate::runtime::serve`]), the simulated servo bus
-//! ([`crate::sim::PtyServer`]) and QEMU's UART0 (`places::qemu`, with the `board-tools` feature).
+//! ([`crate::sim::PtyServer`]) and QEMU's UART0 (`runtime::qemu`, with the `board-tools` feature).
 //!
 //! The mode a new pty gets comes from the devpts mount, not from the process: `mode=600` on some
 //! machines, but `mode=620,gid=5` (group tty) on a usual desktop Linux, where `write` and `wall`,
