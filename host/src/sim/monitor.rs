@@ -4,7 +4,7 @@
 //! the simulated servos, not at the firmware, so it judges whatever reached the bus. A goal write
 //! lost on a noisy bus is no violation: the next goal that arrives may then cover the time of both.
 //!
-//! It lives in the simulator, beneath `places`, so that any host of simulated servos can use it.
+//! It lives in the simulator, beneath `runtime`, so that any host of simulated servos can use it.
 //!
 //! - [`realtime`]: the same checks for a bus served in real time (a pty), judged over the real
 //!   time that passed between goals.
