@@ -4,7 +4,7 @@
 
 use std::path::PathBuf;
 
-use armctl::cli::bus_args::ProtocolArg;
+use armctl::commands::bus_args::ProtocolArg;
 use armctl::commands::servo::calibrate::{run, CalibrateArgs};
 use armctl::runtime::connection::protocol_named;
 use firmware::bus::Protocol;

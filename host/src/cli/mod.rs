@@ -2,7 +2,6 @@
 //!
 //! Every failure is one line on `err` starting with `error:` and a non-zero exit code.
 
-pub mod bus_args;
 pub mod drive;
 mod ik;
 pub mod serve;

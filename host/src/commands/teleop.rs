@@ -24,7 +24,7 @@ use clap::Args;
 use serde_json::json;
 
 use crate::arm::ArmSpec;
-use crate::cli::bus_args::ProtocolArg;
+use crate::commands::bus_args::ProtocolArg;
 use crate::commands::drive::args::{calibrated, LinkArgs};
 use crate::motion::teleop::stream::{quantile, Figures, Settings};
 use crate::rig::file::LeaderSpec;

@@ -27,7 +27,7 @@ use anyhow::{bail, Context, Result};
 use kinematics::Pose;
 use serde::Deserialize;
 
-use crate::cli::bus_args::ProtocolArg;
+use crate::commands::bus_args::ProtocolArg;
 use crate::commands::drive::args::LinkArgs;
 
 /// The rigs built in, by name.

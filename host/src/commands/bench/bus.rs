@@ -17,7 +17,7 @@ use firmware::bus::timing::{cycle_bytes, cycle_time_ns, sync_read_request_len, s
 use firmware::bus::Protocol;
 use serde_json::json;
 
-use crate::cli::bus_args::{model_for, ModelArg, ProtocolArg};
+use crate::commands::bus_args::{model_for, ModelArg, ProtocolArg};
 use crate::sim::{connect, SimBus};
 
 /// Arguments of `armctl bench bus`.

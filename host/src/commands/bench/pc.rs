@@ -17,7 +17,7 @@ use serde_json::json;
 
 use crate::arm::servos::ServoSetup;
 use crate::arm::ArmSpec;
-use crate::cli::bus_args::{model_for, ProtocolArg};
+use crate::commands::bus_args::{model_for, ProtocolArg};
 use crate::runtime::connection::{self, Connection, Target};
 use crate::runtime::pc::PcOptions;
 use crate::sim::{Faults, PtyServer, SimConfig};

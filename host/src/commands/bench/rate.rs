@@ -35,7 +35,7 @@ use kinematics::nalgebra::SVector;
 use kinematics::presets;
 use serde_json::{json, Value};
 
-use crate::cli::bus_args::{model_for, ModelArg, ProtocolArg};
+use crate::commands::bus_args::{model_for, ModelArg, ProtocolArg};
 use crate::sim::{connect, SharedBus, SimBus, VirtualClock};
 
 /// Joints of the driven chain (the UR5e preset).

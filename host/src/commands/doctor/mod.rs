@@ -48,7 +48,7 @@ pub struct DoctorArgs {
     bus: Option<String>,
     /// The servos' protocol, sts (Feetech) or dxl2 (Dynamixel 2.0) (default: both are tried).
     #[arg(long, value_enum)]
-    protocol: Option<crate::cli::bus_args::ProtocolArg>,
+    protocol: Option<crate::commands::bus_args::ProtocolArg>,
     /// The servos' baud rate (default: the usual rates are tried, the arm file's first).
     #[arg(long)]
     baud: Option<u32>,

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Result};
 use clap::{Args, Subcommand, ValueEnum};
 
-use crate::cli::bus_args::ProtocolArg;
+use crate::commands::bus_args::ProtocolArg;
 use crate::runtime::connection::{Place, Target};
 
 pub use crate::runtime::connection::{calibrated, default_bus_arm, DEFAULT_BAUD, DEFAULT_SIM_ARM};

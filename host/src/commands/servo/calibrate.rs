@@ -39,7 +39,7 @@ use super::commands::eeprom_write;
 use crate::arm::calibration::{homing_offset_item, lerobot, record, MotorCalibration};
 use crate::arm::servos::{servos_of, ServoSetup};
 use crate::arm::{toml_update, ArmSpec};
-use crate::cli::bus_args::ProtocolArg;
+use crate::commands::bus_args::ProtocolArg;
 use crate::runtime::servo_session::{Port, Session};
 
 /// The baud rate when `--baud` is not given: `--bus`'s, the STS3215's factory rate.
