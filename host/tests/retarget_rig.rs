@@ -211,7 +211,7 @@ fn follow_in_sil(path: &Path, seconds: f64) -> (Retargets, Vec<Followed>) {
     let arms: Vec<Box<dyn DynArm>> = spec
         .arms
         .iter()
-        .map(|a| armctl::arm::dof::build(ArmSpec::load(a.link.arm.as_deref().unwrap(), None).unwrap()).unwrap())
+        .map(|a| armctl::arm::dof::build(ArmSpec::load(a.place.arm.as_deref().unwrap(), None).unwrap()).unwrap())
         .collect();
     let jobs = spec
         .arms
@@ -404,7 +404,7 @@ fn bad_chains_rigs_and_files_fail_in_one_line_writing_nothing() {
 fn rig_arms(spec: &RigSpec) -> Vec<Box<dyn DynArm>> {
     spec.arms
         .iter()
-        .map(|a| armctl::arm::dof::build(ArmSpec::load(a.link.arm.as_deref().unwrap(), None).unwrap()).unwrap())
+        .map(|a| armctl::arm::dof::build(ArmSpec::load(a.place.arm.as_deref().unwrap(), None).unwrap()).unwrap())
         .collect()
 }
 

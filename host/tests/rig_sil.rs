@@ -244,7 +244,7 @@ fn a_shared_joint_makes_the_rig_one_tree_and_random_reachable_targets_are_reache
     use armctl::rig::tree::{RigTree, TreeArm};
     let spec = RigSpec::load(&torso_rig()).unwrap();
     let arms: Vec<armctl::arm::ArmSpec> =
-        spec.arms.iter().map(|a| armctl::arm::ArmSpec::load(a.link.arm.as_deref().unwrap(), None).unwrap()).collect();
+        spec.arms.iter().map(|a| armctl::arm::ArmSpec::load(a.place.arm.as_deref().unwrap(), None).unwrap()).collect();
     let tree_arms: Vec<TreeArm<'_>> =
         arms.iter().zip(&spec.arms).map(|(arm, a)| TreeArm { arm, base: a.base, mount: a.mount }).collect();
     let tree = RigTree::new(&tree_arms).unwrap();

@@ -122,7 +122,7 @@ impl TeleopArgs {
         }
         Ok(LeaderSpec {
             port,
-            protocol: self.leader_protocol,
+            protocol: self.leader_protocol.map(Into::into),
             arm: self.leader_arm.clone(),
             calibration: self.leader_calibration.clone(),
             baud: self.leader_baud,
@@ -194,7 +194,7 @@ fn run_rig(rig: &str, link: &LinkArgs, args: &TeleopArgs, out: &mut dyn Write, e
                 arm.name
             );
         };
-        let (target, follower) = arm.link.target()?;
+        let (target, follower) = arm.place.target_and_arm()?;
         pairs.push((arm.name.clone(), target, follower.map(str::to_string), leader.clone()));
     }
     let settings = LoopSettings { rate: args.rate, period, lead, max_step: args.max_step, duration: args.duration };
@@ -255,7 +255,7 @@ fn session(
 ) -> Result<Session> {
     let LoopSettings { rate, period, lead, max_step, duration } = *settings;
     let leader_arm = calibrated(ArmSpec::load(&source.arm, None)?, source.calibration.as_deref())?;
-    let bus = crate::motion::teleop::leader::bus_config(&leader_arm, source.protocol.map(Into::into), source.baud)?;
+    let bus = crate::motion::teleop::leader::bus_config(&leader_arm, source.protocol, source.baud)?;
     let mut simulated_leader = match (&source.script, source.port == "sim") {
         (Some(script), true) => {
             Some(crate::motion::teleop::hand::SimLeader::spawn(&leader_arm, script, Some(SIM_ADAPTER_LATENCY))?)

@@ -17,7 +17,7 @@
 //! arm = "so101"                 # and calibration, protocol, baud as `armctl teleop --leader-*`
 //! ```
 //!
-//! Each arm becomes the drive options of one arm ([`LinkArgs`]), checked as those are, so a rig
+//! Each arm becomes the place of one arm ([`Place`]), checked as the drive options are, so a rig
 //! arm is driven exactly as `armctl --sim`, `--port` or `--bus` drives one. Built in:
 //! `bimanual-so101`, two simulated SO-101 arms 0.3 m apart.
 
@@ -27,8 +27,8 @@ use anyhow::{bail, Context, Result};
 use kinematics::Pose;
 use serde::Deserialize;
 
-use crate::commands::bus_args::ProtocolArg;
-use crate::commands::drive::args::LinkArgs;
+use crate::runtime::connection::{calibrated, protocol_named, Place};
+use firmware::bus::Protocol;
 
 /// The rigs built in, by name.
 const PRESETS: [(&str, &str); 1] = [("bimanual-so101", include_str!("../../examples/rigs/bimanual-so101.toml"))];
@@ -90,7 +90,7 @@ pub struct LeaderSpec {
     /// Its LeRobot calibration file.
     pub calibration: Option<PathBuf>,
     /// Its servo protocol [default: its servos'].
-    pub protocol: Option<ProtocolArg>,
+    pub protocol: Option<Protocol>,
     /// Its bus's baud rate [default: its arm file's].
     pub baud: Option<u32>,
 }
@@ -100,8 +100,9 @@ pub struct LeaderSpec {
 pub struct RigArmSpec {
     /// Its name (letters, digits, `_` and `-`), unique in the rig.
     pub name: String,
-    /// Where its core runs and which arm it drives, as the drive options say it for one arm.
-    pub link: LinkArgs,
+    /// Where its core runs and which arm it drives (always named), as the drive options say it
+    /// for one arm.
+    pub place: Place,
     /// Its base in the world frame, or on the tool frame of the arm it is mounted on.
     pub base: Pose<f64>,
     /// The earlier arm whose tool frame carries its base (`None`: the world): that arm's joints
@@ -213,9 +214,9 @@ impl ArmEntry {
         if places != 1 {
             bail!("give exactly one of sim = true, port = \"PORT\" or bus = \"PORT\" (with protocol)");
         }
-        let protocol = self.protocol.as_deref().map(protocol).transpose()?;
+        let protocol = self.protocol.as_deref().map(protocol_named).transpose()?;
         let arm = arm_path(dir, &self.arm);
-        let link = LinkArgs {
+        let place = Place {
             port: self.port.clone(),
             bus: self.bus.clone(),
             protocol,
@@ -224,23 +225,12 @@ impl ArmEntry {
             arm: Some(arm),
             calibration: self.calibration.as_deref().map(|c| relative(dir, c)),
             object_mm: None,
-            rig: None,
-            json: false,
         };
         // The same checks as the drive options of one arm, and the arm loaded once to prove it.
-        link.target()?;
+        place.target()?;
         let rpy = self.rpy_deg.map(f64::to_radians);
         let leader = self.leader.as_ref().map(|l| l.check(dir)).transpose().context("leader")?;
-        Ok(RigArmSpec { name: self.name.clone(), link, base: Pose::from_xyz_rpy(self.xyz, rpy), mount: None, leader })
-    }
-}
-
-/// A protocol's name as typed.
-fn protocol(name: &str) -> Result<ProtocolArg> {
-    match name {
-        "sts" => Ok(ProtocolArg::Sts),
-        "dxl2" => Ok(ProtocolArg::Dxl2),
-        other => bail!("protocol {other:?}: sts (Feetech) or dxl2 (Dynamixel 2.0)"),
+        Ok(RigArmSpec { name: self.name.clone(), place, base: Pose::from_xyz_rpy(self.xyz, rpy), mount: None, leader })
     }
 }
 
@@ -267,7 +257,7 @@ impl LeaderEntry {
         };
         let arm = arm_path(dir, self.arm.as_deref().unwrap_or("so101"));
         // Loaded once here, so a bad arm or calibration is said before anything opens.
-        let spec = crate::commands::drive::args::calibrated(
+        let spec = calibrated(
             crate::arm::ArmSpec::load(&arm, None)?,
             self.calibration.as_deref().map(|c| relative(dir, c)).as_deref(),
         )?;
@@ -277,7 +267,7 @@ impl LeaderEntry {
             script: self.script.as_deref().map(|s| relative(dir, s)),
             arm,
             calibration: self.calibration.as_deref().map(|c| relative(dir, c)),
-            protocol: self.protocol.as_deref().map(protocol).transpose()?,
+            protocol: self.protocol.as_deref().map(protocol_named).transpose()?,
             baud: self.baud,
         })
     }

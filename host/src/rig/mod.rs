@@ -57,7 +57,7 @@ impl Rig {
     pub fn open(spec: &RigSpec, err: &mut dyn Write) -> Result<Self> {
         let mut targets = Vec::new();
         for arm in &spec.arms {
-            let (target, name) = arm.link.target().with_context(|| format!("arm {}", arm.name))?;
+            let (target, name) = arm.place.target_and_arm().with_context(|| format!("arm {}", arm.name))?;
             targets.push((target, name.map(str::to_string)));
         }
         // The simulated boards first, all made before any link opens, so they start together.

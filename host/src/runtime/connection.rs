@@ -90,6 +90,12 @@ impl Place {
         }
     }
 
+    /// The board or simulation to connect to and the arm to configure on it
+    /// ([`Place::target`], [`Place::arm_name`]).
+    pub fn target_and_arm(&self) -> Result<(Target, Option<&str>)> {
+        Ok((self.target()?, self.arm_name()))
+    }
+
     /// The board or simulation to connect to; every option checked against the others.
     pub fn target(&self) -> Result<Target> {
         if self.object_mm.is_some() && !self.sim {

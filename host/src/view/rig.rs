@@ -48,7 +48,7 @@ pub fn run(rig: &str, link: &LinkArgs, args: &ViewArgs, out: &mut dyn Write, err
     let (listen, token) = listen_and_token(args)?;
     let mut targets = Vec::new();
     for arm in &spec.arms {
-        let (target, model) = arm.link.target().with_context(|| format!("arm {}", arm.name))?;
+        let (target, model) = arm.place.target_and_arm().with_context(|| format!("arm {}", arm.name))?;
         targets.push((target, model.map(str::to_string)));
     }
     warn_if_open(listen, err)?;

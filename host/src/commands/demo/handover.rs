@@ -204,7 +204,7 @@ pub fn run(name: &str, json_out: bool, out: &mut dyn Write) -> Result<i32> {
         bail!("rig {}: the handover takes two arms; this rig has {}", spec.name, spec.arms.len());
     }
     for arm in &spec.arms {
-        if !matches!(arm.link.target()?.0, Target::Sim(_)) {
+        if !matches!(arm.place.target_and_arm()?.0, Target::Sim(_)) {
             bail!(
                 "rig {}: arm {} is not simulated (sim = true): the demo runs in software in the loop",
                 spec.name,

@@ -232,8 +232,8 @@ pub fn run(rig: &str, link: &LinkArgs, args: &RetargetArgs, out: &mut dyn Write,
     let followers: Vec<usize> = (0..spec.arms.len()).filter(|&i| !carriers[i]).collect();
     let mut arms: Vec<Box<dyn DynArm>> = Vec::new();
     for a in &spec.arms {
-        let name = a.link.arm.as_deref().expect("a rig arm names its arm");
-        let arm = calibrated(ArmSpec::load(name, None)?, a.link.calibration.as_deref())
+        let name = a.place.arm.as_deref().expect("a rig arm names its arm");
+        let arm = calibrated(ArmSpec::load(name, None)?, a.place.calibration.as_deref())
             .and_then(crate::arm::dof::build)
             .with_context(|| format!("rig arm {}", a.name))?;
         arms.push(arm);
@@ -376,7 +376,7 @@ fn play(
     let mut safety = serde_json::Map::new();
     let mut violations = 0;
     if let Some(group) = &rig.sim {
-        for (i, a) in spec.arms.iter().filter(|a| a.link.sim).enumerate() {
+        for (i, a) in spec.arms.iter().filter(|a| a.place.sim).enumerate() {
             let board = group.board(i);
             let m = board.monitor();
             violations += m.violation_count;
