@@ -127,7 +127,7 @@ impl Model {
 impl Model {
     /// The chain of `spec`, with the LeRobot `calibration` file if given.
     pub(crate) fn of(spec: ArmSpec, calibration: Option<&std::path::Path>) -> PyResult<Self> {
-        let spec = armctl::commands::drive::args::calibrated(spec, calibration);
+        let spec = armctl::runtime::connection::calibrated(spec, calibration);
         Ok(Self { arm: spec.and_then(dof::build).or_raise()? })
     }
 

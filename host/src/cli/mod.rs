@@ -4,6 +4,7 @@
 
 pub mod drive;
 mod ik;
+pub mod link;
 pub mod serve;
 pub mod servo;
 pub mod sim;
@@ -15,10 +16,10 @@ use crate::arm::dof::{self, DynArm, Scalar};
 use crate::arm::dyn_tree::DynTree;
 use crate::arm::ArmSpec;
 use crate::commands::bench::ik::{self as bench, Protocol};
-use crate::commands::drive::args::LinkArgs;
 use crate::support::numbers as parse;
 use anyhow::{bail, Result};
 use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand};
+use link::LinkArgs;
 use serde_json::{json, Value};
 use std::ffi::OsString;
 use std::io::Write;
@@ -160,7 +161,7 @@ enum Command {
     // The drive commands (move, joints, play, status, stop, torque, gripper), each with the drive
     // options before or after it.
     #[command(flatten)]
-    Drive(crate::commands::drive::args::DriveCommand),
+    Drive(drive::DriveCommand),
 }
 
 #[derive(Subcommand, Debug)]
@@ -344,7 +345,7 @@ fn command_name(matches: &clap::ArgMatches) -> String {
 /// drive commands, teleop, view, retarget, doctor) merge them on their own. An option the command
 /// has no use for is refused in one line.
 fn take_globals(link: &LinkArgs, mut command: Command, name: &str) -> Result<Command> {
-    use crate::commands::drive::args::either;
+    use link::either;
     let mut rest = link.clone();
     let json = std::mem::take(&mut rest.json);
     match &mut command {
@@ -402,13 +403,7 @@ fn take_globals(link: &LinkArgs, mut command: Command, name: &str) -> Result<Com
 fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
     let command = take_globals(link, command, name)?;
     match command {
-        Command::Drive(command) => {
-            let merged = link.merged(command.link())?;
-            if let Some(rig) = &merged.rig {
-                return crate::rig::commands::run(rig, &merged, command, out, err);
-            }
-            return drive::run(link, command, out, err);
-        }
+        Command::Drive(command) => return drive::run(link, command, out, err),
         Command::Demo(args) => return crate::commands::demo::run(&args, out),
         Command::Retarget(args) => return crate::commands::retarget::run(link, args, out, err),
         Command::Teleop(args) => return crate::commands::teleop::run(link, args, out, err),

@@ -13,7 +13,7 @@ use firmware::bus::{dxl2, feetech, Protocol};
 use crate::arm::servos::{servos_of, ServoSetup};
 use crate::arm::ArmSpec;
 use crate::commands::bus_args::{model_for, ModelArg, ProtocolArg};
-use crate::commands::drive::args::calibrated;
+use crate::runtime::connection::calibrated;
 #[cfg(feature = "board-tools")]
 use crate::runtime::qemu::{self, Qemu, QemuConfig};
 use crate::sim::monitor::MAX_VIOLATIONS;

@@ -2,7 +2,7 @@
 //! view, a rig and the Python binding call.
 //!
 //! - [`drive`]: move, joints, play, status, stop, torque, gripper over a connection to the
-//!   firmware, and the drive options ([`drive::args`]);
+//!   firmware;
 //! - [`servo`]: `armctl servo`, `calibrate`, `ports`;
 //! - [`doctor`]: what is wrong with a servo bus;
 //! - [`bench`]: `armctl bench ik|bus|rate|mcu|pc`;

@@ -15,7 +15,7 @@ use clap::Args;
 use serde_json::json;
 
 use crate::arm::ArmSpec;
-use crate::commands::drive::args::LinkArgs;
+use crate::cli::link::LinkArgs;
 use crate::commands::drive::play::Plan;
 use crate::commands::drive::Operation;
 use crate::motion::mocap::rest::Rest;
@@ -206,7 +206,7 @@ pub fn run(global: &LinkArgs, args: RetargetArgs, out: &mut dyn Write, err: &mut
     }
     let arm_name = link.arm.clone().ok_or_else(|| anyhow!("--arm is required: the arm to retarget onto"))?;
     let options = Options { chain: one_chain(&args.chain)?, ..options(&args)? };
-    let spec = crate::commands::drive::args::calibrated(ArmSpec::load(&arm_name, None)?, link.calibration.as_deref())?;
+    let spec = crate::runtime::connection::calibrated(ArmSpec::load(&arm_name, None)?, link.calibration.as_deref())?;
     let arm = crate::arm::dof::build(spec)?;
 
     let bvh = crate::motion::mocap::bvh::read(&args.file)?;
@@ -270,9 +270,9 @@ pub fn run(global: &LinkArgs, args: RetargetArgs, out: &mut dyn Write, err: &mut
     };
     // The same path as `armctl play FILE`: the file checked against the connected arm, streamed
     // with flow control, Ctrl-C stopping the arm. Its report follows as a second JSON line.
-    let play_link = LinkArgs { json: true, ..link };
+    let place = link.place();
     let code = Plan::read(&path, args.timeout)
-        .and_then(|plan| crate::commands::drive::run(&play_link, &Operation::Play(plan), out, err));
+        .and_then(|plan| crate::commands::drive::run(&place, true, &Operation::Play(plan), out, err));
     if args.out.is_none() {
         let _ = std::fs::remove_file(&path);
     }

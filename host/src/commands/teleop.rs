@@ -24,10 +24,11 @@ use clap::Args;
 use serde_json::json;
 
 use crate::arm::ArmSpec;
+use crate::cli::link::LinkArgs;
 use crate::commands::bus_args::ProtocolArg;
-use crate::commands::drive::args::{calibrated, LinkArgs};
 use crate::motion::teleop::stream::{quantile, Figures, Settings};
 use crate::rig::file::LeaderSpec;
+use crate::runtime::connection::calibrated;
 use crate::runtime::connection::{Target, SIM_ADAPTER_LATENCY};
 use crate::runtime::driver::{Driver, Waited};
 use crate::sim::PtyServer;
@@ -157,7 +158,8 @@ pub fn run(link: &LinkArgs, args: TeleopArgs, out: &mut dyn Write, err: &mut dyn
     }
     let (period, lead) = args.check()?;
     let leader = args.leader()?;
-    let (target, arm) = link.target()?;
+    let place = link.one_place()?;
+    let (target, arm) = place.target_and_arm()?;
     if link.object_mm.is_some() {
         bail!("--object-mm: teleop's simulated follower has no object between its jaws");
     }

@@ -12,7 +12,6 @@ use serde_json::json;
 use super::columns::{self, ArmPart};
 use super::play::stop_all;
 use super::{Rig, RigSpec};
-use crate::commands::drive::args::{DriveCommand, LinkArgs, MoveArgs, OnOff};
 use crate::commands::drive::move_to::{check_position, check_quaternion, positive, tool_timing};
 use crate::commands::drive::path::{self, host_solution};
 use crate::commands::drive::state;
@@ -27,6 +26,40 @@ struct ArmTarget {
     orientation: Option<[f32; 4]>,
 }
 
+/// A drive command for every arm of a rig, as typed: its arm names (`ARM=VALUES`) and values are
+/// checked against the rig file by [`run`] before anything is sent.
+#[derive(Clone, Debug, PartialEq)]
+pub enum RigCommand {
+    /// `status`: every arm's.
+    Status,
+    /// `stop`: every arm.
+    Stop,
+    /// `torque on|off`: every arm.
+    Torque(bool),
+    /// `move`: each arm named in `to` to its tool target.
+    Move {
+        /// `ARM=x,y,z` (m, the rig's world frame), once per arm to move.
+        to: Vec<String>,
+        /// `ARM=w,x,y,z`, for the arms whose tool orientation is given.
+        quat: Vec<String>,
+        /// Tool speed along the line (m/s).
+        speed: Option<f64>,
+        /// Arrive after this many seconds.
+        duration: Option<f64>,
+        /// Which way each tool goes.
+        path: MovePath,
+        /// Give up waiting (and stop the arms) after this many seconds of controller time.
+        timeout: f64,
+    },
+    /// `play`: a keyframe file with each arm's columns (`ARM.q1`, ...).
+    Play {
+        /// The keyframe CSV file.
+        file: std::path::PathBuf,
+        /// Seconds of controller time after the last keyframe before giving up.
+        timeout: f64,
+    },
+}
+
 /// A rig command with its input checked.
 enum RigRequest {
     Status,
@@ -36,20 +69,13 @@ enum RigRequest {
     Play(Vec<ArmPart>),
 }
 
-/// Runs a drive command on the rig `file` (a rig file or a built-in rig's name); returns the exit
-/// code. `link` holds the drive options as merged from before and after the command.
-pub fn run(
-    file: &str,
-    link: &LinkArgs,
-    command: DriveCommand,
-    out: &mut dyn Write,
-    err: &mut dyn Write,
-) -> Result<i32> {
-    link.refuse_beside_rig()?;
+/// Runs a drive command on the rig `file` (a rig file or a built-in rig's name) and prints its
+/// report (`json`: one line of JSON); returns the exit code.
+pub fn run(file: &str, command: &RigCommand, json: bool, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
     let spec = RigSpec::load(file)?;
-    let request = parse(&spec, &command)?;
+    let request = parse(&spec, command)?;
     let mut rig = Rig::open(&spec, err)?;
-    let code = execute(&mut rig, request, link.json, out, err)?;
+    let code = execute(&mut rig, request, json, out, err)?;
     rig.close(err)?;
     Ok(code)
 }
@@ -62,38 +88,45 @@ fn named<'a>(spec: &RigSpec, text: &'a str, what: &str) -> Result<(usize, &'a st
     Ok((spec.arm(name.trim()).with_context(|| what.to_string())?, values))
 }
 
-fn parse(spec: &RigSpec, command: &DriveCommand) -> Result<RigRequest> {
+fn parse(spec: &RigSpec, command: &RigCommand) -> Result<RigRequest> {
     Ok(match command {
-        DriveCommand::Status(_) => RigRequest::Status,
-        DriveCommand::Stop(_) => RigRequest::Stop,
-        DriveCommand::Torque(args) => RigRequest::Torque(args.state == OnOff::On),
-        DriveCommand::Move(args) => parse_move(spec, args)?,
-        DriveCommand::Play(args) => {
-            if !(args.timeout.is_finite() && args.timeout > 0.0) {
-                bail!("--timeout: {} s must be a positive number", args.timeout);
+        RigCommand::Status => RigRequest::Status,
+        RigCommand::Stop => RigRequest::Stop,
+        RigCommand::Torque(on) => RigRequest::Torque(*on),
+        RigCommand::Move { to, quat, speed, duration, path, timeout } => {
+            parse_move(spec, to, quat, *speed, *duration, *path, *timeout)?
+        }
+        RigCommand::Play { file, timeout } => {
+            if !(timeout.is_finite() && *timeout > 0.0) {
+                bail!("--timeout: {timeout} s must be a positive number");
             }
             let names: Vec<&str> = spec.arms.iter().map(|a| a.name.as_str()).collect();
             let bases: Vec<Pose<f64>> = spec.arms.iter().map(|a| a.base).collect();
-            let parts = columns::read(&args.file, &names, &bases, args.timeout)?;
+            let parts = columns::read(file, &names, &bases, *timeout)?;
             if let Some(part) = parts.iter().find(|p| spec.arms[p.arm].mount.is_some() && p.plan.is_cartesian()) {
                 bail!(
                     "{}: arm {} is mounted on another arm, which moves its base: give it joint columns (its Cartesian \
                      columns would be in a moving frame)",
-                    args.file.display(),
+                    file.display(),
                     spec.arms[part.arm].name
                 );
             }
             RigRequest::Play(parts)
         }
-        DriveCommand::Joints(_) | DriveCommand::Gripper(_) => bail!(
-            "--rig drives status, stop, torque, move and play so far; for joints or the gripper, drive that arm on its own"
-        ),
     })
 }
 
-fn parse_move(spec: &RigSpec, args: &MoveArgs) -> Result<RigRequest> {
+fn parse_move(
+    spec: &RigSpec,
+    to: &[String],
+    quat: &[String],
+    speed: Option<f64>,
+    duration: Option<f64>,
+    path: MovePath,
+    timeout: f64,
+) -> Result<RigRequest> {
     let mut targets: Vec<ArmTarget> = Vec::new();
-    for text in &args.to {
+    for text in to {
         let (arm, values) = named(spec, text, "--to")?;
         if targets.iter().any(|t| t.arm == arm) {
             bail!("--to: arm {} is given twice", spec.arms[arm].name);
@@ -104,7 +137,7 @@ fn parse_move(spec: &RigSpec, args: &MoveArgs) -> Result<RigRequest> {
             orientation: None,
         });
     }
-    for text in &args.quat {
+    for text in quat {
         let (arm, values) = named(spec, text, "--quat")?;
         let Some(target) = targets.iter_mut().find(|t| t.arm == arm) else {
             bail!("--quat: arm {} has no --to", spec.arms[arm].name);
@@ -114,9 +147,8 @@ fn parse_move(spec: &RigSpec, args: &MoveArgs) -> Result<RigRequest> {
         }
         target.orientation = Some(check_quaternion(parse::fixed::<4>(values, "--quat")?, "--quat")?);
     }
-    let timing = tool_timing(args.speed, args.duration)?;
-    positive(args.timeout, f64::from(firmware::link::message::MAX_TIME), "--timeout", "s")?;
-    let path = MovePath::from(args.path);
+    let timing = tool_timing(speed, duration)?;
+    positive(timeout, f64::from(firmware::link::message::MAX_TIME), "--timeout", "s")?;
     if spec.arms.iter().any(|a| a.mount.is_some()) {
         // One tree: solved on the host, each arm's share sent as a joint move.
         if targets.iter().any(|t| t.orientation.is_some()) {
@@ -126,7 +158,7 @@ fn parse_move(spec: &RigSpec, args: &MoveArgs) -> Result<RigRequest> {
             bail!("--path line: a rig with an arm mounted on another (a shared joint) moves by joints (auto or joint)");
         }
     }
-    Ok(RigRequest::Move { targets, timing, path, timeout: args.timeout })
+    Ok(RigRequest::Move { targets, timing, path, timeout })
 }
 
 /// A world-frame target in the base frame of the arm at `base`.

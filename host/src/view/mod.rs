@@ -44,7 +44,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 
 use crate::arm::servos::servos_of;
-use crate::commands::drive::args::LinkArgs;
+use crate::cli::link::LinkArgs;
 use crate::support::interrupt;
 use arm_loop::ArmLoop;
 use server::{Served, ServedArm, ViewServer};
@@ -102,7 +102,8 @@ pub fn run(link: &LinkArgs, args: ViewArgs, out: &mut dyn Write, err: &mut dyn W
     }
     let (listen, token) = listen_and_token(&args)?;
     let urdf = args.urdf.as_deref().map(|file| meshes::Urdf::read(file, args.tip.as_deref())).transpose()?;
-    let (target, arm) = link.target()?;
+    let place = link.one_place()?;
+    let (target, arm) = place.target_and_arm()?;
     let arm = arm.map(str::to_string);
     warn_if_open(listen, err)?;
     // The address is taken before connecting, so a port in use changes nothing on the arm.

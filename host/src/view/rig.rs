@@ -18,7 +18,7 @@ use super::arm_loop::{ArmLoop, Seat};
 use super::server::{Rig, Served, ServedArm, ViewServer};
 use super::telemetry::{frame, Latest, Placement};
 use super::{joints_and_gripper, listen_and_token, meshes, supervise, warn_if_open, Running, ViewArgs};
-use crate::commands::drive::args::LinkArgs;
+use crate::cli::link::LinkArgs;
 use crate::rig::RigSpec;
 
 /// Refuses the options that name one arm's place or drawing: a rig's arms are in its file.

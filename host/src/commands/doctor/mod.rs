@@ -35,7 +35,7 @@ use self::checks::Expected;
 use self::finding::{counts, Finding, Level};
 use self::line::LineReport;
 use self::survey::Reading;
-use crate::commands::drive::args::LinkArgs;
+use crate::cli::link::LinkArgs;
 use crate::runtime::pc::timing::margins;
 use crate::runtime::servo_session::Session;
 

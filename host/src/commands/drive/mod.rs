@@ -15,7 +15,6 @@
 //!
 //! [`Driver`]: crate::runtime::driver::Driver
 
-pub mod args;
 pub mod error;
 pub mod gripper;
 pub mod joints;
@@ -29,6 +28,7 @@ use std::io::Write;
 
 use serde::Serialize;
 
+use crate::runtime::connection::Place;
 use crate::runtime::driver::Driver;
 pub use error::{DriveError, DriveResult};
 
@@ -105,19 +105,20 @@ impl Report {
     }
 }
 
-/// Connects to the arm `link` names, carries out `operation`, and prints its report (`link.json`:
-/// one line of JSON; else its text) on `out`, notes and what connecting said on `err`. Returns the
+/// Connects to the arm at `place`, carries out `operation`, and prints its report (`json`: one
+/// line of JSON; else its text) on `out`, notes and what connecting said on `err`. Returns the
 /// exit code: 0, or 130 after Ctrl-C stopped the arm (said on `err`).
 pub fn run(
-    link: &args::LinkArgs,
+    place: &Place,
+    json: bool,
     operation: &Operation,
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> anyhow::Result<i32> {
-    let (target, arm) = link.target()?;
+    let (target, arm) = place.target_and_arm()?;
     let mut driver = Driver::open(target, arm, err)?;
     let code = match carry_out(&mut driver, operation, err) {
-        Ok(report) if link.json => {
+        Ok(report) if json => {
             writeln!(out, "{}", serde_json::to_string(&report)?)?;
             0
         }

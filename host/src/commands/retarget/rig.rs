@@ -30,12 +30,13 @@ use serde_json::{json, Value};
 use super::{chain_note, options, rest_note, RetargetArgs, AXES_NOTE};
 use crate::arm::dof::DynArm;
 use crate::arm::ArmSpec;
-use crate::commands::drive::args::{calibrated, LinkArgs};
+use crate::cli::link::LinkArgs;
 use crate::motion::mocap::bvh::Bvh;
 use crate::motion::mocap::chain::{self, ArmChain, Side};
 use crate::motion::mocap::retarget::timebase::{retarget_sharing, Job, Retargets, SharedJoints};
 use crate::motion::mocap::retarget::{Retargeted, Scale};
 use crate::rig::{columns, Rig, RigSpec};
+use crate::runtime::connection::calibrated;
 
 /// Whether rig arm `i` follows no human arm: it carries another arm (a shared joint), no chain is
 /// given for it, and its name says no side.
