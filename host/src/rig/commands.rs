@@ -7,10 +7,10 @@ use std::io::Write;
 use anyhow::{bail, Context, Result};
 use firmware::link::message::{CartesianTarget, MovePath, Timing};
 use kinematics::Pose;
-use serde_json::json;
 
 use super::columns::{self, ArmPart};
 use super::play::stop_all;
+use super::report::{ArmMoved, ArmStatus, ArmStopped, ByArm, RigMove, RigReport, RigStatus, RigStop, RigTorque};
 use super::{Rig, RigSpec};
 use crate::commands::drive::move_to::{check_position, check_quaternion, positive, tool_timing};
 use crate::commands::drive::path::{self, host_solution};
@@ -175,93 +175,84 @@ fn in_base(base: &Pose<f64>, target: &ArmTarget) -> CartesianTarget {
     }
 }
 
+/// Carries out `request` on every arm and prints its report (`json`: one line of JSON); returns
+/// the exit code (130 after Ctrl-C stopped every arm).
 fn execute(rig: &mut Rig, request: RigRequest, json: bool, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
-    match request {
-        RigRequest::Status => {
-            let mut arms = serde_json::Map::new();
-            for i in 0..rig.arms.len() {
-                let status = rig.arms[i].driver.status()?;
-                let tool = rig.tool_in_world(i, &status.measured)?;
-                let arm = &rig.arms[i];
-                let report = state::report(&arm.driver, status)?;
-                if json {
-                    let mut v = serde_json::to_value(&report)?;
-                    v["tool_world"] = json!(tool);
-                    arms.insert(arm.name.clone(), v);
-                } else {
-                    writeln!(out, "== {} (tool at {} m in the world frame)", arm.name, fmt3(&tool))?;
-                    writeln!(out, "{}", report.text())?;
-                }
+    let report = match request {
+        RigRequest::Status => RigReport::Status(status(rig)?),
+        RigRequest::Stop => RigReport::Stop(stop(rig)?),
+        RigRequest::Torque(on) => RigReport::Torque(torque(rig, on)?),
+        RigRequest::Move { targets, timing, path, timeout } => {
+            let moved = match rig.tree()? {
+                Some(tree) => move_tree(rig, &tree, &targets, timing, timeout, err)?,
+                None => move_arms(rig, &targets, timing, path, timeout, err)?,
+            };
+            match moved {
+                Some(report) => RigReport::Move(report),
+                None => return Ok(interrupt::EXIT_CODE),
             }
-            if json {
-                writeln!(out, "{}", json!({"rig": rig.name, "arms": arms}))?;
-            }
-            Ok(0)
         }
-        RigRequest::Stop => {
-            // Every arm told first, then each waited for: no arm waits on another's stop.
-            let sent = stop_all(rig);
-            let mut arms = serde_json::Map::new();
-            for i in 0..rig.arms.len() {
-                let name = rig.arms[i].name.clone();
-                let status = rig.arms[i].driver.stop().with_context(|| format!("arm {name}"))?;
-                let tool = rig.tool_in_world(i, &status.measured)?;
-                let arm = &rig.arms[i];
-                if json {
-                    arms.insert(
-                        arm.name.clone(),
-                        json!({"state": status.state, "tool_world": tool, "joints": status.measured}),
-                    );
-                } else {
-                    writeln!(out, "{}: stopped, {:?} at {} m (world)", arm.name, status.state, fmt3(&tool))?;
-                }
-            }
-            if json {
-                writeln!(out, "{}", json!({"command": "stop", "rig": rig.name, "arms": arms}))?;
-            } else {
-                writeln!(out, "stop: {sent}")?;
-            }
-            Ok(0)
-        }
-        RigRequest::Torque(on) => {
-            let mut arms = serde_json::Map::new();
-            for arm in &mut rig.arms {
-                let result = if on { arm.driver.torque_on() } else { arm.driver.session().torque_off() };
-                result
-                    .map_err(|e| anyhow::anyhow!("arm {}: torque {}: {e}", arm.name, if on { "on" } else { "off" }))?;
-                let state = arm.driver.status()?.state;
-                arms.insert(arm.name.clone(), json!(state));
-                if !json {
-                    writeln!(out, "{}: torque {}: state {state:?}", arm.name, if on { "on" } else { "off" })?;
-                }
-            }
-            if json {
-                writeln!(out, "{}", json!({"command": "torque", "on": on, "rig": rig.name, "arms": arms}))?;
-            }
-            Ok(0)
-        }
-        RigRequest::Move { targets, timing, path, timeout } => match rig.tree()? {
-            Some(tree) => move_tree(rig, &tree, &targets, timing, timeout, json, out, err),
-            None => move_arms(rig, &targets, timing, path, timeout, json, out, err),
+        RigRequest::Play(parts) => match super::play::report(rig, parts, err)? {
+            Some(report) => RigReport::Play(report),
+            None => return Ok(interrupt::EXIT_CODE),
         },
-        RigRequest::Play(parts) => super::play::run(rig, parts, json, out, err),
+    };
+    if json {
+        writeln!(out, "{}", serde_json::to_string(&report)?)?;
+    } else {
+        writeln!(out, "{}", report.text())?;
     }
+    Ok(0)
+}
+
+/// Every arm's status, with its tool in the world frame.
+fn status(rig: &mut Rig) -> Result<RigStatus> {
+    let mut arms = Vec::new();
+    for i in 0..rig.arms.len() {
+        let status = rig.arms[i].driver.status()?;
+        let tool_world = rig.tool_in_world(i, &status.measured)?;
+        let arm = &rig.arms[i];
+        arms.push((arm.name.clone(), ArmStatus { status: state::report(&arm.driver, status)?, tool_world }));
+    }
+    Ok(RigStatus { rig: rig.name.clone(), arms: ByArm(arms) })
+}
+
+/// Stops every arm: each told first, then each waited for, so no arm waits on another's stop.
+fn stop(rig: &mut Rig) -> Result<RigStop> {
+    let sent = stop_all(rig);
+    let mut arms = Vec::new();
+    for i in 0..rig.arms.len() {
+        let name = rig.arms[i].name.clone();
+        let status = rig.arms[i].driver.stop().with_context(|| format!("arm {name}"))?;
+        let tool_world = rig.tool_in_world(i, &status.measured)?;
+        arms.push((name, ArmStopped { state: status.state, tool_world, joints: status.measured.to_vec() }));
+    }
+    Ok(RigStop { command: "stop", rig: rig.name.clone(), arms: ByArm(arms), sent })
+}
+
+/// Every arm's torque on or off.
+fn torque(rig: &mut Rig, on: bool) -> Result<RigTorque> {
+    let mut arms = Vec::new();
+    for arm in &mut rig.arms {
+        let result = if on { arm.driver.torque_on() } else { arm.driver.session().torque_off() };
+        result.map_err(|e| anyhow::anyhow!("arm {}: torque {}: {e}", arm.name, if on { "on" } else { "off" }))?;
+        arms.push((arm.name.clone(), arm.driver.status()?.state));
+    }
+    Ok(RigTorque { command: "torque", on, rig: rig.name.clone(), arms: ByArm(arms) })
 }
 
 /// The move of a rig that is one tree (an arm mounted on another): every target solved at once
 /// on the host over every joint of the tree (an arm without a target keeps its tool where it is),
 /// then each arm's share sent as a joint move, all with one duration so they arrive together.
-#[allow(clippy::too_many_arguments)]
+/// `None` after Ctrl-C (every arm stopped).
 fn move_tree(
     rig: &mut Rig,
     tree: &super::tree::RigTree,
     targets: &[ArmTarget],
     timing: Timing,
     timeout: f64,
-    json: bool,
-    out: &mut dyn Write,
     err: &mut dyn Write,
-) -> Result<i32> {
+) -> Result<Option<RigMove>> {
     let mut q = Vec::new();
     for arm in &mut rig.arms {
         q.push(arm.driver.status()?.measured.iter().map(|&x| f64::from(x)).collect::<Vec<f64>>());
@@ -305,48 +296,39 @@ fn move_tree(
     let Some(ends) = rig.wait_all(&all, timeout)? else {
         let stopped = stop_all(rig);
         writeln!(err, "stopped by Ctrl-C: {stopped}")?;
-        return Ok(interrupt::EXIT_CODE);
+        return Ok(None);
     };
     let measured: Vec<Vec<f64>> = ends.iter().map(|s| s.measured.iter().map(|&x| f64::from(x)).collect()).collect();
     let reached = tree.tools(&measured);
-    let mut arms = serde_json::Map::new();
+    let mut arms = Vec::new();
     for (a, arm) in rig.arms.iter().enumerate() {
         if switched[a] {
             writeln!(err, "{}: torque was off: switched it on", arm.name)?;
         }
         let goal = wanted[a];
         let error_mm = goal.map(|g| 1e3 * (0..3).map(|i| (reached[a][i] - g[i]).powi(2)).sum::<f64>().sqrt());
-        if json {
-            arms.insert(
-                arm.name.clone(),
-                json!({"target": goal, "reached": reached[a], "error_mm": error_mm, "joints": ends[a].measured}),
-            );
-        } else {
-            let target = goal.map(|g| format!("target {} m, ", fmt3(&g))).unwrap_or_else(|| "no target, ".to_string());
-            let error = error_mm.map(|e| format!(", error {e:.2} mm")).unwrap_or_default();
-            writeln!(out, "{}: {target}reached {} m (world){error}", arm.name, fmt3(&reached[a]))?;
-        }
+        let joints = ends[a].measured.to_vec();
+        arms.push((arm.name.clone(), ArmMoved { target: goal, reached: reached[a], error_mm, time_s: None, joints }));
     }
-    if json {
-        writeln!(out, "{}", json!({"command": "move", "rig": rig.name, "solved_as": "one tree", "arms": arms}))?;
-    } else {
-        writeln!(out, "move: solved as one tree over {} arms' joints, {seconds:.2} s", rig.arms.len())?;
-    }
-    Ok(0)
+    Ok(Some(RigMove {
+        command: "move",
+        rig: rig.name.clone(),
+        solved_as: Some("one tree"),
+        tree_seconds: f64::from(seconds),
+        arms: ByArm(arms),
+    }))
 }
 
 /// Sends every arm its move (each decided as `armctl move` decides one), then waits for all.
-#[allow(clippy::too_many_arguments)]
+/// `None` after Ctrl-C (every arm stopped).
 fn move_arms(
     rig: &mut Rig,
     targets: &[ArmTarget],
     timing: Timing,
     path: MovePath,
     timeout: f64,
-    json: bool,
-    out: &mut dyn Write,
     err: &mut dyn Write,
-) -> Result<i32> {
+) -> Result<Option<RigMove>> {
     // Every target solved on the host first: one out of reach moves no arm.
     for target in targets {
         let arm = &mut rig.arms[target.arm];
@@ -388,9 +370,9 @@ fn move_arms(
     let Some(ends) = rig.wait_all(&indices, timeout)? else {
         let stopped = stop_all(rig);
         writeln!(err, "stopped by Ctrl-C: {stopped}")?;
-        return Ok(interrupt::EXIT_CODE);
+        return Ok(None);
     };
-    let mut arms = serde_json::Map::new();
+    let mut arms = Vec::new();
     for ((target, (start, switched)), status) in targets.iter().zip(starts).zip(ends) {
         let reached = rig.tool_in_world(target.arm, &status.measured)?;
         let arm = &rig.arms[target.arm];
@@ -400,23 +382,11 @@ fn move_arms(
         let goal = target.position.map(f64::from);
         let error_mm = 1e3 * (0..3).map(|i| (reached[i] - goal[i]).powi(2)).sum::<f64>().sqrt();
         let took = f64::from(status.time - start.time);
-        if json {
-            arms.insert(
-                arm.name.clone(),
-                json!({"target": goal, "reached": reached, "error_mm": error_mm, "time_s": took, "joints": status.measured}),
-            );
-        } else {
-            writeln!(
-                out,
-                "{}: target {} m, reached {} m (world), error {error_mm:.2} mm, took {took:.2} s",
-                arm.name,
-                fmt3(&goal),
-                fmt3(&reached)
-            )?;
-        }
+        let joints = status.measured.to_vec();
+        arms.push((
+            arm.name.clone(),
+            ArmMoved { target: Some(goal), reached, error_mm: Some(error_mm), time_s: Some(took), joints },
+        ));
     }
-    if json {
-        writeln!(out, "{}", json!({"command": "move", "rig": rig.name, "arms": arms}))?;
-    }
-    Ok(0)
+    Ok(Some(RigMove { command: "move", rig: rig.name.clone(), solved_as: None, tree_seconds: 0.0, arms: ByArm(arms) }))
 }

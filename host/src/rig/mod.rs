@@ -13,6 +13,7 @@ pub mod columns;
 pub mod commands;
 pub mod file;
 pub mod play;
+pub mod report;
 pub mod tree;
 
 use std::io::Write;

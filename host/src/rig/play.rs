@@ -14,12 +14,11 @@ use std::time::Instant;
 
 use anyhow::{bail, Result};
 use firmware::link::message::{RunState, Status};
-use serde_json::json;
 
 use super::columns::ArmPart;
+use super::report::{ArmPlayedReport, ByArm, RigPlay};
 use super::Rig;
 use crate::link::session::Keyframe;
-use crate::runtime::driver::fmt3;
 use crate::support::interrupt;
 
 /// One arm's playback.
@@ -83,49 +82,48 @@ pub struct Played {
     pub skew_from: &'static str,
 }
 
-/// Plays the parts on their arms and prints what happened; returns the exit code.
+/// Plays the parts on their arms and prints the report (`json`: one line of JSON); returns the
+/// exit code (130 after Ctrl-C stopped every arm).
 pub fn run(rig: &mut Rig, parts: Vec<ArmPart>, json: bool, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
-    let Some(played) = play(rig, parts, err)? else {
+    let Some(report) = report(rig, parts, err)? else {
         return Ok(interrupt::EXIT_CODE);
     };
-    let mut arms_json = serde_json::Map::new();
-    for a in &played.arms {
-        let tool = rig.tool_in_world(a.arm, &a.last.measured)?;
-        let arm = &rig.arms[a.arm];
-        if json {
-            arms_json.insert(
-                arm.name.clone(),
-                json!({"keyframes": a.keyframes, "pushed": a.pushed, "end_error": a.end_error.0,
-                       "end_error_unit": a.end_error.1, "tool_world": tool, "joints": a.last.measured,
-                       "restarts": a.restarts}),
-            );
-        } else {
-            writeln!(
-                out,
-                "{}: {} of {} keyframes pushed and acknowledged; tool at {} m (world), {:.4} {} from the last keyframe",
-                arm.name,
-                a.pushed,
-                a.keyframes,
-                fmt3(&tool),
-                a.end_error.0,
-                a.end_error.1
-            )?;
-        }
-    }
-    let (seconds, skew_s, skew_from) = (played.seconds, played.skew_s, played.skew_from);
     if json {
-        let v = json!({"command": "play", "rig": rig.name, "trajectory_s": seconds, "arms": arms_json,
-                       "start_skew_s": skew_s, "skew_from": skew_from});
-        writeln!(out, "{v}")?;
+        writeln!(out, "{}", serde_json::to_string(&report)?)?;
     } else {
-        writeln!(
-            out,
-            "play: {} arms on one timeline, {seconds:.2} s of trajectory; start skew between the arms {:.3} ms ({skew_from})",
-            played.arms.len(),
-            skew_s * 1e3
-        )?;
+        writeln!(out, "{}", report.text())?;
     }
     Ok(0)
+}
+
+/// Plays the parts on their arms and reports how each went; `None` after Ctrl-C (every arm
+/// stopped).
+pub fn report(rig: &mut Rig, parts: Vec<ArmPart>, err: &mut dyn Write) -> Result<Option<RigPlay>> {
+    let Some(played) = play(rig, parts, err)? else {
+        return Ok(None);
+    };
+    let mut arms = Vec::new();
+    for a in &played.arms {
+        let tool_world = rig.tool_in_world(a.arm, &a.last.measured)?;
+        let report = ArmPlayedReport {
+            keyframes: a.keyframes,
+            pushed: a.pushed,
+            end_error: a.end_error.0,
+            end_error_unit: a.end_error.1,
+            tool_world,
+            joints: a.last.measured.to_vec(),
+            restarts: a.restarts,
+        };
+        arms.push((rig.arms[a.arm].name.clone(), report));
+    }
+    Ok(Some(RigPlay {
+        command: "play",
+        rig: rig.name.clone(),
+        trajectory_s: played.seconds,
+        start_skew_s: played.skew_s,
+        skew_from: played.skew_from,
+        arms: ByArm(arms),
+    }))
 }
 
 /// Plays the parts on their arms: checked, queued, started together, topped up, waited for.
