@@ -76,6 +76,7 @@ fn drives_the_simulated_arm_through_the_api_and_refuses_bad_input() {
     assert_eq!(went["path"], "line", "{went}");
     let reached = view.wait_for(|s| at_rest(s) && distance(&numbers(&s["tool"]), &goal) < 1e-3, "the target", 10.0);
     assert_eq!(reached["target"]["reachable"], true);
+    assert_eq!(reached["last_move"]["path"], "Line", "the firmware's own account of the move: {reached}");
 
     // A target whose straight line runs into the joint limits (the pair of pc_bus.rs): checked
     // on the host first, as `armctl move` does, it goes by joints, says so, and arrives.
@@ -92,6 +93,7 @@ fn drives_the_simulated_arm_through_the_api_and_refuses_bad_input() {
     assert!(how.contains("the straight line is blocked") && how.contains("by joints"), "{how}");
     let arrived = view.wait_for(|s| at_rest(s) && distance(&numbers(&s["tool"]), &far) < 1e-3, "the far target", 20.0);
     assert_eq!(arrived["target"]["path"], "joint");
+    assert_eq!(arrived["last_move"]["path"], "Joints", "{arrived}");
 
     // A target the firmware's own IK misses from this start (pc_bus.rs has the same pair): the
     // host's solution takes the arm there by joints, and the answer says so.

@@ -129,6 +129,9 @@ pub fn telemetry(
         "gripper": status.gripper.map(|g| json!({
             "percent": g.opening, "setpoint_percent": g.goal, "load": g.load, "holding": g.holding,
         })),
+        // How the firmware says the last move went (the line, the line then joints, joints;
+        // where a line was blocked), as `armctl status` reports it.
+        "last_move": status.last_move,
         "play": extras.play,
         "target": extras.target,
         "last_error": extras.last_error,
