@@ -45,11 +45,6 @@ const HOST_DEBTS: &[(&str, &str, &str)] = &[
         "retarget --rig: the rig's half of the command belongs under rig/ (cli dispatching to it), as rig::commands is for the drive verbs",
     ),
     ("commands::retarget::tree", "rig", "as commands::retarget::rig, whose shared-joint tree it is"),
-    (
-        "commands::teleop",
-        "rig",
-        "teleop --rig (run_rig) belongs under rig/, and the rig file's LeaderSpec (a leader's port or script) under motion::teleop",
-    ),
 ];
 
 fn row(rows: Rows, top: &str) -> Option<usize> {

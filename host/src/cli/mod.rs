@@ -7,6 +7,7 @@ mod ik;
 pub mod serve;
 pub mod servo;
 pub mod sim;
+mod teleop;
 mod tree;
 pub mod values;
 
@@ -149,7 +150,7 @@ enum Command {
     /// calibrations to keyframes the follower's firmware plays within its limits. Reports the
     /// loop's rate and latency (--json: one line of JSON); --record writes the session as a
     /// keyframe file for `armctl play`.
-    Teleop(crate::commands::teleop::TeleopArgs),
+    Teleop(teleop::TeleopArgs),
     /// The arm live in a browser, and the same as a JSON API: prints the page's URL
     ///
     /// A local page with the arm in 3D, joint sliders, a target to drag (IK preview, then the
@@ -411,7 +412,7 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
         }
         Command::Demo(args) => return crate::commands::demo::run(&args, out),
         Command::Retarget(args) => return crate::commands::retarget::run(link, args, out, err),
-        Command::Teleop(args) => return crate::commands::teleop::run(link, args, out, err),
+        Command::Teleop(args) => return teleop::run(link, args, out, err),
         Command::View(args) => return crate::view::run(link, args, out, err),
         Command::Fk { arm, q, json: _ } => {
             let arm = match load_body(&arm)? {
