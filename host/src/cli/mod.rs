@@ -2,6 +2,7 @@
 //!
 //! Every failure is one line on `err` starting with `error:` and a non-zero exit code.
 
+mod doctor;
 pub mod drive;
 mod ik;
 pub mod serve;
@@ -122,7 +123,7 @@ enum Command {
     /// and latency, lost replies, stale goals, the calibration, whether a control cycle fits.
     /// Writes nothing unless --fix. Scans both protocols at the usual baud rates when --protocol
     /// and --baud are not given.
-    Doctor(crate::commands::doctor::DoctorArgs),
+    Doctor(doctor::DoctorArgs),
     /// Calibrate an arm's servos as LeRobot does, each step answered with a line on stdin
     ///
     /// Homing offsets at the middle of each joint's range, the ranges moved through by hand as
@@ -455,7 +456,7 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
         Command::Bench { what: BenchCommand::Mcu(args) } => return crate::commands::bench::mcu::run(&args, out),
         Command::Bench { what: BenchCommand::Pc(args) } => return crate::commands::bench::pc::run(&args, out, err),
         Command::Servo(args) => return crate::cli::servo::run(args, out, err),
-        Command::Doctor(args) => return crate::commands::doctor::run(link, args, out, err),
+        Command::Doctor(args) => return doctor::run(link, args, out, err),
         Command::Calibrate { args, json } => return calibrate(args, json, out, err),
         Command::Ports { json } => {
             let ports = crate::commands::servo::ports::usb_ports(std::path::Path::new("/dev"));
