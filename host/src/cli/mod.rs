@@ -2,6 +2,7 @@
 //!
 //! Every failure is one line on `err` starting with `error:` and a non-zero exit code.
 
+mod demo;
 mod doctor;
 pub mod drive;
 mod ik;
@@ -52,7 +53,7 @@ enum Command {
     /// streamed pick-and-place path, then the report (--json: one line of JSON) and a plot
     /// (demo-ARM.png unless --plot or --no-plot). With --rig: two simulated arms hand an object
     /// over.
-    Demo(crate::commands::demo::DemoArgs),
+    Demo(demo::DemoArgs),
     /// Forward kinematics: the tool's pose and every joint's frame for joint values (JSON)
     ///
     /// For a tree (a URDF with several leaves and no --tip), every end effector's pose.
@@ -411,7 +412,7 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
             }
             return drive::run(link, command, out, err);
         }
-        Command::Demo(args) => return crate::commands::demo::run(&args, out),
+        Command::Demo(args) => return demo::run(&args, out),
         Command::Retarget(args) => return crate::commands::retarget::run(link, args, out, err),
         Command::Teleop(args) => return teleop::run(link, args, out, err),
         Command::View(args) => return crate::view::run(link, args, out, err),
