@@ -2,12 +2,15 @@
 //!
 //! Every failure is one line on `err` starting with `error:` and a non-zero exit code.
 
+mod demo;
+mod doctor;
 pub mod drive;
 mod ik;
 pub mod link;
 pub mod serve;
 pub mod servo;
 pub mod sim;
+mod teleop;
 mod tree;
 pub mod values;
 
@@ -51,7 +54,7 @@ enum Command {
     /// streamed pick-and-place path, then the report (--json: one line of JSON) and a plot
     /// (demo-ARM.png unless --plot or --no-plot). With --rig: two simulated arms hand an object
     /// over.
-    Demo(crate::commands::demo::DemoArgs),
+    Demo(demo::DemoArgs),
     /// Forward kinematics: the tool's pose and every joint's frame for joint values (JSON)
     ///
     /// For a tree (a URDF with several leaves and no --tip), every end effector's pose.
@@ -122,7 +125,7 @@ enum Command {
     /// and latency, lost replies, stale goals, the calibration, whether a control cycle fits.
     /// Writes nothing unless --fix. Scans both protocols at the usual baud rates when --protocol
     /// and --baud are not given.
-    Doctor(crate::commands::doctor::DoctorArgs),
+    Doctor(doctor::DoctorArgs),
     /// Calibrate an arm's servos as LeRobot does, each step answered with a line on stdin
     ///
     /// Homing offsets at the middle of each joint's range, the ranges moved through by hand as
@@ -150,7 +153,7 @@ enum Command {
     /// calibrations to keyframes the follower's firmware plays within its limits. Reports the
     /// loop's rate and latency (--json: one line of JSON); --record writes the session as a
     /// keyframe file for `armctl play`.
-    Teleop(crate::commands::teleop::TeleopArgs),
+    Teleop(teleop::TeleopArgs),
     /// The arm live in a browser, and the same as a JSON API: prints the page's URL
     ///
     /// A local page with the arm in 3D, joint sliders, a target to drag (IK preview, then the
@@ -404,9 +407,9 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
     let command = take_globals(link, command, name)?;
     match command {
         Command::Drive(command) => return drive::run(link, command, out, err),
-        Command::Demo(args) => return crate::commands::demo::run(&args, out),
+        Command::Demo(args) => return demo::run(&args, out),
         Command::Retarget(args) => return crate::commands::retarget::run(link, args, out, err),
-        Command::Teleop(args) => return crate::commands::teleop::run(link, args, out, err),
+        Command::Teleop(args) => return teleop::run(link, args, out, err),
         Command::View(args) => return crate::view::run(link, args, out, err),
         Command::Fk { arm, q, json: _ } => {
             let arm = match load_body(&arm)? {
@@ -449,7 +452,7 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
         Command::Bench { what: BenchCommand::Mcu(args) } => return crate::commands::bench::mcu::run(&args, out),
         Command::Bench { what: BenchCommand::Pc(args) } => return crate::commands::bench::pc::run(&args, out, err),
         Command::Servo(args) => return crate::cli::servo::run(args, out, err),
-        Command::Doctor(args) => return crate::commands::doctor::run(link, args, out, err),
+        Command::Doctor(args) => return doctor::run(link, args, out, err),
         Command::Calibrate { args, json } => return calibrate(args, json, out, err),
         Command::Ports { json } => {
             let ports = crate::commands::servo::ports::usb_ports(std::path::Path::new("/dev"));

@@ -14,22 +14,23 @@
 //! simulated servos on a pseudo-terminal (as `armctl serve --sim`), with a USB adapter's 1 ms
 //! latency and the safety monitor: teleoperation is a real-time loop, which the virtual clock of
 //! the other commands' `--sim` would not pace.
+//!
+//! What this takes is plain: the follower's [`Place`], the leader ([`LeaderSpec`]) and the loop's
+//! checked [`LoopSettings`]; the command line's options become these in `cli::teleop`. Every rig
+//! arm driven by its own leader (`teleop --rig`) is [`crate::rig::teleop`], which runs each pair
+//! through [`session`] and reports it with [`report`].
 
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::Duration;
 
 use anyhow::{bail, Result};
-use clap::Args;
 use serde_json::json;
 
 use crate::arm::ArmSpec;
-use crate::cli::link::LinkArgs;
-use crate::commands::bus_args::ProtocolArg;
+use crate::motion::teleop::leader::LeaderSpec;
 use crate::motion::teleop::stream::{quantile, Figures, Settings};
-use crate::rig::file::LeaderSpec;
-use crate::runtime::connection::calibrated;
-use crate::runtime::connection::{Target, SIM_ADAPTER_LATENCY};
+use crate::runtime::connection::{calibrated, Place, Target, SIM_ADAPTER_LATENCY};
 use crate::runtime::driver::{Driver, Waited};
 use crate::sim::PtyServer;
 use crate::support::interrupt;
@@ -39,215 +40,92 @@ use crate::support::interrupt;
 /// read, the link's delay and the loop's jitter.
 pub const LEAD_MARGIN: Duration = Duration::from_millis(8);
 
-/// `armctl teleop`.
-#[derive(Args, Debug)]
-pub struct TeleopArgs {
-    #[command(flatten)]
-    #[allow(missing_docs)]
-    pub link: LinkArgs,
-    /// The leader arm's serial port (its USB adapter), or `sim`: simulated leader servos, turned by
-    /// --leader-script.
-    #[arg(long, value_name = "PORT|sim")]
-    pub leader: Option<String>,
-    /// The leader's servo protocol [default: that of --leader-arm's servos].
-    #[arg(long, value_enum)]
-    pub leader_protocol: Option<ProtocolArg>,
-    /// The leader arm: a preset or an arm file with a [servos] table.
-    #[arg(long, value_name = "ARM", default_value = "so101")]
-    pub leader_arm: String,
-    /// A LeRobot calibration file (JSON) of the leader's servos.
-    #[arg(long, value_name = "FILE")]
-    pub leader_calibration: Option<PathBuf>,
-    /// The leader bus's baud rate [default: the leader arm file's].
-    #[arg(long)]
-    pub leader_baud: Option<u32>,
-    /// With --leader sim: the path the hand moves the leader along, a joint keyframe file
-    /// (t,q1,...,qN[,gripper], as for `armctl play`), straight from keyframe to keyframe.
-    #[arg(long, value_name = "FILE")]
-    pub leader_script: Option<PathBuf>,
+/// The loop's settings every follower of a session shares, checked before anything is opened.
+#[derive(Clone, Copy, Debug)]
+pub struct LoopSettings {
     /// Keyframes per second.
-    #[arg(long, default_value_t = 100.0)]
     pub rate: f64,
-    /// How long after its reading a keyframe is played on the follower, ms [default: one period
-    /// plus 8].
-    #[arg(long, value_name = "MS")]
-    pub lead_ms: Option<f64>,
-    /// Largest change of a joint from one keyframe to the next, rad (LeRobot's
-    /// max_relative_target) [default: the follower's speed limit over one period].
-    #[arg(long, value_name = "RAD")]
+    /// One keyframe's period, `1 / rate`.
+    pub period: Duration,
+    /// How long after its reading a keyframe is played on the follower.
+    pub lead: Duration,
+    /// Largest change of a joint from one keyframe to the next, rad [default: the follower's
+    /// speed limit over one period].
     pub max_step: Option<f64>,
-    /// End after this many seconds [default: at Ctrl-C; with --leader sim, when the script ends].
-    #[arg(long, value_name = "S")]
+    /// End after this many seconds [default: at Ctrl-C, or when a simulated leader's script ends].
     pub duration: Option<f64>,
-    /// Write the session as a joint keyframe file that `armctl play` replays.
-    #[arg(long, value_name = "FILE.csv")]
-    pub record: Option<PathBuf>,
 }
 
-impl TeleopArgs {
-    /// The loop's settings other than the follower's.
-    fn check(&self) -> Result<(Duration, Duration)> {
-        if !(self.rate.is_finite() && (1.0..=1000.0).contains(&self.rate)) {
-            bail!("--rate: {} must be between 1 and 1000 keyframes per second", self.rate);
+impl LoopSettings {
+    /// The settings from the values a person gives (`lead_ms`: milliseconds, [default: one period
+    /// plus [`LEAD_MARGIN`]]); each out of range is refused, named by its option.
+    pub fn new(rate: f64, lead_ms: Option<f64>, max_step: Option<f64>, duration: Option<f64>) -> Result<LoopSettings> {
+        if !(rate.is_finite() && (1.0..=1000.0).contains(&rate)) {
+            bail!("--rate: {rate} must be between 1 and 1000 keyframes per second");
         }
-        let period = Duration::from_secs_f64(1.0 / self.rate);
-        let lead = match self.lead_ms {
+        let period = Duration::from_secs_f64(1.0 / rate);
+        let lead = match lead_ms {
             Some(ms) if ms.is_finite() && ms > 0.0 && ms <= 1000.0 => Duration::from_secs_f64(ms * 1e-3),
             Some(ms) => bail!("--lead-ms: {ms} must be above 0 and at most 1000"),
             None => period + LEAD_MARGIN,
         };
-        if let Some(step) = self.max_step {
+        if let Some(step) = max_step {
             if !(step.is_finite() && step > 0.0) {
                 bail!("--max-step: {step} must be a positive number of radians");
             }
         }
-        if let Some(d) = self.duration {
+        if let Some(d) = duration {
             if !(d.is_finite() && d > 0.0) {
                 bail!("--duration: {d} must be a positive number of seconds");
             }
         }
-        Ok((period, lead))
-    }
-
-    /// The leader the options name, checked.
-    fn leader(&self) -> Result<LeaderSpec> {
-        let Some(port) = self.leader.clone() else {
-            bail!("--leader PORT|sim is missing: the leader arm's serial port, or sim with --leader-script");
-        };
-        match (port == "sim", &self.leader_script) {
-            (true, None) => {
-                bail!("--leader sim needs --leader-script FILE: the path the simulated hand moves it along")
-            }
-            (false, Some(_)) => bail!("--leader-script moves a simulated leader: it needs --leader sim"),
-            _ => {}
-        }
-        Ok(LeaderSpec {
-            port,
-            protocol: self.leader_protocol.map(Into::into),
-            arm: self.leader_arm.clone(),
-            calibration: self.leader_calibration.clone(),
-            baud: self.leader_baud,
-            script: self.leader_script.clone(),
-        })
+        Ok(LoopSettings { rate, period, lead, max_step, duration })
     }
 }
 
-/// The loop's settings every follower of a session shares.
-#[derive(Clone, Copy, Debug)]
-struct LoopSettings {
-    rate: f64,
-    period: Duration,
-    lead: Duration,
-    max_step: Option<f64>,
-    duration: Option<f64>,
+/// One follower's teleoperation, checked: its leader, the loop, and where to record the session.
+#[derive(Clone, Debug)]
+pub struct TeleopRequest {
+    /// The leader arm.
+    pub leader: LeaderSpec,
+    /// The loop.
+    pub settings: LoopSettings,
+    /// Write the session as a joint keyframe file that `armctl play` replays.
+    pub record: Option<PathBuf>,
 }
 
 /// One leader driving one follower to the end.
-struct Session {
-    figures: Figures,
-    ending: Ending,
-    code: i32,
+pub struct Session {
+    /// The loop's figures.
+    pub figures: Figures,
+    /// How it ended.
+    pub ending: Ending,
+    /// The exit code of bringing the follower to rest (non-zero after Ctrl-C).
+    pub code: i32,
 }
 
-/// Runs `armctl teleop`; returns the exit code.
-pub fn run(link: &LinkArgs, args: TeleopArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
-    // Everything the user typed is checked before anything is opened.
-    let link = link.merged(&args.link)?;
-    if let Some(rig) = &link.rig {
-        return run_rig(rig, &link, &args, out, err);
-    }
-    let (period, lead) = args.check()?;
-    let leader = args.leader()?;
-    let place = link.one_place()?;
+/// Runs `armctl teleop` on the follower at `place`; returns the exit code.
+pub fn run(
+    place: &Place,
+    json: bool,
+    request: &TeleopRequest,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> Result<i32> {
     let (target, arm) = place.target_and_arm()?;
-    if link.object_mm.is_some() {
+    if place.object_mm.is_some() {
         bail!("--object-mm: teleop's simulated follower has no object between its jaws");
     }
-    let settings = LoopSettings { rate: args.rate, period, lead, max_step: args.max_step, duration: args.duration };
+    let settings = &request.settings;
     interrupt::catch();
-    let s = session(target, arm.map(str::to_string), &leader, &settings, args.record.as_deref(), err)?;
-    report(&s.figures, period, lead, &s.ending, link.json, out)?;
+    let s = session(target, arm.map(str::to_string), &request.leader, settings, request.record.as_deref(), err)?;
+    report(&s.figures, settings.period, settings.lead, &s.ending, json, out)?;
     Ok(if s.ending.monitor.is_some_and(|m| m.violation_count > 0) { 1 } else { s.code })
-}
-
-/// `armctl teleop --rig RIG`: every rig arm's leader (its `[arm.leader]`) drives it, each pair in
-/// a loop of its own on a thread of its own, all on the PC's clock; the figures per arm.
-fn run_rig(rig: &str, link: &LinkArgs, args: &TeleopArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
-    link.refuse_beside_rig()?;
-    let given_leader = args.leader.is_some()
-        || args.leader_protocol.is_some()
-        || args.leader_calibration.is_some()
-        || args.leader_baud.is_some()
-        || args.leader_script.is_some();
-    if given_leader {
-        bail!("with --rig, each arm's leader is in the rig file ([arm.leader]): give no --leader options");
-    }
-    if args.record.is_some() {
-        bail!("--record with --rig is not built yet: record each pair with its own `armctl teleop`");
-    }
-    let (period, lead) = args.check()?;
-    let spec = crate::rig::RigSpec::load(rig)?;
-    let mut pairs = Vec::new();
-    for arm in &spec.arms {
-        let Some(leader) = &arm.leader else {
-            bail!(
-                "rig {}: arm {} has no leader: add an [arm.leader] table (port = \"PORT\", or sim = true with script)",
-                spec.name,
-                arm.name
-            );
-        };
-        let (target, follower) = arm.place.target_and_arm()?;
-        pairs.push((arm.name.clone(), target, follower.map(str::to_string), leader.clone()));
-    }
-    let settings = LoopSettings { rate: args.rate, period, lead, max_step: args.max_step, duration: args.duration };
-    interrupt::catch();
-    let results: Vec<(String, Result<Session>, Vec<u8>)> = std::thread::scope(|scope| {
-        let handles: Vec<_> = pairs
-            .into_iter()
-            .map(|(name, target, follower, source)| {
-                scope.spawn(move || {
-                    let mut said = Vec::new();
-                    let result = session(target, follower, &source, &settings, None, &mut said);
-                    (name, result, said)
-                })
-            })
-            .collect();
-        handles.into_iter().map(|h| h.join().expect("a teleop thread panicked")).collect()
-    });
-    let mut code = 0;
-    let mut arms = serde_json::Map::new();
-    let mut failed = Vec::new();
-    for (name, result, said) in results {
-        for line in String::from_utf8_lossy(&said).lines() {
-            writeln!(err, "{name}: {line}")?;
-        }
-        match result {
-            Ok(s) => {
-                if s.ending.monitor.as_ref().is_some_and(|m| m.violation_count > 0) || s.code != 0 {
-                    code = if s.code != 0 { s.code } else { 1 };
-                }
-                if link.json {
-                    arms.insert(name, report_json(&s.figures, period, lead, &s.ending));
-                } else {
-                    writeln!(out, "== {name}")?;
-                    report(&s.figures, period, lead, &s.ending, false, out)?;
-                }
-            }
-            Err(e) => failed.push(format!("{name}: {e:#}")),
-        }
-    }
-    if !failed.is_empty() {
-        bail!("{}", failed.join("; "));
-    }
-    if link.json {
-        writeln!(out, "{}", json!({"rig": spec.name, "arms": arms}))?;
-    }
-    Ok(code)
 }
 
 /// One leader driving one follower (`target`, running `arm` if named) until the duration, the
 /// script's end or Ctrl-C; then the follower brought to rest. What opening said goes to `err`.
-fn session(
+pub fn session(
     target: Target,
     arm: Option<String>,
     source: &LeaderSpec,
@@ -331,17 +209,17 @@ fn session(
 }
 
 /// How a session ended.
-struct Ending {
+pub struct Ending {
     /// The follower's measured joints once at rest (`None` after Ctrl-C).
-    rest: Option<Vec<f64>>,
+    pub rest: Option<Vec<f64>>,
     /// The simulated follower servos' safety monitor.
-    monitor: Option<crate::sim::monitor::MonitorReport>,
+    pub monitor: Option<crate::sim::monitor::MonitorReport>,
     /// The keyframe file written.
-    recorded: Option<PathBuf>,
+    pub recorded: Option<PathBuf>,
 }
 
 /// The session's figures as JSON.
-fn report_json(f: &Figures, period: Duration, lead: Duration, ending: &Ending) -> serde_json::Value {
+pub fn report_json(f: &Figures, period: Duration, lead: Duration, ending: &Ending) -> serde_json::Value {
     let (monitor, recorded) = (ending.monitor.as_ref(), ending.recorded.as_deref());
     let (q50, q99) = (quantile(&f.queued_ms, 0.5), quantile(&f.queued_ms, 0.99));
     let (g50, g99) = (quantile(&f.goal_ms, 0.5), quantile(&f.goal_ms, 0.99));
@@ -361,7 +239,7 @@ fn report_json(f: &Figures, period: Duration, lead: Duration, ending: &Ending) -
 }
 
 /// The session's figures: on `out`, one line of JSON with `json`, else a few lines of text.
-fn report(
+pub fn report(
     f: &Figures,
     period: Duration,
     lead: Duration,

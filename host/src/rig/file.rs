@@ -27,8 +27,8 @@ use anyhow::{bail, Context, Result};
 use kinematics::Pose;
 use serde::Deserialize;
 
+pub use crate::motion::teleop::leader::LeaderSpec;
 use crate::runtime::connection::{calibrated, protocol_named, Place};
-use firmware::bus::Protocol;
 
 /// The rigs built in, by name.
 const PRESETS: [(&str, &str); 1] = [("bimanual-so101", include_str!("../../examples/rigs/bimanual-so101.toml"))];
@@ -75,24 +75,6 @@ struct LeaderEntry {
     calibration: Option<String>,
     protocol: Option<String>,
     baud: Option<u32>,
-}
-
-/// A leader arm, as `armctl teleop`'s `--leader*` options name it for one follower, or a rig
-/// file's `[arm.leader]` for each rig arm (`armctl teleop --rig`).
-#[derive(Clone, Debug, PartialEq)]
-pub struct LeaderSpec {
-    /// Its serial port, or `sim` (simulated leader servos turned by `script`).
-    pub port: String,
-    /// With `sim`: the path the simulated hand moves it along (a joint keyframe file).
-    pub script: Option<PathBuf>,
-    /// The leader arm: a preset or an arm file [default: so101].
-    pub arm: String,
-    /// Its LeRobot calibration file.
-    pub calibration: Option<PathBuf>,
-    /// Its servo protocol [default: its servos'].
-    pub protocol: Option<Protocol>,
-    /// Its bus's baud rate [default: its arm file's].
-    pub baud: Option<u32>,
 }
 
 /// One arm of a rig.

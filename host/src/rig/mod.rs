@@ -7,13 +7,17 @@
 //!   clock ([`crate::runtime::sil::group`]), so their cores run in step as two boards would.
 //! - [`commands`]: `armctl --rig FILE status|stop|torque|move|play`.
 //! - [`columns`]: a keyframe file with every arm's columns, split into one file per arm.
+//! - [`teleop`]: `armctl teleop --rig`, every arm driven by its own leader.
+//! - [`handover`]: `armctl demo --rig`, two simulated arms handing an object over.
 //! - [`tree`]: a rig whose arms are mounted on one another (a shared joint) as one kinematic tree.
 
 pub mod columns;
 pub mod commands;
 pub mod file;
+pub mod handover;
 pub mod play;
 pub mod report;
+pub mod teleop;
 pub mod tree;
 
 use std::io::Write;

@@ -9,9 +9,12 @@
 //! - [`scenario`]: the targets and the path, drawn from the arm's reachable workspace.
 //! - [`grasp`]: how the pick went, read from the recorded ticks.
 //! - [`run`](self::run): the run, its measurements and the report.
+//!
+//! It takes a plain [`DemoRequest`]; the command line's options become one in `cli::demo`. The
+//! second scene, two arms of a rig handing the object over (`demo --rig`), is
+//! [`crate::rig::handover`], which measures its grasps as [`grasp`] does.
 
 pub mod grasp;
-pub mod handover;
 pub mod plot;
 mod scenario;
 
@@ -19,8 +22,7 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{anyhow, bail, Context, Result};
-use clap::Args;
+use anyhow::{anyhow, Context, Result};
 use firmware::link::message::{CartesianKeyframe, CartesianTarget, MovePath, Timing};
 use serde_json::{json, Value};
 
@@ -37,27 +39,26 @@ use scenario::Scenario;
 /// The demo's arm when `--arm` is not given.
 pub const DEFAULT_ARM: &str = "so101";
 
-/// `armctl demo` options.
-#[derive(Args, Debug)]
-pub struct DemoArgs {
-    /// The simulated arm: a preset with servos (so101 on a Feetech STS3215 bus,
-    /// open-manipulator-x on a Dynamixel XM430 bus) or an arm file with a [servos] table
-    /// [default: so101].
-    #[arg(long, conflicts_with = "rig")]
+/// Where the demo's plot goes.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub enum PlotTo {
+    /// `demo-ARM.png` in the current directory.
+    #[default]
+    Default,
+    /// This file.
+    File(PathBuf),
+    /// No plot.
+    Nowhere,
+}
+
+/// What `armctl demo` runs.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DemoRequest {
+    /// The simulated arm: a preset with servos or an arm file with a [servos] table [default:
+    /// [`DEFAULT_ARM`]].
     pub arm: Option<String>,
-    /// The second scene: a rig of simulated arms (bimanual-so101, or a rig file of two
-    /// simulated arms with grippers) hands an object from the first arm to the second.
-    #[arg(long, value_name = "RIG")]
-    pub rig: Option<String>,
-    /// Where to write the PNG plot (default demo-ARM.png in the current directory).
-    #[arg(long)]
-    plot: Option<PathBuf>,
-    /// Do not write a plot.
-    #[arg(long, conflicts_with = "plot")]
-    no_plot: bool,
-    /// Print the results as one line of JSON instead of the text report.
-    #[arg(long)]
-    pub json: bool,
+    /// Where the plot goes.
+    pub plot: PlotTo,
 }
 
 /// One point-to-point move's outcome.
@@ -267,19 +268,10 @@ fn fmt3(p: [f64; 3]) -> String {
     format!("{:7.4} {:7.4} {:7.4}", p[0], p[1], p[2])
 }
 
-/// Runs `armctl demo`.
-pub fn run(args: &DemoArgs, out: &mut dyn Write) -> Result<i32> {
-    if args.arm.is_some() && args.rig.is_some() {
-        bail!("--arm and --rig exclude each other: the rig file names its arms");
-    }
-    if let Some(rig) = &args.rig {
-        if args.plot.is_some() {
-            bail!("--plot draws the one-arm demo; the handover (--rig) has no plot yet");
-        }
-        return handover::run(rig, args.json, out);
-    }
+/// Runs `armctl demo`: the report on `out`, as one line of JSON with `json`; returns the exit code.
+pub fn run(request: &DemoRequest, json: bool, out: &mut dyn Write) -> Result<i32> {
     let wall = Instant::now();
-    let options = SilOptions::new(args.arm.as_deref().unwrap_or(DEFAULT_ARM))?;
+    let options = SilOptions::new(request.arm.as_deref().unwrap_or(DEFAULT_ARM))?;
     let mut board = Sil::new(&options)?;
     board.record();
     let mut d = Driver::on(open_sil(board, options.arm.clone())?)?;
@@ -296,8 +288,11 @@ pub fn run(args: &DemoArgs, out: &mut dyn Write) -> Result<i32> {
     let streamed = pick_and_place(&mut d, arm.as_ref(), &scenario, &mut trace)?;
     let status = d.status()?;
     trace.extend(sil(&mut d)?.take_trace());
-    let plot_path = (!args.no_plot)
-        .then(|| args.plot.clone().unwrap_or_else(|| PathBuf::from(format!("demo-{}.png", arm.spec().name))));
+    let plot_path = match &request.plot {
+        PlotTo::Default => Some(PathBuf::from(format!("demo-{}.png", arm.spec().name))),
+        PlotTo::File(path) => Some(path.clone()),
+        PlotTo::Nowhere => None,
+    };
     if let Some(path) = &plot_path {
         let phases = vec![(t_targets, "move to targets".to_string()), (t_stream, "pick and place".to_string())];
         plot(path, arm.as_ref(), &scenario, &trace, phases)?;
@@ -317,7 +312,7 @@ pub fn run(args: &DemoArgs, out: &mut dyn Write) -> Result<i32> {
         options.bus_baud
     );
     let wall_s = wall.elapsed().as_secs_f64();
-    if args.json {
+    if json {
         let targets: Vec<Value> = reached
             .iter()
             .map(|r| {

@@ -26,7 +26,6 @@ use std::io::Write;
 use std::path::Path;
 
 use anyhow::{bail, Result};
-use clap::Args;
 use firmware::bus::master::BusConfig;
 use firmware::bus::{Id, Protocol};
 use serde_json::{json, Value};
@@ -35,43 +34,19 @@ use self::checks::Expected;
 use self::finding::{counts, Finding, Level};
 use self::line::LineReport;
 use self::survey::Reading;
-use crate::cli::link::LinkArgs;
+use crate::runtime::connection::Place;
 use crate::runtime::pc::timing::margins;
 use crate::runtime::servo_session::Session;
 
-/// `armctl doctor`'s options. The bus, protocol, baud, arm, calibration and `--json` are the drive
-/// options' own, and may come before the command as well.
-#[derive(Args, Debug)]
-pub struct DoctorArgs {
-    /// The servos' USB adapter (`armctl ports` lists them).
-    #[arg(long, value_name = "PORT")]
-    bus: Option<String>,
-    /// The servos' protocol, sts (Feetech) or dxl2 (Dynamixel 2.0) (default: both are tried).
-    #[arg(long, value_enum)]
-    protocol: Option<crate::commands::bus_args::ProtocolArg>,
-    /// The servos' baud rate (default: the usual rates are tried, the arm file's first).
-    #[arg(long)]
-    baud: Option<u32>,
-    /// The arm the servos should make up (a preset or an arm file with a [servos] table): its ids
-    /// and model are checked (default: whatever answers among ids 0 to 20).
-    #[arg(long = "arm", value_name = "ARM")]
-    arm: Option<String>,
-    /// A LeRobot calibration file (JSON) to check the servos' homing offsets and limits against.
-    #[arg(long, value_name = "FILE")]
-    calibration: Option<std::path::PathBuf>,
-    /// One line of JSON: the bus, every servo's readings, the line's counts and the findings.
-    #[arg(long)]
-    json: bool,
-    /// Offer the safe fixes (return delay 0, status return level, stale goals to the present
-    /// position, the adapter's latency timer), each confirmed on stdin.
-    #[arg(long)]
-    fix: bool,
-    /// With --fix: apply every safe fix without asking.
-    #[arg(long, requires = "fix")]
-    yes: bool,
+/// What `armctl doctor` does beyond looking: the safe fixes, and how long it listens to the line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DoctorRequest {
+    /// Offer the safe fixes ([`fix`]), each confirmed on stdin.
+    pub fix: bool,
+    /// With `fix`: apply every safe fix without asking.
+    pub yes: bool,
     /// Sync reads for the error rate (without retries).
-    #[arg(long, default_value_t = line::DEFAULT_READS, value_parser = clap::value_parser!(u32).range(10..=100_000))]
-    reads: u32,
+    pub reads: u32,
 }
 
 /// What one look at the bus found.
@@ -81,44 +56,30 @@ struct Look {
     findings: Vec<Finding>,
 }
 
-/// Runs the doctor; exit code 1 when a finding is FAIL.
-pub fn run(before: &LinkArgs, args: DoctorArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
-    let after = LinkArgs {
-        bus: args.bus.clone(),
-        protocol: args.protocol,
-        baud: args.baud,
-        arm: args.arm.clone(),
-        calibration: args.calibration.clone(),
-        json: args.json,
-        ..LinkArgs::default()
-    };
-    let link = before.merged(&after)?;
-    let refused: Vec<&str> = [
-        (link.port.is_some(), "--port"),
-        (link.sim, "--sim"),
-        (link.rig.is_some(), "--rig"),
-        (link.object_mm.is_some(), "--object-mm"),
-    ]
-    .into_iter()
-    .filter_map(|(given, name)| given.then_some(name))
-    .collect();
-    if !refused.is_empty() {
-        bail!("doctor looks at servos on a USB adapter (--bus PORT): {} is not for it", refused.join(", "));
-    }
-    let Some(path) = link.bus.clone() else {
+/// Runs the doctor on the servos of `place`'s bus (its protocol, baud, arm and calibration, when
+/// given, narrow what is scanned and checked; a board's port or the simulation are the command
+/// line's to refuse); exit code 1 when a finding is FAIL.
+pub fn run(
+    place: &Place,
+    json: bool,
+    request: &DoctorRequest,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> Result<i32> {
+    let Some(path) = place.bus.clone() else {
         bail!("doctor needs --bus PORT: the serial port of the servos' USB adapter (armctl ports lists them)");
     };
-    let expected = match &link.arm {
+    let expected = match &place.arm {
         Some(arm) => Some(expected_of(arm)?),
         None => None,
     };
     // A bad calibration file is refused before the bus is touched.
-    let calibration = match &link.calibration {
+    let calibration = match &place.calibration {
         Some(file) => Some((file.clone(), crate::commands::servo::calibration::read_file(file)?)),
         None => None,
     };
-    let preferred = expected.as_ref().map(|e| (e.expected.model.protocol, link.baud.unwrap_or(e.baud)));
-    let pairs = discover::candidates(link.protocol.map(Into::into), link.baud, preferred);
+    let preferred = expected.as_ref().map(|e| (e.expected.model.protocol, place.baud.unwrap_or(e.baud)));
+    let pairs = discover::candidates(place.protocol, place.baud, preferred);
     let ids: Vec<Id> = match &expected {
         Some(e) => {
             let mut ids: Vec<Id> = e.expected.servos.iter().map(|(i, _)| *i).chain([1]).collect();
@@ -149,7 +110,7 @@ pub fn run(before: &LinkArgs, args: DoctorArgs, out: &mut dyn Write, err: &mut d
              and the grounds are common, the adapter's mode jumper, and --protocol/--baud",
         )];
         findings.extend(line::adapter(&LineReport { echo, ..LineReport::default() }));
-        return report(&path, None, None, &[], &findings, &[], link.json, out);
+        return report(&path, None, None, &[], &findings, &[], json, out);
     };
     writeln!(
         err,
@@ -207,9 +168,9 @@ pub fn run(before: &LinkArgs, args: DoctorArgs, out: &mut dyn Write, err: &mut d
         }
         Ok(Look { readings, line, findings })
     };
-    let mut state = look(&mut session, args.reads)?;
+    let mut state = look(&mut session, request.reads)?;
     let mut fixed = Vec::new();
-    if args.fix {
+    if request.fix {
         let stdin = std::io::stdin();
         let mut input = stdin.lock();
         let offered = fix::fixes(&state.readings, &state.line);
@@ -217,7 +178,7 @@ pub fn run(before: &LinkArgs, args: DoctorArgs, out: &mut dyn Write, err: &mut d
             writeln!(err, "nothing to fix: no safe fix applies")?;
         }
         for f in &offered {
-            if !fix::confirm(f, args.yes, &mut input, err)? {
+            if !fix::confirm(f, request.yes, &mut input, err)? {
                 continue;
             }
             match fix::apply(&mut session, f) {
@@ -230,10 +191,10 @@ pub fn run(before: &LinkArgs, args: DoctorArgs, out: &mut dyn Write, err: &mut d
         }
         if !fixed.is_empty() {
             writeln!(err, "looking again")?;
-            state = look(&mut session, args.reads)?;
+            state = look(&mut session, request.reads)?;
         }
     }
-    report(&path, Some(&found), Some(&state.line), &state.readings, &state.findings, &fixed, link.json, out)
+    report(&path, Some(&found), Some(&state.line), &state.readings, &state.findings, &fixed, json, out)
 }
 
 /// The arm file's servos, named.

@@ -6,6 +6,11 @@
 //! by default). The ticks become angles through the leader's own mapping: its LeRobot calibration
 //! when one is given, else the nominal one of its arm file. The follower's firmware maps the angles
 //! back to its own servos' ticks through its calibration, so a position passes through both.
+//!
+//! Where a leader is ([`LeaderSpec`]) lives here, beside the reading, so that `armctl teleop`'s
+//! options and a rig file's `[arm.leader]` name it the same way without one importing the other.
+
+use std::path::PathBuf;
 
 use anyhow::{anyhow, bail, Context, Result};
 use firmware::bus::mapping::JointMapping;
@@ -18,6 +23,24 @@ use crate::arm::ArmSpec;
 use crate::link::serial::{SerialTransport, StdClock};
 use crate::runtime::pc::{timing, SEARCH_MARGIN_US};
 use crate::runtime::servo_session::{Port, Session};
+
+/// A leader arm, as `armctl teleop`'s `--leader*` options name it for one follower, or a rig
+/// file's `[arm.leader]` for each rig arm (`armctl teleop --rig`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct LeaderSpec {
+    /// Its serial port, or `sim` (simulated leader servos turned by `script`).
+    pub port: String,
+    /// With `sim`: the path the simulated hand moves it along (a joint keyframe file).
+    pub script: Option<PathBuf>,
+    /// The leader arm: a preset or an arm file [default: so101].
+    pub arm: String,
+    /// Its LeRobot calibration file.
+    pub calibration: Option<PathBuf>,
+    /// Its servo protocol [default: its servos'].
+    pub protocol: Option<Protocol>,
+    /// Its bus's baud rate [default: its arm file's].
+    pub baud: Option<u32>,
+}
 
 /// One reading of the leader.
 #[derive(Clone, Debug, PartialEq)]

@@ -22,8 +22,8 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use serde_json::json;
 
+use super::{columns, play, Rig, RigSpec};
 use crate::arm::servos::GripperSpec;
-use crate::rig::{columns, play, Rig, RigSpec};
 use crate::runtime::connection::Target;
 use crate::runtime::sil::TraceSample;
 use crate::sim::Scene;
