@@ -7,6 +7,7 @@ mod ik;
 pub mod serve;
 pub mod servo;
 pub mod sim;
+mod trajectory;
 mod tree;
 pub mod values;
 
@@ -167,7 +168,7 @@ enum Command {
 enum TrajectoryCommand {
     /// Interpolate a keyframe CSV file and sample it at a fixed rate (CSV `t,q...,v...,a...` on
     /// stdout, or one line of JSON with --json).
-    Sample(crate::motion::sample::SampleArgs),
+    Sample(trajectory::SampleArgs),
 }
 
 #[derive(Subcommand, Debug)]
@@ -474,7 +475,7 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
         Command::Sim(args) => return sim::run(args, out, err),
         Command::Serve(args) => return serve::run(args, out, err),
         Command::Trajectory { what: TrajectoryCommand::Sample(args) } => {
-            return crate::motion::sample::run(&args, out, err)
+            return crate::motion::sample::run(&args.request(), out, err)
         }
         Command::Bench { what: BenchCommand::Ik { arm, n, scalar, seed, no_k, json: _ } } => {
             if n == 0 {
