@@ -3,6 +3,7 @@
 //! Every failure is one line on `err` starting with `error:` and a non-zero exit code.
 
 pub mod drive;
+mod footprint;
 mod ik;
 pub mod serve;
 pub mod servo;
@@ -91,7 +92,7 @@ enum Command {
     ///
     /// Builds the board binaries (or reads --elf) and measures the stack under QEMU unless
     /// --no-qemu. Needs an armctl built with the board-tools feature.
-    Footprint(crate::commands::footprint::FootprintArgs),
+    Footprint(footprint::FootprintArgs),
     /// Simulated servos on a pseudo-terminal (sim servos), or the firmware under QEMU (sim --qemu)
     Sim(sim::SimArgs),
     /// Joint trajectories through keyframes: sampled at a fixed rate (trajectory sample)
@@ -451,7 +452,7 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
         Command::Ik(args) => return ik::run(&args, out, err),
         Command::Bench { what: BenchCommand::Bus(args) } => return crate::commands::bench::bus::run(&args, out),
         Command::Bench { what: BenchCommand::Rate(args) } => return crate::commands::bench::rate::run(&args, out),
-        Command::Footprint(args) => return crate::commands::footprint::run(&args, out, err),
+        Command::Footprint(args) => return crate::commands::footprint::run(&args.request(), out, err),
         Command::Bench { what: BenchCommand::Mcu(args) } => return crate::commands::bench::mcu::run(&args, out),
         Command::Bench { what: BenchCommand::Pc(args) } => return crate::commands::bench::pc::run(&args, out, err),
         Command::Servo(args) => return crate::cli::servo::run(args, out, err),

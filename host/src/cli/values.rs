@@ -1,11 +1,12 @@
 //! Enums of the layers beneath on the command line: they know no clap (`armctl-arm` is its own
 //! crate, `commands` and `motion` are front-end neutral), so each lists its names and help in a
-//! `NAMES` table ([`Scalar::NAMES`], [`SolverName::NAMES`], [`Method::NAMES`], [`Ends::NAMES`])
-//! and offers them to clap here.
+//! `NAMES` table ([`Scalar::NAMES`], [`SolverName::NAMES`], [`Method::NAMES`], [`Ends::NAMES`],
+//! [`Board::NAMES`]) and offers them to clap here.
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 
 use crate::arm::dof::{Scalar, SolverName};
+use crate::commands::footprint::Board;
 use crate::motion::trajectory::{Ends, Method};
 
 /// A value by one of the names of `names` (each `(name, value, help)`), as clap's `ValueEnum`
@@ -40,4 +41,9 @@ pub fn method() -> impl TypedValueParser<Value = Method> {
 /// `armctl trajectory sample --ends zero|natural`.
 pub fn ends() -> impl TypedValueParser<Value = Ends> {
     named(&Ends::NAMES)
+}
+
+/// `armctl footprint --board mps2-an386|stm32f411`.
+pub fn board() -> impl TypedValueParser<Value = Board> {
+    named(&Board::NAMES)
 }
