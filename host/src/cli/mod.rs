@@ -2,6 +2,7 @@
 //!
 //! Every failure is one line on `err` starting with `error:` and a non-zero exit code.
 
+mod bench;
 pub mod drive;
 mod footprint;
 mod ik;
@@ -16,7 +17,7 @@ use crate::arm::body::Body;
 use crate::arm::dof::{self, DynArm, Scalar};
 use crate::arm::dyn_tree::DynTree;
 use crate::arm::ArmSpec;
-use crate::commands::bench::ik::{self as bench, Protocol};
+use crate::commands::bench::ik::{self as ik_bench, Protocol};
 use crate::commands::drive::args::LinkArgs;
 use crate::support::numbers as parse;
 use anyhow::{bail, Result};
@@ -197,18 +198,18 @@ enum BenchCommand {
     },
     /// Wire time of one control cycle (sync write goals + sync read positions), computed and
     /// simulated with the firmware's cycle against simulated servos.
-    Bus(crate::commands::bench::bus::BusBenchArgs),
+    Bus(bench::BusBenchArgs),
     /// Control rate of the firmware's controller (6 servos, a joint move in progress) against
     /// simulated servos on the virtual clock, ticking back to back and on its fixed period,
     /// compared with the bus's wire-time limit. Compute time is free on the virtual clock.
-    Rate(crate::commands::bench::rate::RateBenchArgs),
+    Rate(bench::RateBenchArgs),
     /// Instructions per operation on the Cortex-M4F (FK, IK, player tick, bus packets), counted by
     /// the firmware's `opcount` binary under `qemu-system-arm -icount shift=0`.
-    Mcu(crate::commands::bench::mcu::McuBenchArgs),
+    Mcu(bench::McuBenchArgs),
     /// Control rate and bus time per tick of the firmware core hosted on this PC (as --bus runs it) against
     /// simulated servos on a pseudo-terminal in real time, with or without a USB adapter's burst
     /// latency.
-    Pc(crate::commands::bench::pc::PcBenchArgs),
+    Pc(bench::PcBenchArgs),
 }
 
 #[derive(Args, Debug)]
@@ -450,11 +451,17 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
             print_json(out, &json!({"arm": arm.spec().name, "jacobian": arm.jacobian(&q)?}))?;
         }
         Command::Ik(args) => return ik::run(&args, out, err),
-        Command::Bench { what: BenchCommand::Bus(args) } => return crate::commands::bench::bus::run(&args, out),
-        Command::Bench { what: BenchCommand::Rate(args) } => return crate::commands::bench::rate::run(&args, out),
+        Command::Bench { what: BenchCommand::Bus(args) } => {
+            return crate::commands::bench::bus::run(&args.request()?, out)
+        }
+        Command::Bench { what: BenchCommand::Rate(args) } => {
+            return crate::commands::bench::rate::run(&args.request()?, out)
+        }
         Command::Footprint(args) => return crate::commands::footprint::run(&args.request(), out, err),
-        Command::Bench { what: BenchCommand::Mcu(args) } => return crate::commands::bench::mcu::run(&args, out),
-        Command::Bench { what: BenchCommand::Pc(args) } => return crate::commands::bench::pc::run(&args, out, err),
+        Command::Bench { what: BenchCommand::Mcu(args) } => return crate::commands::bench::mcu::run(args.json, out),
+        Command::Bench { what: BenchCommand::Pc(args) } => {
+            return crate::commands::bench::pc::run(&args.request()?, out, err)
+        }
         Command::Servo(args) => return crate::cli::servo::run(args, out, err),
         Command::Doctor(args) => return crate::commands::doctor::run(link, args, out, err),
         Command::Calibrate { args, json } => return calibrate(args, json, out, err),
@@ -483,7 +490,7 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
                 bail!("--n must be at least 1");
             }
             let arm = load(&arm)?;
-            let report = bench::run(arm.as_ref(), &Protocol { n, scalar, seed, with_k: !no_k })?;
+            let report = ik_bench::run(arm.as_ref(), &Protocol { n, scalar, seed, with_k: !no_k })?;
             for s in &report.solvers {
                 writeln!(
                     err,
