@@ -3,6 +3,7 @@
 //! Every failure is one line on `err` starting with `error:` and a non-zero exit code.
 
 mod bench;
+mod calibrate;
 pub mod drive;
 mod footprint;
 mod ik;
@@ -132,7 +133,7 @@ enum Command {
     /// (--lerobot-json).
     Calibrate {
         #[command(flatten)]
-        args: crate::commands::servo::calibrate::CalibrateArgs,
+        args: calibrate::CalibrateArgs,
         /// The dialog (steps, live table, results) on stderr instead, and on stdout one line of
         /// JSON once done: the files written, each joint's limits (rad) and the calibration as
         /// LeRobot's file has it.
@@ -464,7 +465,7 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
         }
         Command::Servo(args) => return crate::cli::servo::run(args, out, err),
         Command::Doctor(args) => return crate::commands::doctor::run(link, args, out, err),
-        Command::Calibrate { args, json } => return calibrate(args, json, out, err),
+        Command::Calibrate { args, json } => return calibrate::run(args.request()?, json, out, err),
         Command::Ports { json } => {
             let ports = crate::commands::servo::ports::usb_ports(std::path::Path::new("/dev"));
             if json {
@@ -521,54 +522,6 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
         }
     }
     Ok(0)
-}
-
-/// `armctl calibrate`; with `json`, the dialog goes to `err` and its outcome, read back from the
-/// arm file written, to `out` as one line of JSON.
-fn calibrate(
-    args: crate::commands::servo::calibrate::CalibrateArgs,
-    json: bool,
-    out: &mut dyn Write,
-    err: &mut dyn Write,
-) -> Result<i32> {
-    use crate::arm::calibration::{lerobot, record};
-    if !json {
-        return crate::commands::servo::calibrate::run(args, out, err);
-    }
-    /// One writer shared by the dialog's two streams.
-    struct Shared<'a, 'b>(&'a std::cell::RefCell<&'b mut dyn Write>);
-    impl Write for Shared<'_, '_> {
-        fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-            self.0.borrow_mut().write(buf)
-        }
-        fn flush(&mut self) -> std::io::Result<()> {
-            self.0.borrow_mut().flush()
-        }
-    }
-    let (written, lerobot_json) = (args.out.clone(), args.lerobot_json.clone());
-    let shared = std::cell::RefCell::new(err);
-    let code = crate::commands::servo::calibrate::run(args, &mut Shared(&shared), &mut Shared(&shared))?;
-    let arm = ArmSpec::load(&written.display().to_string(), None)?;
-    let servos = crate::arm::servos::servos_of(&arm)
-        .ok_or_else(|| anyhow::anyhow!("{} has no [servos] table after calibrating", written.display()))?;
-    let file = record::lerobot_file(
-        &arm,
-        servos.calibration.as_deref().unwrap_or_default(),
-        servos.gripper_calibration.as_ref(),
-    );
-    let calibration: Value = serde_json::from_str(&lerobot::to_text(&file))?;
-    let joints: Vec<Value> =
-        arm.joints.iter().map(|j| json!({"name": j.name, "lower": j.lower, "upper": j.upper})).collect();
-    print_json(
-        out,
-        &json!({
-            "out": written.display().to_string(),
-            "lerobot_json": lerobot_json.map(|p| p.display().to_string()),
-            "joints": joints,
-            "calibration": calibration,
-        }),
-    )?;
-    Ok(code)
 }
 
 fn vec3(p: &kinematics::Pose<f64>) -> [f64; 3] {
