@@ -4,10 +4,8 @@
 
 use std::path::PathBuf;
 
-use armctl::commands::bus_args::ProtocolArg;
-use armctl::commands::servo::calibrate::{run, CalibrateArgs};
+use armctl::commands::servo::calibrate::{run, CalibrateRequest, DEFAULT_TIMEOUT_MS};
 use armctl::runtime::connection::protocol_named;
-use firmware::bus::Protocol;
 use pyo3::prelude::*;
 
 use crate::errors::{to_py, OrRaise};
@@ -26,23 +24,19 @@ pub fn calibrate(
     lerobot_json: Option<PathBuf>,
     baud: Option<u32>,
 ) -> PyResult<()> {
-    let protocol = match protocol_named(protocol).or_raise()? {
-        Protocol::Feetech => ProtocolArg::Sts,
-        Protocol::Dxl2 => ProtocolArg::Dxl2,
-    };
-    let args = CalibrateArgs {
-        bus: Some(bus),
-        protocol: Some(protocol),
+    let request = CalibrateRequest {
+        bus,
+        protocol: protocol_named(protocol).or_raise()?,
         baud,
-        arm: Some(arm),
+        arm,
         out,
         lerobot_json,
-        timeout_ms: 10,
+        timeout_ms: DEFAULT_TIMEOUT_MS,
     };
     let code = py
         .detach(|| {
             let (mut out, mut err) = (std::io::stdout(), std::io::stderr());
-            run(args, &mut out, &mut err)
+            run(request, &mut out, &mut err)
         })
         .or_raise()?;
     match code {

@@ -2,15 +2,19 @@
 //!
 //! Every failure is one line on `err` starting with `error:` and a non-zero exit code.
 
+mod bench;
+mod calibrate;
 mod demo;
 mod doctor;
 pub mod drive;
+mod footprint;
 mod ik;
 pub mod link;
 pub mod serve;
 pub mod servo;
 pub mod sim;
 mod teleop;
+mod trajectory;
 mod tree;
 pub mod values;
 
@@ -18,7 +22,7 @@ use crate::arm::body::Body;
 use crate::arm::dof::{self, DynArm, Scalar};
 use crate::arm::dyn_tree::DynTree;
 use crate::arm::ArmSpec;
-use crate::commands::bench::ik::{self as bench, Protocol};
+use crate::commands::bench::ik::{self as ik_bench, Protocol};
 use crate::support::numbers as parse;
 use anyhow::{bail, Result};
 use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand};
@@ -94,7 +98,7 @@ enum Command {
     ///
     /// Builds the board binaries (or reads --elf) and measures the stack under QEMU unless
     /// --no-qemu. Needs an armctl built with the board-tools feature.
-    Footprint(crate::commands::footprint::FootprintArgs),
+    Footprint(footprint::FootprintArgs),
     /// Simulated servos on a pseudo-terminal (sim servos), or the firmware under QEMU (sim --qemu)
     Sim(sim::SimArgs),
     /// Joint trajectories through keyframes: sampled at a fixed rate (trajectory sample)
@@ -133,7 +137,7 @@ enum Command {
     /// (--lerobot-json).
     Calibrate {
         #[command(flatten)]
-        args: crate::commands::servo::calibrate::CalibrateArgs,
+        args: calibrate::CalibrateArgs,
         /// The dialog (steps, live table, results) on stderr instead, and on stdout one line of
         /// JSON once done: the files written, each joint's limits (rad) and the calibration as
         /// LeRobot's file has it.
@@ -171,7 +175,7 @@ enum Command {
 enum TrajectoryCommand {
     /// Interpolate a keyframe CSV file and sample it at a fixed rate (CSV `t,q...,v...,a...` on
     /// stdout, or one line of JSON with --json).
-    Sample(crate::motion::sample::SampleArgs),
+    Sample(trajectory::SampleArgs),
 }
 
 #[derive(Subcommand, Debug)]
@@ -199,18 +203,18 @@ enum BenchCommand {
     },
     /// Wire time of one control cycle (sync write goals + sync read positions), computed and
     /// simulated with the firmware's cycle against simulated servos.
-    Bus(crate::commands::bench::bus::BusBenchArgs),
+    Bus(bench::BusBenchArgs),
     /// Control rate of the firmware's controller (6 servos, a joint move in progress) against
     /// simulated servos on the virtual clock, ticking back to back and on its fixed period,
     /// compared with the bus's wire-time limit. Compute time is free on the virtual clock.
-    Rate(crate::commands::bench::rate::RateBenchArgs),
+    Rate(bench::RateBenchArgs),
     /// Instructions per operation on the Cortex-M4F (FK, IK, player tick, bus packets), counted by
     /// the firmware's `opcount` binary under `qemu-system-arm -icount shift=0`.
-    Mcu(crate::commands::bench::mcu::McuBenchArgs),
+    Mcu(bench::McuBenchArgs),
     /// Control rate and bus time per tick of the firmware core hosted on this PC (as --bus runs it) against
     /// simulated servos on a pseudo-terminal in real time, with or without a USB adapter's burst
     /// latency.
-    Pc(crate::commands::bench::pc::PcBenchArgs),
+    Pc(bench::PcBenchArgs),
 }
 
 #[derive(Args, Debug)]
@@ -446,14 +450,20 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
             print_json(out, &json!({"arm": arm.spec().name, "jacobian": arm.jacobian(&q)?}))?;
         }
         Command::Ik(args) => return ik::run(&args, out, err),
-        Command::Bench { what: BenchCommand::Bus(args) } => return crate::commands::bench::bus::run(&args, out),
-        Command::Bench { what: BenchCommand::Rate(args) } => return crate::commands::bench::rate::run(&args, out),
-        Command::Footprint(args) => return crate::commands::footprint::run(&args, out, err),
-        Command::Bench { what: BenchCommand::Mcu(args) } => return crate::commands::bench::mcu::run(&args, out),
-        Command::Bench { what: BenchCommand::Pc(args) } => return crate::commands::bench::pc::run(&args, out, err),
+        Command::Bench { what: BenchCommand::Bus(args) } => {
+            return crate::commands::bench::bus::run(&args.request()?, out)
+        }
+        Command::Bench { what: BenchCommand::Rate(args) } => {
+            return crate::commands::bench::rate::run(&args.request()?, out)
+        }
+        Command::Footprint(args) => return crate::commands::footprint::run(&args.request(), out, err),
+        Command::Bench { what: BenchCommand::Mcu(args) } => return crate::commands::bench::mcu::run(args.json, out),
+        Command::Bench { what: BenchCommand::Pc(args) } => {
+            return crate::commands::bench::pc::run(&args.request()?, out, err)
+        }
         Command::Servo(args) => return crate::cli::servo::run(args, out, err),
         Command::Doctor(args) => return doctor::run(link, args, out, err),
-        Command::Calibrate { args, json } => return calibrate(args, json, out, err),
+        Command::Calibrate { args, json } => return calibrate::run(args.request()?, json, out, err),
         Command::Ports { json } => {
             let ports = crate::commands::servo::ports::usb_ports(std::path::Path::new("/dev"));
             if json {
@@ -472,14 +482,14 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
         Command::Sim(args) => return sim::run(args, out, err),
         Command::Serve(args) => return serve::run(args, out, err),
         Command::Trajectory { what: TrajectoryCommand::Sample(args) } => {
-            return crate::motion::sample::run(&args, out, err)
+            return crate::motion::sample::run(&args.request(), out, err)
         }
         Command::Bench { what: BenchCommand::Ik { arm, n, scalar, seed, no_k, json: _ } } => {
             if n == 0 {
                 bail!("--n must be at least 1");
             }
             let arm = load(&arm)?;
-            let report = bench::run(arm.as_ref(), &Protocol { n, scalar, seed, with_k: !no_k })?;
+            let report = ik_bench::run(arm.as_ref(), &Protocol { n, scalar, seed, with_k: !no_k })?;
             for s in &report.solvers {
                 writeln!(
                     err,
@@ -510,54 +520,6 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
         }
     }
     Ok(0)
-}
-
-/// `armctl calibrate`; with `json`, the dialog goes to `err` and its outcome, read back from the
-/// arm file written, to `out` as one line of JSON.
-fn calibrate(
-    args: crate::commands::servo::calibrate::CalibrateArgs,
-    json: bool,
-    out: &mut dyn Write,
-    err: &mut dyn Write,
-) -> Result<i32> {
-    use crate::arm::calibration::{lerobot, record};
-    if !json {
-        return crate::commands::servo::calibrate::run(args, out, err);
-    }
-    /// One writer shared by the dialog's two streams.
-    struct Shared<'a, 'b>(&'a std::cell::RefCell<&'b mut dyn Write>);
-    impl Write for Shared<'_, '_> {
-        fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-            self.0.borrow_mut().write(buf)
-        }
-        fn flush(&mut self) -> std::io::Result<()> {
-            self.0.borrow_mut().flush()
-        }
-    }
-    let (written, lerobot_json) = (args.out.clone(), args.lerobot_json.clone());
-    let shared = std::cell::RefCell::new(err);
-    let code = crate::commands::servo::calibrate::run(args, &mut Shared(&shared), &mut Shared(&shared))?;
-    let arm = ArmSpec::load(&written.display().to_string(), None)?;
-    let servos = crate::arm::servos::servos_of(&arm)
-        .ok_or_else(|| anyhow::anyhow!("{} has no [servos] table after calibrating", written.display()))?;
-    let file = record::lerobot_file(
-        &arm,
-        servos.calibration.as_deref().unwrap_or_default(),
-        servos.gripper_calibration.as_ref(),
-    );
-    let calibration: Value = serde_json::from_str(&lerobot::to_text(&file))?;
-    let joints: Vec<Value> =
-        arm.joints.iter().map(|j| json!({"name": j.name, "lower": j.lower, "upper": j.upper})).collect();
-    print_json(
-        out,
-        &json!({
-            "out": written.display().to_string(),
-            "lerobot_json": lerobot_json.map(|p| p.display().to_string()),
-            "joints": joints,
-            "calibration": calibration,
-        }),
-    )?;
-    Ok(code)
 }
 
 fn vec3(p: &kinematics::Pose<f64>) -> [f64; 3] {

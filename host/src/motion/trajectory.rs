@@ -8,7 +8,6 @@
 //! `#` are skipped. Every error names the file line it is about (the header is line 1).
 
 use anyhow::{anyhow, bail, Context, Result};
-use clap::ValueEnum;
 use kinematics::nalgebra::SVector;
 use kinematics::trajectory::{
     time_scale, Curve, EndCondition, Interpolation, JointLimits, Keyframe, KochanekBartels, LimitError, TrajectoryError,
@@ -24,7 +23,7 @@ pub const MAX_KEYFRAMES: usize = 1024;
 pub const MAX_SAMPLES: usize = 10_000_000;
 
 /// Interpolation method.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Method {
     /// Straight lines (constant velocity between keyframes; velocity jumps at keyframes).
     Linear,
@@ -40,39 +39,50 @@ pub enum Method {
     Kb,
 }
 
+// By their command-line names, with no parser's derive (this module is beneath the command line):
+// `armctl::cli::values` offers these names to the parser, other front ends use `FromStr`.
+
 impl Method {
+    /// Every method with its name on the command line and what it is (its help there).
+    pub const NAMES: [(&'static str, Method, &'static str); 6] = [
+        ("linear", Method::Linear, "Straight lines (constant velocity between keyframes; velocity jumps at keyframes)"),
+        ("catmull-rom", Method::CatmullRom, "Non-uniform Catmull-Rom (C1); ends per --ends"),
+        ("monotone", Method::Monotone, "Monotone cubic (Fritsch-Carlson): never overshoots between keyframes (C1)"),
+        ("natural", Method::Natural, "Natural cubic spline (C2, zero acceleration at both ends)"),
+        ("hermite", Method::Hermite, "Cubic Hermite with the velocities of the file's v1..vN columns (C1)"),
+        ("kb", Method::Kb, "Kochanek-Bartels (TCB): --tension, --continuity, --bias; ends per --ends"),
+    ];
+
     /// The name on the command line.
     pub fn name(self) -> &'static str {
-        match self {
-            Method::Linear => "linear",
-            Method::CatmullRom => "catmull-rom",
-            Method::Monotone => "monotone",
-            Method::Natural => "natural",
-            Method::Hermite => "hermite",
-            Method::Kb => "kb",
-        }
+        name_of(self, &Self::NAMES)
     }
 }
 
 impl std::str::FromStr for Method {
     type Err = anyhow::Error;
 
-    /// A method by its name on the command line (any case), for front ends without clap.
+    /// A method by its name on the command line (any case), for front ends other than the command line.
     fn from_str(name: &str) -> Result<Self> {
-        by_name(name, "method", Method::value_variants(), Method::name)
+        by_name(name, "method", &Self::NAMES)
     }
 }
 
-/// The variant of `all` whose name is `name` (any case), or the one-line error listing them.
-fn by_name<T: Copy>(name: &str, what: &str, all: &[T], named: fn(T) -> &'static str) -> Result<T> {
-    all.iter().copied().find(|v| named(*v).eq_ignore_ascii_case(name)).ok_or_else(|| {
-        let names: Vec<&str> = all.iter().map(|v| named(*v)).collect();
+/// The name of `value` in its `NAMES` table.
+fn name_of<T: Copy + PartialEq>(value: T, names: &[(&'static str, T, &'static str)]) -> &'static str {
+    names.iter().find(|(_, v, _)| *v == value).map(|&(name, _, _)| name).expect("every variant is named")
+}
+
+/// The value whose name is `name` (any case), or the one-line error listing them.
+fn by_name<T: Copy>(name: &str, what: &str, names: &[(&'static str, T, &'static str)]) -> Result<T> {
+    names.iter().find(|(n, _, _)| n.eq_ignore_ascii_case(name)).map(|&(_, v, _)| v).ok_or_else(|| {
+        let names: Vec<&str> = names.iter().map(|(n, _, _)| *n).collect();
         anyhow::anyhow!("{what} {name:?}: one of {}", names.join(", "))
     })
 }
 
 /// Velocity at the first and last keyframe for `catmull-rom` and `kb`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Ends {
     /// Start and end at rest.
     Zero,
@@ -81,21 +91,24 @@ pub enum Ends {
 }
 
 impl Ends {
+    /// Both end conditions with their names on the command line and what they are.
+    pub const NAMES: [(&'static str, Ends, &'static str); 2] = [
+        ("zero", Ends::Zero, "Start and end at rest"),
+        ("natural", Ends::Natural, "Zero acceleration at the first and last keyframe"),
+    ];
+
     /// The name on the command line.
     pub fn name(self) -> &'static str {
-        match self {
-            Ends::Zero => "zero",
-            Ends::Natural => "natural",
-        }
+        name_of(self, &Self::NAMES)
     }
 }
 
 impl std::str::FromStr for Ends {
     type Err = anyhow::Error;
 
-    /// Ends by their name on the command line (any case), for front ends without clap.
+    /// Ends by their name on the command line (any case), for front ends other than the command line.
     fn from_str(name: &str) -> Result<Self> {
-        by_name(name, "ends", Ends::value_variants(), Ends::name)
+        by_name(name, "ends", &Self::NAMES)
     }
 }
 

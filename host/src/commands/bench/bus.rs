@@ -9,42 +9,28 @@
 use std::io::Write;
 
 use anyhow::{bail, Result};
-use clap::Args;
 use firmware::bus::cycle::ServoGroup;
 use firmware::bus::master::{BusConfig, Master, NoDirectionPin};
 use firmware::bus::table::Model;
 use firmware::bus::timing::{cycle_bytes, cycle_time_ns, sync_read_request_len, sync_write_len};
-use firmware::bus::Protocol;
 use serde_json::json;
 
-use crate::commands::bus_args::{model_for, ModelArg, ProtocolArg};
 use crate::sim::{connect, SimBus};
 
-/// Arguments of `armctl bench bus`.
-#[derive(Args, Debug)]
-pub struct BusBenchArgs {
-    /// Bus protocol.
-    #[arg(long, value_enum)]
-    protocol: ProtocolArg,
+/// What `armctl bench bus` measures.
+#[derive(Clone, Copy, Debug)]
+pub struct BusBenchRequest {
+    /// The servos' model; the bus speaks its protocol.
+    pub model: &'static Model,
     /// Number of servos (ids 1..=N), 1 to 16.
-    #[arg(long, default_value_t = 6)]
-    servos: usize,
+    pub servos: usize,
     /// Baud rate.
-    #[arg(long, default_value_t = 1_000_000)]
-    baud: u32,
-    /// Servo model (default xl430-w250 on dxl2, sts3215 on sts).
-    #[arg(long, value_enum)]
-    model: Option<ModelArg>,
-    /// The servos' return delay in microseconds (default: the model's factory setting, 500 us on
+    pub baud: u32,
+    /// The servos' return delay in microseconds (`None`: the model's factory setting, 500 us on
     /// the X-series, 0 on the STS3215); rounded down to the model's 2 us unit.
-    #[arg(long)]
-    return_delay_us: Option<u32>,
+    pub return_delay_us: Option<u32>,
     /// Control cycles simulated (the median is reported).
-    #[arg(long, default_value_t = 100)]
-    cycles: usize,
-    /// Changes nothing: the output is JSON already (one indented object).
-    #[arg(long)]
-    pub json: bool,
+    pub cycles: usize,
 }
 
 /// One cycle's simulated figures.
@@ -98,9 +84,9 @@ macro_rules! dispatch {
 }
 
 /// Runs `armctl bench bus`: one JSON object on `out`.
-pub fn run(args: &BusBenchArgs, out: &mut dyn Write) -> Result<i32> {
-    let protocol = Protocol::from(args.protocol);
-    let model = model_for(protocol, args.model)?;
+pub fn run(args: &BusBenchRequest, out: &mut dyn Write) -> Result<i32> {
+    let model = args.model;
+    let protocol = model.protocol;
     if model.baud_index(args.baud).is_none() {
         bail!("{} has no baud index for {}", model.name, args.baud);
     }

@@ -17,7 +17,6 @@
 use std::io::Write;
 
 use anyhow::{anyhow, bail, Result};
-use clap::Args;
 use serde_json::{json, Value};
 
 #[cfg(feature = "board-tools")]
@@ -54,14 +53,6 @@ const DESCRIPTIONS: [(&str, &str); 15] = [
     ("sync_read6_dxl2", "decode 6 Dynamixel 2.0 replies of a sync read"),
     ("calib_nop", "calibration"),
 ];
-
-/// Arguments of `armctl bench mcu`.
-#[derive(Args, Debug)]
-pub struct McuBenchArgs {
-    /// One JSON object (indented) instead of the table.
-    #[arg(long)]
-    pub json: bool,
-}
 
 /// One `op` line of the firmware's output.
 #[derive(Clone, Debug, PartialEq)]
@@ -224,10 +215,10 @@ fn fields(text: &str) -> Vec<(String, u32)> {
         .collect()
 }
 
-/// `armctl bench mcu`.
-pub fn run(args: &McuBenchArgs, out: &mut dyn Write) -> Result<i32> {
+/// `armctl bench mcu`: the table on `out`, or with `json` one JSON object (indented).
+pub fn run(json: bool, out: &mut dyn Write) -> Result<i32> {
     let report = measure()?;
-    if args.json {
+    if json {
         writeln!(out, "{}", serde_json::to_string_pretty(&to_json(&report))?)?;
     } else {
         write_table(&report, out)?;

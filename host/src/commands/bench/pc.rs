@@ -11,44 +11,36 @@ use std::io::Write;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
-use clap::Args;
+use firmware::bus::table::Model;
 use firmware::link::message::{Joints, RunState, Timing};
 use serde_json::json;
 
 use crate::arm::servos::ServoSetup;
 use crate::arm::ArmSpec;
-use crate::commands::bus_args::{model_for, ProtocolArg};
 use crate::runtime::connection::{self, Connection, Target};
 use crate::runtime::pc::PcOptions;
 use crate::sim::{Faults, PtyServer, SimConfig};
 
-/// Arguments of `armctl bench pc`.
-#[derive(Args, Debug)]
-pub struct PcBenchArgs {
-    /// Bus protocol.
-    #[arg(long, value_enum)]
-    protocol: ProtocolArg,
+/// What `armctl bench pc` measures.
+#[derive(Clone, Copy, Debug)]
+pub struct PcBenchRequest {
+    /// The servos' model (the command line's: its protocol's usual one); the bus speaks its
+    /// protocol.
+    pub model: &'static Model,
     /// Number of servos (ids 1..=N), 1 to 8.
-    #[arg(long, default_value_t = 6)]
-    servos: usize,
+    pub servos: usize,
     /// Baud rate.
-    #[arg(long, default_value_t = 1_000_000)]
-    baud: u32,
-    /// Deliver the servos' replies in bursts every MS milliseconds (a USB adapter's latency timer:
-    /// 16 on FTDI by default); none when not given.
-    #[arg(long, value_name = "MS")]
-    burst_ms: Option<u64>,
+    pub baud: u32,
+    /// Deliver the servos' replies in bursts every so many milliseconds (a USB adapter's latency
+    /// timer: 16 on FTDI by default); `None`: at once.
+    pub burst_ms: Option<u64>,
     /// Seconds of motion measured.
-    #[arg(long, default_value_t = 5.0)]
-    seconds: f64,
-    /// Changes nothing: the output is one line of JSON already.
-    #[arg(long)]
-    pub json: bool,
+    pub seconds: f64,
 }
 
-/// The benchmark's arm: `planar:N` driven by servos of the protocol's usual model, ids 1..=N.
-fn arm(args: &PcBenchArgs) -> Result<ArmSpec> {
-    let model = model_for(args.protocol.into(), None)?;
+/// The benchmark's arm: `planar:N` driven by servos of the request's model, ids 1..=N.
+fn arm(args: &PcBenchRequest) -> Result<ArmSpec> {
+    let model = args.model;
     let mut spec = ArmSpec::load(&format!("planar:{}", args.servos), None)?;
     spec.servos = Some(ServoSetup {
         model,
@@ -82,7 +74,7 @@ fn until_rest(conn: &mut Connection, limit: Duration) -> Result<firmware::link::
 
 /// Runs the benchmark: one JSON line on `out`, what connecting said on `err`. The rate and tick
 /// times cover the whole run, torque on included.
-pub fn run(args: &PcBenchArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+pub fn run(args: &PcBenchRequest, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
     if !(1..=8).contains(&args.servos) {
         bail!("--servos must be 1 to 8 (the firmware's joint limit)");
     }
@@ -108,7 +100,7 @@ pub fn run(args: &PcBenchArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resu
     .context("cannot open a pseudo-terminal")?;
     let options = PcOptions {
         path: server.path().to_string(),
-        protocol: args.protocol.into(),
+        protocol: args.model.protocol,
         baud: args.baud,
         arm: spec,
         calibration_file: None,

@@ -24,18 +24,15 @@
 use std::io::Write;
 
 use anyhow::{anyhow, bail, Result};
-use clap::Args;
 use firmware::bus::mapping::JointMapping;
 use firmware::bus::master::{BusConfig, Master, NoDirectionPin};
 use firmware::bus::table::Model;
 use firmware::bus::timing::{cycle_bytes, cycle_time_ns};
-use firmware::bus::Protocol;
 use firmware::controller::{joint_limits, minimum_period_us, Command, Config, Controller, Mode};
 use kinematics::nalgebra::SVector;
 use kinematics::presets;
 use serde_json::{json, Value};
 
-use crate::commands::bus_args::{model_for, ModelArg, ProtocolArg};
 use crate::sim::{connect, SharedBus, SimBus, VirtualClock};
 
 /// Joints of the driven chain (the UR5e preset).
@@ -47,30 +44,21 @@ const AMAX: f32 = 10.0;
 /// The two ends of the back-and-forth joint move, rad (inside every servo's ±π).
 const MOVE_TO: [f32; SERVOS] = [1.0, -0.8, 0.9, -1.0, 0.7, -0.6];
 
-/// Arguments of `armctl bench rate`.
-#[derive(Args, Debug)]
-pub struct RateBenchArgs {
-    /// Bus protocol.
-    #[arg(long, value_enum)]
-    protocol: ProtocolArg,
-    /// Number of servos: 6 only (the bench drives the UR5e preset's 6-joint chain).
-    #[arg(long, default_value_t = SERVOS)]
-    servos: usize,
+/// What `armctl bench rate` is asked for, before it is checked into a [`RateSetup`].
+#[derive(Clone, Copy, Debug)]
+pub struct RateBenchRequest {
+    /// The servos' model; the bus speaks its protocol.
+    pub model: &'static Model,
+    /// Number of servos: [`SERVOS`] only (the bench drives the UR5e preset's 6-joint chain).
+    pub servos: usize,
     /// Baud rate.
-    #[arg(long, default_value_t = 1_000_000)]
-    baud: u32,
-    /// Servo model (default xl430-w250 on dxl2, sts3215 on sts).
-    #[arg(long, value_enum)]
-    model: Option<ModelArg>,
+    pub baud: u32,
     /// The servos' return delay in microseconds, set on the simulated servos and in the master's
     /// bus configuration; rounded down to the model's 2 us unit.
-    #[arg(long, default_value_t = 0)]
-    return_delay_us: u32,
+    pub return_delay_us: u32,
     /// Virtual seconds each schedule runs (compute time is free on the virtual clock).
-    #[arg(long, default_value_t = 2.0)]
-    seconds: f64,
+    pub seconds: f64,
     /// One JSON object (indented) instead of the table.
-    #[arg(long)]
     pub json: bool,
 }
 
@@ -398,9 +386,8 @@ fn write_table(r: &RateReport, out: &mut dyn Write) -> std::io::Result<()> {
 
 /// Runs `armctl bench rate`: the table (or one JSON object) on `out`. Exit code 1 when a reply
 /// went missing, a goal left the limits, or a tick on the controller's period missed its deadline.
-pub fn run(args: &RateBenchArgs, out: &mut dyn Write) -> Result<i32> {
-    let protocol = Protocol::from(args.protocol);
-    let model = model_for(protocol, args.model)?;
+pub fn run(args: &RateBenchRequest, out: &mut dyn Write) -> Result<i32> {
+    let model = args.model;
     if args.servos != SERVOS {
         bail!("--servos must be {SERVOS} (the bench drives the UR5e preset's 6-joint chain)");
     }

@@ -27,7 +27,6 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::Result;
-use clap::{Args, ValueEnum};
 
 /// Flash goal for a 6-joint arm.
 pub const FLASH_GOAL: u64 = 64 * 1024;
@@ -36,38 +35,46 @@ pub const STATIC_RAM_GOAL: u64 = 16 * 1024;
 /// Stack goal.
 pub const STACK_GOAL: u64 = 8 * 1024;
 
-/// Arguments of `armctl footprint`.
-#[derive(Args, Debug)]
-pub struct FootprintArgs {
-    /// The board binary to report on (default: both).
-    #[arg(long, value_enum)]
-    board: Option<Board>,
+/// What `armctl footprint` is asked for.
+#[derive(Clone, Debug, Default)]
+pub struct FootprintRequest {
+    /// The board binary to report on (`None`: both).
+    pub board: Option<Board>,
     /// Report on this firmware ELF instead of building the board binary (any Cortex-M ELF; with no
-    /// --board the board is told by its start-up and loop functions, and an ELF without them, such
+    /// `board` the board is told by its start-up and loop functions, and an ELF without them, such
     /// as the `opcount` benchmark, is bounded from `main`).
-    #[arg(long)]
-    elf: Option<PathBuf>,
+    pub elf: Option<PathBuf>,
     /// Skip the stack measurement under QEMU.
-    #[arg(long)]
-    no_qemu: bool,
+    pub no_qemu: bool,
     /// One line of JSON instead of the text report.
-    #[arg(long)]
     pub json: bool,
 }
 
 /// The board binaries.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Board {
     /// The MPS2 AN386 (Cortex-M4F) firmware that runs under QEMU.
-    #[value(name = "mps2-an386")]
     Mps2An386,
     /// The STM32F411 "Black Pill" firmware.
-    #[value(name = "stm32f411")]
     Stm32f411,
 }
 
+impl Board {
+    /// Every board with its name (`--board`, the report's `board`) and what it is; this module is
+    /// beneath the command line, which offers them to its parser (`armctl::cli::values`).
+    pub const NAMES: [(&'static str, Board, &'static str); 2] = [
+        ("mps2-an386", Board::Mps2An386, "The MPS2 AN386 (Cortex-M4F) firmware that runs under QEMU"),
+        ("stm32f411", Board::Stm32f411, "The STM32F411 \"Black Pill\" firmware"),
+    ];
+
+    /// The board's name.
+    pub fn name(self) -> &'static str {
+        Self::NAMES.iter().find(|(_, b, _)| *b == self).map(|&(name, _, _)| name).expect("every board is named")
+    }
+}
+
 /// Runs `armctl footprint`.
-pub fn run(args: &FootprintArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+pub fn run(args: &FootprintRequest, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
     #[cfg(feature = "board-tools")]
     return report::run(args, out, err);
     #[cfg(not(feature = "board-tools"))]

@@ -10,17 +10,10 @@ use serde::Serialize;
 use super::disasm::{PanicSite, Program, StackBound, Tools};
 use super::elf::Sizes;
 use super::measure::{self, MeasuredStack};
-use super::{Board, FootprintArgs, FLASH_GOAL, STACK_GOAL, STATIC_RAM_GOAL};
+use super::{Board, FootprintRequest, FLASH_GOAL, STACK_GOAL, STATIC_RAM_GOAL};
 
 impl Board {
     const ALL: [Board; 2] = [Board::Mps2An386, Board::Stm32f411];
-
-    fn name(self) -> &'static str {
-        match self {
-            Board::Mps2An386 => "mps2-an386",
-            Board::Stm32f411 => "stm32f411",
-        }
-    }
 
     /// Where the stack bound starts: on the MPS2, `main` paints the stack between start-up and the
     /// control loop, so each has its own figure to compare with the measurement.
@@ -105,7 +98,7 @@ pub struct BoardReport {
 }
 
 /// Runs `armctl footprint`.
-pub(super) fn run(args: &FootprintArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+pub(super) fn run(args: &FootprintRequest, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
     let tools = Tools::find()?;
     let mut reports = Vec::new();
     match &args.elf {
@@ -135,7 +128,7 @@ fn report(
     tools: &Tools,
     elf: &Path,
     board: Option<Board>,
-    args: &FootprintArgs,
+    args: &FootprintRequest,
     err: &mut dyn Write,
 ) -> Result<BoardReport> {
     let bytes = std::fs::read(elf).with_context(|| format!("cannot read {}", elf.display()))?;

@@ -30,7 +30,6 @@ use std::sync::mpsc::{Receiver, TryRecvError};
 use std::time::Duration;
 
 use anyhow::{anyhow, bail, Context, Result};
-use clap::Args;
 use firmware::bus::master::{BusConfig, Clock};
 use firmware::bus::table::{sts3215, xseries, Item, Model};
 use firmware::bus::{Id, Protocol};
@@ -39,7 +38,6 @@ use super::commands::eeprom_write;
 use crate::arm::calibration::{homing_offset_item, lerobot, record, MotorCalibration};
 use crate::arm::servos::{servos_of, ServoSetup};
 use crate::arm::{toml_update, ArmSpec};
-use crate::commands::bus_args::ProtocolArg;
 use crate::runtime::servo_session::{Port, Session};
 
 /// The baud rate when `--baud` is not given: `--bus`'s, the STS3215's factory rate.
@@ -52,37 +50,26 @@ pub const SAMPLE_PERIOD: Duration = Duration::from_millis(20);
 /// beyond [`record::DXL_POSITION_MODE_MAX_OFFSET`].
 const DXL_POSITION_MODE: i64 = 3;
 
-/// `armctl calibrate`'s arguments.
-#[derive(Args, Debug)]
-pub struct CalibrateArgs {
-    /// The servos' USB adapter's serial port (/dev/ttyUSB0, /dev/ttyACM0, COM3) (required; like
-    /// --protocol, --baud and --arm, it may come before the command too).
-    #[arg(long, value_name = "PORT")]
-    pub bus: Option<String>,
-    /// The servos' protocol: sts (Feetech) or dxl2 (Dynamixel 2.0) (required).
-    #[arg(long, value_enum)]
-    pub protocol: Option<ProtocolArg>,
-    /// Baud rate [default: 1000000].
-    #[arg(long)]
+/// The margin added to each reply timeout when none is asked for, ms.
+pub const DEFAULT_TIMEOUT_MS: u32 = 10;
+
+/// What `armctl calibrate` is asked for (the names of its errors are the command line's options).
+#[derive(Clone, Debug)]
+pub struct CalibrateRequest {
+    /// The servos' USB adapter's serial port (/dev/ttyUSB0, /dev/ttyACM0, COM3).
+    pub bus: String,
+    /// The servos' protocol.
+    pub protocol: Protocol,
+    /// Baud rate (`None`: 1000000, the STS3215's factory rate).
     pub baud: Option<u32>,
-    /// The arm: a preset (so101, open-manipulator-x) or an arm file with a [servos] table
-    /// (required).
-    #[arg(long)]
-    pub arm: Option<String>,
-    /// The arm file to write (.toml). A new file gets the arm's joints with their limits tightened
-    /// to the measured ranges, its servos with their calibration, its gripper's range. An existing
-    /// arm file of the same arm keeps everything its author wrote (comments, units, layout): only
-    /// its [servos] calibration keys and its [gripper] range change. Any other existing file is
-    /// refused, before the servos are touched.
-    #[arg(long, value_name = "FILE")]
+    /// The arm: a preset (so101, open-manipulator-x) or an arm file with a [servos] table.
+    pub arm: String,
+    /// The arm file to write (.toml): new, or an arm file of the same arm whose calibration keys
+    /// alone change (see the module doc).
     pub out: PathBuf,
-    /// Also write the calibration as LeRobot's calibration file (JSON), for LeRobot or for
-    /// `--calibration`.
-    #[arg(long, value_name = "FILE")]
+    /// Also write the calibration as LeRobot's calibration file (JSON).
     pub lerobot_json: Option<PathBuf>,
-    /// Margin added to each reply timeout, in ms; USB adapters with a 16 ms latency timer need 20
-    /// or more.
-    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(0..=10_000))]
+    /// Margin added to each reply timeout, ms ([`DEFAULT_TIMEOUT_MS`] by default).
     pub timeout_ms: u32,
 }
 
@@ -110,25 +97,9 @@ struct Plan {
     lerobot_json: Option<PathBuf>,
 }
 
-impl CalibrateArgs {
-    /// --bus, --protocol and --arm, which clap cannot require, as they may come before the command.
-    fn required(&self) -> Result<(&str, ProtocolArg, &str)> {
-        match (&self.bus, self.protocol, &self.arm) {
-            (Some(bus), Some(protocol), Some(arm)) => Ok((bus, protocol, arm)),
-            (bus, protocol, arm) => {
-                let missing =
-                    [(bus.is_none(), "--bus PORT"), (protocol.is_none(), "--protocol"), (arm.is_none(), "--arm")];
-                let missing: Vec<&str> = missing.into_iter().filter_map(|(m, name)| m.then_some(name)).collect();
-                bail!("calibrate needs {} (see armctl calibrate --help)", missing.join(", "))
-            }
-        }
-    }
-}
-
 impl Plan {
-    fn new(args: &CalibrateArgs) -> Result<Self> {
-        let (_, protocol, arm) = args.required()?;
-        let arm = ArmSpec::load(arm, None)?;
+    fn new(args: &CalibrateRequest) -> Result<Self> {
+        let arm = ArmSpec::load(&args.arm, None)?;
         let servos = servos_of(&arm).ok_or_else(|| {
             anyhow!(
                 "arm {} has no servos to calibrate: use a preset with servos (so101, open-manipulator-x) or an arm \
@@ -136,7 +107,7 @@ impl Plan {
                 arm.name
             )
         })?;
-        let protocol = Protocol::from(protocol);
+        let protocol = args.protocol;
         if servos.model.protocol != protocol {
             bail!(
                 "arm {}'s servos are {} ({}); --protocol {} does not speak to them",
@@ -253,25 +224,23 @@ fn ended(step: &str, state: &str) -> anyhow::Error {
 }
 
 /// Runs `armctl calibrate`, the steps answered on standard input.
-pub fn run(args: CalibrateArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+pub fn run(args: CalibrateRequest, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
     let plan = Plan::new(&args)?;
-    let (bus, protocol, arm) = args.required()?;
     if plan.servos.calibration.is_some() && !plan.update {
         writeln!(
             err,
             "note: {} holds a calibration already, and its joint limits were tightened by it: calibrating from it \
              can only tighten them further (calibrate from the preset or the URDF to start afresh)",
-            arm
+            args.arm
         )?;
     }
-    let protocol = Protocol::from(protocol);
-    let base = BusConfig::new(protocol, args.baud.unwrap_or(DEFAULT_BAUD));
+    let base = BusConfig::new(args.protocol, args.baud.unwrap_or(DEFAULT_BAUD));
     let config = BusConfig {
         margin_us: args.timeout_ms * 1000,
         idle_gap_us: (args.timeout_ms * 1000).max(base.idle_gap_us),
         ..base
     };
-    let mut session = Session::open(bus, config)?;
+    let mut session = Session::open(&args.bus, config)?;
     let steps = Steps::from(std::io::BufReader::new(std::io::stdin()))?;
     let live = std::io::stdout().is_terminal();
     calibrate(&mut session, &plan, &steps, live, out, err)
