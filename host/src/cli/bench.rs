@@ -6,10 +6,10 @@ use anyhow::Result;
 use clap::Args;
 use firmware::bus::Protocol;
 
+use crate::cli::bus_args::{model_for, ModelArg, ProtocolArg};
 use crate::commands::bench::bus::BusBenchRequest;
 use crate::commands::bench::pc::PcBenchRequest;
 use crate::commands::bench::rate::{RateBenchRequest, SERVOS};
-use crate::commands::bus_args::{model_for, ModelArg, ProtocolArg};
 
 /// Arguments of `armctl bench bus`.
 #[derive(Args, Debug)]

@@ -9,7 +9,7 @@ use clap::Args;
 use serde_json::{json, Value};
 
 use crate::arm::ArmSpec;
-use crate::commands::bus_args::ProtocolArg;
+use crate::cli::bus_args::ProtocolArg;
 use crate::commands::servo::calibrate::{CalibrateRequest, DEFAULT_TIMEOUT_MS};
 use crate::support::json_out::print_json;
 

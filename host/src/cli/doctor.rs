@@ -8,7 +8,7 @@ use anyhow::{bail, Result};
 use clap::Args;
 
 use super::link::LinkArgs;
-use crate::commands::bus_args::ProtocolArg;
+use crate::cli::bus_args::ProtocolArg;
 use crate::commands::doctor::line::DEFAULT_READS;
 use crate::commands::doctor::DoctorRequest;
 

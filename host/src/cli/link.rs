@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Result};
 use clap::Args;
 
-use crate::commands::bus_args::ProtocolArg;
+use crate::cli::bus_args::ProtocolArg;
 use crate::runtime::connection::Place;
 
 /// Which arm to drive. Accepted before the command or after it (`armctl --sim move --to ... --json`

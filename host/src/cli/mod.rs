@@ -3,6 +3,7 @@
 //! Every failure is one line on `err` starting with `error:` and a non-zero exit code.
 
 mod bench;
+pub mod bus_args;
 mod calibrate;
 mod demo;
 mod doctor;

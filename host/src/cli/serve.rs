@@ -15,7 +15,7 @@ use clap::Args;
 
 use crate::arm::servos::servos_of;
 use crate::arm::ArmSpec;
-use crate::commands::bus_args::ProtocolArg;
+use crate::cli::bus_args::ProtocolArg;
 use crate::link::session::Session;
 use crate::runtime::connection::handshake_with;
 use crate::runtime::connection::{calibrated, default_bus_arm, DEFAULT_SIM_ARM};

@@ -13,7 +13,7 @@ use clap::{Args, Subcommand, ValueEnum};
 use firmware::bus::master::BusConfig;
 use firmware::bus::{Id, Protocol};
 
-use crate::commands::bus_args::ProtocolArg;
+use crate::cli::bus_args::ProtocolArg;
 use crate::commands::servo::commands::{self, Target};
 use crate::runtime::servo_session::Session;
 

@@ -12,7 +12,7 @@ use firmware::bus::{dxl2, feetech, Protocol};
 
 use crate::arm::servos::{servos_of, ServoSetup};
 use crate::arm::ArmSpec;
-use crate::commands::bus_args::{model_for, ModelArg, ProtocolArg};
+use crate::cli::bus_args::{model_for, ModelArg, ProtocolArg};
 use crate::runtime::connection::calibrated;
 #[cfg(feature = "board-tools")]
 use crate::runtime::qemu::{self, Qemu, QemuConfig};

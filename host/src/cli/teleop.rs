@@ -9,7 +9,7 @@ use anyhow::{bail, Result};
 use clap::Args;
 
 use super::link::LinkArgs;
-use crate::commands::bus_args::ProtocolArg;
+use crate::cli::bus_args::ProtocolArg;
 use crate::commands::teleop::{LoopSettings, TeleopRequest};
 use crate::motion::teleop::leader::LeaderSpec;
 

@@ -10,10 +10,8 @@
 //! - [`demo`]: the whole product in software in the loop;
 //! - [`teleop`]: a leader arm driving the follower;
 //! - [`retarget`]: BVH motion capture onto the arm, and `--play`;
-//! - [`bus_args`]: the servo-bus protocol and model names the commands take.
 
 pub mod bench;
-pub mod bus_args;
 pub mod demo;
 pub mod doctor;
 pub mod drive;
