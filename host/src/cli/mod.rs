@@ -9,6 +9,7 @@ pub mod servo;
 pub mod sim;
 mod tree;
 pub mod values;
+pub mod view;
 
 use crate::arm::body::Body;
 use crate::arm::dof::{self, DynArm, Scalar};
@@ -156,7 +157,7 @@ enum Command {
     /// move on the firmware), telemetry, keyframe files, stop and torque. Prints the page's URL
     /// on the first line (--json: {"url": URL}); opens no browser. Drives --sim (the default, in
     /// real time), --port or --bus; --rig, every arm of a rig.
-    View(crate::view::ViewArgs),
+    View(view::ViewArgs),
     // The drive commands (move, joints, play, status, stop, torque, gripper), each with the drive
     // options before or after it.
     #[command(flatten)]
@@ -412,7 +413,7 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
         Command::Demo(args) => return crate::commands::demo::run(&args, out),
         Command::Retarget(args) => return crate::commands::retarget::run(link, args, out, err),
         Command::Teleop(args) => return crate::commands::teleop::run(link, args, out, err),
-        Command::View(args) => return crate::view::run(link, args, out, err),
+        Command::View(args) => return view::run(link, args, out, err),
         Command::Fk { arm, q, json: _ } => {
             let arm = match load_body(&arm)? {
                 Loaded::Chain(arm) => arm,
