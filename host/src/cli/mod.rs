@@ -4,6 +4,7 @@
 
 pub mod drive;
 mod ik;
+pub mod retarget;
 pub mod serve;
 pub mod servo;
 pub mod sim;
@@ -143,7 +144,7 @@ enum Command {
     /// tracking figures (one line of JSON); --play streams them to the arm (its report a second
     /// JSON line). With --rig RIG: the human's arms onto every arm of the rig, one keyframe file
     /// for all.
-    Retarget(crate::commands::retarget::RetargetArgs),
+    Retarget(retarget::RetargetArgs),
     /// Teleoperation: a leader arm moved by hand drives the follower (--port, --bus or --sim)
     ///
     /// The leader's servos (torque off) are read by sync read and mapped through both
@@ -411,7 +412,7 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
             return drive::run(link, command, out, err);
         }
         Command::Demo(args) => return crate::commands::demo::run(&args, out),
-        Command::Retarget(args) => return crate::commands::retarget::run(link, args, out, err),
+        Command::Retarget(args) => return retarget::run(link, args, out, err),
         Command::Teleop(args) => return crate::commands::teleop::run(link, args, out, err),
         Command::View(args) => return view::run(link, args, out, err),
         Command::Fk { arm, q, json: _ } => {
