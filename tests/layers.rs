@@ -40,12 +40,6 @@ const HOST_DEBTS: &[(&str, &str, &str)] = &[
         "demo --rig's handover plays on a rig: move the scene under rig/ and let cli dispatch `demo --rig` to it",
     ),
     (
-        "commands::retarget::rig",
-        "rig",
-        "retarget --rig: the rig's half of the command belongs under rig/ (cli dispatching to it), as rig::commands is for the drive verbs",
-    ),
-    ("commands::retarget::tree", "rig", "as commands::retarget::rig, whose shared-joint tree it is"),
-    (
         "commands::teleop",
         "rig",
         "teleop --rig (run_rig) belongs under rig/, and the rig file's LeaderSpec (a leader's port or script) under motion::teleop",

@@ -1,7 +1,7 @@
 //! `armctl retarget` on the command line: its options, the drive options merged from before and
 //! after the command and refused where they do nothing (without `--play`, beside `--rig`), the
 //! text of `--reference`, `--scale` and `--chain` turned into the retarget's [`Options`]; then
-//! [`crate::commands::retarget::run`] for one arm or [`crate::commands::retarget::rig::run`] for `--rig`.
+//! [`crate::commands::retarget::run`] for one arm or [`crate::rig::retarget::run`] for `--rig`.
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -74,7 +74,7 @@ pub fn run(global: &LinkArgs, args: RetargetArgs, out: &mut dyn Write, err: &mut
     if let Some(rig) = &link.rig {
         link.refuse_beside_rig()?;
         let request = request(&args, options(&args)?);
-        return crate::commands::retarget::rig::run(rig, &args.chain, &request, out, err);
+        return crate::rig::retarget::run(rig, &args.chain, &request, out, err);
     }
     if args.play {
         if link.port.is_none() && link.bus.is_none() && !link.sim {

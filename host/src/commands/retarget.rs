@@ -1,8 +1,8 @@
 //! `armctl retarget FILE.bvh --arm ARM`: a motion-capture arm onto a robot arm, as joint keyframes
 //! for `armctl play` (`--out`), a plot (`--plot`), and with `--play` streamed to the arm the drive
 //! options name (`--sim`, `--port`, `--bus`) through the same code as `armctl play`. With
-//! `--rig RIG`, every arm of a rig at once: see [`rig`], which shares this module's request and
-//! notes. The command line's options are `crate::cli::retarget`'s.
+//! `--rig RIG`, every arm of a rig at once: `crate::rig::retarget`, which shares this module's
+//! request and notes. The command line's options are `crate::cli::retarget`'s.
 //!
 //! The report is one JSON line on stdout; the choices made (chain, rest, axes, scale, placement)
 //! and warnings about the file go to stderr.
@@ -20,9 +20,6 @@ use crate::commands::drive::{carry_out, DriveError, Operation};
 use crate::motion::mocap::retarget::{self, Options, Retargeted};
 use crate::runtime::connection::{calibrated, Place};
 use crate::runtime::driver::Driver;
-
-pub mod rig;
-pub mod tree;
 
 /// What `armctl retarget` is asked for, one arm's or a rig's: the file, the retarget's settings
 /// and where the keyframes go. Its values are checked where they are used (the file when read,

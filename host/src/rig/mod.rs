@@ -8,11 +8,13 @@
 //! - [`commands`]: `armctl --rig FILE status|stop|torque|move|play`.
 //! - [`columns`]: a keyframe file with every arm's columns, split into one file per arm.
 //! - [`tree`]: a rig whose arms are mounted on one another (a shared joint) as one kinematic tree.
+//! - [`retarget`]: `armctl retarget FILE.bvh --rig FILE`, the human's arms onto every arm at once.
 
 pub mod columns;
 pub mod commands;
 pub mod file;
 pub mod play;
+pub mod retarget;
 pub mod tree;
 
 use std::io::Write;

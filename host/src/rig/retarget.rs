@@ -12,7 +12,7 @@
 //! A rig with a shared joint (arms mounted on a turning torso, `mount` in the rig file) is one
 //! tree: an arm that carries others and whose name says no side (and has no `--chain`) follows no
 //! human arm; each hand is retargeted with it at rest, then every keyframe is solved as one tree
-//! problem over every joint ([`super::tree`]). The carrier gets its own columns in the file, and
+//! problem over every joint ([`tree`]). The carrier gets its own columns in the file, and
 //! the report its range of motion (`carriers`) and how the tree solves came out (`tree`).
 //!
 //! The report is one JSON line on stdout: the shared figures, and per arm those of the one-arm
@@ -36,6 +36,8 @@ use crate::motion::mocap::retarget::timebase::{retarget_sharing, Job, Retargets,
 use crate::motion::mocap::retarget::{Retargeted, Scale};
 use crate::rig::{columns, Rig, RigSpec};
 use crate::runtime::connection::calibrated;
+
+pub mod tree;
 
 /// Whether rig arm `i` follows no human arm: it carries another arm (a shared joint), no chain is
 /// given for it, and its name says no side.
@@ -250,9 +252,9 @@ pub fn run(
     for warning in &bvh.warnings {
         writeln!(err, "warning: {shown}: {warning}")?;
     }
-    // A shared joint: the rig is one tree, solved at every keyframe (see [`super::tree`]).
+    // A shared joint: the rig is one tree, solved at every keyframe (see [`tree`]).
     let shared = if spec.arms.iter().any(|a| a.mount.is_some()) {
-        Some(super::tree::RigShared::new(&spec, &arms, &carriers)?)
+        Some(tree::RigShared::new(&spec, &arms, &carriers)?)
     } else {
         None
     };
