@@ -11,6 +11,7 @@ pub mod drive;
 mod footprint;
 mod ik;
 pub mod link;
+pub mod retarget;
 pub mod serve;
 pub mod servo;
 pub mod sim;
@@ -18,6 +19,7 @@ mod teleop;
 mod trajectory;
 mod tree;
 pub mod values;
+pub mod view;
 
 use crate::arm::body::Body;
 use crate::arm::dof::{self, DynArm, Scalar};
@@ -151,7 +153,7 @@ enum Command {
     /// tracking figures (one line of JSON); --play streams them to the arm (its report a second
     /// JSON line). With --rig RIG: the human's arms onto every arm of the rig, one keyframe file
     /// for all.
-    Retarget(crate::commands::retarget::RetargetArgs),
+    Retarget(retarget::RetargetArgs),
     /// Teleoperation: a leader arm moved by hand drives the follower (--port, --bus or --sim)
     ///
     /// The leader's servos (torque off) are read by sync read and mapped through both
@@ -165,7 +167,7 @@ enum Command {
     /// move on the firmware), telemetry, keyframe files, stop and torque. Prints the page's URL
     /// on the first line (--json: {"url": URL}); opens no browser. Drives --sim (the default, in
     /// real time), --port or --bus; --rig, every arm of a rig.
-    View(crate::view::ViewArgs),
+    View(view::ViewArgs),
     // The drive commands (move, joints, play, status, stop, torque, gripper), each with the drive
     // options before or after it.
     #[command(flatten)]
@@ -413,9 +415,9 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
     match command {
         Command::Drive(command) => return drive::run(link, command, out, err),
         Command::Demo(args) => return demo::run(&args, out),
-        Command::Retarget(args) => return crate::commands::retarget::run(link, args, out, err),
+        Command::Retarget(args) => return retarget::run(link, args, out, err),
         Command::Teleop(args) => return teleop::run(link, args, out, err),
-        Command::View(args) => return crate::view::run(link, args, out, err),
+        Command::View(args) => return view::run(link, args, out, err),
         Command::Fk { arm, q, json: _ } => {
             let arm = match load_body(&arm)? {
                 Loaded::Chain(arm) => arm,

@@ -1,12 +1,14 @@
 //! Enums of the layers beneath on the command line: they know no clap (`armctl-arm` is its own
 //! crate, `commands` and `motion` are front-end neutral), so each lists its names and help in a
 //! `NAMES` table ([`Scalar::NAMES`], [`SolverName::NAMES`], [`Method::NAMES`], [`Ends::NAMES`],
-//! [`Board::NAMES`]) and offers them to clap here.
+//! [`Board::NAMES`], [`RootOffset::NAMES`], [`Timing::NAMES`]) and offers them to clap here.
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 
 use crate::arm::dof::{Scalar, SolverName};
 use crate::commands::footprint::Board;
+use crate::motion::mocap::skeleton::RootOffset;
+use crate::motion::mocap::timing::Timing;
 use crate::motion::trajectory::{Ends, Method};
 
 /// A value by one of the names of `names` (each `(name, value, help)`), as clap's `ValueEnum`
@@ -46,4 +48,14 @@ pub fn ends() -> impl TypedValueParser<Value = Ends> {
 /// `armctl footprint --board mps2-an386|stm32f411`.
 pub fn board() -> impl TypedValueParser<Value = Board> {
     named(&Board::NAMES)
+}
+
+/// `--root-offset add|ignore`.
+pub fn root_offset() -> impl TypedValueParser<Value = RootOffset> {
+    named(&RootOffset::NAMES)
+}
+
+/// `--timing fit|captured`.
+pub fn timing() -> impl TypedValueParser<Value = Timing> {
+    named(&Timing::NAMES)
 }

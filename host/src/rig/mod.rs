@@ -10,6 +10,7 @@
 //! - [`teleop`]: `armctl teleop --rig`, every arm driven by its own leader.
 //! - [`handover`]: `armctl demo --rig`, two simulated arms handing an object over.
 //! - [`tree`]: a rig whose arms are mounted on one another (a shared joint) as one kinematic tree.
+//! - [`retarget`]: `armctl retarget FILE.bvh --rig FILE`, the human's arms onto every arm at once.
 
 pub mod columns;
 pub mod commands;
@@ -17,6 +18,7 @@ pub mod file;
 pub mod handover;
 pub mod play;
 pub mod report;
+pub mod retarget;
 pub mod teleop;
 pub mod tree;
 

@@ -41,10 +41,9 @@ use std::time::Duration;
 
 use access::Token;
 use anyhow::{bail, Context, Result};
-use clap::Args;
 
 use crate::arm::servos::servos_of;
-use crate::cli::link::LinkArgs;
+use crate::runtime::connection::Place;
 use crate::support::interrupt;
 use arm_loop::ArmLoop;
 use server::{Served, ServedArm, ViewServer};
@@ -53,27 +52,17 @@ use telemetry::Latest;
 /// Where the page is served unless `--listen` says otherwise: this machine only.
 pub const DEFAULT_LISTEN: &str = "127.0.0.1:8765";
 
-/// `armctl view`.
-#[derive(Args, Debug)]
-pub struct ViewArgs {
-    #[command(flatten)]
-    #[allow(missing_docs)]
-    pub link: LinkArgs,
-    /// Serve the page on this address and port. The default serves this machine only; any other
-    /// address lets whoever has the URL move the arm, and plain HTTP shows the token to the
-    /// network (an SSH tunnel is the safe way in from another machine). Port 0 picks a free one.
-    #[arg(long, value_name = "ADDR:PORT", default_value = DEFAULT_LISTEN)]
+/// What `armctl view` is asked for, as typed: the view checks it (`listen` an address, `token`
+/// long enough, the URDF's joints the arm's) before anything is opened.
+#[derive(Clone, Debug)]
+pub struct ViewRequest {
+    /// The address and port to serve the page on, `ADDR:PORT`.
     pub listen: String,
-    /// The API's token (at least 32 letters, digits or -._~) instead of a random one drawn for
-    /// this run. Other users of this machine can read a command line: prefer the random one.
-    #[arg(long, value_name = "TOKEN")]
+    /// The API's token; `None` draws a random one for this run.
     pub token: Option<String>,
-    /// Draw this URDF's visual meshes (STL) over the chain; its moving joints must be the arm's.
-    #[arg(long, value_name = "FILE.urdf")]
+    /// A URDF whose visual meshes are drawn over the chain (one arm only).
     pub urdf: Option<PathBuf>,
-    /// The link the --urdf chain ends at, where the URDF has several leaves (the SO-101's:
-    /// gripper_frame_link).
-    #[arg(long, value_name = "LINK", requires = "urdf")]
+    /// The link the URDF's chain ends at, where it has several leaves.
     pub tip: Option<String>,
 }
 
@@ -87,22 +76,16 @@ fn print_url(url: &str, json: bool, out: &mut dyn Write) -> Result<()> {
     }
 }
 
-/// Runs `armctl view` until Ctrl-C; returns the exit code.
-pub fn run(link: &LinkArgs, args: ViewArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
-    // Everything the user typed is checked before anything is opened.
-    let mut link = link.merged(&args.link)?;
-    if let Some(rig) = link.rig.clone() {
-        return rig::run(&rig, &link, &args, out, err);
+/// Runs `armctl view` of the one arm at `place` until Ctrl-C; `json`: the URL as {"url": URL}.
+/// Returns the exit code.
+pub fn run(place: &Place, json: bool, request: &ViewRequest, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+    let mut place = place.clone();
+    // --sim is the default (see the module doc).
+    if place.port.is_none() && place.bus.is_none() {
+        place.sim = true;
     }
-    if link.port.is_none() && link.bus.is_none() {
-        link.sim = true;
-    }
-    if link.object_mm.is_some() {
-        bail!("--object-mm: the view's simulated arm has no object between its jaws");
-    }
-    let (listen, token) = listen_and_token(&args)?;
-    let urdf = args.urdf.as_deref().map(|file| meshes::Urdf::read(file, args.tip.as_deref())).transpose()?;
-    let place = link.one_place()?;
+    let (listen, token) = listen_and_token(request)?;
+    let urdf = request.urdf.as_deref().map(|file| meshes::Urdf::read(file, request.tip.as_deref())).transpose()?;
     let (target, arm) = place.target_and_arm()?;
     let arm = arm.map(str::to_string);
     warn_if_open(listen, err)?;
@@ -127,7 +110,7 @@ pub fn run(link: &LinkArgs, args: ViewArgs, out: &mut dyn Write, err: &mut dyn W
         latest,
     };
     let mut server = ViewServer::start(listener, served, token)?;
-    print_url(server.url(), link.json, out)?;
+    print_url(server.url(), json, out)?;
     out.flush()?;
     writeln!(
         err,
@@ -142,12 +125,12 @@ pub fn run(link: &LinkArgs, args: ViewArgs, out: &mut dyn Write, err: &mut dyn W
 }
 
 /// `--listen` and `--token`, checked.
-fn listen_and_token(args: &ViewArgs) -> Result<(SocketAddr, Token)> {
-    let listen: SocketAddr = args
+fn listen_and_token(request: &ViewRequest) -> Result<(SocketAddr, Token)> {
+    let listen: SocketAddr = request
         .listen
         .parse()
-        .with_context(|| format!("--listen {}: expected ADDR:PORT, e.g. 127.0.0.1:8765", args.listen))?;
-    let token = match &args.token {
+        .with_context(|| format!("--listen {}: expected ADDR:PORT, e.g. 127.0.0.1:8765", request.listen))?;
+    let token = match &request.token {
         Some(text) => Token::given(text)?,
         None => Token::generate()?,
     };

@@ -11,41 +11,22 @@
 use std::io::Write;
 use std::sync::Arc;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use serde_json::json;
 
 use super::arm_loop::{ArmLoop, Seat};
 use super::server::{Rig, Served, ServedArm, ViewServer};
 use super::telemetry::{frame, Latest, Placement};
-use super::{joints_and_gripper, listen_and_token, meshes, supervise, warn_if_open, Running, ViewArgs};
-use crate::cli::link::LinkArgs;
+use super::{joints_and_gripper, listen_and_token, meshes, supervise, warn_if_open, Running, ViewRequest};
 use crate::rig::RigSpec;
 
-/// Refuses the options that name one arm's place or drawing: a rig's arms are in its file.
-fn refuse_one_arm_options(link: &LinkArgs, args: &ViewArgs) -> Result<()> {
-    let mut given = link.one_arm_options();
-    given.extend(
-        [(args.urdf.is_some(), "--urdf"), (args.tip.is_some(), "--tip")]
-            .into_iter()
-            .filter_map(|(g, n)| g.then_some(n)),
-    );
-    if !given.is_empty() {
-        bail!(
-            "{} with --rig: each arm's place and model are in the rig file; `armctl view --rig RIG` takes --listen \
-             and --token",
-            given.join(", ")
-        );
-    }
-    Ok(())
-}
-
-/// Runs `armctl view --rig rig` until Ctrl-C; returns the exit code.
-pub fn run(rig: &str, link: &LinkArgs, args: &ViewArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
-    refuse_one_arm_options(link, args)?;
+/// Runs `armctl view --rig rig` until Ctrl-C; `json`: the URL as {"url": URL}. `request.urdf` and
+/// `request.tip` are one arm's: the caller refuses them. Returns the exit code.
+pub fn run(rig: &str, json: bool, request: &ViewRequest, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
     let spec = RigSpec::load(rig)?;
     // Each arm's base is placed once: an arm on another's tool frame would move with its joints.
     spec.refuse_mounts("view")?;
-    let (listen, token) = listen_and_token(args)?;
+    let (listen, token) = listen_and_token(request)?;
     let mut targets = Vec::new();
     for arm in &spec.arms {
         let (target, model) = arm.place.target_and_arm().with_context(|| format!("arm {}", arm.name))?;
@@ -82,7 +63,7 @@ pub fn run(rig: &str, link: &LinkArgs, args: &ViewArgs, out: &mut dyn Write, err
     let served =
         Served { arms: served, rig: Some(Rig { name: spec.name.clone(), json: rig_json }), meshes: Vec::new(), latest };
     let mut server = ViewServer::start(listener, served, token)?;
-    super::print_url(server.url(), link.json, out)?;
+    super::print_url(server.url(), json, out)?;
     out.flush()?;
     writeln!(
         err,

@@ -16,7 +16,7 @@ use anyhow::{bail, Result};
 use kinematics::nalgebra::{UnitQuaternion, Vector3};
 
 /// A rest pose of the arm.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Rest {
     /// Arms horizontal, out to the side.
@@ -35,6 +35,11 @@ impl Rest {
             Rest::APose => "a-pose",
             Rest::ArmsDown => "arms-down",
         }
+    }
+
+    /// The rest of that [`Rest::name`], if any.
+    pub fn from_name(name: &str) -> Option<Self> {
+        [Rest::TPose, Rest::APose, Rest::ArmsDown].into_iter().find(|r| r.name() == name)
     }
 
     /// Degrees below horizontal of this rest's arm bones.

@@ -13,7 +13,7 @@ use super::bvh::{Bvh, Channel};
 use kinematics::nalgebra::{Unit, UnitQuaternion, Vector3};
 
 /// What the root's OFFSET means when the root also has position channels.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum RootOffset {
     /// Root position = OFFSET + the translation channels.
@@ -23,6 +23,22 @@ pub enum RootOffset {
 }
 
 impl RootOffset {
+    /// Every setting with its name (as typed and as reports write it) and what it does, for the
+    /// command line's `--root-offset` and its help.
+    pub const NAMES: [(&'static str, RootOffset, &'static str); 2] = [
+        ("add", RootOffset::Add, "Root position = OFFSET + the translation channels"),
+        (
+            "ignore",
+            RootOffset::Ignore,
+            "Root position = the translation channels alone (OFFSET repeats the first frame's)",
+        ),
+    ];
+
+    /// The setting of that name, if any.
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::NAMES.iter().find(|(n, _, _)| *n == name).map(|&(_, r, _)| r)
+    }
+
     /// What `bvh` seems to use: [`RootOffset::Ignore`] when the root's non-zero OFFSET equals its
     /// first frame's translation (adding it would count it twice), else [`RootOffset::Add`]
     /// (which, for the usual zero OFFSET, changes nothing).

@@ -9,7 +9,7 @@
 //! to these, and the 10 % margin the caller leaves covers the rest.
 
 /// What gives way where the human moves faster than the arm's limits allow.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Timing {
     /// The time: a keyframe step takes as long as the limits need, so the tool keeps the hand's
     /// path and the motion plays slower there.
@@ -17,6 +17,30 @@ pub enum Timing {
     /// The path: keyframes keep the capture's timing and each joint's step is cut to the velocity
     /// limit, so the tool lags the hand there (and where the acceleration limit holds it back).
     Captured,
+}
+
+impl Timing {
+    /// Every choice with its name and what it gives up, for the command line's `--timing` and its
+    /// help.
+    pub const NAMES: [(&'static str, Timing, &'static str); 2] = [
+        (
+            "fit",
+            Timing::Fit,
+            "The time: a keyframe step takes as long as the limits need, so the tool keeps the hand's path and the \
+             motion plays slower there",
+        ),
+        (
+            "captured",
+            Timing::Captured,
+            "The path: keyframes keep the capture's timing and each joint's step is cut to the velocity limit, so the \
+             tool lags the hand there (and where the acceleration limit holds it back)",
+        ),
+    ];
+
+    /// The choice of that name, if any.
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::NAMES.iter().find(|(n, _, _)| *n == name).map(|&(_, t, _)| t)
+    }
 }
 
 /// Per-joint limits the keyframes keep (the same for every joint, as the arm files give them).

@@ -6,8 +6,9 @@
 //! placement (its own base frame). Four things are shared:
 //! - The scale: one for every arm. With `--scale auto` it is the smallest of the arms' own (each
 //!   arm's reach over its human arm's length), so every hand fits its arm and the two hands keep
-//!   their motions in proportion: a clap that moves both hands alike moves both tools alike, where
-//!   per-arm scales would differ by the capture's left-right asymmetry (3 % on CMU's 01_01).
+//!   their motions in proportion: hands that move alike (meeting in front of the chest) move both
+//!   tools alike, where per-arm scales would differ by the capture's left-right asymmetry (3 % on
+//!   CMU's 01_01).
 //! - The samples: every arm sampled at the same times from the same frames.
 //! - The cuts: where one arm's joint would move far between two keyframes, [`densify`] cuts the
 //!   step; every arm's step is cut into as many pieces as the arm that needs the most

@@ -12,7 +12,7 @@
 //! A rig with a shared joint (arms mounted on a turning torso, `mount` in the rig file) is one
 //! tree: an arm that carries others and whose name says no side (and has no `--chain`) follows no
 //! human arm; each hand is retargeted with it at rest, then every keyframe is solved as one tree
-//! problem over every joint ([`super::tree`]). The carrier gets its own columns in the file, and
+//! problem over every joint ([`tree`]). The carrier gets its own columns in the file, and
 //! the report its range of motion (`carriers`) and how the tree solves came out (`tree`).
 //!
 //! The report is one JSON line on stdout: the shared figures, and per arm those of the one-arm
@@ -27,16 +27,17 @@ use anyhow::{bail, Context, Result};
 use kinematics::Pose;
 use serde_json::{json, Value};
 
-use super::{chain_note, options, rest_note, RetargetArgs, AXES_NOTE};
 use crate::arm::dof::DynArm;
 use crate::arm::ArmSpec;
-use crate::cli::link::LinkArgs;
+use crate::commands::retarget::{chain_note, rest_note, RetargetRequest, AXES_NOTE};
 use crate::motion::mocap::bvh::Bvh;
 use crate::motion::mocap::chain::{self, ArmChain, Side};
 use crate::motion::mocap::retarget::timebase::{retarget_sharing, Job, Retargets, SharedJoints};
 use crate::motion::mocap::retarget::{Retargeted, Scale};
 use crate::rig::{columns, Rig, RigSpec};
 use crate::runtime::connection::calibrated;
+
+pub mod tree;
 
 /// Whether rig arm `i` follows no human arm: it carries another arm (a shared joint), no chain is
 /// given for it, and its name says no side.
@@ -218,17 +219,23 @@ fn notes(r: &Retargets, names: &[&str], bases: &[Pose<f64>], scale: Scale, err: 
     Ok(())
 }
 
-/// Runs `armctl retarget FILE --rig RIG`; `link` holds the drive options as merged from before and
-/// after the command.
-pub fn run(rig: &str, link: &LinkArgs, args: &RetargetArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<i32> {
+/// Runs `armctl retarget FILE --rig RIG`: `chains` are the `--chain ARM=SHOULDER,ELBOW,WRIST`
+/// given, `request.options.chain` is unused (each rig arm's chain is in `chains` or found by its
+/// side).
+pub fn run(
+    rig: &str,
+    chains: &[String],
+    request: &RetargetRequest,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> Result<i32> {
     let started = Instant::now();
-    link.refuse_beside_rig()?;
-    let options = options(args)?;
-    if args.play && !(args.timeout.is_finite() && args.timeout > 0.0) {
-        bail!("--timeout: {} s must be a positive number", args.timeout);
+    let options = &request.options;
+    if request.play && !(request.timeout.is_finite() && request.timeout > 0.0) {
+        bail!("--timeout: {} s must be a positive number", request.timeout);
     }
     let spec = RigSpec::load(rig)?;
-    let given = given_chains(&spec, &args.chain)?;
+    let given = given_chains(&spec, chains)?;
     let carriers: Vec<bool> = (0..spec.arms.len()).map(|i| is_carrier(&spec, i, given[i].as_ref())).collect();
     let followers: Vec<usize> = (0..spec.arms.len()).filter(|&i| !carriers[i]).collect();
     let mut arms: Vec<Box<dyn DynArm>> = Vec::new();
@@ -240,14 +247,14 @@ pub fn run(rig: &str, link: &LinkArgs, args: &RetargetArgs, out: &mut dyn Write,
         arms.push(arm);
     }
 
-    let bvh = crate::motion::mocap::bvh::read(&args.file)?;
-    let shown = args.file.display().to_string();
+    let bvh = crate::motion::mocap::bvh::read(&request.file)?;
+    let shown = request.file.display().to_string();
     for warning in &bvh.warnings {
         writeln!(err, "warning: {shown}: {warning}")?;
     }
-    // A shared joint: the rig is one tree, solved at every keyframe (see [`super::tree`]).
+    // A shared joint: the rig is one tree, solved at every keyframe (see [`tree`]).
     let shared = if spec.arms.iter().any(|a| a.mount.is_some()) {
-        Some(super::tree::RigShared::new(&spec, &arms, &carriers)?)
+        Some(tree::RigShared::new(&spec, &arms, &carriers)?)
     } else {
         None
     };
@@ -257,7 +264,7 @@ pub fn run(rig: &str, link: &LinkArgs, args: &RetargetArgs, out: &mut dyn Write,
         let chain = chain_for(&bvh, &a.name, given[i].as_deref()).with_context(|| shown.clone())?;
         jobs.push(Job { name: a.name.clone(), arm: arm.as_ref(), chain });
     }
-    let r = retarget_sharing(&bvh, jobs, shared.as_ref().map(|s| s as &dyn SharedJoints), &options)
+    let r = retarget_sharing(&bvh, jobs, shared.as_ref().map(|s| s as &dyn SharedJoints), options)
         .with_context(|| shown.clone())?;
 
     // The followers' names and bases in the world (with the carriers at rest).
@@ -276,7 +283,7 @@ pub fn run(rig: &str, link: &LinkArgs, args: &RetargetArgs, out: &mut dyn Write,
             tree.reseeded, tree.missed
         )?;
     }
-    let keyframes = match (&args.out, args.play) {
+    let keyframes = match (&request.out, request.play) {
         (Some(path), _) => Some(path.clone()),
         (None, true) => Some(std::env::temp_dir().join(format!("armctl-retarget-rig-{}.csv", std::process::id()))),
         (None, false) => None,
@@ -298,7 +305,7 @@ pub fn run(rig: &str, link: &LinkArgs, args: &RetargetArgs, out: &mut dyn Write,
         r.write_columns(&columns, &mut file)?;
     }
     let mut plots = serde_json::Map::new();
-    if let Some(plot) = &args.plot {
+    if let Some(plot) = &request.plot {
         for ((name, arm), robot) in names.iter().zip(&r.arms).zip(followers.iter().map(|&i| &arms[i])) {
             let path = plot_path(plot, name);
             let title = format!("{shown} onto {name} ({}): human hand (scaled) and tool", robot.spec().name);
@@ -340,18 +347,18 @@ pub fn run(rig: &str, link: &LinkArgs, args: &RetargetArgs, out: &mut dyn Write,
             "arms": per_arm,
             "carriers": (!carried.is_empty()).then_some(carried),
             "tree": r.tree.as_ref().map(|t| json!({"reseeded": t.reseeded, "missed": t.missed})),
-            "out": args.out.as_ref().map(|p| p.display().to_string()),
+            "out": request.out.as_ref().map(|p| p.display().to_string()),
             "plot": (!plots.is_empty()).then_some(plots),
             "wall_s": started.elapsed().as_secs_f64(),
         }),
     )?;
-    let Some(path) = keyframes.filter(|_| args.play) else {
+    let Some(path) = keyframes.filter(|_| request.play) else {
         return Ok(0);
     };
     let all_names: Vec<&str> = spec.arms.iter().map(|a| a.name.as_str()).collect();
     let all_bases: Vec<Pose<f64>> = spec.arms.iter().map(|a| a.base).collect();
-    let played = play(&spec, &path, &all_names, &all_bases, args.timeout, out, err);
-    if args.out.is_none() {
+    let played = play(&spec, &path, &all_names, &all_bases, request.timeout, out, err);
+    if request.out.is_none() {
         let _ = std::fs::remove_file(&path);
     }
     played
