@@ -31,14 +31,42 @@ __version__: str = _armctl.__version__
 Array = npt.NDArray[np.float64]
 
 
-def _vector(values: npt.ArrayLike, what: str, length: int | None = None) -> list[float]:
-    """A 1-D float vector as a list, its length checked."""
-    a = np.asarray(values, dtype=np.float64)
+def _numbers(values: npt.ArrayLike, what: str, finite: bool = True) -> Array:
+    """``values`` as a float array, checked as the command line checks its numbers: real numbers
+    only (a bool, a string or a complex number is refused, not converted), every one finite unless
+    ``finite`` is False (an arm's requests check that themselves, in the command line's words)."""
+    try:
+        a = np.asarray(values)
+    except (TypeError, ValueError) as e:  # ragged nesting, objects numpy cannot read
+        raise ArmctlError(f"{what}: expected numbers, {e}") from None
+    if a.dtype.kind not in "iuf":
+        got = {"b": "booleans", "c": "complex numbers", "U": "text", "S": "bytes"}.get(a.dtype.kind, "other objects")
+        raise ArmctlError(f"{what}: expected real numbers, got {got}")
+    a = a.astype(np.float64)
+    bad = np.flatnonzero(~np.isfinite(a)) if finite else ()
+    if len(bad):
+        raise ArmctlError(f"{what}: value {bad[0] + 1} ({a.flat[bad[0]]}) is not a finite number")
+    return a
+
+
+def _vector(values: npt.ArrayLike, what: str, length: int | None = None, finite: bool = True) -> list[float]:
+    """A 1-D float vector as a list, its length checked (see :func:`_numbers`)."""
+    a = _numbers(values, what, finite)
     if a.ndim != 1:
         raise ArmctlError(f"{what}: expected a 1-D array, got shape {a.shape}")
     if length is not None and a.shape[0] != length:
         raise ArmctlError(f"{what}: expected {length} values, got {a.shape[0]}")
     return a.tolist()
+
+
+def _rows(values: npt.ArrayLike, what: str, width: int) -> Array | None:
+    """A batch ``(n, width)`` checked as :func:`_numbers` (n may be 0), or None for one vector."""
+    a = _numbers(values, what)
+    if a.ndim == 1:
+        return None
+    if a.ndim != 2 or a.shape[1] != width:
+        raise ArmctlError(f"{what}: expected shape ({width},) or (n, {width}), got {a.shape}")
+    return a
 
 
 class IkResult:
@@ -48,7 +76,7 @@ class IkResult:
 
     def __init__(self, q: Array, status: str, position_error: float, orientation_error: float, method: str):
         self.q = q
-        #: ``converged``, ``best-effort``, ``iteration-limit``, or why the input was refused.
+        #: ``converged``, ``best_effort``, ``iteration_limit``, or why the input was refused.
         self.status = status
         #: Tool position error at ``q``, m.
         self.position_error = position_error
@@ -116,17 +144,21 @@ class Model:
 
     def fk(self, q: npt.ArrayLike) -> Array:
         """The tool pose at ``q``: a 4 x 4 homogeneous matrix; ``(n, dof)`` gives ``(n, 4, 4)``."""
-        a = np.asarray(q, dtype=np.float64)
-        if a.ndim == 2:
-            return np.array([self._m.fk(_vector(row, "q", self.dof)) for row in a])
-        return np.array(self._m.fk(_vector(a, "q", self.dof)))
+        batch = _rows(q, "q", self.dof)
+        if batch is not None:
+            return np.array([self._m.fk(row.tolist()) for row in batch]).reshape(len(batch), 4, 4)
+        return np.array(self._m.fk(_vector(q, "q", self.dof)))
 
     def frames(self, q: npt.ArrayLike) -> Array:
         """Every joint frame at ``q``, base first: ``(dof, 4, 4)``."""
         return np.array(self._m.frames(_vector(q, "q", self.dof)))
 
     def jacobian(self, q: npt.ArrayLike) -> Array:
-        """The 6 x dof geometric Jacobian at ``q`` (linear velocity rows first)."""
+        """The 6 x dof geometric Jacobian at ``q`` (linear velocity rows first); ``(n, dof)`` gives
+        ``(n, 6, dof)``."""
+        batch = _rows(q, "q", self.dof)
+        if batch is not None:
+            return np.array([self._m.jacobian(row.tolist()) for row in batch]).reshape(len(batch), 6, self.dof)
         return np.array(self._m.jacobian(_vector(q, "q", self.dof)))
 
     def solve(self, position: npt.ArrayLike, quaternion_wxyz: npt.ArrayLike | None = None,
@@ -147,16 +179,14 @@ class Model:
         A batch: ``position`` of shape ``(n, 3)`` (and ``quaternion_wxyz`` ``(n, 4)``) gives
         ``(n, dof)``; with ``warm`` each target is seeded with the answer before it, as a path is.
         Raises :class:`ArmctlError` naming the first target that does not converge."""
-        p = np.asarray(position, dtype=np.float64)
-        if p.ndim == 1:
-            r = self.solve(p, quaternion_wxyz, seed, solver)
+        p = _rows(position, "position", 3)
+        if p is None:
+            r = self.solve(position, quaternion_wxyz, seed, solver)
             if not r.converged:
-                raise ArmctlError(f"target {np.array2string(p, precision=4)} m not reached: {r.status}, "
-                                  f"{r.position_error * 1e3:.2f} mm short")
+                shown = np.array2string(np.asarray(position, dtype=np.float64), precision=4)
+                raise ArmctlError(f"target {shown} m not reached: {r.status}, {r.position_error * 1e3:.2f} mm short")
             return r.q
-        if p.ndim != 2 or p.shape[1] != 3:
-            raise ArmctlError(f"position: expected shape (3,) or (n, 3), got {p.shape}")
-        quats = None if quaternion_wxyz is None else np.asarray(quaternion_wxyz, dtype=np.float64)
+        quats = None if quaternion_wxyz is None else _numbers(quaternion_wxyz, "quaternion_wxyz")
         if quats is not None and quats.shape != (p.shape[0], 4):
             raise ArmctlError(f"quaternion_wxyz: expected shape ({p.shape[0]}, 4), got {quats.shape}")
         out = np.empty((p.shape[0], self.dof))
@@ -232,11 +262,11 @@ class TreeModel(Model):
 
     def fk(self, q: npt.ArrayLike) -> dict[str, Array]:
         """Each end effector's pose at ``q``: ``{link: 4 x 4}``; ``(n, dof)`` gives ``{link: (n, 4, 4)}``."""
-        a = np.asarray(q, dtype=np.float64)
-        if a.ndim == 2:
-            poses = np.array([self._m.fk(_vector(row, "q", self.dof)) for row in a]).reshape(len(a), -1, 4, 4)
+        batch = _rows(q, "q", self.dof)
+        if batch is not None:
+            poses = np.array([self._m.fk(row.tolist()) for row in batch]).reshape(len(batch), len(self.effectors), 4, 4)
             return {name: poses[:, e] for e, name in enumerate(self.effectors)}
-        poses = self._m.fk(_vector(a, "q", self.dof))
+        poses = self._m.fk(_vector(q, "q", self.dof))
         return {name: np.array(p) for name, p in zip(self.effectors, poses)}
 
     def jacobian(self, q: npt.ArrayLike) -> dict[str, Array]:
@@ -308,7 +338,8 @@ class Stream:
     def send(self, q: npt.ArrayLike, gripper: float | None = None) -> tuple[float, Array, float | None]:
         """Joint values (rad or m) and the gripper's opening (percent); returns ``(time, q,
         gripper)`` as sent, after clamping."""
-        t, sent, g = self._arm._a.stream_joints(_vector(q, "q"), None if gripper is None else float(gripper))
+        t, sent, g = self._arm._a.stream_joints(_vector(q, "q", finite=False),
+                                                None if gripper is None else float(gripper))
         return t, np.array(sent), g
 
     def send_pose(self, position: npt.ArrayLike, quaternion_wxyz: npt.ArrayLike | None = None,
@@ -316,8 +347,8 @@ class Stream:
         """A tool pose, solved by the firmware's IK as the player reaches it; returns ``(time,
         gripper)`` as sent."""
         return self._arm._a.stream_pose(
-            _vector(position, "position", 3),
-            None if quaternion_wxyz is None else _vector(quaternion_wxyz, "quaternion_wxyz", 4),
+            _vector(position, "position", 3, finite=False),
+            None if quaternion_wxyz is None else _vector(quaternion_wxyz, "quaternion_wxyz", 4, finite=False),
             None if gripper is None else float(gripper))
 
     @property
@@ -410,14 +441,15 @@ class Arm:
                 timeout: float = 60.0) -> dict[str, Any]:
         """The tool to ``position`` (m), oriented by ``quaternion_wxyz`` if given; ``path`` auto
         (a straight line where it is clear, else by joints), line or joint. Waits until at rest."""
-        return self._a.move_to(_vector(position, "position"),
-                                          None if quaternion_wxyz is None else _vector(quaternion_wxyz, "quaternion_wxyz"),
-                                          speed, duration, path, timeout)
+        return self._a.move_to(_vector(position, "position", finite=False),
+                               None if quaternion_wxyz is None
+                               else _vector(quaternion_wxyz, "quaternion_wxyz", finite=False),
+                               speed, duration, path, timeout)
 
     def move_joints(self, q: npt.ArrayLike, *, speed: float | None = None, duration: float | None = None,
                     timeout: float = 60.0) -> dict[str, Any]:
         """Every joint to ``q`` (rad or m), arriving together. Waits until at rest."""
-        return self._a.move_joints(_vector(q, "q"), speed, duration, timeout)
+        return self._a.move_joints(_vector(q, "q", finite=False), speed, duration, timeout)
 
     def play(self, keyframes: str | None = None, *, times: npt.ArrayLike | None = None,
              positions: npt.ArrayLike | None = None, gripper: npt.ArrayLike | None = None,
@@ -428,24 +460,15 @@ class Arm:
         if keyframes is not None:
             if times is not None or positions is not None or gripper is not None:
                 raise ArmctlError("play takes a keyframe file or times and positions, not both")
-            return self._a.play(str(keyframes), None, "keyframes", timeout)
+            return self._a.play(str(keyframes), None, None, None, "keyframes", timeout)
         if times is None or positions is None:
             raise ArmctlError("play needs a keyframe file, or times and positions")
-        t = np.asarray(times, dtype=np.float64)
-        q = np.asarray(positions, dtype=np.float64)
+        t = _numbers(times, "times", finite=False)
+        q = _numbers(positions, "positions", finite=False)
         if t.ndim != 1 or q.ndim != 2 or q.shape[0] != t.shape[0]:
             raise ArmctlError(f"times {t.shape} and positions {q.shape}: expected (n,) and (n, joints)")
-        columns = [t[:, None], q]
-        header = ["t"] + [f"q{j + 1}" for j in range(q.shape[1])]
-        if gripper is not None:
-            g = np.asarray(gripper, dtype=np.float64).reshape(-1, 1)
-            if g.shape[0] != t.shape[0]:
-                raise ArmctlError(f"gripper: {g.shape[0]} values for {t.shape[0]} keyframes")
-            columns.append(g)
-            header.append("gripper")
-        rows = np.hstack(columns)
-        text = ",".join(header) + "\n" + "".join(",".join(repr(float(x)) for x in row) + "\n" for row in rows)
-        return self._a.play(None, text, "keyframes", timeout)
+        g = None if gripper is None else _numbers(gripper, "gripper", finite=False).reshape(-1).tolist()
+        return self._a.play(None, t.tolist(), q.tolist(), g, "keyframes", timeout)
 
     def stream(self, rate: float, lead_ms: float | None = None,
                max_step: float | Sequence[float] | None = None) -> Stream:
@@ -453,7 +476,7 @@ class Arm:
         Each keyframe is due ``lead_ms`` after it is sent (default: one period plus 8 ms); no joint
         moves more than ``max_step`` rad (one value, or one per joint) from one keyframe to the
         next (default: its speed limit over one period)."""
-        steps = None if max_step is None else _vector(np.atleast_1d(np.asarray(max_step, dtype=np.float64)), "max_step")
+        steps = None if max_step is None else _vector(np.atleast_1d(max_step), "max_step", finite=False)
         self._a.stream_begin(float(rate), lead_ms, steps)
         return Stream(self)
 

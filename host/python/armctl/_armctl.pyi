@@ -108,7 +108,13 @@ class Arm:
         self, q: list[float], speed: Optional[float] = None, duration: Optional[float] = None, timeout: float = 60.0
     ) -> dict[str, Any]: ...
     def play(
-        self, path: Optional[str] = None, text: Optional[str] = None, name: str = "keyframes", timeout: float = 30.0
+        self,
+        path: Optional[str] = None,
+        times: Optional[list[float]] = None,
+        positions: Optional[list[list[float]]] = None,
+        gripper: Optional[list[float]] = None,
+        name: str = "keyframes",
+        timeout: float = 30.0,
     ) -> dict[str, Any]: ...
     def stop(self) -> dict[str, Any]: ...
     def torque(self, on: bool) -> dict[str, Any]: ...

@@ -293,25 +293,28 @@ impl Arm {
         self.run(py, |driver, notes| joints::joints(driver, &request, notes))
     }
 
-    /// `armctl play`: a keyframe file (joint `t,q1,...,qN[,v1,...,vN][,gripper]` or Cartesian),
-    /// given by its `path`, or its `text` (named `name` in messages); streamed with flow control
-    /// and waited for.
-    #[pyo3(signature = (path = None, text = None, name = "keyframes", timeout = 30.0))]
+    /// `armctl play`: a keyframe file (joint `t,q1,...,qN[,v1,...,vN][,gripper]` or Cartesian)
+    /// given by its `path`, or joint keyframes given as values (`times`, `positions` one row per
+    /// keyframe, the `gripper`'s opening per keyframe), named `name` in messages; streamed with
+    /// flow control and waited for.
+    #[pyo3(signature = (path = None, times = None, positions = None, gripper = None, name = "keyframes", timeout = 30.0))]
+    #[allow(clippy::too_many_arguments)] // Python's keyword arguments.
     fn play(
         &mut self,
         py: Python<'_>,
         path: Option<PathBuf>,
-        text: Option<String>,
+        times: Option<Vec<f64>>,
+        positions: Option<Vec<Vec<f64>>>,
+        gripper: Option<Vec<f64>>,
         name: &str,
         timeout: f64,
     ) -> PyResult<Py<PyAny>> {
-        let plan = match (path, text) {
-            (Some(file), None) => Plan::read(&file, timeout),
-            (None, Some(text)) => match timeout.is_finite() && timeout > 0.0 {
-                true => Plan::parse(&text, std::path::Path::new(name), timeout),
-                false => Err(anyhow!("timeout: {timeout} s must be a positive number")),
-            },
-            _ => Err(anyhow!("play takes a file's path or its text, one of them")),
+        let plan = match (path, times, positions) {
+            (Some(file), None, None) if gripper.is_none() => Plan::read(&file, timeout),
+            (None, Some(times), Some(positions)) => {
+                Plan::from_joint_rows(&times, &positions, gripper.as_deref(), std::path::Path::new(name), timeout)
+            }
+            _ => Err(anyhow!("play takes a keyframe file, or times and positions (and the gripper's openings)")),
         }
         .or_raise()?;
         self.run(py, |driver, notes| play::play(driver, &plan, notes))

@@ -97,7 +97,7 @@ impl Model {
     }
 
     /// Solves one target: `(q, status, position_error, orientation_error, method)`. The status is
-    /// `converged`, `best-effort`, `iteration-limit` or the reason an input was refused.
+    /// `converged`, `best_effort`, `iteration_limit` or the reason an input was refused.
     #[pyo3(signature = (position, quaternion_wxyz = None, seed = None, solver = "auto", position_tolerance = None, orientation_tolerance = None))]
     #[allow(clippy::too_many_arguments)] // Python's keyword arguments, each an `armctl ik` option.
     fn ik(

@@ -212,8 +212,19 @@ def test_play_timed_keyframes_with_the_gripper_and_a_file(arm, tmp_path):
     f.write_text("t,q1,q2,q3,q4,q5\n0,0.1,0,0,0,0.2\n0.5,0,0,0,0,0\n")
     arm.play(str(f))
     np.testing.assert_allclose(arm.joints(), [0, 0, 0, 0, 0], atol=2e-3)
-    with pytest.raises(armctl.ArmctlError, match="keyframes: line 3"):
+    # Arrays are checked as a file's rows are, each keyframe named by its number; nothing moves.
+    before = arm.joints()
+    with pytest.raises(armctl.ArmctlError, match="keyframes: line 2"):
         arm.play(times=[0, 1], positions=[[0, 0, 0, 0, 0], [9, 0, 0, 0, 0]])
+    with pytest.raises(armctl.ArmctlError, match="not later"):
+        arm.play(times=[0, 0], positions=[[0, 0, 0, 0, 0], [0.1, 0, 0, 0, 0]])
+    with pytest.raises(armctl.ArmctlError, match="not an opening in percent"):
+        arm.play(times=[0, 1], positions=[[0, 0, 0, 0, 0], [0.1, 0, 0, 0, 0]], gripper=[50, 101])
+    with pytest.raises(armctl.ArmctlError, match="1 openings for 2 keyframes"):
+        arm.play(times=[0, 1], positions=[[0, 0, 0, 0, 0], [0.1, 0, 0, 0, 0]], gripper=[50])
+    with pytest.raises(armctl.ArmctlError, match="keyframes: line 1: NaN is not a finite number"):
+        arm.play(times=[0, 1], positions=[[0, np.nan, 0, 0, 0], [0.1, 0, 0, 0, 0]])
+    np.testing.assert_allclose(arm.joints(), before, atol=1e-3)
     with pytest.raises(armctl.ArmctlError, match="cannot read keyframe file"):
         arm.play(str(tmp_path / "missing.csv"))
 

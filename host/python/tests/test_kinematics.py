@@ -229,9 +229,42 @@ def test_bad_tree_input_raises_one_line(call, message):
         (lambda: armctl.sample([0, 1], [[0], [1]], 10, method="wavy"), "method \"wavy\""),
         (lambda: armctl.sample([0, 0], [[0], [1]], 10), "not later"),
         (lambda: armctl.sample([0, 1], [[0], [np.inf]], 10), "not a finite number"),
+        # Checked as the command line checks them (issue 43): non-finite values in every input,
+        # types numpy would quietly convert (bools, text, complex), shapes.
+        (lambda: armctl.Model("so101").ik([np.nan, 0, 0.1]), "position: value 1 \\(nan\\) is not a finite number"),
+        (lambda: armctl.Model("so101").solve([0.2, 0, 0.1], seed=[0, np.inf, 0, 0, 0]),
+         "seed: value 2 \\(inf\\) is not a finite number"),
+        (lambda: armctl.Model("so101").ik([0.2, 0, 0.1], quaternion_wxyz=[1, 0, np.nan, 0]),
+         "quaternion_wxyz: value 3 \\(nan\\) is not a finite number"),
+        (lambda: armctl.Model("so101").ik([[0.2, 0, 0.1], [0.2, np.nan, 0.1]]), "position: value 5 \\(nan\\)"),
+        (lambda: armctl.Model("so101").fk(["0", "0", "0", "0", "0"]), "q: expected real numbers, got text"),
+        (lambda: armctl.Model("so101").fk([True, False, False, False, False]),
+         "q: expected real numbers, got booleans"),
+        (lambda: armctl.Model("so101").fk([1j, 0, 0, 0, 0]), "q: expected real numbers, got complex numbers"),
+        (lambda: armctl.Model("so101").fk([[0, 0], [0, 0, 0]]), "q: expected numbers"),
+        (lambda: armctl.Model("so101").fk(np.zeros((2, 4))), "q: expected shape \\(5,\\) or \\(n, 5\\)"),
+        (lambda: armctl.Model("so101").jacobian(np.zeros((2, 5, 1))), "q: expected shape"),
+        (lambda: armctl.Model("so101").ik(np.zeros((2, 2))), "position: expected shape \\(3,\\) or \\(n, 3\\)"),
     ],
 )
 def test_bad_input_raises_one_line(call, message):
     with pytest.raises(armctl.ArmctlError, match=message) as e:
         call()
     assert "\n" not in str(e.value)
+
+
+def test_batches_of_any_length_keep_their_shape():
+    """An empty batch has the batch's shape, as a batch of one has; jacobian takes a batch as fk
+    and ik do, each row as the single call answers it."""
+    m = armctl.Model("so101")
+    assert m.fk(np.zeros((0, 5))).shape == (0, 4, 4)
+    assert m.jacobian(np.zeros((0, 5))).shape == (0, 6, 5)
+    assert m.ik(np.zeros((0, 3))).shape == (0, 5)
+    rng = np.random.default_rng(43)
+    lo, hi = m.limits[:, 0], m.limits[:, 1]
+    q = lo + (hi - lo) * rng.uniform(0.05, 0.95, size=(4, 5))
+    assert m.fk(q[:1]).shape == (1, 4, 4)
+    batch = m.jacobian(q)
+    assert batch.shape == (4, 6, 5)
+    for row, j in zip(q, batch):
+        np.testing.assert_array_equal(j, m.jacobian(row))

@@ -77,6 +77,35 @@ impl Plan {
         Ok(plan)
     }
 
+    /// Joint keyframes given as values (the Python binding's arrays) instead of a file's text:
+    /// checked as a file's are, `name` naming them in messages, and each keyframe's "line" its
+    /// number from 1, as [`Keyframes::from_rows`] (and `sample`) count them. `gripper`: the
+    /// opening per keyframe, percent.
+    pub fn from_joint_rows(
+        times: &[f64],
+        positions: &[Vec<f64>],
+        gripper: Option<&[f64]>,
+        name: &Path,
+        timeout: f64,
+    ) -> Result<Self> {
+        if !(timeout.is_finite() && timeout > 0.0) {
+            bail!("timeout: {timeout} s must be a positive number");
+        }
+        let shown = name.display().to_string();
+        let mut keyframes = Keyframes::from_rows(times, positions, None).context(shown.clone())?;
+        if let Some(openings) = gripper {
+            if openings.len() != times.len() {
+                bail!("{shown}: gripper: {} openings for {} keyframes", openings.len(), times.len());
+            }
+            let checked: Result<Vec<f64>> =
+                openings.iter().zip(&keyframes.lines).map(|(&g, &line)| trajectory::gripper_value(line, g)).collect();
+            keyframes.gripper = Some(checked.context(shown.clone())?);
+        }
+        let plan = Self { path: name.to_path_buf(), frames: Frames::Joint(keyframes), timeout };
+        plan.check_times()?;
+        Ok(plan)
+    }
+
     fn times_and_lines(&self) -> (&[f64], &[usize]) {
         match &self.frames {
             Frames::Joint(k) => (&k.times, &k.lines),
