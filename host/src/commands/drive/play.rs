@@ -431,3 +431,46 @@ pub fn play(driver: &mut Driver, plan: &Plan, notes: &mut dyn Write) -> DriveRes
         joints: last.measured.to_vec(),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rows() -> (Vec<f64>, Vec<Vec<f64>>) {
+        (vec![0.0, 0.5, 1.25], vec![vec![0.0, 0.1], vec![0.2, 0.1], vec![0.3, -0.2]])
+    }
+
+    #[test]
+    fn joint_rows_make_the_plan_a_file_with_the_same_rows_makes() {
+        let (t, q) = rows();
+        let given = Plan::from_joint_rows(&t, &q, Some(&[50.0, 20.0, 70.0]), Path::new("keyframes"), 30.0).unwrap();
+        let text = "t,q1,q2,gripper\n0,0,0.1,50\n0.5,0.2,0.1,20\n1.25,0.3,-0.2,70\n";
+        let read = Plan::parse(text, Path::new("keyframes"), 30.0).unwrap();
+        let (Frames::Joint(a), Frames::Joint(b)) = (&given.frames, &read.frames) else { panic!("joint keyframes") };
+        assert_eq!((&a.times, &a.positions, &a.gripper), (&b.times, &b.positions, &b.gripper));
+        assert_eq!((given.seconds(), given.timeout(), given.is_cartesian()), (1.25, 30.0, false));
+    }
+
+    #[test]
+    fn bad_rows_are_refused_in_one_line_naming_the_keyframe() {
+        let (t, q) = rows();
+        let name = Path::new("keyframes");
+        let error = |r: Result<Plan>| {
+            let e = format!("{:#}", r.err().expect("refused"));
+            assert!(!e.contains('\n'), "{e}");
+            e
+        };
+        let e = error(Plan::from_joint_rows(&t, &q, Some(&[50.0, 101.0, 0.0]), name, 30.0));
+        assert!(e.contains("keyframes") && e.contains("line 2, column gripper: 101"), "{e}");
+        let e = error(Plan::from_joint_rows(&t, &q, Some(&[50.0]), name, 30.0));
+        assert!(e.contains("1 openings for 3 keyframes"), "{e}");
+        let e = error(Plan::from_joint_rows(&[0.0, 0.5, 0.5], &q, None, name, 30.0));
+        assert!(e.contains("line 3: time 0.5 is not later"), "{e}");
+        let mut nan = q.clone();
+        nan[1][0] = f64::NAN;
+        let e = error(Plan::from_joint_rows(&t, &nan, None, name, 30.0));
+        assert!(e.contains("line 2: NaN is not a finite number"), "{e}");
+        let e = error(Plan::from_joint_rows(&t, &q, None, name, 0.0));
+        assert!(e.contains("timeout: 0 s must be a positive number"), "{e}");
+    }
+}
