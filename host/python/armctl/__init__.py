@@ -16,6 +16,7 @@ implemented twice: the native module ``armctl._armctl`` calls the project's Rust
 
 from __future__ import annotations
 
+import threading
 from typing import Any, Iterable, Sequence
 
 import numpy as np
@@ -385,7 +386,12 @@ class Arm:
     - ``bus="/dev/ttyUSB0", protocol="sts"|"dxl2"``: the core on this PC (its own thread) against
       the servos on a USB adapter, with ``arm`` and a LeRobot ``calibration`` file.
 
-    Each method is its command's request and returns the command's JSON answer as a dict."""
+    Each method is its command's request and returns the command's JSON answer as a dict.
+
+    An ``Arm`` is driven from the thread that opened it: its connection (the simulated board's
+    virtual clock among it) is not made to cross threads, and a call from another thread raises
+    :class:`ArmctlError` saying so, sending nothing. Open the arm in the thread that drives it (a
+    GUI's worker, a control loop); other threads run while it waits, as the GIL is released."""
 
     def __init__(self, *, sim: str | bool | None = None, port: str | None = None, bus: str | None = None,
                  protocol: str | None = None, arm: str | None = None, calibration: str | None = None,
@@ -394,8 +400,18 @@ class Arm:
             if arm is not None and arm != sim:
                 raise ArmctlError(f"sim={sim!r} and arm={arm!r}: name the simulated arm once")
             arm, sim = sim, True
-        self._a = _armctl.Arm(sim=bool(sim), port=port, bus=bus, protocol=protocol, arm=arm,
-                              calibration=None if calibration is None else str(calibration), baud=baud)
+        self._native = _armctl.Arm(sim=bool(sim), port=port, bus=bus, protocol=protocol, arm=arm,
+                                   calibration=None if calibration is None else str(calibration), baud=baud)
+        self._owner = threading.current_thread()
+
+    @property
+    def _a(self) -> Any:
+        """The native arm, for the thread that opened it only (see the class's documentation)."""
+        here = threading.current_thread()
+        if here is not self._owner:
+            raise ArmctlError(f"this Arm was opened in thread {self._owner.name!r} and is driven from there only "
+                              f"(called from {here.name!r}; nothing was sent): open it in the thread that drives it")
+        return self._native
 
     @property
     def name(self) -> str:

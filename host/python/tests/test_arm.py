@@ -265,3 +265,39 @@ def test_ctrl_c_during_a_move_stops_the_arm_and_raises_keyboard_interrupt():
     # Stopped on the way (a stop decelerates within the limits), far from the target of 1 rad.
     assert 0.02 < answer["q"][0] < 0.8, answer
     assert took < 10, took
+
+
+def test_an_arm_used_from_another_thread_refuses_in_one_line_and_works_in_its_own(arm):
+    """Python programs drive arms from threads (a GUI, a camera loop): a call from a thread other
+    than the one that opened the Arm raises ArmctlError, not pyo3's PanicException (a
+    BaseException that `except Exception` misses), and sends nothing; an Arm opened in a worker
+    thread is driven there."""
+    import threading
+
+    caught: list[BaseException] = []
+    before = arm.status()["setpoints"]
+
+    def elsewhere():
+        try:
+            arm.move_joints([0.3, 0, 0, 0, 0])
+        except Exception as e:  # noqa: BLE001 - what it raises is the point
+            caught.append(e)
+
+    t = threading.Thread(target=elsewhere, name="camera-loop")
+    t.start()
+    t.join(30)
+    assert len(caught) == 1 and isinstance(caught[0], armctl.ArmctlError), caught
+    message = str(caught[0])
+    assert "camera-loop" in message and "nothing was sent" in message and "\n" not in message, message
+    np.testing.assert_allclose(arm.status()["setpoints"], before, atol=1e-6)
+
+    answers: list[object] = []
+
+    def own():
+        with armctl.Arm(sim="so101") as mine:
+            answers.append(mine.move_joints([0.2, 0, 0, 0, 0], duration=0.3)["command"])
+
+    worker = threading.Thread(target=own)
+    worker.start()
+    worker.join(60)
+    assert answers == ["joints"], answers
