@@ -110,7 +110,8 @@ impl std::fmt::Display for WaitError {
             WaitError::EStopped => write!(f, "the arm was emergency-stopped before reaching the target"),
             WaitError::TimedOut { waited, state, stopped } => write!(
                 f,
-                "timed out after {waited:.1} s with the arm still {state:?}; {}",
+                "timed out after {} s with the arm still {state:?}; {}",
+                seconds_waited(*waited),
                 if *stopped { "sent stop" } else { "stop was not acknowledged" }
             ),
             WaitError::StopTooLong { state } => {
@@ -121,6 +122,16 @@ impl std::fmt::Display for WaitError {
 }
 
 impl std::error::Error for WaitError {}
+
+/// Seconds waited, as a person reads them against the timeout they gave: a tenth of a second
+/// would show a 0.05 s timeout as "0.1 s", so below one second to the hundredth.
+pub fn seconds_waited(s: f64) -> String {
+    if s < 1.0 {
+        format!("{s:.2}")
+    } else {
+        format!("{s:.1}")
+    }
+}
 
 /// The session over one link to a firmware core.
 pub struct Session<T: Transport> {
@@ -532,6 +543,8 @@ pub(crate) mod tests {
         assert!(matches!(e, WaitError::TimedOut { stopped: true, .. }), "{e}");
         assert_eq!(s.transport().sent.last(), Some(&HostMessage::Stop));
         assert!(e.to_string().starts_with("timed out after 2.1 s with the arm still Moving; sent stop"), "{e}");
+        let short = WaitError::TimedOut { waited: 0.06, state: RunState::Moving, stopped: true };
+        assert_eq!(short.to_string(), "timed out after 0.06 s with the arm still Moving; sent stop");
 
         // Limp, or interrupted before the first poll: nothing else is sent.
         let mut s = session(vec![FirmwareMessage::Status(status(0.0, RunState::TorqueOff, &q, &q))]);

@@ -30,6 +30,7 @@ use kinematics::Pose;
 
 pub use file::{RigArmSpec, RigSpec};
 
+use crate::link::session::seconds_waited;
 use crate::runtime::connection::{self, Target};
 use crate::runtime::driver::Driver;
 use crate::runtime::sil::group::SilGroup;
@@ -154,7 +155,7 @@ impl Rig {
             let waited = f64::from(now - *first.get_or_insert(now));
             if waited > timeout || started.elapsed().as_secs_f64() > 4.0 * timeout + 10.0 {
                 let stopped = play::stop_all(self);
-                bail!("timed out after {waited:.1} s with an arm still moving; {stopped}");
+                bail!("timed out after {} s with an arm still moving; {stopped}", seconds_waited(waited));
             }
             if let Some(&a) = arms.first() {
                 self.arms[a].driver.pause()?;

@@ -18,6 +18,7 @@ use firmware::link::message::{RunState, Status};
 use super::columns::ArmPart;
 use super::report::{ArmPlayedReport, ByArm, RigPlay};
 use super::Rig;
+use crate::link::session::seconds_waited;
 use crate::link::session::Keyframe;
 use crate::support::interrupt;
 
@@ -258,7 +259,7 @@ pub fn play(rig: &mut Rig, parts: Vec<ArmPart>, err: &mut dyn Write) -> Result<O
             .fold(0.0, f64::max);
         if waited > seconds + timeout || started.elapsed().as_secs_f64() > 4.0 * (seconds + timeout) + 10.0 {
             let stopped = stop_all(rig);
-            bail!("timed out after {waited:.1} s with an arm still moving; {stopped}");
+            bail!("timed out after {} s with an arm still moving; {stopped}", seconds_waited(waited));
         }
         let any = tracks[0].arm;
         rig.arms[any].driver.pause()?;

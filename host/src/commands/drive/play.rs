@@ -19,6 +19,7 @@ use serde::Serialize;
 
 use super::error::{interrupted, DriveError, DriveResult};
 use super::progress::Progress;
+use crate::link::session::seconds_waited;
 use crate::link::session::Keyframe;
 use crate::motion::cartesian_file::{self, parse_cartesian_keyframes, CartesianKeyframes};
 use crate::motion::trajectory::{self, Keyframes};
@@ -387,7 +388,8 @@ pub fn play(driver: &mut Driver, plan: &Plan, notes: &mut dyn Write) -> DriveRes
             progress.clear(notes);
             let stopped = driver.session().stop().is_ok();
             return Err(DriveError::failed(format!(
-                "timed out after {waited:.1} s with the arm still {:?}; {}",
+                "timed out after {} s with the arm still {:?}; {}",
+                seconds_waited(waited),
                 status.state,
                 if stopped { "sent stop" } else { "stop was not acknowledged" }
             )));
