@@ -143,14 +143,33 @@ fn simulator(arm: &str, start: &[(u8, i64)]) -> (Process, String) {
     (sim, path)
 }
 
-/// Sends the hand's `commands` and waits for each one's `done` line (in any order).
-fn hand(sim: &mut Process, commands: &[String]) {
+/// Sends the hand's `commands` and waits for each one's `done` line (in any order). A move is
+/// done once the position there has been read, so the calibration (`reader`) must be reading:
+/// if it ends first, the failure shows what it said rather than the hand's wait running out.
+fn hand(sim: &mut Process, commands: &[String], reader: &mut Process) {
     for c in commands {
         sim.send(c);
     }
     let mut waiting: Vec<String> = commands.iter().map(|c| format!("done {c}")).collect();
+    let started = Instant::now();
     while !waiting.is_empty() {
-        let line = sim.line("the hand's moves");
+        let line = match sim.lines.recv_timeout(Duration::from_millis(200)) {
+            Ok(line) => line,
+            Err(RecvTimeoutError::Timeout) => {
+                if reader.child.try_wait().ok().flatten().is_some() {
+                    let stderr = reader.stderr_now();
+                    panic!("the calibration ended during the hand's moves: {:?}; stderr {stderr}", reader.seen);
+                }
+                assert!(
+                    started.elapsed() < PATIENCE,
+                    "no line in {PATIENCE:?} waiting for the hand's moves: {:?}",
+                    sim.seen
+                );
+                continue;
+            }
+            Err(RecvTimeoutError::Disconnected) => panic!("the simulator ended: {:?}", sim.seen),
+        };
+        sim.seen.push(line.clone());
         assert!(!line.starts_with("error"), "{line}");
         waiting.retain(|w| *w != line);
     }
@@ -251,11 +270,11 @@ fn by_hand(sim: &mut Process, path: &str, protocol: &str, args: &[&str], joints:
     // for the calibration, which would then miss the stop by the ticks of the next move.
     let stop0: fn(&Joint) -> i64 = |j| j.stops.unwrap().0;
     let stop1: fn(&Joint) -> i64 = |j| j.stops.unwrap().1;
-    hand(sim, &leg(|j| j.middle, stop0, 0.25));
-    hand(sim, &leg(stop0, stop0, 0.1));
-    hand(sim, &leg(stop0, stop1, 0.25));
-    hand(sim, &leg(stop1, stop1, 0.1));
-    hand(sim, &leg(stop1, |j| j.middle, 0.25));
+    hand(sim, &leg(|j| j.middle, stop0, 0.25), &mut cal);
+    hand(sim, &leg(stop0, stop0, 0.1), &mut cal);
+    hand(sim, &leg(stop0, stop1, 0.25), &mut cal);
+    hand(sim, &leg(stop1, stop1, 0.1), &mut cal);
+    hand(sim, &leg(stop1, |j| j.middle, 0.25), &mut cal);
     cal.send("");
     let (code, err) = cal.finish();
     assert_eq!(code, 0, "stdout {:?}\nstderr {err}", cal.seen);
@@ -449,8 +468,8 @@ fn bad_input_stops_the_calibration_with_one_line_and_writes_nothing_further() {
     cal.send("");
     cal.until("step 2 of 2");
     let moved = [(1, 3000), (2, 1100), (4, 2048), (6, 2048)];
-    hand(&mut sim, &moved.map(|(id, m)| format!("sweep {id} {m} {} 0.1", m - 500)));
-    hand(&mut sim, &moved.map(|(id, m)| format!("sweep {id} {} {} 0.1", m - 500, m + 500)));
+    hand(&mut sim, &moved.map(|(id, m)| format!("sweep {id} {m} {} 0.1", m - 500)), &mut cal);
+    hand(&mut sim, &moved.map(|(id, m)| format!("sweep {id} {} {} 0.1", m - 500, m + 500)), &mut cal);
     cal.send("");
     let (code, err) = cal.finish();
     assert_eq!(code, 1);
