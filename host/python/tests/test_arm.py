@@ -229,8 +229,12 @@ def test_play_timed_keyframes_with_the_gripper_and_a_file(arm, tmp_path):
         arm.play(str(tmp_path / "missing.csv"))
 
 
+# The child takes SIGINT as a terminal's Python does, whatever it inherited: a test run started
+# in the background of a shell without job control (`cmd &` in a script) ignores SIGINT, and
+# Python then installs no KeyboardInterrupt handler at all.
 CTRL_C_CHILD = """
-import json, sys, time, armctl
+import json, signal, sys, time, armctl
+signal.signal(signal.SIGINT, signal.default_int_handler)
 arm = armctl.Arm(sim="so101")
 arm.move_joints([0, 0, 0, 0, 0], duration=0.5)
 print("moving", flush=True)
