@@ -146,18 +146,8 @@ fn one_chain(given: &[String]) -> Result<Option<String>> {
 
 /// Refuses the drive options that only make sense with --play.
 fn refuse_without_play(link: &LinkArgs) -> Result<()> {
-    let given: Vec<&str> = [
-        (link.port.is_some(), "--port"),
-        (link.bus.is_some(), "--bus"),
-        (link.protocol.is_some(), "--protocol"),
-        (link.baud.is_some(), "--baud"),
-        (link.sim, "--sim"),
-        (link.calibration.is_some(), "--calibration"),
-        (link.object_mm.is_some(), "--object-mm"),
-    ]
-    .into_iter()
-    .filter_map(|(given, name)| given.then_some(name))
-    .collect();
+    // One arm's options but --arm, which names the arm to retarget onto.
+    let given: Vec<&str> = link.one_arm_options().into_iter().filter(|&name| name != "--arm").collect();
     if !given.is_empty() {
         let verb = if given.len() == 1 { "is" } else { "are" };
         bail!("{} {verb} for driving an arm: add --play to stream the keyframes to it", given.join(", "));

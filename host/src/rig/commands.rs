@@ -197,11 +197,7 @@ fn execute(rig: &mut Rig, request: RigRequest, json: bool, out: &mut dyn Write, 
             None => return Ok(interrupt::EXIT_CODE),
         },
     };
-    if json {
-        writeln!(out, "{}", serde_json::to_string(&report)?)?;
-    } else {
-        writeln!(out, "{}", report.text())?;
-    }
+    report.print(json, out)?;
     Ok(0)
 }
 

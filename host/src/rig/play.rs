@@ -16,7 +16,7 @@ use anyhow::{bail, Result};
 use firmware::link::message::{RunState, Status};
 
 use super::columns::ArmPart;
-use super::report::{ArmPlayedReport, ByArm, RigPlay};
+use super::report::{ArmPlayedReport, ByArm, RigPlay, RigReport};
 use super::Rig;
 use crate::link::session::seconds_waited;
 use crate::link::session::Keyframe;
@@ -89,11 +89,7 @@ pub fn run(rig: &mut Rig, parts: Vec<ArmPart>, json: bool, out: &mut dyn Write, 
     let Some(report) = report(rig, parts, err)? else {
         return Ok(interrupt::EXIT_CODE);
     };
-    if json {
-        writeln!(out, "{}", serde_json::to_string(&report)?)?;
-    } else {
-        writeln!(out, "{}", report.text())?;
-    }
+    RigReport::Play(report).print(json, out)?;
     Ok(0)
 }
 

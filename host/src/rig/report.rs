@@ -40,6 +40,16 @@ pub enum RigReport {
 }
 
 impl RigReport {
+    /// Prints the report on `out`: one line of JSON with `json`, else its [`RigReport::text`].
+    pub fn print(&self, json: bool, out: &mut dyn std::io::Write) -> anyhow::Result<()> {
+        if json {
+            writeln!(out, "{}", serde_json::to_string(self)?)?;
+        } else {
+            writeln!(out, "{}", self.text())?;
+        }
+        Ok(())
+    }
+
     /// The report as the command line prints it without `--json`.
     pub fn text(&self) -> String {
         match self {
