@@ -391,6 +391,19 @@ impl<T: Real, const J: usize> JointLimits<T, J> {
         t
     }
 
+    /// The shortest time a rest-to-rest cubic (smoothstep) from `from` to `to` takes within the
+    /// limits: it peaks at `1.5 Δ / T` in velocity and `6 Δ / T²` in acceleration, so
+    /// `T = max_j max(1.5 |Δ_j| / v_max_j, sqrt(6 |Δ_j| / a_max_j))` (0 for no change).
+    pub fn rest_to_rest_time(&self, from: &SVector<T, J>, to: &SVector<T, J>) -> T {
+        let mut t = T::zero();
+        for joint in 0..J {
+            let delta = (to[joint] - from[joint]).abs();
+            t = t.max(T::of(1.5) * delta / self.max_velocity[joint]);
+            t = t.max((T::of(6.0) * delta / self.max_acceleration[joint]).sqrt());
+        }
+        t
+    }
+
     /// The factor (>= 1, or <= 1 when the segment has room) by which a segment of duration `h`
     /// with tangents `m0`, `m1` (velocity times `h`) must be stretched to meet the velocity and
     /// acceleration limits.

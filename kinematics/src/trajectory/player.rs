@@ -11,13 +11,17 @@
 //! * **Appending** while playing joins without a jump in position or velocity: the next segment
 //!   starts from the keyframe (position and velocity) the current one ends at.
 //! * **Underrun.** Reaching the last queued keyframe with a non-zero (given) velocity and no
-//!   keyframe after it: the player brakes to a stop, holds, and reports it ([`Tick::underrun`],
-//!   [`State::Underrun`] then [`State::Holding`]). Keyframes pushed meanwhile are played at once,
-//!   from the current position and velocity.
+//!   keyframe after it: the player brakes to a stop within the limits, reports it
+//!   ([`Tick::underrun`], [`State::Underrun`]), then goes back to that keyframe, rest to rest
+//!   within the limits ([`State::Returning`]), and ends there ([`State::Idle`]): the last keyframe
+//!   is what the sender asked for (a stream that stops: a policy ending, a leader put down), and
+//!   the brake only carried the joints past it. How far is [`Player::last_pass`]. Keyframes
+//!   pushed meanwhile are played at once, from the current position and velocity.
 //! * **Replacement** ([`Player::replace`]): the queue is replaced; at the next tick the current
 //!   segment is abandoned and a new one starts from the position and velocity at that instant (as
 //!   ros2_control's joint trajectory controller does). New keyframes not later than that tick are
-//!   dropped; if none is left the player brakes as for an underrun.
+//!   dropped; if none is left the player brakes as for an underrun, and goes back to the last of
+//!   them.
 //! * **Stop** ([`Player::stop`]): the queue is cleared and the player brakes from the state at the
 //!   next tick. Keyframes pushed afterwards are played once it is at rest.
 //! * **Braking** is time-synchronised: all joints decelerate at constant rates and stop together
@@ -92,11 +96,14 @@ pub enum State {
     Playing,
     /// Braking because the queue ran dry while moving.
     Underrun,
+    /// Going back, from rest, to the keyframe an underrun's brake carried the joints past.
+    Returning,
     /// Braking after [`Player::stop`].
     Stopping,
-    /// At rest after an underrun or a stop, waiting for keyframes.
+    /// At rest after a stop, waiting for keyframes.
     Holding,
-    /// At rest with nothing to do (never started, or ended at a keyframe at rest).
+    /// At rest with nothing to do (never started, or ended at a keyframe: at rest, or back on
+    /// it after an underrun).
     Idle,
 }
 
@@ -121,6 +128,8 @@ enum Cause {
 enum Motion<T: Real, const J: usize> {
     Segment(HermiteSegment<T, J>),
     Brake { t0: T, p0: SVector<T, J>, v0: SVector<T, J>, decel: SVector<T, J>, duration: T, cause: Cause },
+    /// Back to the keyframe an underrun's brake passed, rest to rest.
+    Return(HermiteSegment<T, J>),
     Rest { position: SVector<T, J>, held: bool },
 }
 
@@ -128,7 +137,7 @@ impl<T: Real, const J: usize> Motion<T, J> {
     fn sample(&self, now: T) -> Sample<T, J> {
         // Matched by reference: a copy of the segment would cost a tenth of a tick on the M4F.
         match self {
-            Motion::Segment(seg) => seg.sample(now),
+            Motion::Segment(seg) | Motion::Return(seg) => seg.sample(now),
             &Motion::Brake { t0, p0, v0, decel, duration, .. } => {
                 let tau = (now - t0).max(T::zero()).min(duration);
                 let half = T::of(0.5);
@@ -167,6 +176,10 @@ pub struct Player<T: Real, const J: usize, const Q: usize> {
     /// How far late keyframes have shifted the sender's timeline onto the player's clock.
     shift: T,
     underruns: u32,
+    /// The keyframe the brake in progress must come back to (an underrun's), if any.
+    comeback: Option<SVector<T, J>>,
+    /// How far the last underrun's brake carried the joints past their keyframe.
+    last_pass: T,
 }
 
 impl<T: Real, const J: usize, const Q: usize> Player<T, J, Q> {
@@ -189,6 +202,8 @@ impl<T: Real, const J: usize, const Q: usize> Player<T, J, Q> {
             reached: None,
             shift: T::zero(),
             underruns: 0,
+            comeback: None,
+            last_pass: T::zero(),
         }
     }
 
@@ -209,6 +224,8 @@ impl<T: Real, const J: usize, const Q: usize> Player<T, J, Q> {
         self.reached = None;
         self.shift = T::zero();
         self.underruns = 0;
+        self.comeback = None;
+        self.last_pass = T::zero();
         Ok(())
     }
 
@@ -230,6 +247,24 @@ impl<T: Real, const J: usize, const Q: usize> Player<T, J, Q> {
     /// Underruns so far.
     pub fn underruns(&self) -> u32 {
         self.underruns
+    }
+
+    /// How far the last underrun's brake carried the joints past the keyframe they ran out at: the
+    /// largest joint's distance (rad or m), known once the brake has ended; zero before any.
+    pub fn last_pass(&self) -> T {
+        self.last_pass
+    }
+
+    /// What the player is doing, as of its last tick.
+    pub fn state(&self) -> State {
+        match self.motion {
+            Motion::Segment(_) => State::Playing,
+            Motion::Brake { cause: Cause::Underrun, .. } => State::Underrun,
+            Motion::Brake { cause: Cause::Stop, .. } => State::Stopping,
+            Motion::Return(_) => State::Returning,
+            Motion::Rest { held: true, .. } => State::Holding,
+            Motion::Rest { held: false, .. } => State::Idle,
+        }
     }
 
     /// How far the sender's timeline runs behind the player's clock: the total by which late
@@ -301,22 +336,24 @@ impl<T: Real, const J: usize, const Q: usize> Player<T, J, Q> {
             Request::None => {}
             Request::Stop => {
                 let s = self.motion.sample(now);
-                self.brake(now, s, Cause::Stop);
+                self.brake(now, s, Cause::Stop, None);
             }
             Request::Replace => {
                 let s = self.motion.sample(now);
+                let mut last_dropped = None;
                 while self.queue.front().is_some_and(|k| k.time <= now) {
-                    self.queue.pop_front();
+                    last_dropped = self.queue.pop_front().map(|k| k.position);
                 }
                 if self.queue.is_empty() {
-                    underrun = self.brake(now, s, Cause::Underrun);
+                    underrun = self.brake(now, s, Cause::Underrun, last_dropped);
                 } else {
                     self.reached = Some(now);
                     self.enter(now, s.position, s.velocity, false);
                 }
             }
         }
-        // Each pass consumes a keyframe or moves Brake -> Rest; the bound only guards the loop.
+        // Each pass consumes a keyframe or moves Brake -> Return -> Rest; the bound only guards
+        // the loop.
         for _ in 0..Q + 4 {
             match self.motion {
                 // Inside the segment, the common case: decided without copying it.
@@ -329,7 +366,7 @@ impl<T: Real, const J: usize, const Q: usize> Player<T, J, Q> {
                         self.motion = Motion::Rest { position: seg.p1, held: false };
                     } else {
                         let s = Sample { position: seg.p1, velocity: seg.v1, acceleration: SVector::zeros() };
-                        underrun |= self.brake(seg.t1, s, Cause::Underrun);
+                        underrun |= self.brake(seg.t1, s, Cause::Underrun, Some(seg.p1));
                     }
                 }
                 Motion::Brake { t0, duration, cause, .. } => {
@@ -338,9 +375,18 @@ impl<T: Real, const J: usize, const Q: usize> Player<T, J, Q> {
                         self.enter(now, s.position, s.velocity, true);
                     } else if now >= t0 + duration {
                         let position = self.motion.sample(t0 + duration).position;
-                        self.motion = Motion::Rest { position, held: true };
+                        self.come_back(t0 + duration, position);
                     } else {
                         break;
+                    }
+                }
+                Motion::Return(ref seg) if self.queue.is_empty() && now < seg.t1 => break,
+                Motion::Return(seg) => {
+                    if self.queue.is_empty() {
+                        self.motion = Motion::Rest { position: seg.p1, held: false };
+                    } else {
+                        let s = seg.sample(now);
+                        self.enter(now, s.position, s.velocity, true);
                     }
                 }
                 Motion::Rest { position, .. } => {
@@ -351,38 +397,50 @@ impl<T: Real, const J: usize, const Q: usize> Player<T, J, Q> {
                 }
             }
         }
-        let state = match self.motion {
-            Motion::Segment(_) => State::Playing,
-            Motion::Brake { cause: Cause::Underrun, .. } => State::Underrun,
-            Motion::Brake { cause: Cause::Stop, .. } => State::Stopping,
-            Motion::Rest { held: true, .. } => State::Holding,
-            Motion::Rest { held: false, .. } => State::Idle,
-        };
-        Tick { sample: self.motion.sample(now), state, underrun }
+        Tick { sample: self.motion.sample(now), state: self.state(), underrun }
     }
 
     fn start_time(&self) -> T {
         match self.motion {
-            Motion::Segment(seg) => seg.t0,
+            Motion::Segment(seg) | Motion::Return(seg) => seg.t0,
             Motion::Brake { t0, .. } => t0,
             Motion::Rest { .. } => self.reached.unwrap_or(T::zero()),
         }
     }
 
-    /// Starts braking from `s` at `t0`; true (and counted) when it is an underrun.
-    fn brake(&mut self, t0: T, s: Sample<T, J>, cause: Cause) -> bool {
+    /// Starts braking from `s` at `t0`, to come back to `comeback` once at rest (an underrun's
+    /// keyframe); true (and counted) when it is an underrun.
+    fn brake(&mut self, t0: T, s: Sample<T, J>, cause: Cause, comeback: Option<SVector<T, J>>) -> bool {
         let duration = self.limits.stopping_time(&s.velocity);
+        self.comeback = comeback;
         if duration > T::zero() && duration.finite() {
             let decel = s.velocity / duration;
             self.motion = Motion::Brake { t0, p0: s.position, v0: s.velocity, decel, duration, cause };
         } else {
-            self.motion = Motion::Rest { position: s.position, held: true };
+            self.come_back(t0, s.position);
         }
         let underrun = cause == Cause::Underrun;
         if underrun {
             self.underruns = self.underruns.saturating_add(1);
         }
         underrun
+    }
+
+    /// At rest at `position` at `t0`, the brake done: goes back to the keyframe it passed, if any
+    /// (rest to rest, within the limits), else holds there.
+    fn come_back(&mut self, t0: T, position: SVector<T, J>) {
+        let Some(keyframe) = self.comeback.take() else {
+            self.motion = Motion::Rest { position, held: true };
+            return;
+        };
+        self.last_pass = (keyframe - position).amax();
+        let duration = self.limits.rest_to_rest_time(&position, &keyframe);
+        self.motion = if duration > T::zero() && duration.finite() {
+            let zero = SVector::zeros();
+            Motion::Return(HermiteSegment { t0, t1: t0 + duration, p0: position, v0: zero, p1: keyframe, v1: zero })
+        } else {
+            Motion::Rest { position: keyframe, held: false }
+        };
     }
 
     /// Enters the segment from `(t0, p0, v0)` to the front keyframe (which must exist), shifting
@@ -393,12 +451,7 @@ impl<T: Real, const J: usize, const Q: usize> Player<T, J, Q> {
         };
         if resume && next.time <= t0 {
             let planned = self.reached.map_or(T::zero(), |r| next.time - r);
-            let mut needed = T::zero();
-            for j in 0..J {
-                let delta = (next.position[j] - p0[j]).abs();
-                needed = needed.max(T::of(1.5) * delta / self.limits.max_velocity[j]);
-                needed = needed.max((T::of(6.0) * delta / self.limits.max_acceleration[j]).sqrt());
-            }
+            let needed = self.limits.rest_to_rest_time(&p0, &next.position);
             let duration = planned.max(needed).max(T::of(1e-3));
             let shift = t0 - next.time + duration;
             for k in self.queue.iter_mut() {
@@ -524,9 +577,45 @@ mod tests {
         // Joint 0 limits the stop: 1.0 / 5.0 = 0.2 s; joint 1 decelerates at 2.5.
         let t = p.tick(1.1);
         assert!((t.sample.acceleration - Vector2::new(-5.0, 2.5)).norm() < 1e-9);
-        let t = p.tick(1.3);
-        assert_eq!(t.state, State::Holding);
-        assert_eq!(t.sample.velocity, Vector2::zeros());
+        // At rest 0.2 s later, past the keyframe by v² / 2a = 0.1 on joint 0 (0.05 on joint 1),
+        // it goes back: rest to rest, sqrt(6 * 0.1 / 5) = 0.346 s (joint 0's acceleration bound).
+        let t = p.tick(1.2 + 1e-9);
+        assert_eq!(t.state, State::Returning);
         assert!((t.sample.position - Vector2::new(0.6, -0.3)).norm() < 1e-9);
+        assert!((p.last_pass() - 0.1).abs() < 1e-9);
+        let back = (6.0f64 * 0.1 / 5.0).sqrt();
+        let t = p.tick(1.2 + back / 2.0);
+        assert_eq!(t.state, State::Returning);
+        assert!((t.sample.velocity[0] + 1.5 * 0.1 / back).abs() < 1e-9, "the smoothstep's peak");
+        let t = p.tick(1.2 + back + 1e-9);
+        assert_eq!(t.state, State::Idle);
+        assert_eq!(t.sample.velocity, Vector2::zeros());
+        assert_eq!(t.sample.position, Vector2::new(0.5, -0.25));
+        assert_eq!(p.underruns(), 1);
+    }
+
+    #[test]
+    fn a_stop_holds_where_it_stopped_and_a_keyframe_cuts_a_return_short() {
+        let mut p = player();
+        let v = Vector2::new(1.0, 0.0);
+        p.push(PlayerKeyframe { velocity: Some(v), ..key(1.0, 0.5, 0.0) }).unwrap();
+        p.tick(0.0);
+        p.tick(0.9);
+        p.stop();
+        p.tick(0.95);
+        let t = p.tick(5.0);
+        assert_eq!(t.state, State::Holding, "a stop is not an underrun: no way back");
+        assert_eq!(p.last_pass(), 0.0);
+
+        let mut p = player();
+        p.push(PlayerKeyframe { velocity: Some(v), ..key(1.0, 0.5, 0.0) }).unwrap();
+        p.tick(0.0);
+        assert_eq!(p.tick(1.25).state, State::Returning);
+        let here = p.tick(1.3).sample;
+        p.push(key(2.0, -0.5, 0.0)).unwrap();
+        let t = p.tick(1.3);
+        assert_eq!(t.state, State::Playing, "a keyframe is taken at once, from where the return is");
+        assert!((t.sample.position - here.position).norm() < 1e-12);
+        assert!((t.sample.velocity - here.velocity).norm() < 1e-12);
     }
 }

@@ -170,31 +170,40 @@ proptest! {
     }
 }
 
-/// Keyframes with given non-zero velocities, then nothing: the player brakes within a_max, holds,
-/// reports one underrun, and resumes from where it stopped when keyframes come again.
+/// Keyframes with given non-zero velocities, then nothing: the player brakes within a_max,
+/// reports one underrun, comes back to the last keyframe within the limits and ends there, and
+/// plays keyframes that come again from there.
 #[test]
-fn underrun_brakes_holds_and_resumes() {
+fn underrun_brakes_comes_back_and_resumes() {
     let mut player = Player::<f64, 3, 4>::new(Vector3::zeros(), limits()).unwrap();
     let v = Vector3::new(1.5, -0.5, 0.0);
+    let last = Vector3::new(0.4, -0.1, 0.0);
     player.push(PlayerKeyframe { velocity: Some(v), ..key(0.5, [0.4, -0.1, 0.0]) }).unwrap();
     let mut c = Continuity::default();
     let (mut t, mut underruns, mut states) = (0.0, 0, Vec::new());
+    let mut farthest = 0.0f64;
     while t < 1.0 {
         let tick = player.tick(t);
         c.check(tick.sample, VMAX, AMAX).unwrap();
         assert!(tick.sample.acceleration.iter().all(|a| a.abs() <= AMAX + 1e-9));
         underruns += usize::from(tick.underrun);
+        if t >= 0.5 {
+            farthest = farthest.max((tick.sample.position - last).amax());
+        }
         if states.last() != Some(&tick.state) {
             states.push(tick.state);
         }
         t += DT;
     }
-    assert_eq!(states, [State::Playing, State::Underrun, State::Holding]);
+    assert_eq!(states, [State::Playing, State::Underrun, State::Returning, State::Idle]);
     assert_eq!((underruns, player.underruns()), (1, 1));
-    // Stopping distance v^2 / 2a on the slowest-to-stop joint, the other in proportion.
-    let held = player.tick(t).sample;
+    // Stopping distance v^2 / 2a on the slowest-to-stop joint, the other in proportion: the pass.
     let stop = 1.5 / AMAX;
-    assert!((held.position - (Vector3::new(0.4, -0.1, 0.0) + v * stop / 2.0)).norm() < 1e-12);
+    let pass = (v * stop / 2.0).amax();
+    assert!((player.last_pass() - pass).abs() < 1e-12, "{} against {pass}", player.last_pass());
+    assert!((farthest - pass).abs() < 1e-9, "never farther than the brake went");
+    assert_eq!(player.tick(t).sample.position, last);
+    assert_eq!(player.tick(t).sample.velocity, Vector3::zeros());
     // Resume.
     player.push(key(t + 0.5, [0.0, 0.0, 0.0])).unwrap();
     let end = t + 0.5;
@@ -206,6 +215,53 @@ fn underrun_brakes_holds_and_resumes() {
     }
     assert_eq!(player.tick(t).state, State::Idle);
     assert_eq!(player.tick(t).sample.position, Vector3::zeros());
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// A stream of keyframes with velocities (as a teleoperation or a policy sends them) that
+    /// stops at any point: the player brakes and comes back within the limits, ends exactly on the
+    /// last keyframe, within the time the brake and a rest-to-rest return need, and its pass is
+    /// the brake's stopping distance, v^2 / 2a on the joint that stops last.
+    #[test]
+    fn a_stream_that_stops_ends_on_its_last_keyframe(steps in steps(), keep in 1..12usize) {
+        let mut player = Player::<f64, 3, 16>::new(Vector3::zeros(), limits()).unwrap();
+        let all = stream(0.1, [0.0; 3], &steps);
+        let keys = &all[..keep.min(all.len())];
+        // Each keyframe carries the velocity of the step that reaches it, as `Streamer::send` does.
+        let mut previous = (0.0, Vector3::zeros());
+        for k in keys {
+            let v = (k.position - previous.1) / (k.time - previous.0);
+            previous = (k.time, k.position);
+            player.push(PlayerKeyframe { velocity: Some(v.map(|x| x.clamp(-VMAX, VMAX))), ..*k }).unwrap();
+        }
+        let last = keys.last().unwrap();
+        let v_last = player_velocity_at_end(keys);
+        let brake = limits().stopping_time(&v_last);
+        let pass = (v_last * brake / 2.0).amax();
+        let back = limits().rest_to_rest_time(&Vector3::zeros(), &Vector3::repeat(pass));
+        let mut c = Continuity::default();
+        let mut t = 0.0;
+        while t < last.time + brake + back + 2.0 * DT {
+            let tick = player.tick(t);
+            c.check(tick.sample, VMAX, AMAX)?;
+            prop_assert!((tick.sample.position - last.position).amax() <= pass + 1e-9 || t < last.time);
+            t += DT;
+        }
+        let end = player.tick(t);
+        prop_assert_eq!(end.state, State::Idle);
+        prop_assert_eq!(end.sample.position, last.position);
+        prop_assert_eq!(player.underruns(), u32::from(v_last != Vector3::zeros()));
+        prop_assert!((player.last_pass() - pass).abs() < 1e-9, "{} against {}", player.last_pass(), pass);
+    }
+}
+
+/// The velocity the stream's last keyframe carries (its step over its time).
+fn player_velocity_at_end(keys: &[PlayerKeyframe<f64, 3>]) -> Vector3<f64> {
+    let n = keys.len();
+    let (t0, p0) = if n > 1 { (keys[n - 2].time, keys[n - 2].position) } else { (0.0, Vector3::zeros()) };
+    ((keys[n - 1].position - p0) / (keys[n - 1].time - t0)).map(|x| x.clamp(-VMAX, VMAX))
 }
 
 /// A keyframe arriving while braking from an underrun is taken at once, without a jump.
