@@ -101,6 +101,7 @@ impl Toy {
             lost_servos: 0,
             gripper: None,
             last_move: None,
+            largest_pass: 0.0,
         }
     }
 

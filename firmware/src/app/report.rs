@@ -101,6 +101,7 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
                 lost_servos: 0,
                 gripper: None,
                 last_move: None,
+                largest_pass: 0.0,
             };
         };
         let counters = c.counters();
@@ -160,6 +161,7 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
                 blocked_at: m.blocked_at,
                 line_length: m.line_length,
             }),
+            largest_pass: c.largest_pass(),
         }
     }
 }

@@ -261,14 +261,8 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             return Err(Refusal::BadParameter);
         }
         self.ready()?;
-        // A rest-to-rest cubic over T peaks at 1.5 Δ/T in velocity and 6 Δ/T² in acceleration.
-        let mut needed = self.config.period_us as f32 * 1e-6;
-        for j in 0..N {
-            let delta = libm::fabsf(q[j] - self.setpoint.position[j]);
-            needed = needed.max(1.5 * delta / self.limits.max_velocity[j]);
-            needed = needed.max(libm::sqrtf(6.0 * delta / self.limits.max_acceleration[j]));
-        }
-        let duration = duration.max(needed);
+        let needed = self.limits.rest_to_rest_time(&self.setpoint.position, &q);
+        let duration = duration.max(needed).max(self.config.period_us as f32 * 1e-6);
         let rest = Some(SVector::zeros());
         if self.mode == Mode::Playing {
             // From the player's present position and velocity: no jump.
@@ -277,6 +271,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             self.play.paused = false;
         } else {
             self.reset_player();
+            self.largest_pass = 0.0;
             let keyframe = PlayerKeyframe { time: duration, position: q, velocity: rest };
             self.player.push(keyframe).map_err(refusal)?;
             self.play.rate = 1.0;
@@ -311,6 +306,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             // The first keyframe of a new trajectory: it starts from the setpoint, at rest. The
             // keyframe was checked above, so a fresh player accepts it.
             self.reset_player();
+            self.largest_pass = 0.0;
             self.play.queued_fresh = true;
         }
         self.player.push(keyframe).map_err(refusal)?;

@@ -319,7 +319,13 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
     fn watchdog(&mut self, now_us: u64, report: &mut TickReport) {
         let moving = match self.mode {
             Mode::Tracking => true,
-            Mode::Playing => !(self.play.paused && self.play.rate == 0.0),
+            // A player that ran dry is already ending its motion within the limits: braking,
+            // then back to the last keyframe the host sent, a stopping distance away. Stopping
+            // it there would leave the arm past where the host asked it to be.
+            Mode::Playing => {
+                !(self.play.paused && self.play.rate == 0.0)
+                    && !matches!(self.player.state(), State::Underrun | State::Returning)
+            }
             _ => false,
         };
         let silent = now_us.saturating_sub(self.last_host_us) > u64::from(self.config.watchdog_ms) * 1000;
@@ -349,6 +355,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
                 };
                 self.play.time += dt * self.play.rate;
                 let tick = self.player.tick(self.play.time);
+                self.largest_pass = self.largest_pass.max(self.player.last_pass());
                 if matches!(tick.state, State::Idle | State::Holding) && !self.play.paused {
                     self.mode = Mode::Holding;
                     self.hold = tick.sample.position;

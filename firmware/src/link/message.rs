@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 use super::frame::{FrameError, MAX_FRAME};
 
 /// The protocol version carried by the handshake; bumped on any change to the wire format.
-pub const PROTOCOL_VERSION: u16 = 7;
+pub const PROTOCOL_VERSION: u16 = 8;
 /// The most joints a message carries.
 pub const MAX_JOINTS: usize = 8;
 /// The longest arm name, in bytes of UTF-8.
@@ -463,6 +463,11 @@ pub struct Status {
     /// until one is accepted (and after a new arm). Keyframes do not change it: it tells a host
     /// how its last move went without comparing counters before and after.
     pub last_move: Option<MoveOutcome>,
+    // Added in protocol version 8.
+    /// The farthest the player braked past its last keyframe when the keyframes ran out while
+    /// moving (a stream that stopped), in this playback: rad (or m), the largest joint's; 0 when
+    /// they never ran out. It then went back to that keyframe and ended there.
+    pub largest_pass: f32,
 }
 
 /// The way the tool went on a move (protocol version 7).

@@ -110,6 +110,8 @@ fn status(n: usize) -> Status {
         gripper: Some(GripperStatus { opening: 41.5, goal: 0.0, load: -35.2, holding: true }),
         // The largest outcome: a line given up, with both lengths (protocol 7).
         last_move: Some(MoveOutcome { path: PathTaken::LineThenJoints, blocked_at: Some(0.075), line_length: 0.145 }),
+        // 3 degrees past the last keyframe (protocol 8).
+        largest_pass: 0.05236,
     }
 }
 
@@ -300,12 +302,28 @@ fn the_last_move_bytes() {
         let mut out = [0u8; 16];
         assert_eq!(postcard::to_slice(&outcome, &mut out).unwrap(), bytes, "{outcome:?}");
         assert_eq!(postcard::from_bytes::<Option<MoveOutcome>>(bytes), Ok(outcome));
-        // The field is the status's last: its bytes follow those of a status as protocol 6 had it.
+        // The field follows those of a status as protocol 6 had it (protocol 8's four bytes of
+        // `largest_pass` come after it).
         let status = Status { last_move: outcome, ..without.clone() };
         let encoded = postcard::to_slice(&FirmwareMessage::Status(status.clone()), &mut buf).unwrap().to_vec();
-        assert_eq!(encoded, [&before[..before.len() - 1], bytes].concat(), "{outcome:?}");
+        let (head, pass) = (&before[..before.len() - 5], &before[before.len() - 4..]);
+        assert_eq!(encoded, [head, bytes, pass].concat(), "{outcome:?}");
         assert_eq!(round_trip(3, FrameKind::Reply, &FirmwareMessage::Status(status)), encoded.len() + OVERHEAD);
     }
+}
+
+/// The largest pass (protocol 8) is the status's last field: an f32's four little-endian bytes
+/// after everything protocol 7 had.
+#[test]
+fn the_largest_pass_bytes() {
+    let mut buf = [0u8; MAX_PAYLOAD];
+    let status = Status { largest_pass: 0.5, ..status(5) };
+    let encoded = postcard::to_slice(&FirmwareMessage::Status(status.clone()), &mut buf).unwrap().to_vec();
+    assert_eq!(encoded[encoded.len() - 4..], [0x00, 0x00, 0x00, 0x3F]);
+    let zero = Status { largest_pass: 0.0, ..status.clone() };
+    let zero = postcard::to_slice(&FirmwareMessage::Status(zero), &mut buf).unwrap().to_vec();
+    assert_eq!(zero[..zero.len() - 4], encoded[..encoded.len() - 4]);
+    assert_eq!(round_trip(3, FrameKind::Reply, &FirmwareMessage::Status(status)), encoded.len() + OVERHEAD);
 }
 
 /// The figure for the report: a 6-joint keyframe push with velocities.

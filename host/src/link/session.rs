@@ -463,6 +463,7 @@ pub(crate) mod tests {
             lost_servos: 0,
             gripper: None::<GripperStatus>,
             last_move: None,
+            largest_pass: 0.0,
         })
     }
 

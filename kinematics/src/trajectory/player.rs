@@ -127,10 +127,20 @@ enum Cause {
 #[derive(Clone, Copy, Debug)]
 enum Motion<T: Real, const J: usize> {
     Segment(HermiteSegment<T, J>),
-    Brake { t0: T, p0: SVector<T, J>, v0: SVector<T, J>, decel: SVector<T, J>, duration: T, cause: Cause },
+    Brake {
+        t0: T,
+        p0: SVector<T, J>,
+        v0: SVector<T, J>,
+        decel: SVector<T, J>,
+        duration: T,
+        cause: Cause,
+    },
     /// Back to the keyframe an underrun's brake passed, rest to rest.
     Return(HermiteSegment<T, J>),
-    Rest { position: SVector<T, J>, held: bool },
+    Rest {
+        position: SVector<T, J>,
+        held: bool,
+    },
 }
 
 impl<T: Real, const J: usize> Motion<T, J> {

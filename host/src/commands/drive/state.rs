@@ -44,6 +44,13 @@ impl StatusReport {
             format!("queue      {} queued, {} free", s.queued, s.free_slots),
             format!("last move  {}", last_move(s.last_move.as_ref())),
         ];
+        // Only once it happened: keyframes that ran out while moving, braked past, then back.
+        if s.largest_pass > 0.0 {
+            lines.push(format!(
+                "stream end braked {:.2} deg past the last keyframe, then went back to it",
+                f64::from(s.largest_pass).to_degrees()
+            ));
+        }
         if let Some(g) = &s.gripper {
             lines.push(format!("gripper    {}", super::gripper::describe(g, self.gripper_mm)));
         }
