@@ -198,7 +198,7 @@ impl DynTree {
         if q.len() != self.dof() {
             bail!(
                 "tree {} has {} joints (every joint on the paths to {}) but {} joint values were given; a tip \
-                 (--tip LINK) reads the chain to one of them",
+                 (--tip LINK, or tip= in Python) reads the chain to one of them",
                 self.spec.name,
                 self.dof(),
                 self.effector_names().join(", "),

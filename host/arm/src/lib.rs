@@ -126,7 +126,7 @@ impl ArmSpec {
         let extension = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
         match extension.as_deref() {
             _ if tip.is_some() && extension.as_deref() != Some("urdf") => {
-                bail!("--tip applies only to .urdf arms, not to {arm}")
+                bail!("a tip (--tip, or tip= in Python) applies only to .urdf arms, not to {arm}")
             }
             Some("urdf") => {
                 let text = read_urdf(arm)?;

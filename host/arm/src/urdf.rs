@@ -192,7 +192,7 @@ pub fn parse(text: &str, tip: Option<&str>) -> Result<ArmSpec> {
         Some(tip) => robot.link(tip)?,
         None => match robot.leaves().as_slice() {
             [leaf] => *leaf,
-            leaves => bail!("several tip links: pass --tip one of {}", leaves.join(", ")),
+            leaves => bail!("several tip links: name the tip (--tip, or tip= in Python), one of {}", leaves.join(", ")),
         },
     };
 
@@ -446,7 +446,7 @@ mod tests {
     fn so101_without_tip_lists_the_leaves() {
         let message = error(SO101, None);
         assert!(
-            message.contains("several tip links: pass --tip one of gripper_frame_link, moving_jaw_so101_v1_link"),
+            message.contains("several tip links: name the tip (--tip, or tip= in Python), one of gripper_frame_link, moving_jaw_so101_v1_link"),
             "{message}"
         );
     }

@@ -78,6 +78,48 @@ def test_actions_become_keyframes_and_come_back_as_sent(tmp_path):
     assert not robot.is_connected
 
 
+@pytest.mark.parametrize("arm", ["so101", "open-manipulator-x"])
+def test_a_stream_of_actions_that_stops_ends_on_the_last_action(tmp_path, arm):
+    """Ramps at 30, 60 and 90 deg/s through every joint, then no more actions (a policy ending): the
+    arm brakes past the last action within its limits and comes back to it, as so101_follower ends
+    on its last goal. Goal: within 0.1 deg of the last action within 1 s of it."""
+    robot = make_robot_from_config(config(id="t", sim=True, arm=arm, calibration_dir=tmp_path, fps=30))
+    robot.connect()
+    rng = np.random.default_rng(7)
+    try:
+        keys = [k for k in robot.action_features if k.endswith(".pos") and not k.startswith("gripper")]
+        for speed in (30.0, 60.0, 90.0):
+            start = robot.get_observation()
+            action = {k: float(start[k]) for k in robot.action_features}
+            # Towards the middle of each joint's range (about 0 deg): room for the ramp and the brake.
+            direction = {k: -np.sign(start[k]) or 1.0 for k in keys}
+            scale = {k: rng.uniform(0.3, 1.0) for k in keys}
+            scale[keys[int(rng.integers(len(keys)))]] = 1.0
+            sent = None
+            for i in range(1, 19):
+                for k in keys:
+                    action[k] = float(start[k]) + direction[k] * scale[k] * speed * i / 30
+                sent = robot.send_action(dict(action))
+                last_at = time.monotonic()
+                time.sleep(1 / 30)
+            settled, error = None, None
+            while time.monotonic() - last_at < 1.5:
+                obs = robot.get_observation()
+                error = max(abs(obs[k] - sent[k]) for k in keys)
+                if error < 0.1:
+                    settled = settled or time.monotonic() - last_at
+                else:
+                    settled = None
+                time.sleep(0.02)
+            assert settled is not None and settled <= 1.0, f"{arm} {speed} deg/s: {error:.3f} deg off, settled {settled}"
+            status = robot._arm.status()
+            assert np.degrees(status["largest_pass"]) > 0.5, status["largest_pass"]
+        monitor = robot._arm.monitor()
+        assert monitor["violations"] == 0, monitor
+    finally:
+        robot.disconnect()
+
+
 def test_end_effector_actions_are_solved_by_the_core(tmp_path):
     robot = make_robot_from_config(config(id="t", sim=True, calibration_dir=tmp_path, action_space="ee"))
     robot.connect()
