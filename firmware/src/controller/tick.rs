@@ -323,8 +323,9 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             // then back to the last keyframe the host sent, a stopping distance away. Stopping
             // it there would leave the arm past where the host asked it to be.
             Mode::Playing => {
-                !(self.play.paused && self.play.rate == 0.0)
-                    && !matches!(self.player.state(), State::Underrun | State::Returning)
+                let ending = matches!(self.player.state(), State::Underrun | State::Returning);
+                let paused = self.play.paused && self.play.rate == 0.0;
+                !(ending || paused)
             }
             _ => false,
         };

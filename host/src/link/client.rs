@@ -190,7 +190,7 @@ pub struct LinkClient<T: Read + Write> {
 }
 
 /// What came in while waiting for a reply.
-// A reply is a status at its largest (208 bytes since protocol 7's `last_move`), held for one
+// A reply is a status at its largest (212 bytes since protocol 8's `largest_pass`), held for one
 // call on the stack: boxing it would allocate for every reply, to save nothing worth having.
 #[allow(clippy::large_enum_variant)]
 enum Heard {

@@ -65,8 +65,9 @@ impl Keyframe {
 /// How a wait ended.
 #[derive(Debug)]
 pub enum Waited {
-    /// At rest (holding), with this status.
-    Done(Status),
+    /// At rest (holding), with this status (boxed: a status is over 200 bytes, and a wait's end
+    /// is once per move).
+    Done(Box<Status>),
     /// The caller's interrupt (Ctrl-C) was asked for; nothing was sent about it yet.
     Interrupted,
 }
@@ -281,7 +282,7 @@ impl<T: Transport> Session<T> {
             }
             let status = self.status()?;
             match status.state {
-                RunState::Idle => return Ok(Waited::Done(self.settle(status)?)),
+                RunState::Idle => return Ok(Waited::Done(Box::new(self.settle(status)?))),
                 RunState::TorqueOff => return Err(WaitError::WentLimp),
                 RunState::EStopped => return Err(WaitError::EStopped),
                 _ => {}

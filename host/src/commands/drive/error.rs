@@ -75,7 +75,7 @@ pub(crate) fn interrupted(driver: &mut Driver, before: &str) -> DriveError {
 /// fails with where it stopped.
 pub(crate) fn rest(driver: &mut Driver, timeout: f64) -> DriveResult<Status> {
     match driver.wait_until_rest(timeout)? {
-        Waited::Done(status) => Ok(status),
+        Waited::Done(status) => Ok(*status),
         Waited::Interrupted => Err(interrupted(driver, "")),
     }
 }
