@@ -108,6 +108,9 @@ def test_models_from_files(tmp_path):
     assert from_urdf.dof == 5
     assert np.isfinite(from_urdf.fk(np.zeros(5))).all()
     assert root.has_gripper and root.closed_form == "yaw_pitch"
+    # The errors about a tip name Python's keyword, not only the command line's option.
+    with pytest.raises(armctl.ArmctlError, match=r"tip= in Python\) applies only to .urdf arms"):
+        armctl.Model("so101", tip="gripper_frame_link")
 
 
 TREE = str(Path(__file__).resolve().parents[2] / "tests/data/bimanual_torso.urdf")
