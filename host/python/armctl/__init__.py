@@ -329,7 +329,9 @@ class Stream:
     """A stream of readings to the arm's player (:meth:`Arm.stream`): each :meth:`send` is a
     keyframe due one lead after it is sent, clamped into the joints' ranges and to one step from
     the keyframe before; the player interpolates between them at the control rate within the
-    velocity and acceleration limits."""
+    velocity and acceleration limits. A stream whose readings stop coming (without :meth:`close`)
+    ends on the last one: the player brakes within the limits and goes back to it (the status's
+    ``largest_pass``, rad, says how far the brake carried it)."""
 
     def __init__(self, arm: "Arm"):
         self._arm = arm
