@@ -1,6 +1,15 @@
 //! The error between the tool and the target, in the form the solvers minimise: a 6-vector of
 //! position error and weighted rotation-vector error, plus the plain distances the tolerances are
 //! checked against.
+//!
+//! A [`Target::Tilt`] asks only that the tool's vertical (the base's z axis carried by the tool,
+//! `v = R R_t^T z`) be the base's z. Its angular error is the swing that carries `v` onto `z`, as
+//! a rotation vector: `theta (v x z) / |v x z|`, which is perpendicular to both. Its Jacobian is the
+//! tool's angular velocity with the part about `v` taken out, `(I - v v^T) J_w`: a turn about the
+//! tool's own vertical leaves the tilt as it is, so the solvers are not asked to undo the yaw the
+//! position needs. (Projecting on the plane across the base's z instead, as a first sketch had it,
+//! agrees at the solution, where `v = z`; across `v` the error always lies in the Jacobian's range,
+//! so the damped solve never meets an error along a direction no joint can move.)
 
 use super::{IkConfig, Target};
 use crate::pose::rotation_error;
@@ -25,11 +34,13 @@ pub struct Residual<T: Real> {
 /// The tool's error at one joint vector.
 #[derive(Clone, Copy, Debug)]
 pub struct ErrorTerms<T: Real> {
-    /// `[target - p; weight * log(R_target R^T)]`; the angular part is zero for a position target.
+    /// `[target - p; weight * log(R_target R^T)]`; the angular part is zero for a position target,
+    /// and the swing that carries the tool's vertical onto the base's z for a tilt target.
     pub vector: SVector<T, 6>,
     /// `|target - p|` (m).
     pub position: T,
-    /// Rotation angle to the target orientation (rad).
+    /// Rotation angle to the target orientation (rad); for a tilt target, the angle between the
+    /// tool's vertical and the base's z.
     pub orientation: T,
     /// Half the squared norm of `vector`: what the solvers decrease.
     pub cost: T,
@@ -49,11 +60,12 @@ impl<T: Real> Residual<T> {
         }
     }
 
-    /// Rows the task has: 3 for a position target, 6 for a pose.
+    /// Rows the task has: 3 for a position target, 6 for a pose or a tilt (whose three angular
+    /// rows have rank 2: the turn about the tool's vertical is free).
     pub fn rows(&self) -> usize {
         match self.target {
             Target::Position(_) => 3,
-            Target::Pose(_) => 6,
+            Target::Pose(_) | Target::Tilt(_) => 6,
         }
     }
 
@@ -63,6 +75,7 @@ impl<T: Real> Residual<T> {
         let dw = match &self.target {
             Target::Position(_) => Vector3::zeros(),
             Target::Pose(p) => rotation_error(&p.rotation, &tool.rotation),
+            Target::Tilt(p) => swing(&tilt_vertical(p, tool)),
         };
         let mut vector = SVector::<T, 6>::zeros();
         vector.fixed_rows_mut::<3>(0).copy_from(&dp);
@@ -89,7 +102,18 @@ impl<T: Real> Residual<T> {
         e: &ErrorTerms<T>,
     ) -> (SMatrix<T, M, N>, SVector<T, M>) {
         const { assert!(M == 3 || M == 6, "a task has 3 (position) or 6 (pose) rows") };
-        let j6 = chain.jacobian_of(frames);
+        let mut j6 = chain.jacobian_of(frames);
+        if let Target::Tilt(p) = &self.target {
+            // The angular rows across the tool's vertical: its turn about it changes no tilt.
+            let v = tilt_vertical(p, &frames.tool);
+            for c in 0..N {
+                let w = Vector3::new(j6[(3, c)], j6[(4, c)], j6[(5, c)]);
+                let across = w - v * v.dot(&w);
+                for r in 0..3 {
+                    j6[(3 + r, c)] = across[r];
+                }
+            }
+        }
         let rows = self.rows();
         let j = SMatrix::<T, M, N>::from_fn(|r, c| match r {
             _ if r >= rows => T::zero(),
@@ -98,5 +122,29 @@ impl<T: Real> Residual<T> {
         });
         let v = SVector::<T, M>::from_fn(|r, _| e.vector[r]);
         (j, v)
+    }
+}
+
+/// The base's z axis carried by the tool as the target carries it: `R R_t^T z`, a unit vector that
+/// is the base's z exactly when the tool is tilted as the target is.
+fn tilt_vertical<T: Real>(target: &Pose<T>, tool: &Pose<T>) -> Vector3<T> {
+    let up: Vector3<T> = target.rotation.row(2).transpose();
+    tool.rotation * up
+}
+
+/// The rotation vector of the shortest rotation carrying the unit vector `v` onto the base's z:
+/// axis `v x z`, angle `atan2(|v x z|, v . z)` (in [0, pi]). At `v = -z` every axis across z is as
+/// short; x is taken, so the error is never zero there.
+fn swing<T: Real>(v: &Vector3<T>) -> Vector3<T> {
+    let axis = Vector3::new(v[1], -v[0], T::zero());
+    let s = axis.norm();
+    let angle = s.atan2(v[2]);
+    if s > T::EPSILON {
+        axis * (angle / s)
+    } else if v[2] >= T::zero() {
+        // atan2(s, c) / s -> 1 / c for s -> 0 (c near 1): the small-angle limit, kept smooth.
+        axis / v[2].max(T::EPSILON)
+    } else {
+        Vector3::new(angle, T::zero(), T::zero())
     }
 }
