@@ -372,6 +372,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
                 let target = match goal.target {
                     Target::Position(_) => Target::Position(goal.via),
                     Target::Pose(p) => Target::Pose(Pose { rotation: p.rotation, translation: goal.via }),
+                    Target::Tilt(p) => Target::Tilt(Pose { rotation: p.rotation, translation: goal.via }),
                 };
                 let solution = self.tracker.step(&self.chain, target);
                 report.ik = Some(solution.status);
