@@ -8,8 +8,8 @@
 //! tool's angular velocity with the part about `v` taken out, `(I - v v^T) J_w`: a turn about the
 //! tool's own vertical leaves the tilt as it is, so the solvers are not asked to undo the yaw the
 //! position needs. (Projecting on the plane across the base's z instead, as a first sketch had it,
-//! agrees at the solution, where `v = z`; across `v` the error always lies in the Jacobian's range,
-//! so the damped solve never meets an error along a direction no joint can move.)
+//! agrees at the solution, where `v = z`; across `v`, the error and the rows lie in the same plane at
+//! every iterate, so the damped solve never meets an error along `v`, which no turn changes.)
 
 use super::{IkConfig, Target};
 use crate::pose::rotation_error;
