@@ -129,6 +129,28 @@ fn open_manipulator_x_executes_the_reachable_end_effector_steps() {
     assert_executed("open-manipulator-x", chain32, &chain64, 2);
 }
 
+/// A five-joint yaw-pitch arm of other proportions than the SO-101's (round numbers of a desk
+/// arm's size, its pan's axis along the base's z, the roll's along the forearm, wider ranges),
+/// standing in for the Koch, of which the repository has no preset.
+fn other_proportions<T: kinematics::Real>() -> Chain<T, 5> {
+    let at = |x: f64, z: f64| Pose::from_xyz_rpy([T::of(x), T::zero(), T::of(z)], [T::zero(); 3]);
+    let (z, y, x) = ([0.0, 0.0, 1.0].map(T::of), [0.0, 1.0, 0.0].map(T::of), [1.0, 0.0, 0.0].map(T::of));
+    let limits = |m: f64| kinematics::Limits::symmetric(T::of(m));
+    let joints = [
+        kinematics::Joint::revolute(at(0.0, 0.05), z, limits(2.8)),
+        kinematics::Joint::revolute(at(0.0, 0.03), y, limits(1.6)),
+        kinematics::Joint::revolute(at(0.03, 0.11), y, limits(1.7)),
+        kinematics::Joint::revolute(at(0.10, 0.0), y, limits(1.7)),
+        kinematics::Joint::revolute(at(0.045, 0.0), x, limits(2.8)),
+    ];
+    Chain::new(joints, at(0.05, 0.0)).unwrap()
+}
+
+#[test]
+fn a_five_joint_arm_of_other_proportions_executes_the_reachable_end_effector_steps() {
+    assert_executed("other proportions", other_proportions(), &other_proportions(), 3);
+}
+
 /// A six-joint arm keeps the full pose: a step with the orientation held ends at that orientation.
 #[test]
 fn a_six_joint_arm_keeps_the_full_orientation() {
