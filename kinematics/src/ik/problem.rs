@@ -39,6 +39,15 @@ impl<T: Real> Target<T> {
         }
     }
 
+    /// The same target at another position (its orientation, if any, as it was).
+    pub fn at(self, position: Vector3<T>) -> Self {
+        match self {
+            Target::Position(_) => Target::Position(position),
+            Target::Pose(p) => Target::Pose(Pose { rotation: p.rotation, translation: position }),
+            Target::Tilt(p) => Target::Tilt(Pose { rotation: p.rotation, translation: position }),
+        }
+    }
+
     /// The target position.
     pub fn position(&self) -> &Vector3<T> {
         match self {

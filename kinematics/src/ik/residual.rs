@@ -104,15 +104,7 @@ impl<T: Real> Residual<T> {
         const { assert!(M == 3 || M == 6, "a task has 3 (position) or 6 (pose) rows") };
         let mut j6 = chain.jacobian_of(frames);
         if let Target::Tilt(p) = &self.target {
-            // The angular rows across the tool's vertical: its turn about it changes no tilt.
-            let v = tilt_vertical(p, &frames.tool);
-            for c in 0..N {
-                let w = Vector3::new(j6[(3, c)], j6[(4, c)], j6[(5, c)]);
-                let across = w - v * v.dot(&w);
-                for r in 0..3 {
-                    j6[(3 + r, c)] = across[r];
-                }
-            }
+            across(&mut j6, &tilt_vertical(p, &frames.tool));
         }
         let rows = self.rows();
         let j = SMatrix::<T, M, N>::from_fn(|r, c| match r {
@@ -125,6 +117,20 @@ impl<T: Real> Residual<T> {
     }
 }
 
+/// The angular rows of `j` across the unit vector `v` (the tool's vertical): a turn about it
+/// changes no tilt. Not inlined: the firmware's flash has room for one copy, not one per solver
+/// loop that reaches it.
+#[inline(never)]
+fn across<T: Real, const N: usize>(j: &mut SMatrix<T, 6, N>, v: &Vector3<T>) {
+    for mut column in j.column_iter_mut() {
+        let w = Vector3::new(column[3], column[4], column[5]);
+        let a = w - v * v.dot(&w);
+        column[3] = a[0];
+        column[4] = a[1];
+        column[5] = a[2];
+    }
+}
+
 /// The base's z axis carried by the tool as the target carries it: `R R_t^T z`, a unit vector that
 /// is the base's z exactly when the tool is tilted as the target is.
 fn tilt_vertical<T: Real>(target: &Pose<T>, tool: &Pose<T>) -> Vector3<T> {
@@ -134,7 +140,8 @@ fn tilt_vertical<T: Real>(target: &Pose<T>, tool: &Pose<T>) -> Vector3<T> {
 
 /// The rotation vector of the shortest rotation carrying the unit vector `v` onto the base's z:
 /// axis `v x z`, angle `atan2(|v x z|, v . z)` (in [0, pi]). At `v = -z` every axis across z is as
-/// short; x is taken, so the error is never zero there.
+/// short; x is taken, so the error is never zero there. Not inlined, as [`across`].
+#[inline(never)]
 fn swing<T: Real>(v: &Vector3<T>) -> Vector3<T> {
     let axis = Vector3::new(v[1], -v[0], T::zero());
     let s = axis.norm();
