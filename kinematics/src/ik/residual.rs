@@ -2,14 +2,18 @@
 //! position error and weighted rotation-vector error, plus the plain distances the tolerances are
 //! checked against.
 //!
-//! A [`Target::Tilt`] asks only that the tool's vertical (the base's z axis carried by the tool,
-//! `v = R R_t^T z`) be the base's z. Its angular error is the swing that carries `v` onto `z`, as
-//! a rotation vector: `theta (v x z) / |v x z|`, which is perpendicular to both. Its Jacobian is the
-//! tool's angular velocity with the part about `v` taken out, `(I - v v^T) J_w`: a turn about the
-//! tool's own vertical leaves the tilt as it is, so the solvers are not asked to undo the yaw the
-//! position needs. (Projecting on the plane across the base's z instead, as a first sketch had it,
-//! agrees at the solution, where `v = z`; across `v`, the error and the rows lie in the same plane at
-//! every iterate, so the damped solve never meets an error along `v`, which no turn changes.)
+//! A [`Target::Tilt`] asks only that the tool's vertical (the base's z axis carried by the tool as
+//! the target carries it, `v = R R_t^T z`, a unit vector) be the base's z. Its angular error is the
+//! chord `z - v`, whose length is `2 sin(theta / 2)` for the angle `theta` between the two: the
+//! angle to within `theta^3 / 24` (5e-11 rad at f32's tolerance of 1e-3, far below the rounding
+//! guard of [`Residual::converged`]), and what is reported as the orientation error. Its
+//! Jacobian is the exact one: a turn `w` of the tool moves `v` by `w x v`, so the angular rows are
+//! `J_w` crossed with `v` column by column. They have rank 2: a turn about the tool's own vertical
+//! changes no tilt, so the solvers are not asked to undo the yaw the position needs. The cost
+//! `|z - v|^2 = 2 - 2 cos(theta)` grows with the angle all the way to a half turn, so there is no
+//! false minimum with the tool upside down. (A first sketch had the swing's rotation vector and
+//! `J_w` projected across `z`: it needs an arc tangent, which the firmware's flash had no room
+//! for, and its rows are the derivative only at the solution.)
 
 use super::{IkConfig, Target};
 use crate::pose::rotation_error;
@@ -35,12 +39,12 @@ pub struct Residual<T: Real> {
 #[derive(Clone, Copy, Debug)]
 pub struct ErrorTerms<T: Real> {
     /// `[target - p; weight * log(R_target R^T)]`; the angular part is zero for a position target,
-    /// and the swing that carries the tool's vertical onto the base's z for a tilt target.
+    /// and `weight * (z - v)` for a tilt target (`v` the tool's vertical, see the module docs).
     pub vector: SVector<T, 6>,
     /// `|target - p|` (m).
     pub position: T,
-    /// Rotation angle to the target orientation (rad); for a tilt target, the angle between the
-    /// tool's vertical and the base's z.
+    /// Rotation angle to the target orientation (rad); for a tilt target, the chord between the
+    /// tool's vertical and the base's z, `2 sin(theta / 2)`: the angle to within `theta^3 / 24`.
     pub orientation: T,
     /// Half the squared norm of `vector`: what the solvers decrease.
     pub cost: T,
@@ -75,7 +79,7 @@ impl<T: Real> Residual<T> {
         let dw = match &self.target {
             Target::Position(_) => Vector3::zeros(),
             Target::Pose(p) => rotation_error(&p.rotation, &tool.rotation),
-            Target::Tilt(p) => swing(&tilt_vertical(p, tool)),
+            Target::Tilt(p) => Vector3::z() - tilt_vertical(p, tool),
         };
         let mut vector = SVector::<T, 6>::zeros();
         vector.fixed_rows_mut::<3>(0).copy_from(&dp);
@@ -104,7 +108,7 @@ impl<T: Real> Residual<T> {
         const { assert!(M == 3 || M == 6, "a task has 3 (position) or 6 (pose) rows") };
         let mut j6 = chain.jacobian_of(frames);
         if let Target::Tilt(p) = &self.target {
-            across(&mut j6, &tilt_vertical(p, &frames.tool));
+            moving_vertical(&mut j6, &tilt_vertical(p, &frames.tool));
         }
         let rows = self.rows();
         let j = SMatrix::<T, M, N>::from_fn(|r, c| match r {
@@ -117,17 +121,16 @@ impl<T: Real> Residual<T> {
     }
 }
 
-/// The angular rows of `j` across the unit vector `v` (the tool's vertical): a turn about it
-/// changes no tilt. Not inlined: the firmware's flash has room for one copy, not one per solver
-/// loop that reaches it.
+/// The angular rows of `j` made the motion of the unit vector `v` (the tool's vertical): a turn
+/// `w` moves it by `w x v`, column by column. Not inlined: the firmware's flash has room for one
+/// copy, not one in every solver loop that reaches it.
 #[inline(never)]
-fn across<T: Real, const N: usize>(j: &mut SMatrix<T, 6, N>, v: &Vector3<T>) {
+fn moving_vertical<T: Real, const N: usize>(j: &mut SMatrix<T, 6, N>, v: &Vector3<T>) {
     for mut column in j.column_iter_mut() {
-        let w = Vector3::new(column[3], column[4], column[5]);
-        let a = w - v * v.dot(&w);
-        column[3] = a[0];
-        column[4] = a[1];
-        column[5] = a[2];
+        let moved = Vector3::new(column[3], column[4], column[5]).cross(v);
+        column[3] = moved[0];
+        column[4] = moved[1];
+        column[5] = moved[2];
     }
 }
 
@@ -136,22 +139,4 @@ fn across<T: Real, const N: usize>(j: &mut SMatrix<T, 6, N>, v: &Vector3<T>) {
 fn tilt_vertical<T: Real>(target: &Pose<T>, tool: &Pose<T>) -> Vector3<T> {
     let up: Vector3<T> = target.rotation.row(2).transpose();
     tool.rotation * up
-}
-
-/// The rotation vector of the shortest rotation carrying the unit vector `v` onto the base's z:
-/// axis `v x z`, angle `atan2(|v x z|, v . z)` (in [0, pi]). At `v = -z` every axis across z is as
-/// short; x is taken, so the error is never zero there. Not inlined, as [`across`].
-#[inline(never)]
-fn swing<T: Real>(v: &Vector3<T>) -> Vector3<T> {
-    let axis = Vector3::new(v[1], -v[0], T::zero());
-    let s = axis.norm();
-    let angle = s.atan2(v[2]);
-    if s > T::EPSILON {
-        axis * (angle / s)
-    } else if v[2] >= T::zero() {
-        // atan2(s, c) / s -> 1 / c for s -> 0 (c near 1): the small-angle limit, kept smooth.
-        axis / v[2].max(T::EPSILON)
-    } else {
-        Vector3::new(angle, T::zero(), T::zero())
-    }
 }

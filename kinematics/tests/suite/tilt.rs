@@ -93,38 +93,44 @@ fn the_same_targets_as_full_poses_are_mostly_unreachable() {
     assert!(converged <= 5, "{converged}/50 full poses converged");
 }
 
-/// At a solution the tool's vertical is the base's z and the task's Jacobian is the derivative of
-/// the error (with the opposite sign: the error is target minus tool), by central differences.
+/// The task's Jacobian is the derivative of the error (with the opposite sign: the error is
+/// target minus tool), by central differences, at the solution and anywhere else.
 #[test]
-fn the_tilt_task_is_the_derivative_of_its_error_at_the_solution() {
+fn the_tilt_task_is_the_derivative_of_its_error() {
     let chain = presets::so101::<f64>().unwrap();
     let mut rng = SplitMix64::new(6);
-    for _ in 0..20 {
+    for k in 0..40 {
         let (target, goal) = reachable_tilt(&chain, &mut rng);
+        let q = if k % 2 == 0 { goal } else { chain.random_configuration(&mut rng) };
         let residual = Residual::new(target, &IkConfig { orientation_weight: 0.3, ..IkConfig::default() });
-        let e = residual.error(&chain.tool_pose(&goal));
-        assert!(e.orientation <= 1e-12 && e.position <= 1e-12, "{e:?}");
-        let (j, _) = residual.task::<6, 5>(&chain, &chain.forward(&goal), &e);
+        let e = residual.error(&chain.tool_pose(&q));
+        if k % 2 == 0 {
+            assert!(e.orientation <= 1e-12 && e.position <= 1e-12, "{e:?}");
+        }
+        let (j, _) = residual.task::<6, 5>(&chain, &chain.forward(&q), &e);
         let h = 1e-6;
         for i in 0..5 {
             let mut dq = SVector::<f64, 5>::zeros();
             dq[i] = h;
-            let plus = residual.error(&chain.tool_pose(&(goal + dq))).vector;
-            let minus = residual.error(&chain.tool_pose(&(goal - dq))).vector;
+            let plus = residual.error(&chain.tool_pose(&(q + dq))).vector;
+            let minus = residual.error(&chain.tool_pose(&(q - dq))).vector;
             let fd = (plus - minus) / (2.0 * h);
             for r in 0..6 {
                 assert!((fd[r] + j[(r, i)]).abs() <= 1e-6, "row {r}, joint {i}: {} vs {}", fd[r], -j[(r, i)]);
             }
         }
-        // The turn about the base's z is free: the angular rows have rank 2.
-        assert!(j.fixed_rows::<3>(3).transpose().fixed_columns::<1>(2).norm() <= 1e-9);
+        if k % 2 == 0 {
+            // At the solution the tool's vertical is z: no turn moves it along z.
+            assert!(j.fixed_rows::<1>(5).norm() <= 1e-9);
+        }
     }
 }
 
-/// Away from the solution the swing is reported as the angle between the verticals, and the
-/// error vector is perpendicular to the base's z.
+/// The reported tilt error is the chord between the verticals, `2 sin(theta / 2)` for the angle
+/// between them (measured here by another formula), and the error vector's angular part is that
+/// chord, weighted.
 #[test]
-fn the_reported_tilt_error_is_the_angle_between_the_verticals() {
+fn the_reported_tilt_error_is_the_chord_of_the_angle_between_the_verticals() {
     let chain = presets::so101::<f64>().unwrap();
     let mut rng = SplitMix64::new(7);
     for _ in 0..50 {
@@ -132,10 +138,11 @@ fn the_reported_tilt_error_is_the_angle_between_the_verticals() {
         let Target::Tilt(t) = target else { unreachable!() };
         let q = chain.random_configuration(&mut rng);
         let pose = chain.tool_pose(&q);
-        let e = Residual::new(target, &IkConfig::default()).error(&pose);
-        assert!((e.orientation - tilt_angle(&t.rotation, &pose.rotation)).abs() <= 1e-9);
-        assert!(e.vector[5].abs() <= 1e-12);
-        assert!((e.vector.fixed_rows::<3>(3).norm() - e.orientation).abs() <= 1e-9);
+        let config = IkConfig { orientation_weight: 0.3, ..IkConfig::default() };
+        let e = Residual::new(target, &config).error(&pose);
+        let theta = tilt_angle(&t.rotation, &pose.rotation);
+        assert!((e.orientation - 2.0 * (theta / 2.0).sin()).abs() <= 1e-9, "{} vs {theta}", e.orientation);
+        assert!((e.vector.fixed_rows::<3>(3).norm() - 0.3 * e.orientation).abs() <= 1e-12);
     }
 }
 
@@ -163,11 +170,11 @@ fn ccd_newton_and_gradient_reach_tilt_targets() {
             }
         }
     }
-    // Measured: [14, 20, 7]. The full poses of the same 20 configurations (as FK gives them, so
+    // Measured: [14, 20, 5]. The full poses of the same 20 configurations (as FK gives them, so
     // reachable) converge [13, 20, 8] times: CCD and the gradient are slow on this arm whatever
-    // the target, and the tilt costs them nothing.
+    // the target (the gradient's budget runs out on most), and are kept for comparison only.
     let [ccd, newton, gradient] = converged;
-    assert!(ccd >= 12 && newton >= 19 && gradient >= 6, "converged of 20 (ccd, newton, gradient): {converged:?}");
+    assert!(ccd >= 12 && newton >= 19 && gradient >= 4, "converged of 20 (ccd, newton, gradient): {converged:?}");
 }
 
 /// No closed form answers a tilt: `solve_auto` hands it to damped least squares, which reaches it.
