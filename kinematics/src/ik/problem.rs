@@ -172,7 +172,8 @@ pub struct IkSolution<T: Real, const N: usize> {
     /// Distance of the tool origin from the target at `q` (m).
     pub position_error: T,
     /// Rotation angle between tool and target at `q` (rad); zero for a position-only target; for a
-    /// [`Target::Tilt`], the angle between the tool's vertical and the target's (the tilt error).
+    /// [`Target::Tilt`], the chord `2 sin(theta / 2)` of the angle `theta` between the tool's
+    /// vertical and the target's: the angle to within `theta^3 / 24` (see [`super::Residual`]).
     pub orientation_error: T,
 }
 
