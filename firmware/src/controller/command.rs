@@ -51,7 +51,9 @@ pub enum Command<const N: usize> {
     MoveTool {
         /// Target tool position.
         position: [f32; 3],
-        /// Target tool orientation, w first; `None` leaves it free.
+        /// Target tool orientation, w first; `None` leaves it free. On an arm of fewer than six
+        /// moving joints, only its tilt: the turn about the base's z is free (see
+        /// `Controller::tool_target`).
         orientation: Option<[f32; 4]>,
         /// How fast.
         pace: Pace,
@@ -74,7 +76,8 @@ pub enum Command<const N: usize> {
         time: f32,
         /// Tool position (m, base frame).
         position: [f32; 3],
-        /// Tool orientation, w first; `None` leaves it free.
+        /// Tool orientation, w first; `None` leaves it free. On an arm of fewer than six moving
+        /// joints, only its tilt: the turn about the base's z is free.
         orientation: Option<[f32; 4]>,
         /// The gripper's opening, as for [`Command::PushKeyframe`].
         gripper: Option<f32>,
@@ -323,12 +326,23 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
     }
 
     /// The IK target of a tool pose, refusing NaN and a zero quaternion.
-    fn tool_target(position: [f32; 3], orientation: Option<[f32; 4]>) -> Result<Target<f32>, Refusal> {
+    ///
+    /// On an arm with fewer than six moving joints an orientation is a tilt
+    /// ([`Target::Tilt`]): the tool tilted as the quaternion has it (its pitch and roll against
+    /// the base's vertical), its turn about the base's z axis free. Such an arm (the SO-101 and
+    /// Koch: a base yaw, three pitches and a wrist roll) cannot hold a full orientation while its
+    /// pan turns, so a tool moved sideways with its orientation held would be unreachable at
+    /// every step: the yaw has to follow the pan. This is what LeRobot's end-effector actions
+    /// (position steps, the orientation held) need. A six-joint arm keeps the full pose.
+    fn tool_target(&self, position: [f32; 3], orientation: Option<[f32; 4]>) -> Result<Target<f32>, Refusal> {
         if !position.iter().all(|x| x.is_finite()) || !orientation.iter().flatten().all(|x| x.is_finite()) {
             return Err(Refusal::NotFinite);
         }
         match orientation {
-            Some(quaternion) => Target::pose_wxyz(position, quaternion).ok_or(Refusal::BadParameter),
+            Some(quaternion) => {
+                let pose = Target::pose_wxyz(position, quaternion).ok_or(Refusal::BadParameter)?;
+                Ok(if self.chain.moving_joints() < 6 { pose.tilt_only() } else { pose })
+            }
             None => Ok(Target::Position(Vector3::from(position))),
         }
     }
@@ -364,7 +378,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         pace: Pace,
         path: ToolPath,
     ) -> Result<(), Refusal> {
-        let target = Self::tool_target(position, orientation)?;
+        let target = self.tool_target(position, orientation)?;
         let (value, is_speed) = match pace {
             Pace::Duration(d) => (d, false),
             Pace::Speed(s) => (s, true),
@@ -404,7 +418,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         orientation: Option<[f32; 4]>,
         gripper: Option<f32>,
     ) -> Result<(), Refusal> {
-        let target = Self::tool_target(position, orientation)?;
+        let target = self.tool_target(position, orientation)?;
         if let Some(pct) = gripper {
             super::gripper::check_percent(pct)?;
             self.gripper.as_ref().ok_or(Refusal::NoGripper)?;

@@ -26,6 +26,8 @@ mod health;
 pub mod limiter;
 mod refusal;
 mod tick;
+#[cfg(test)]
+mod tool_steps;
 
 pub use command::{Command, Pace, ToolPath};
 pub use config::{joint_limits, minimum_period_us, Config, ConfigError};

@@ -2,10 +2,9 @@
 
 use embedded_hal::digital::OutputPin;
 use embedded_io::{Read, ReadReady, Write};
-use kinematics::ik::{IkStatus, Target};
+use kinematics::ik::IkStatus;
 use kinematics::nalgebra::SVector;
 use kinematics::trajectory::State;
-use kinematics::Pose;
 
 use super::health::{Fault, TickReport};
 use super::limiter::{limit_step, Setpoint};
@@ -377,11 +376,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
                 goal.via =
                     if distance <= step { *goal.target.position() } else { goal.via + to_go * (step / distance) };
                 self.tool = Some(goal);
-                let target = match goal.target {
-                    Target::Position(_) => Target::Position(goal.via),
-                    Target::Pose(p) => Target::Pose(Pose { rotation: p.rotation, translation: goal.via }),
-                };
-                let solution = self.tracker.step(&self.chain, target);
+                let solution = self.tracker.step(&self.chain, goal.target.at(goal.via));
                 report.ik = Some(solution.status);
                 self.last_ik = Some(super::IkSummary::of(&solution));
                 if solution.status != IkStatus::Converged {

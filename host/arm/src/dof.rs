@@ -92,6 +92,11 @@ pub struct IkRequest {
     pub config: IkConfig<f64>,
     /// Scalar the solver runs in.
     pub scalar: Scalar,
+    /// Where the arm has fewer than six moving joints, hold the orientation only up to a turn
+    /// about the base's z axis ([`kinematics::ik::Target::Tilt`]), as the firmware takes a tool
+    /// orientation (a Cartesian keyframe, `move --quat`); a six-joint arm keeps the full pose.
+    /// `false` for `armctl ik`, which answers the full pose it is asked.
+    pub tilt_only: bool,
 }
 
 /// The answer, in f64 whatever the scalar.
@@ -333,7 +338,10 @@ fn solve_in<T: Real, const N: usize>(
     request: &IkRequest,
     seed: SVector<f64, N>,
 ) -> Result<IkOutcome> {
-    let problem = problem_in(request, seed)?;
+    let mut problem = problem_in(request, seed)?;
+    if request.tilt_only && chain.moving_joints() < 6 {
+        problem.target = problem.target.tilt_only();
+    }
     let started = Instant::now();
     let mut method = match request.solver {
         SolverName::Auto | SolverName::Dls => "dls",

@@ -348,7 +348,9 @@ class Stream:
     def send_pose(self, position: npt.ArrayLike, quaternion_wxyz: npt.ArrayLike | None = None,
                   gripper: float | None = None) -> tuple[float, float | None]:
         """A tool pose, solved by the firmware's IK as the player reaches it; returns ``(time,
-        gripper)`` as sent."""
+        gripper)`` as sent. On an arm of fewer than six joints (SO-101, Koch) the orientation is
+        held up to a turn about the base's z axis: the tool keeps its tilt and its yaw follows the
+        pan, so a step sideways with the orientation held is taken, not refused."""
         return self._arm._a.stream_pose(
             _vector(position, "position", 3, finite=False),
             None if quaternion_wxyz is None else _vector(quaternion_wxyz, "quaternion_wxyz", 4, finite=False),

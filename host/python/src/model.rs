@@ -142,7 +142,7 @@ impl Model {
     ) -> PyResult<IkRequest> {
         let solver: SolverName = solver.parse::<SolverName>().or_raise()?;
         let config = ik_config(position_tolerance, orientation_tolerance)?;
-        Ok(IkRequest { position, quaternion_wxyz, seed, solver, config, scalar: Scalar::F64 })
+        Ok(IkRequest { position, quaternion_wxyz, seed, solver, config, scalar: Scalar::F64, tilt_only: false })
     }
 }
 

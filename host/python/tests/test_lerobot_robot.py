@@ -146,6 +146,39 @@ def test_end_effector_actions_are_solved_by_the_core(tmp_path):
         robot.disconnect()
 
 
+def test_end_effector_steps_sideways_with_the_orientation_held_are_taken(tmp_path):
+    """As a gamepad or a phone sends them (issue 43, item 2): position steps from where the tool
+    is, the orientation held as the observation gave it. The SO-101's yaw follows its pan; its
+    tilt is held."""
+    robot = make_robot_from_config(config(id="t", sim=True, calibration_dir=tmp_path, action_space="ee"))
+    robot.connect()
+    try:
+        from lerobot_robot_armctl.rotation import matrix_to_rotvec
+
+        model = armctl.Model("so101")
+        bent = model.fk(np.array([-0.4, 0.5, -0.9, 0.6, -0.3]))
+        p, w = bent[:3, 3], matrix_to_rotvec(bent[:3, :3])
+        for _ in range(30):  # to the bent start, as a path of one pose
+            robot.send_action({"ee.x": p[0], "ee.y": p[1], "ee.z": p[2], "ee.wx": w[0], "ee.wy": w[1],
+                               "ee.wz": w[2], "ee.gripper_pos": 50.0})
+            time.sleep(1 / 30)
+        time.sleep(1.0)
+        obs = robot.get_observation()
+        start = np.array([obs["ee.x"], obs["ee.y"], obs["ee.z"]])
+        held = {k: obs[k] for k in ("ee.wx", "ee.wy", "ee.wz")}
+        side = np.cross([0.0, 0.0, 1.0], start)
+        side /= np.linalg.norm(side)
+        for i in range(1, 61):
+            x = start + side * 0.05 * i / 60
+            robot.send_action({"ee.x": x[0], "ee.y": x[1], "ee.z": x[2], **held, "ee.gripper_pos": 50.0})
+            time.sleep(1 / 30)
+        time.sleep(1.0)
+        obs = robot.get_observation()
+        np.testing.assert_allclose([obs["ee.x"], obs["ee.y"], obs["ee.z"]], start + side * 0.05, atol=3e-3)
+    finally:
+        robot.disconnect()
+
+
 def test_the_servos_must_hold_the_calibration_the_gripper_too(tmp_path, armctl_bin):
     cal = lerobot_sim.so101_calibration()
     path = lerobot_sim.write_calibration_file(tmp_path / "f.json", cal)

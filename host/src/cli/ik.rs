@@ -169,6 +169,7 @@ pub(crate) fn run(args: &IkArgs, out: &mut dyn Write, err: &mut dyn Write) -> Re
         solver: args.solver,
         config,
         scalar: args.scalar,
+        tilt_only: false,
     };
     let Some(batch) = &args.batch else {
         // `target` is required by clap whenever `batch` is absent.

@@ -65,6 +65,7 @@ impl Line {
                 solver: SolverName::Dls,
                 config: Default::default(),
                 scalar: Scalar::F32,
+                tilt_only: true,
             };
             let outcome = arm.solve(&request)?;
             let step = outcome.q.iter().zip(&q).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
@@ -105,5 +106,46 @@ mod tests {
         let blocked = line.follow(arm, &a, line.points()).unwrap().unwrap_err();
         assert!(blocked.along < blocked.length && (blocked.length - line.length()).abs() < 1e-12, "{blocked:?}");
         assert_eq!(blocked.q.len(), 5);
+    }
+
+    /// Sideways from a bent start with the orientation held (issue 43, item 2): on a five-joint
+    /// arm the host holds the tilt as the firmware does, so the line is clear and the Cartesian
+    /// file of the same points is reachable; the full pose (`armctl ik`'s) is not, a step on.
+    #[test]
+    fn a_sideways_line_with_the_orientation_held_is_clear_on_a_five_joint_arm() {
+        let arm = build(ArmSpec::load("so101", None).unwrap()).unwrap();
+        let arm = arm.as_ref();
+        let start = [0.2, -0.4, 0.6, 0.8, 0.3];
+        let pose = arm.tool_pose(&start).unwrap();
+        let from: [f64; 3] = pose.translation.into();
+        // Across the arm's reach: mostly a turn of the pan.
+        let side = kinematics::nalgebra::Vector3::new(-from[1], from[0], 0.0).normalize() * 0.03;
+        let to: [f64; 3] = (pose.translation + side).into();
+        let orientation = Some(pose.quaternion_wxyz());
+        let line = Line { from, to, orientation };
+        let end = line.follow(arm, &start, line.points()).unwrap().unwrap();
+        let reached = arm.tool_pose(&end).unwrap();
+        assert!((reached.translation - pose.translation - side).norm() < 1e-4);
+        let (up, held) = (reached.rotation.row(2), pose.rotation.row(2));
+        assert!((up - held).norm() < 1e-3, "tilt {up} vs {held}");
+
+        let k = crate::motion::CartesianKeyframes {
+            times: vec![0.0, 1.0],
+            positions: vec![from, to],
+            orientations: Some(vec![pose.quaternion_wxyz(); 2]),
+            gripper: None,
+            lines: vec![2, 3],
+        };
+        crate::motion::reach::check(arm, &k, &|line| format!("line {line}")).unwrap();
+        let full = IkRequest {
+            position: to,
+            quaternion_wxyz: orientation,
+            seed: Some(start.to_vec()),
+            solver: SolverName::Dls,
+            config: Default::default(),
+            scalar: Scalar::F64,
+            tilt_only: false,
+        };
+        assert_ne!(arm.solve(&full).unwrap().status, IkStatus::Converged);
     }
 }

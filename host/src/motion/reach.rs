@@ -30,6 +30,7 @@ pub fn solve(
         solver: SolverName::Auto,
         config: IkConfig { position_tolerance, orientation_tolerance, ..IkConfig::default() },
         scalar: Scalar::F64,
+        tilt_only: true,
     })
 }
 

@@ -35,6 +35,7 @@ pub fn solve(
         solver: if closed_form { SolverName::Analytic } else { SolverName::Dls },
         config: IkConfig::default(),
         scalar: if closed_form { Scalar::F64 } else { Scalar::F32 },
+        tilt_only: false,
     };
     let outcome = arm.solve(&request).map_err(|e| ApiError::bad(format!("{e:#}")))?;
     let drawn = frames(arm, &outcome.q, placement).map_err(|e| ApiError::new(500, format!("{e:#}")))?;

@@ -7,7 +7,9 @@
 //!
 //! Each joint sees a weighted point set carried by the tool: the tool origin (weight 1) and, for a
 //! pose target, the points at distance `w` (the orientation weight) along the three tool axes
-//! (weight 1/2 each), each to be brought onto the matching point of the target frame. The weights
+//! (weight 1/2 each), each to be brought onto the matching point of the target frame; for a tilt
+//! target, the two points at `w` either side along the tool's vertical, onto the base's z axis
+//! through the target (see [`PointSet::new`]). The weights
 //! make the point-set error agree with the residual's cost `|dp|^2 + w^2 |dtheta|^2` to second
 //! order, so the orientation is honoured on the scale the other methods use. For a revolute joint
 //! with axis `a` through `o`, and `r = p - o`, `t = target - o`, the best rotation is
@@ -54,6 +56,23 @@ impl<T: Real> PointSet<T> {
                 set.weights[axis + 1] = T::of(0.5);
             }
             set.len = 4;
+        }
+        if let Target::Tilt(goal) = &residual.target {
+            // Two points at distance `w` either side of the tool origin along the tool's vertical
+            // (the base's z as the target carries it), each to be brought onto the matching point
+            // along the base's z through the target position. Their mean is the tool origin, so
+            // with weight 1/2 each the cross terms cancel and the point-set error is exactly
+            // `|dp|^2 + w^2 |z - v|^2`: the origin itself is not needed (weight 0). A turn about the
+            // base's z through the target moves none of the targets, so the yaw is left free.
+            let w = residual.weight;
+            let v = tool.rotation * goal.rotation.row(2).transpose() * w;
+            let up = Vector3::new(T::zero(), T::zero(), w);
+            set.points[1] = tool.translation + v;
+            set.targets[1] = goal.translation + up;
+            set.points[2] = tool.translation - v;
+            set.targets[2] = goal.translation - up;
+            set.weights = [T::zero(), T::of(0.5), T::of(0.5), T::zero()];
+            set.len = 3;
         }
         set
     }

@@ -10,6 +10,16 @@ pub enum Target<T: Real> {
     Position(Vector3<T>),
     /// Tool frame at this pose (base frame).
     Pose(Pose<T>),
+    /// Tool origin at the pose's position, and the tool tilted as the pose is: the base frame's
+    /// z axis seen from the tool (`R^T z`) is the pose's (`R_t^T z`), which fixes the tool's
+    /// pitch and roll; its turn about the base's z axis (its yaw) is free.
+    ///
+    /// This is the target of an arm with fewer than six joints whose first joint turns about the
+    /// base's z axis (the pan of the SO-101, Koch and OpenManipulator-X): it cannot hold a full
+    /// orientation while the pan turns, so a tool moved sideways with its orientation held must
+    /// let its yaw follow the pan. The axis is always the base frame's z, whichever way the first
+    /// joint turns: the yaw-pitch arms stand on their base with the pan's axis along it.
+    Tilt(Pose<T>),
 }
 
 impl<T: Real> Target<T> {
@@ -20,18 +30,36 @@ impl<T: Real> Target<T> {
         Some(Target::Pose(Pose { rotation, translation: Vector3::from(position) }))
     }
 
+    /// The same target with the turn about the base's z axis left free: a pose becomes a
+    /// [`Target::Tilt`]; a position or a tilt stays as it is.
+    pub fn tilt_only(self) -> Self {
+        match self {
+            Target::Pose(p) => Target::Tilt(p),
+            other => other,
+        }
+    }
+
+    /// The same target at another position (its orientation, if any, as it was).
+    pub fn at(self, position: Vector3<T>) -> Self {
+        match self {
+            Target::Position(_) => Target::Position(position),
+            Target::Pose(p) => Target::Pose(Pose { rotation: p.rotation, translation: position }),
+            Target::Tilt(p) => Target::Tilt(Pose { rotation: p.rotation, translation: position }),
+        }
+    }
+
     /// The target position.
     pub fn position(&self) -> &Vector3<T> {
         match self {
             Target::Position(p) => p,
-            Target::Pose(p) => &p.translation,
+            Target::Pose(p) | Target::Tilt(p) => &p.translation,
         }
     }
 
     fn is_finite(&self) -> bool {
         match self {
             Target::Position(p) => p.iter().all(|v| v.finite()),
-            Target::Pose(p) => p.translation.iter().chain(p.rotation.iter()).all(|v| v.finite()),
+            Target::Pose(p) | Target::Tilt(p) => p.translation.iter().chain(p.rotation.iter()).all(|v| v.finite()),
         }
     }
 }
@@ -143,7 +171,9 @@ pub struct IkSolution<T: Real, const N: usize> {
     pub restarts: u32,
     /// Distance of the tool origin from the target at `q` (m).
     pub position_error: T,
-    /// Rotation angle between tool and target at `q` (rad); zero for a position-only target.
+    /// Rotation angle between tool and target at `q` (rad); zero for a position-only target; for a
+    /// [`Target::Tilt`], the chord `2 sin(theta / 2)` of the angle `theta` between the tool's
+    /// vertical and the target's: the angle to within `theta^3 / 24` (see [`super::Residual`]).
     pub orientation_error: T,
 }
 

@@ -22,7 +22,18 @@ fn widen_target<T: Real>(t: &Target<T>) -> Target<f64> {
         Target::Pose(p) => {
             Target::Pose(Pose { rotation: p.rotation.map(Real::to_f64), translation: p.translation.map(Real::to_f64) })
         }
+        Target::Tilt(p) => {
+            Target::Tilt(Pose { rotation: p.rotation.map(Real::to_f64), translation: p.translation.map(Real::to_f64) })
+        }
     }
+}
+
+/// The angle between the base's z axis seen from a tool at `current` (`R^T z`) and seen from one
+/// at `target`: zero exactly when the two are tilted alike, whatever their yaw about the base's z.
+/// Computed in the tool frame, by another formula than the solvers' swing in the base frame.
+fn tilt_angle<T: Real>(target: &kinematics::nalgebra::Matrix3<T>, current: &kinematics::nalgebra::Matrix3<T>) -> T {
+    let (a, b): (Vector3<T>, Vector3<T>) = (current.row(2).transpose(), target.row(2).transpose());
+    a.cross(&b).norm().atan2(a.dot(&b))
 }
 
 /// Position and orientation error of `pose` against `target` (orientation zero for a position
@@ -33,6 +44,7 @@ fn errors(target: &Target<f64>, pose: &Pose<f64>) -> (f64, f64) {
         Target::Pose(t) => {
             ((t.translation - pose.translation).norm(), rotation_error(&t.rotation, &pose.rotation).norm())
         }
+        Target::Tilt(t) => ((t.translation - pose.translation).norm(), tilt_angle(&t.rotation, &pose.rotation)),
     }
 }
 
@@ -79,6 +91,11 @@ enum Kind {
     FarPosition,
     /// A far point with a random orientation.
     FarPose,
+    /// FK pose of a random configuration turned by a random angle about the base's z, as a tilt
+    /// target (reachable: the turn leaves the tilt as it was).
+    ReachableTilt,
+    /// FK pose moved by up to 0.3 m and rotated by up to pi, as a tilt target: often unreachable.
+    PerturbedTilt,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -101,6 +118,8 @@ fn case() -> impl Strategy<Value = Case> {
         Just(Kind::PerturbedPose),
         Just(Kind::FarPosition),
         Just(Kind::FarPose),
+        Just(Kind::ReachableTilt),
+        Just(Kind::PerturbedTilt),
     ];
     let unit7 = || proptest::array::uniform::<_, 7>(0.0..1.0f64);
     (kind, unit7(), unit7(), any::<bool>(), (0.0..PI, -PI..PI, 0.0..1.0f64), (0.0..PI, -PI..PI, 0.0..PI)).prop_map(
@@ -135,6 +154,14 @@ fn target_of<T: Real, const N: usize>(chain: &Chain<T, N>, c: &Case) -> Target<T
         }),
         Kind::FarPosition => Target::Position((offset * (2.0 + 4.0 * c.offset.2)).map(T::of)),
         Kind::FarPose => Target::Pose(Pose { rotation, translation: (offset * (2.0 + 4.0 * c.offset.2)).map(T::of) }),
+        Kind::ReachableTilt => {
+            let yaw = axis_angle_matrix(&Vector3::z(), c.rotation.1).map(T::of);
+            Target::Tilt(Pose { rotation: yaw * goal.rotation, translation: goal.translation })
+        }
+        Kind::PerturbedTilt => Target::Tilt(Pose {
+            rotation: rotation * goal.rotation,
+            translation: goal.translation + (offset * (0.3 * c.offset.2)).map(T::of),
+        }),
     }
 }
 
@@ -159,6 +186,9 @@ fn check_honest<T: Real, const N: usize>(
         let dw = match &target {
             Target::Position(_) => T::zero(),
             Target::Pose(p) => rotation_error(&p.rotation, &pose.rotation).norm(),
+            // The solvers' own formula (the swing in the base frame), for the bits; the check in
+            // f64 below measures the tilt by another.
+            Target::Tilt(_) => kinematics::ik::Residual::new(target, &config).error(&pose).orientation,
         };
         (dp, dw)
     };

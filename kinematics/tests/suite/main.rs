@@ -10,4 +10,5 @@ mod limits;
 mod methods;
 mod player;
 mod rotation;
+mod tilt;
 mod tree;

@@ -41,7 +41,8 @@ class ArmctlFollowerConfig(RobotConfig):
     cameras: dict[str, CameraConfig] = field(default_factory=dict)
     # "joint": `shoulder_pan.pos` ... in degrees and `gripper.pos` 0-100, as so101_follower;
     # "ee": `ee.x, ee.y, ee.z` (m) and `ee.wx, ee.wy, ee.wz` (rotation vector, rad) with
-    # `ee.gripper_pos`, solved by the firmware's IK.
+    # `ee.gripper_pos`, solved by the firmware's IK (on an arm of fewer than six joints, the
+    # orientation up to a turn about the base's z: the tool's tilt is held, its yaw follows the pan).
     action_space: str = "joint"
 
     def __post_init__(self):

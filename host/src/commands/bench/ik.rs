@@ -177,6 +177,7 @@ pub fn run(arm: &dyn DynArm, protocol: &Protocol) -> Result<Report> {
                 solver,
                 config,
                 scalar: protocol.scalar,
+                tilt_only: false,
             };
             let outcome = arm.solve(&request)?;
             let claimed = outcome.status == kinematics::ik::IkStatus::Converged;

@@ -124,7 +124,9 @@ pub struct MoveReport {
     pub reached: [f64; 3],
     /// Its distance from the target (mm).
     pub error_mm: f64,
-    /// The orientation's angle from the target's (degrees), if one was given.
+    /// The orientation's angle from the target's (degrees), if one was given; on an arm of fewer
+    /// than six joints, the tilt's (the angle between the tool's and the target's view of the
+    /// base's z), since such an arm's yaw follows its pan.
     pub orientation_error_deg: Option<f64>,
     /// Controller seconds from the request to rest.
     pub time_s: f64,
@@ -174,8 +176,13 @@ pub fn move_to(driver: &mut Driver, request: &MoveRequest, notes: &mut dyn Write
     let reached: [f64; 3] = pose.translation.into();
     let goal = target.position.map(f64::from);
     let error_mm = 1e3 * (0..3).map(|i| (reached[i] - goal[i]).powi(2)).sum::<f64>().sqrt();
-    let orientation_error_deg =
-        target.orientation.map(|q| angle(&q.map(f64::from), &pose.quaternion_wxyz()).to_degrees());
+    // An arm of fewer than six joints holds only the tilt (its yaw follows the pan: the
+    // firmware's `Target::Tilt`), so that is what is measured there.
+    let tilt_only = driver.arm().dof() < 6;
+    let orientation_error_deg = target.orientation.map(|q| {
+        let q = q.map(f64::from);
+        if tilt_only { tilt_angle(&q, &pose.rotation) } else { angle(&q, &pose.quaternion_wxyz()) }.to_degrees()
+    });
     let outcome = path::outcome(driver.arm(), &route, &status, error_mm)
         .map_err(|e| DriveError::failed(format!("move to {shown} m: {e}")))?;
     Ok(MoveReport {
@@ -195,6 +202,14 @@ pub fn move_to(driver: &mut Driver, request: &MoveRequest, notes: &mut dyn Write
 }
 
 /// Angle between the rotations of two unit quaternions w, x, y, z (q and -q are one rotation).
+/// The angle between the base's z seen from a tool at `rotation` and from one at the quaternion
+/// `target` (w first): zero when the two are tilted alike, whatever their turn about the base's z.
+fn tilt_angle(target: &[f64; 4], rotation: &kinematics::nalgebra::Matrix3<f64>) -> f64 {
+    let Some(t) = kinematics::Pose::rotation_from_quaternion_wxyz(*target) else { return f64::NAN };
+    let (a, b) = (rotation.row(2).transpose(), t.row(2).transpose());
+    a.cross(&b).norm().atan2(a.dot(&b))
+}
+
 fn angle(a: &[f64; 4], b: &[f64; 4]) -> f64 {
     let dot = a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>().abs().min(1.0);
     2.0 * dot.acos()

@@ -28,6 +28,7 @@ pub fn request(position: Vector3<f64>, orientation: Option<&UnitQuaternion<f64>>
         solver: SolverName::Dls,
         config,
         scalar: Scalar::F64,
+        tilt_only: false,
     }
 }
 

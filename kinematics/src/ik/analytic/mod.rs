@@ -189,9 +189,15 @@ impl<T: Real, const N: usize> ClosedForm<T, N> {
     }
 
     /// True if the closed form answers this kind of target: a six-joint shape needs the full
-    /// pose; the yaw-pitch shape takes a position too.
+    /// pose; the yaw-pitch shape takes a position too. None answers a [`Target::Tilt`] (the yaw
+    /// it leaves free moves the tool's offset, a one-dimensional search the closed forms do not
+    /// make): [`Chain::solve_auto`] hands it to the numerical solver.
     pub fn answers(&self, target: &Target<T>) -> bool {
-        matches!(target, Target::Pose(_)) || self.shape().answers_position()
+        match target {
+            Target::Pose(_) => true,
+            Target::Position(_) => self.shape().answers_position(),
+            Target::Tilt(_) => false,
+        }
     }
 
     /// The shape's own solutions of `problem`, before they are fitted into the limits or checked:

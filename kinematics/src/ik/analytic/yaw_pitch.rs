@@ -113,6 +113,8 @@ impl<T: Real> YawPitch<T> {
                     at(theta, out);
                 }
             }
+            // Not answered (see `ClosedForm::answers`): no candidates, the numerical solver takes it.
+            Target::Tilt(_) => {}
         }
     }
 
