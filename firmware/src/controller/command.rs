@@ -274,7 +274,6 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             self.play.paused = false;
         } else {
             self.reset_player();
-            self.largest_pass = 0.0;
             let keyframe = PlayerKeyframe { time: duration, position: q, velocity: rest };
             self.player.push(keyframe).map_err(refusal)?;
             self.play.rate = 1.0;
@@ -309,7 +308,6 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             // The first keyframe of a new trajectory: it starts from the setpoint, at rest. The
             // keyframe was checked above, so a fresh player accepts it.
             self.reset_player();
-            self.largest_pass = 0.0;
             self.play.queued_fresh = true;
         }
         self.player.push(keyframe).map_err(refusal)?;

@@ -206,9 +206,6 @@ pub struct Controller<const N: usize, const Q: usize> {
     gripper: Option<gripper::Gripper<Q>>,
     /// The last move accepted and how it went.
     last_move: Option<MoveOutcome>,
-    /// The farthest the player braked past its last keyframe when keyframes ran out, in this
-    /// playback (rad, largest joint): it then went back to that keyframe.
-    largest_pass: f32,
 }
 
 impl<const N: usize, const Q: usize> Controller<N, Q> {
@@ -281,7 +278,6 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             queue_tail: zero,
             gripper: None,
             last_move: None,
-            largest_pass: 0.0,
         });
     }
 
@@ -353,7 +349,6 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         self.queue_tail = start;
         self.gripper = gripper.map(gripper::Gripper::new);
         self.last_move = None;
-        self.largest_pass = 0.0;
         Ok(())
     }
 
@@ -479,10 +474,11 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
     }
 
     /// The farthest the player braked past its last keyframe when keyframes ran out while moving,
-    /// in this playback (since its first keyframe; rad, largest joint). It went back to that
+    /// in the current or last playback (rad, largest joint; the player's count, which a new
+    /// trajectory, a stop at rest, torque off or an e-stop start afresh). It went back to that
     /// keyframe afterwards: this says how far the arm overshot on the way.
     pub fn largest_pass(&self) -> f32 {
-        self.largest_pass
+        self.player.largest_pass()
     }
 
     /// The arm's own joints: the first this many; the rest, up to `N`, pad the build (fixed

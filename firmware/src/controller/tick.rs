@@ -355,7 +355,6 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
                 };
                 self.play.time += dt * self.play.rate;
                 let tick = self.player.tick(self.play.time);
-                self.largest_pass = self.largest_pass.max(self.player.last_pass());
                 if matches!(tick.state, State::Idle | State::Holding) && !self.play.paused {
                     self.mode = Mode::Holding;
                     self.hold = tick.sample.position;

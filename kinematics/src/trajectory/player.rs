@@ -15,7 +15,7 @@
 //!   ([`Tick::underrun`], [`State::Underrun`]), then goes back to that keyframe, rest to rest
 //!   within the limits ([`State::Returning`]), and ends there ([`State::Idle`]): the last keyframe
 //!   is what the sender asked for (a stream that stops: a policy ending, a leader put down), and
-//!   the brake only carried the joints past it. How far is [`Player::last_pass`]. Keyframes
+//!   the brake only carried the joints past it. How far is [`Player::largest_pass`]. Keyframes
 //!   pushed meanwhile are played at once, from the current position and velocity.
 //! * **Replacement** ([`Player::replace`]): the queue is replaced; at the next tick the current
 //!   segment is abandoned and a new one starts from the position and velocity at that instant (as
@@ -188,8 +188,8 @@ pub struct Player<T: Real, const J: usize, const Q: usize> {
     underruns: u32,
     /// The keyframe the brake in progress must come back to (an underrun's), if any.
     comeback: Option<SVector<T, J>>,
-    /// How far the last underrun's brake carried the joints past their keyframe.
-    last_pass: T,
+    /// The farthest an underrun's brake carried the joints past their keyframe since the reset.
+    largest_pass: T,
 }
 
 impl<T: Real, const J: usize, const Q: usize> Player<T, J, Q> {
@@ -213,7 +213,7 @@ impl<T: Real, const J: usize, const Q: usize> Player<T, J, Q> {
             shift: T::zero(),
             underruns: 0,
             comeback: None,
-            last_pass: T::zero(),
+            largest_pass: T::zero(),
         }
     }
 
@@ -235,7 +235,7 @@ impl<T: Real, const J: usize, const Q: usize> Player<T, J, Q> {
         self.shift = T::zero();
         self.underruns = 0;
         self.comeback = None;
-        self.last_pass = T::zero();
+        self.largest_pass = T::zero();
         Ok(())
     }
 
@@ -259,10 +259,11 @@ impl<T: Real, const J: usize, const Q: usize> Player<T, J, Q> {
         self.underruns
     }
 
-    /// How far the last underrun's brake carried the joints past the keyframe they ran out at: the
-    /// largest joint's distance (rad or m), known once the brake has ended; zero before any.
-    pub fn last_pass(&self) -> T {
-        self.last_pass
+    /// The farthest an underrun's brake carried the joints past the keyframe they ran out at, since
+    /// the player was reset: the largest joint's distance (rad or m), known once a brake has ended;
+    /// zero before any.
+    pub fn largest_pass(&self) -> T {
+        self.largest_pass
     }
 
     /// What the player is doing, as of its last tick.
@@ -395,7 +396,9 @@ impl<T: Real, const J: usize, const Q: usize> Player<T, J, Q> {
                     if self.queue.is_empty() {
                         self.motion = Motion::Rest { position: seg.p1, held: false };
                     } else {
-                        let s = seg.sample(now);
+                        // Through `Motion::sample`, the one place a segment is sampled: a second
+                        // call site would take the segment's sampling out of line (330 B of flash).
+                        let s = self.motion.sample(now);
                         self.enter(now, s.position, s.velocity, true);
                     }
                 }
@@ -443,14 +446,13 @@ impl<T: Real, const J: usize, const Q: usize> Player<T, J, Q> {
             self.motion = Motion::Rest { position, held: true };
             return;
         };
-        self.last_pass = (keyframe - position).amax();
-        let duration = self.limits.rest_to_rest_time(&position, &keyframe);
-        self.motion = if duration > T::zero() && duration.finite() {
-            let zero = SVector::zeros();
-            Motion::Return(HermiteSegment { t0, t1: t0 + duration, p0: position, v0: zero, p1: keyframe, v1: zero })
-        } else {
-            Motion::Rest { position: keyframe, held: false }
-        };
+        self.largest_pass = self.largest_pass.max((keyframe - position).amax());
+        // At least a millisecond, as a late keyframe's segment: never a segment of no length (the
+        // brake ended on the keyframe only if it never moved).
+        let duration = self.limits.rest_to_rest_time(&position, &keyframe).max(T::of(1e-3));
+        let zero = SVector::zeros();
+        self.motion =
+            Motion::Return(HermiteSegment { t0, t1: t0 + duration, p0: position, v0: zero, p1: keyframe, v1: zero });
     }
 
     /// Enters the segment from `(t0, p0, v0)` to the front keyframe (which must exist), shifting
@@ -592,7 +594,7 @@ mod tests {
         let t = p.tick(1.2 + 1e-9);
         assert_eq!(t.state, State::Returning);
         assert!((t.sample.position - Vector2::new(0.6, -0.3)).norm() < 1e-9);
-        assert!((p.last_pass() - 0.1).abs() < 1e-9);
+        assert!((p.largest_pass() - 0.1).abs() < 1e-9);
         let back = (6.0f64 * 0.1 / 5.0).sqrt();
         let t = p.tick(1.2 + back / 2.0);
         assert_eq!(t.state, State::Returning);
@@ -615,7 +617,7 @@ mod tests {
         p.tick(0.95);
         let t = p.tick(5.0);
         assert_eq!(t.state, State::Holding, "a stop is not an underrun: no way back");
-        assert_eq!(p.last_pass(), 0.0);
+        assert_eq!(p.largest_pass(), 0.0);
 
         let mut p = player();
         p.push(PlayerKeyframe { velocity: Some(v), ..key(1.0, 0.5, 0.0) }).unwrap();
