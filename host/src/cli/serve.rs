@@ -93,7 +93,8 @@ pub fn run(args: ServeArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
         (None, None) => bail!("give --bus PORT or --sim"),
     };
     let calibration_file = args.calibration.as_ref().map(|f| f.display().to_string());
-    let options = PcOptions { path, protocol, baud, arm, calibration_file };
+    let monitor = simulated.as_ref().and_then(PtyServer::monitor_handle);
+    let options = PcOptions { path, protocol, baud, arm, calibration_file, monitor };
     let mut pc = Pc::start(&options, false, err)?;
     let shared = pc.shared();
     // The arm is configured now, so that the first client finds it running.
