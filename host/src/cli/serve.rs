@@ -26,6 +26,8 @@ use crate::support::interrupt;
 
 /// How long the core may take to read its servos after the arm is configured.
 const READY_TIMEOUT: Duration = Duration::from_secs(2);
+/// Violations `finish` prints after the monitor's summary, at most.
+const MAX_VIOLATION_LINES: usize = 10;
 /// How long the second signal's torque off may take.
 const TORQUE_OFF_TIMEOUT: Duration = Duration::from_secs(1);
 
@@ -175,6 +177,9 @@ fn finish(pc: &mut Pc, simulated: Option<&PtyServer>, err: &mut dyn Write) -> Re
     writeln!(err, "bus: {summary}")?;
     if let Some(report) = simulated.and_then(PtyServer::monitor) {
         writeln!(err, "safety monitor: {}", report.summary())?;
+        for v in report.violations.iter().take(MAX_VIOLATION_LINES) {
+            writeln!(err, "  violation: {v}")?;
+        }
     }
     Ok(())
 }

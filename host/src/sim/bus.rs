@@ -115,7 +115,9 @@ impl SimBus {
     }
 
     /// Sets the gap after which the servos drop a partial packet: longer than the servos' own for a
-    /// master whose bytes come with gaps its line does not have (an emulator's UART on a pty).
+    /// master whose bytes come with gaps its line does not have (an emulator's UART on a pty);
+    /// `u64::MAX` for none, where the gaps between bursts are the reader's own scheduling: then
+    /// only [`SimBus::line_idle`] ends a partial packet.
     pub fn set_inter_byte_timeout(&mut self, ns: u64) {
         self.inter_byte_timeout_ns = ns;
     }
@@ -272,7 +274,11 @@ impl SimBus {
         if !self.decoder.holds_partial() {
             return;
         }
-        let t = self.last_rx_ns.saturating_add(self.inter_byte_timeout_ns);
+        // Without a gap timeout (a pty's), the packet died the servos' own timeout after its
+        // last byte.
+        let gap =
+            if self.inter_byte_timeout_ns == u64::MAX { INTER_BYTE_TIMEOUT_NS } else { self.inter_byte_timeout_ns };
+        let t = self.last_rx_ns.saturating_add(gap);
         self.decoder.expire();
         while let Some(frame) = self.decoder.next_frame() {
             let mut frame = frame.to_vec();

@@ -97,12 +97,14 @@ impl SimConfig {
     }
 
     /// The bus as served on a pty: for an emulated master, a partial packet is dropped only after
-    /// [`EMULATED_LINE_GAP_NS`].
+    /// [`EMULATED_LINE_GAP_NS`]; for a program on this PC, only once a read of the pty has waited
+    /// [`IDLE_READ`] for nothing. Such a program writes each packet at once, so a gap the serving
+    /// thread sees inside one is its own scheduling: on a loaded PC it read the first bytes of a
+    /// goal write, got the rest 2 to 6 ms later, and the servos' 1.5 ms inter-byte timeout dropped
+    /// the packet, so they missed that tick's goals (42 times in 150 s beside two busy loops).
     fn build_for_pty(&self) -> SimBus {
         let mut bus = self.build();
-        if self.fixed_baud {
-            bus.set_inter_byte_timeout(EMULATED_LINE_GAP_NS);
-        }
+        bus.set_inter_byte_timeout(if self.fixed_baud { EMULATED_LINE_GAP_NS } else { u64::MAX });
         bus
     }
 }
