@@ -1269,3 +1269,27 @@ fn ping_waits_on(path: &str, rounds: usize) -> Vec<Duration> {
     waits.sort();
     waits
 }
+
+/// A packet that reaches the servos in two pieces 5 ms apart: on a line, the servos' 1.5 ms
+/// inter-byte timeout drops it; served on a pty to a program on this PC (no gap timeout: the gap
+/// is the serving thread's scheduling, [`armctl::sim::PtyServer`]) it is carried out, and only a
+/// quiet line ([`SimBus::line_idle`]) drops a piece left alone.
+#[test]
+fn a_packet_in_two_pieces_is_dropped_on_a_gap_only_with_a_gap_timeout() {
+    let ping = [0xFF, 0xFF, 0x01, 0x02, 0x01, 0xFB];
+    let ms = 1_000_000;
+    let answers = |timeout: Option<u64>, idle: bool| {
+        let mut bus = SimBus::new(Protocol::Feetech, &STS3215, &[1], BAUD);
+        if let Some(ns) = timeout {
+            bus.set_inter_byte_timeout(ns);
+        }
+        assert!(bus.receive(&ping[..3], 10 * ms).is_empty());
+        if idle {
+            assert!(bus.line_idle().is_empty());
+        }
+        !bus.receive(&ping[3..], 15 * ms).is_empty()
+    };
+    assert!(!answers(None, false), "the servos' own 1.5 ms timeout drops it");
+    assert!(answers(Some(u64::MAX), false), "no gap timeout: carried out");
+    assert!(!answers(Some(u64::MAX), true), "a quiet line still drops the first piece");
+}
