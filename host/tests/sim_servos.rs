@@ -703,7 +703,8 @@ fn the_pty_servers_monitor_checks_every_goal_it_receives() {
             group.write_all(&mut master, items.goal_position, &goals).expect("write goals");
             group.read_all(&mut master, items.present_position, &mut positions).expect("read positions");
         };
-        // 2 ticks per tick, never more than 6 (10 ms of slack and a tick of rounding) allow.
+        // 2 ticks per tick, never more than 6 (a 10 ms control period's 5 and a tick of rounding)
+        // allow; each tick here reads twice with its goal write between, so it counts two.
         for k in 0..10 {
             tick([2048 + 2 * k, 2048 - 2 * k]);
         }
@@ -912,6 +913,8 @@ fn armctl_sim_servos_refuses_a_bad_burst_period_and_an_arm_it_does_not_serve() {
         (&["1-3", "--arm", "so101"], "arm so101 has servo id(s) 4,5,6 that --ids does not serve"),
         (&["1-5", "--arm", "ur5e"], "arm ur5e has no [servos] table"),
         (&["1-5", "--arm", "no-such-arm"], "--arm no-such-arm"),
+        (&["1-6", "--arm", "so101", "--period-ms", "0"], "--period-ms must be 1 to 1000 (milliseconds), not 0"),
+        (&["1-6", "--arm", "so101", "--period-ms", "NaN"], "--period-ms"),
         (&["1-5", "--start", "6=100"], "--start names servo 6, which is not served"),
         (&["1-5", "--start", "1=4096"], "--start 1=4096: a horn stands at 0..=4095 ticks"),
         (&["1-5", "--start", "1:100"], "--start \"1:100\" is not ID=TICKS"),
@@ -1265,4 +1268,28 @@ fn ping_waits_on(path: &str, rounds: usize) -> Vec<Duration> {
     waits.remove(0);
     waits.sort();
     waits
+}
+
+/// A packet that reaches the servos in two pieces 5 ms apart: on a line, the servos' 1.5 ms
+/// inter-byte timeout drops it; served on a pty to a program on this PC (no gap timeout: the gap
+/// is the serving thread's scheduling, [`armctl::sim::PtyServer`]) it is carried out, and only a
+/// quiet line ([`SimBus::line_idle`]) drops a piece left alone.
+#[test]
+fn a_packet_in_two_pieces_is_dropped_on_a_gap_only_with_a_gap_timeout() {
+    let ping = [0xFF, 0xFF, 0x01, 0x02, 0x01, 0xFB];
+    let ms = 1_000_000;
+    let answers = |timeout: Option<u64>, idle: bool| {
+        let mut bus = SimBus::new(Protocol::Feetech, &STS3215, &[1], BAUD);
+        if let Some(ns) = timeout {
+            bus.set_inter_byte_timeout(ns);
+        }
+        assert!(bus.receive(&ping[..3], 10 * ms).is_empty());
+        if idle {
+            assert!(bus.line_idle().is_empty());
+        }
+        !bus.receive(&ping[3..], 15 * ms).is_empty()
+    };
+    assert!(!answers(None, false), "the servos' own 1.5 ms timeout drops it");
+    assert!(answers(Some(u64::MAX), false), "no gap timeout: carried out");
+    assert!(!answers(Some(u64::MAX), true), "a quiet line still drops the first piece");
 }

@@ -26,6 +26,8 @@ use crate::support::interrupt;
 
 /// How long the core may take to read its servos after the arm is configured.
 const READY_TIMEOUT: Duration = Duration::from_secs(2);
+/// Violations `finish` prints after the monitor's summary, at most.
+const MAX_VIOLATION_LINES: usize = 10;
 /// How long the second signal's torque off may take.
 const TORQUE_OFF_TIMEOUT: Duration = Duration::from_secs(1);
 
@@ -93,7 +95,8 @@ pub fn run(args: ServeArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
         (None, None) => bail!("give --bus PORT or --sim"),
     };
     let calibration_file = args.calibration.as_ref().map(|f| f.display().to_string());
-    let options = PcOptions { path, protocol, baud, arm, calibration_file };
+    let monitor = simulated.as_ref().and_then(PtyServer::monitor_handle);
+    let options = PcOptions { path, protocol, baud, arm, calibration_file, monitor };
     let mut pc = Pc::start(&options, false, err)?;
     let shared = pc.shared();
     // The arm is configured now, so that the first client finds it running.
@@ -174,6 +177,9 @@ fn finish(pc: &mut Pc, simulated: Option<&PtyServer>, err: &mut dyn Write) -> Re
     writeln!(err, "bus: {summary}")?;
     if let Some(report) = simulated.and_then(PtyServer::monitor) {
         writeln!(err, "safety monitor: {}", report.summary())?;
+        for v in report.violations.iter().take(MAX_VIOLATION_LINES) {
+            writeln!(err, "  violation: {v}")?;
+        }
     }
     Ok(())
 }

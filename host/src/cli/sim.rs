@@ -175,11 +175,17 @@ pub struct SimServosArgs {
     pub burst_ms: Option<f64>,
     /// Check every goal the servos receive against the joint limits and speed limit of ARM (a
     /// preset or an arm file with a `[servos]` table), mapped to ticks as its firmware maps them,
-    /// over the real time between goals; each violation is one line on stderr (the first 100), and
-    /// on Ctrl-C or SIGTERM a last line says how many goals were checked and how many failed.
-    /// Its servo ids must be among --ids.
+    /// each goal write against the one before over the control ticks between them (see
+    /// --period-ms); each violation is one line on stderr (the first 100), and on Ctrl-C or
+    /// SIGTERM a last line says how many goals were checked and how many failed. Its servo ids
+    /// must be among --ids.
     #[arg(long, value_name = "ARM")]
     pub arm: Option<String>,
+    /// With --arm: the firmware's control period, MS milliseconds; a goal may step the speed
+    /// limit times this per control tick [default: 10, the firmware's 100 Hz]. A core on the PC
+    /// chooses its period when it connects (its `control period` line): 25 behind --burst-ms 16.
+    #[arg(long, value_name = "MS", requires = "arm")]
+    pub period_ms: Option<f64>,
     /// An object W mm wide between the jaws of --arm's gripper: closing on it, the jaws stop there
     /// and the servo's load rises (as in `armctl --sim --object-mm`).
     #[arg(long, value_name = "W", requires = "arm", allow_negative_numbers = true)]
@@ -318,6 +324,15 @@ fn burst(ms: Option<f64>) -> Result<Option<Duration>> {
     }
 }
 
+/// `--period-ms` as a duration.
+fn period(ms: Option<f64>) -> Result<Option<Duration>> {
+    match ms {
+        None => Ok(None),
+        Some(ms) if (1.0..=1000.0).contains(&ms) => Ok(Some(Duration::from_secs_f64(ms * 1e-3))),
+        Some(ms) => bail!("--period-ms must be 1 to 1000 (milliseconds), not {ms}"),
+    }
+}
+
 /// `--arm`, calibrated by `--calibration` when it is given (its mapping only: what the monitor
 /// judges goals by, and where an `--object-mm` meets the gripper's jaws).
 fn arm_spec(args: &SimServosArgs) -> Result<Option<ArmSpec>> {
@@ -389,6 +404,8 @@ fn prepare(args: &SimServosArgs) -> Result<(SimConfig, ServeOptions)> {
     }
     let faults = args.faults.faults()?;
     let burst = burst(args.burst_ms)?;
+    // Checked here with the rest; the server is told it once it runs.
+    period(args.period_ms)?;
     let limits = limits(spec.as_ref(), &ids)?;
     let place = start_positions(args.start.as_deref(), &ids, model)?;
     let objects = object(args, arm.as_ref())?.into_iter().collect();
@@ -521,6 +538,9 @@ fn run_servos(args: SimServosArgs, out: &mut dyn Write, err: &mut dyn Write) -> 
         }
     }
     let server = PtyServer::spawn_with(config.clone(), options).context("cannot open a pseudo-terminal")?;
+    if let Some(period) = period(args.period_ms)? {
+        server.set_period(period);
+    }
     if args.json {
         crate::support::json_out::print_json(out, &serde_json::json!({ "pty": server.path() }))?;
     } else {
@@ -533,7 +553,11 @@ fn run_servos(args: SimServosArgs, out: &mut dyn Write, err: &mut dyn Write) -> 
         extras.push_str(&format!(", replies in bursts every {} ms", b.as_secs_f64() * 1e3));
     }
     if let Some(arm) = &args.arm {
-        extras.push_str(&format!(", goals checked against the limits of {arm}"));
+        let period = server.monitor_handle().map_or(crate::sim::DEFAULT_PERIOD, |m| m.period());
+        extras.push_str(&format!(
+            ", goals checked against the limits of {arm} at a {} ms control period",
+            period.as_secs_f64() * 1e3
+        ));
     }
     if let Some(file) = &args.calibration {
         extras.push_str(&format!(" as calibrated by {}", file.display()));

@@ -119,6 +119,7 @@ impl Place {
                 baud: self.baud.or(spec.bus_baud()).unwrap_or(DEFAULT_BAUD),
                 arm: spec,
                 calibration_file: self.calibration.as_ref().map(|f| f.display().to_string()),
+                monitor: None,
             };
             return Ok(Target::Bus(Box::new(options)));
         }

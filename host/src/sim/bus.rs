@@ -42,6 +42,16 @@ pub struct BusStats {
     pub group_reads: u64,
 }
 
+/// One instruction frame the bus has just carried out, for an observer that looks at the servos
+/// after each ([`SimBus::receive_observed`]), in the order they came, however many one burst held.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Frame {
+    /// When its last byte arrived, in virtual nanoseconds.
+    pub t_ns: u64,
+    /// Whether it was a group read of the present position: the read a control tick starts with.
+    pub reads_position: bool,
+}
+
 /// A reply as one servo puts it on the wire.
 struct Pending {
     start_ns: u64,
@@ -73,8 +83,8 @@ pub struct SimBus {
     /// Whether the frame being carried out was corrupted.
     corrupted: bool,
     stats: BusStats,
-    /// When the group reads of the last [`SimBus::receive`] or [`SimBus::line_idle`] arrived.
-    group_reads_ns: Vec<u64>,
+    /// Whether the frame being carried out is a group read of the present position.
+    reads_position: bool,
 }
 
 impl SimBus {
@@ -100,12 +110,14 @@ impl SimBus {
             lost_before: false,
             corrupted: false,
             stats: BusStats::default(),
-            group_reads_ns: Vec::new(),
+            reads_position: false,
         }
     }
 
     /// Sets the gap after which the servos drop a partial packet: longer than the servos' own for a
-    /// master whose bytes come with gaps its line does not have (an emulator's UART on a pty).
+    /// master whose bytes come with gaps its line does not have (an emulator's UART on a pty);
+    /// `u64::MAX` for none, where the gaps between bursts are the reader's own scheduling: then
+    /// only [`SimBus::line_idle`] ends a partial packet.
     pub fn set_inter_byte_timeout(&mut self, ns: u64) {
         self.inter_byte_timeout_ns = ns;
     }
@@ -144,14 +156,6 @@ impl SimBus {
     /// Counters so far.
     pub fn stats(&self) -> BusStats {
         self.stats
-    }
-
-    /// When the group reads that the last [`SimBus::receive`] or [`SimBus::line_idle`] carried out
-    /// arrived (the instant their last byte did, in virtual nanoseconds), in order. With
-    /// [`SimServo::goal_written_ns`] it tells which came first of a read and a goal write that
-    /// arrived in one burst.
-    pub fn last_group_reads_ns(&self) -> &[u64] {
-        &self.group_reads_ns
     }
 
     /// The faults, to inspect or change them (e.g. [`FaultState::corrupt_next`]).
@@ -200,11 +204,22 @@ impl SimBus {
     /// Takes instruction bytes whose last byte arrived at `at_ns` (they were sent back to back
     /// before it) and returns the reply bytes they cause with their arrival times, in time order.
     pub fn receive(&mut self, bytes: &[u8], at_ns: u64) -> Vec<WireByte> {
+        self.receive_observed(bytes, at_ns, &mut |_, _| {})
+    }
+
+    /// As [`SimBus::receive`], calling `observe` after each frame is carried out, with the bus as
+    /// that frame left it: a safety monitor sees every goal write on its own, in order, even when
+    /// one burst carries several control ticks' packets.
+    pub fn receive_observed(
+        &mut self,
+        bytes: &[u8],
+        at_ns: u64,
+        observe: &mut dyn FnMut(&SimBus, Frame),
+    ) -> Vec<WireByte> {
         let first_ns = at_ns.saturating_sub(wire_time_ns(bytes.len(), self.baud));
-        self.group_reads_ns.clear();
         let mut pending = Vec::new();
         if first_ns.saturating_sub(self.last_rx_ns) > self.inter_byte_timeout_ns {
-            self.expire_partial(&mut pending);
+            self.expire_partial(&mut pending, observe);
         }
         self.last_rx_ns = at_ns;
         for (k, &sent) in bytes.iter().enumerate() {
@@ -230,6 +245,7 @@ impl SimBus {
                 self.advance_to(t);
                 self.stats.instructions += 1;
                 self.handle(&mut frame, t, &mut pending);
+                observe(self, Frame { t_ns: t, reads_position: self.reads_position });
             }
         }
         self.stats.replies += pending.len() as u64;
@@ -242,18 +258,27 @@ impl SimBus {
     /// replies those cause. Call it when the line goes quiet (after a burst in memory, on a read
     /// timeout on a pty); it does nothing when no partial packet is held.
     pub fn line_idle(&mut self) -> Vec<WireByte> {
-        self.group_reads_ns.clear();
+        self.line_idle_observed(&mut |_, _| {})
+    }
+
+    /// As [`SimBus::line_idle`], calling `observe` after each frame (see
+    /// [`SimBus::receive_observed`]).
+    pub fn line_idle_observed(&mut self, observe: &mut dyn FnMut(&SimBus, Frame)) -> Vec<WireByte> {
         let mut pending = Vec::new();
-        self.expire_partial(&mut pending);
+        self.expire_partial(&mut pending, observe);
         self.stats.replies += pending.len() as u64;
         self.lay_on_wire(pending)
     }
 
-    fn expire_partial(&mut self, pending: &mut Vec<Pending>) {
+    fn expire_partial(&mut self, pending: &mut Vec<Pending>, observe: &mut dyn FnMut(&SimBus, Frame)) {
         if !self.decoder.holds_partial() {
             return;
         }
-        let t = self.last_rx_ns.saturating_add(self.inter_byte_timeout_ns);
+        // Without a gap timeout (a pty's), the packet died the servos' own timeout after its
+        // last byte.
+        let gap =
+            if self.inter_byte_timeout_ns == u64::MAX { INTER_BYTE_TIMEOUT_NS } else { self.inter_byte_timeout_ns };
+        let t = self.last_rx_ns.saturating_add(gap);
         self.decoder.expire();
         while let Some(frame) = self.decoder.next_frame() {
             let mut frame = frame.to_vec();
@@ -261,6 +286,7 @@ impl SimBus {
             self.stats.instructions += 1;
             self.corrupted = false;
             self.handle(&mut frame, t, pending);
+            observe(self, Frame { t_ns: t, reads_position: self.reads_position });
         }
         // Nothing held now is waiting for more bytes: the next burst starts afresh.
         self.last_rx_ns = t;
@@ -282,6 +308,7 @@ impl SimBus {
     /// the safety monitor; frames released by [`SimBus::line_idle`] count as clean).
     fn handle(&mut self, frame: &mut [u8], t: u64, out: &mut Vec<Pending>) {
         let corrupted = std::mem::take(&mut self.corrupted);
+        self.reads_position = false;
         for s in &mut self.servos {
             s.set_in_corrupted_packet(corrupted);
         }
@@ -304,12 +331,19 @@ impl SimBus {
             Err(_) => return,
         };
         let InstructionPacket { id, instruction } = packet;
-        if matches!(
-            instruction,
-            Instruction::SyncRead { .. } | Instruction::BulkRead { .. } | Instruction::FastSyncRead { .. }
-        ) {
+        let position = self.model.items.present_position.address;
+        let reads_position = match &instruction {
+            Instruction::SyncRead { address, .. } | Instruction::FastSyncRead { address, .. } => {
+                Some(*address == position)
+            }
+            Instruction::BulkRead { records } => {
+                Some(bulk_read_records(records).into_iter().flatten().any(|r| r.address == position))
+            }
+            _ => None,
+        };
+        if let Some(reads_position) = reads_position {
             self.stats.group_reads += 1;
-            self.group_reads_ns.push(t);
+            self.reads_position = reads_position;
         }
         match instruction {
             Instruction::Ping if id == BROADCAST => {

@@ -28,12 +28,12 @@ pub mod recording;
 pub mod scene;
 pub mod servo;
 
-pub use bus::{BusStats, SimBus, WireByte};
+pub use bus::{BusStats, Frame, SimBus, WireByte};
 pub use clock::VirtualClock;
 pub use faults::{FaultStats, Faults};
-pub use monitor::{limits_of, GoalLimit, MonitorReport, RealTimeMonitor};
+pub use monitor::{limits_of, GoalLimit, MonitorReport, RealTimeMonitor, DEFAULT_PERIOD};
 pub use port::{PortStats, SharedBus, SimPort};
-pub use pty::{arm_bus, serve_arm, so101_bus, HandHandle, PtyServer, Register, ServeOptions, SimConfig};
+pub use pty::{arm_bus, serve_arm, so101_bus, HandHandle, MonitorHandle, PtyServer, Register, ServeOptions, SimConfig};
 pub use recording::Recorder;
 pub use scene::Scene;
 pub use servo::{Jaw, SimServo};

@@ -6,15 +6,15 @@
 //!
 //! It lives in the simulator, beneath `runtime`, so that any host of simulated servos can use it.
 //!
-//! - [`realtime`]: the same checks for a bus served in real time (a pty), judged over the real
-//!   time that passed between goals.
+//! - [`realtime`]: the same checks for a bus served in real time (a pty), judged goal write by
+//!   goal write over the control ticks counted between them in the byte stream.
 //! - [`arm_limits`]: an arm's goal limits as its firmware maps them, for [`realtime`].
 
 pub mod arm_limits;
 pub mod realtime;
 
 pub use arm_limits::limits_of;
-pub use realtime::{GoalLimit, GoalSample, MonitorReport, RealTimeMonitor, ServoRecord, SLACK};
+pub use realtime::{GoalLimit, GoalSample, MonitorReport, RealTimeMonitor, ServoRecord, DEFAULT_PERIOD};
 
 /// Violations kept in full; those beyond are only counted.
 pub const MAX_VIOLATIONS: usize = 100;

@@ -11,8 +11,9 @@
 //! Two options make it more like a servo bus behind a USB serial adapter, for a firmware core run
 //! on the PC against the real clock: [`SimConfig::burst`] holds the replies until the adapter's
 //! latency timer expires ([`super::latency`]; bytes from the PC still reach the servos at once),
-//! and [`SimConfig::limits`] checks every goal the servos receive as it arrives
-//! ([`super::monitor::realtime`]), for [`PtyServer::monitor`].
+//! and [`SimConfig::limits`] checks every goal the servos receive, frame by frame in the order
+//! they arrived ([`super::monitor::realtime`]), for [`PtyServer::monitor`]; whoever runs the
+//! firmware tells it the control period ([`PtyServer::set_period`]).
 //!
 //! A hand can turn the servos' horns while they are served ([`PtyServer::place`],
 //! [`PtyServer::hand`]), as a person moves a limp arm during a calibration: the serving thread
@@ -96,12 +97,14 @@ impl SimConfig {
     }
 
     /// The bus as served on a pty: for an emulated master, a partial packet is dropped only after
-    /// [`EMULATED_LINE_GAP_NS`].
+    /// [`EMULATED_LINE_GAP_NS`]; for a program on this PC, only once a read of the pty has waited
+    /// [`IDLE_READ`] for nothing. Such a program writes each packet at once, so a gap the serving
+    /// thread sees inside one is its own scheduling: on a loaded PC it read the first bytes of a
+    /// goal write, got the rest 2 to 6 ms later, and the servos' 1.5 ms inter-byte timeout dropped
+    /// the packet, so they missed that tick's goals (42 times in 150 s beside two busy loops).
     fn build_for_pty(&self) -> SimBus {
         let mut bus = self.build();
-        if self.fixed_baud {
-            bus.set_inter_byte_timeout(EMULATED_LINE_GAP_NS);
-        }
+        bus.set_inter_byte_timeout(if self.fixed_baud { EMULATED_LINE_GAP_NS } else { u64::MAX });
         bus
     }
 }
@@ -156,6 +159,24 @@ impl HandHandle {
         let ticket = queue.next_ticket;
         queue.requests.push_back(Hand::Move { ticket, id, from, to, seconds });
         ticket
+    }
+}
+
+/// A [`PtyServer`]'s safety monitor, shared with whoever learns the firmware's control period.
+#[derive(Clone, Debug)]
+pub struct MonitorHandle(Arc<Mutex<RealTimeMonitor>>);
+
+impl MonitorHandle {
+    /// The firmware's control period ([`RealTimeMonitor::set_period`]): a core run on the PC
+    /// chooses it once it has timed the bus, after the servos are served.
+    pub fn set_period(&self, period: Duration) {
+        // A poisoned lock only means the serving thread panicked; the monitor is still whole.
+        self.0.lock().unwrap_or_else(|e| e.into_inner()).set_period(period);
+    }
+
+    /// The control period the monitor judges by.
+    pub fn period(&self) -> Duration {
+        self.0.lock().unwrap_or_else(|e| e.into_inner()).period()
     }
 }
 
@@ -335,6 +356,19 @@ impl PtyServer {
         Some(monitor.report().clone())
     }
 
+    /// Tells the safety monitor the firmware's control period (see [`MonitorHandle::set_period`]).
+    pub fn set_period(&self, period: Duration) {
+        if let Some(handle) = self.monitor_handle() {
+            handle.set_period(period);
+        }
+    }
+
+    /// The safety monitor, for whoever learns the firmware's control period (`None` without
+    /// limits).
+    pub fn monitor_handle(&self) -> Option<MonitorHandle> {
+        self.monitor.clone().map(MonitorHandle)
+    }
+
     /// Replaces the bus's faults from the next burst on (the random stream restarts from their seed).
     pub fn set_faults(&self, faults: Faults) {
         if let Ok(mut slot) = self.new_faults.lock() {
@@ -446,10 +480,28 @@ impl Control {
         }
     }
 
-    /// Lets the monitor look at the bus after a burst that arrived at `at_ns`.
-    fn observe(&self, bus: &SimBus, at_ns: u64) {
-        if let Some(monitor) = &self.monitor {
-            monitor.lock().unwrap_or_else(|e| e.into_inner()).observe(bus, at_ns);
+    /// Carries out a burst that arrived at `at_ns`, the monitor looking at the bus after each of
+    /// its frames.
+    fn receive(&self, bus: &mut SimBus, bytes: &[u8], at_ns: u64) -> Vec<WireByte> {
+        match &self.monitor {
+            Some(monitor) => {
+                let mut monitor = monitor.lock().unwrap_or_else(|e| e.into_inner());
+                let replies = bus.receive_observed(bytes, at_ns, &mut |bus, frame| monitor.observe(bus, frame));
+                monitor.end_burst();
+                replies
+            }
+            None => bus.receive(bytes, at_ns),
+        }
+    }
+
+    /// The line went quiet ([`SimBus::line_idle`]), the monitor looking at the bus after each frame.
+    fn line_idle(&self, bus: &mut SimBus) -> Vec<WireByte> {
+        match &self.monitor {
+            Some(monitor) => {
+                let mut monitor = monitor.lock().unwrap_or_else(|e| e.into_inner());
+                bus.line_idle_observed(&mut |bus, frame| monitor.observe(bus, frame))
+            }
+            None => bus.line_idle(),
         }
     }
 }
@@ -536,8 +588,7 @@ fn serve(
                 let now_ns = elapsed_ns(start);
                 control.record(&bus, now_ns)?;
                 if now_ns.saturating_sub(last_rx_ns) >= IDLE_READ.as_nanos() as u64 {
-                    let replies = bus.line_idle();
-                    control.observe(&bus, now_ns);
+                    let replies = control.line_idle(&mut bus);
                     outbox.send(master, &replies, now_ns)?;
                 }
                 continue;
@@ -556,8 +607,7 @@ fn serve(
         // The hand's requests made before these bytes were sent come first.
         control.hand(&mut bus, now_ns);
         last_rx_ns = now_ns;
-        let replies = bus.receive(&buf[..n], now_ns);
-        control.observe(&bus, now_ns);
+        let replies = control.receive(&mut bus, &buf[..n], now_ns);
         if outbox.echo {
             // The adapter hears what it sent before anything the servos answer.
             let echo: Vec<WireByte> = buf[..n].iter().map(|&b| (now_ns, b)).collect();

@@ -60,6 +60,9 @@ pub struct PcOptions {
     pub arm: ArmSpec,
     /// The LeRobot calibration file the servos' calibration came from, for messages.
     pub calibration_file: Option<String>,
+    /// The safety monitor of simulated servos, told the control period once it is chosen (it
+    /// allows each goal write the velocity limit times the period per control tick).
+    pub monitor: Option<crate::sim::MonitorHandle>,
 }
 
 impl PcOptions {
@@ -72,7 +75,14 @@ impl PcOptions {
             servos_of(&arm).map(|s| s.model.protocol).ok_or_else(|| anyhow!("arm {} has no servos", arm.name))?;
         let baud = arm.bus_baud().unwrap_or(1_000_000);
         let servos = crate::sim::serve_arm(&arm, baud, latency)?;
-        let options = PcOptions { path: servos.path().to_string(), protocol, baud, arm, calibration_file: None };
+        let options = PcOptions {
+            path: servos.path().to_string(),
+            protocol,
+            baud,
+            arm,
+            calibration_file: None,
+            monitor: servos.monitor_handle(),
+        };
         Ok((options, servos))
     }
 }
@@ -163,6 +173,9 @@ impl Pc {
         let bus = BusConfig { return_delay_us, ..factory };
         let choice = timing::choose(&measured, bus, servos.model, servos.bus_ids().len())?;
         master.set_config(choice.bus);
+        if let Some(monitor) = &options.monitor {
+            monitor.set_period(std::time::Duration::from_micros(u64::from(choice.period_us)));
+        }
         let connected = Connected { servos, measured, choice };
         writeln!(err, "{}", connected.describe(&options.path))?;
         let board = Board {
