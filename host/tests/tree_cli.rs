@@ -248,5 +248,8 @@ fn a_tip_keeps_the_chain() {
     let chain = run(&["fk", "--arm", URDF, "--tip", "left_tip", "--q", "0,0,0,0,0,0"]);
     assert!(chain.get("effectors").is_none());
     assert_eq!(chain["frames"].as_array().unwrap().len(), 6);
-    assert_fails(&["bench", "ik", "--arm", URDF, "--n", "1"], &["several tip links: name the tip (--tip, or tip= in Python), one of"]);
+    assert_fails(
+        &["bench", "ik", "--arm", URDF, "--n", "1"],
+        &["several tip links: name the tip (--tip, or tip= in Python), one of"],
+    );
 }

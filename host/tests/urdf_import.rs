@@ -32,7 +32,10 @@ fn so101_urdf_reproduces_the_preset() {
 fn so101_urdf_needs_a_tip() {
     let e = ArmSpec::load(&path("tests/data/so101_new_calib.urdf"), None).unwrap_err();
     let message = format!("{e:#}");
-    assert!(message.contains("(--tip, or tip= in Python), one of gripper_frame_link, moving_jaw_so101_v1_link"), "{message}");
+    assert!(
+        message.contains("(--tip, or tip= in Python), one of gripper_frame_link, moving_jaw_so101_v1_link"),
+        "{message}"
+    );
 }
 
 #[test]
