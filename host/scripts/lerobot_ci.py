@@ -234,9 +234,9 @@ class Follower:
     """Fresh simulated follower servos, calibrated with the follower's file, the monitor judging
     the calibrated arm, recording their positions."""
 
-    def __init__(self, armctl: str, cal_file: Path, record: Path):
+    def __init__(self, armctl: str, cal_file: Path, record: Path, period_ms: float | None = None):
         self.record = record
-        self.servos = lerobot_sim.SimServos(armctl, calibration=cal_file, record=record)
+        self.servos = lerobot_sim.SimServos(armctl, calibration=cal_file, record=record, period_ms=period_ms)
         self.announced = time.monotonic()
         self.monitor: dict | None = None
         try:
@@ -398,8 +398,8 @@ def main() -> int:
     leader_cal = lerobot_sim.write_calibration_file(teleop_cal_dir / f"{LEADER_ID}.json", cal)
     dataset_root = work / "dataset"
 
-    def follower(name: str) -> Follower:
-        f = Follower(armctl_bin, follower_cal, work / f"{name}.csv")
+    def follower(name: str, period_ms: float | None = None) -> Follower:
+        f = Follower(armctl_bin, follower_cal, work / f"{name}.csv", period_ms)
         followers.append(f)
         return f
 
@@ -526,7 +526,9 @@ def main() -> int:
             actions = np.stack(ep0["action"].to_numpy()).astype(np.float64)
             for kind, bound, strict in (("armctl_follower", ARMCTL_RMS_BOUND_DEG, True),
                                         ("so101_follower", SO101_RMS_BOUND_DEG, False)):
-                f = follower(f"replay_{kind}")
+                # so101_follower writes each action as the goals, once a frame: the monitor judges
+                # its steps over a frame; armctl's core steps them at its own 10 ms.
+                f = follower(f"replay_{kind}", 1000.0 / FPS if kind == "so101_follower" else None)
                 cmd = [tool_path("lerobot-replay"), *robot_args(kind, f.port, robot_cal_dir),
                        f"--dataset.repo_id={REPO_ID}", f"--dataset.root={dataset_root}", "--dataset.episode=0",
                        "--play_sounds=false"]

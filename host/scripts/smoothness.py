@@ -136,7 +136,10 @@ def one(kind: str, armctl_bin: str, work: Path, t: np.ndarray, a: np.ndarray) ->
     cal_dir = work / kind
     cal_file = lerobot_sim.write_calibration_file(cal_dir / "bench.json", cal)
     record = work / f"{kind}.csv"
-    servos = lerobot_sim.SimServos(armctl_bin, calibration=cal_file, record=record)
+    # so101_follower reads the positions and writes the goals once an action: its control period
+    # is the actions', which the monitor judges its steps over (armctl's core: its own 10 ms).
+    period_ms = 1000.0 / RATE if kind == "lerobot" else None
+    servos = lerobot_sim.SimServos(armctl_bin, calibration=cal_file, record=record, period_ms=period_ms)
     announced = time.monotonic()
     try:
         lerobot_sim.calibrate_bus(servos.port, "bench", cal_dir)

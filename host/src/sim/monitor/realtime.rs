@@ -119,11 +119,20 @@ impl MonitorReport {
 struct Track {
     /// Goal writes counted at the last look.
     writes: u64,
-    /// The goal last checked and the control tick it came in; `None` while the torque is off.
-    last: Option<(i64, u64)>,
+    /// The goal last checked, the control tick it came in and when it arrived (ns); `None` while
+    /// the torque is off.
+    last: Option<(i64, u64, u64)>,
     /// The torque came on at `last`'s tick without a goal write: a write in that same tick is a
     /// fresh start too.
     fresh: bool,
+}
+
+/// What a goal step is judged over: the control ticks counted between two goal writes, or, where
+/// no position read came between them (a program writing goals on its own), the time (ns).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Over {
+    Ticks(u64),
+    Time(u64),
 }
 
 /// Checks the goals servos receive in real time.
@@ -226,21 +235,30 @@ impl RealTimeMonitor {
                 // The torque came back (or this is the first look), with a goal written or the
                 // one the servo holds: a fresh start, checked against the range only.
                 None => {
-                    track.last = Some((s.goal, tick));
+                    track.last = Some((s.goal, tick, frame.t_ns));
                     track.fresh = !written;
                     self.judge(j, frame.t_ns, s.goal, None);
                 }
                 // The goals a firmware writes in the tick that turns the torque on (after the
                 // torque write) start afresh too; from the next tick on, steps are judged.
-                Some((_, since)) if written && track.fresh && since == tick => {
-                    track.last = Some((s.goal, tick));
+                // Once: a program that reads no positions stays in one tick for good.
+                Some((_, since, _)) if written && track.fresh && since == tick => {
+                    track.last = Some((s.goal, tick, frame.t_ns));
+                    track.fresh = false;
                     self.judge(j, frame.t_ns, s.goal, None);
                 }
-                Some((previous, since)) if written => {
-                    track.last = Some((s.goal, tick));
+                Some((previous, since, at)) if written => {
+                    track.last = Some((s.goal, tick, frame.t_ns));
                     track.fresh = false;
-                    let ticks = tick.saturating_sub(since).max(1);
-                    self.judge(j, frame.t_ns, s.goal, Some((previous, ticks, s.present)));
+                    // A firmware reads the positions at every tick before it writes: its writes are
+                    // judged over the ticks between them. Two writes with no read between them
+                    // come from a program that writes goals on its own schedule (LeRobot's
+                    // so101_follower replaying actions): judged over the time between them.
+                    let over = match tick.saturating_sub(since) {
+                        0 => Over::Time(frame.t_ns.saturating_sub(at)),
+                        ticks => Over::Ticks(ticks),
+                    };
+                    self.judge(j, frame.t_ns, s.goal, Some((previous, over, s.present)));
                 }
                 Some(_) => {}
             }
@@ -248,9 +266,9 @@ impl RealTimeMonitor {
     }
 
     /// Checks servo `j`'s goal received at `time_ns` against its range, and against the velocity
-    /// limit when it follows a goal `(previous, ticks, present)` control ticks earlier, the horn
-    /// standing at `present`.
-    fn judge(&mut self, j: usize, time_ns: u64, goal: i64, step: Option<(i64, u64, i64)>) {
+    /// limit when it follows a goal `(previous, over, present)`, `over` the ticks or the time
+    /// between them, the horn standing at `present`.
+    fn judge(&mut self, j: usize, time_ns: u64, goal: i64, step: Option<(i64, Over, i64)>) {
         let limit = &self.limits[j];
         let (lo, hi) = limit.goal_range;
         let mut wrong = Vec::new();
@@ -260,9 +278,14 @@ impl RealTimeMonitor {
         if goal < lo || goal > hi {
             wrong.push(format!("goal {goal} outside {lo}..={hi}"));
         }
-        if let Some((previous, ticks, present)) = step {
+        if let Some((previous, over, present)) = step {
             let per_tick = limit.max_ticks_per_s * self.period.as_secs_f64();
-            let allowed = per_tick * ticks as f64 + 1.0;
+            // Over a time, a period more: the serving thread stamps frames when it reads them, up
+            // to a period late on a loaded PC, so two stamps can be closer than the writes were.
+            let allowed = match over {
+                Over::Ticks(ticks) => per_tick * ticks as f64 + 1.0,
+                Over::Time(ns) => limit.max_ticks_per_s * ns as f64 * 1e-9 + per_tick + 1.0,
+            };
             let change = (goal - previous).abs() as f64;
             // A goal within a tick's step of where the horn stands sets off no chase, however far
             // the goal before it was: a new core adopting an arm holds it where it stands (a
@@ -275,8 +298,11 @@ impl RealTimeMonitor {
             let servo = &mut self.report.servos[j];
             servo.max_step_ratio = servo.max_step_ratio.max(ratio);
             if change > allowed && !at_horn {
-                let periods =
-                    if ticks == 1 { "1 control period".to_string() } else { format!("{ticks} control periods") };
+                let periods = match over {
+                    Over::Ticks(1) => "1 control period".to_string(),
+                    Over::Ticks(ticks) => format!("{ticks} control periods"),
+                    Over::Time(ns) => format!("{:.1} ms with no position read between", ns as f64 * 1e-6),
+                };
                 wrong.push(format!("goal step {change} ticks ({previous} to {goal}) beyond {allowed:.1} in {periods}"));
             }
         }
@@ -449,6 +475,28 @@ mod tests {
         assert_eq!(m.report().violation_count, 0, "{:?}", m.report().violations);
         ramp(&mut m, &mut s, 11..=11, 28, |k| k as u64 * 25 * MS);
         assert_eq!(m.report().violation_count, 1, "{:?}", m.report().violations);
+    }
+
+    /// A program that writes goals on its own schedule and reads no positions between them
+    /// (LeRobot's so101_follower replaying actions at 30 Hz) is judged over the time between its
+    /// writes, a period more: 30 ticks in 33 ms passes (43.3 allowed), 50 in 10 ms does not (21).
+    #[test]
+    fn writes_with_no_read_between_are_judged_over_their_time() {
+        let mut m = monitor();
+        let mut s = Servo::on(2048);
+        m.check(other(0), &[s.held()]);
+        for k in 1..=30 {
+            m.check(other(k as u64 * 100 * MS / 3), &[s.write(2048 + 30 * k)]);
+        }
+        let r = m.report();
+        assert_eq!((r.checked, r.violation_count, r.ticks), (31, 0, 0), "{:?}", r.violations);
+        m.check(other(1010 * MS), &[s.write(2048 + 900 + 50)]);
+        let r = m.report();
+        assert_eq!(r.violation_count, 1);
+        assert_eq!(
+            r.violations[0].what,
+            "goal step 50 ticks (2948 to 2998) beyond 21.0 in 10.0 ms with no position read between"
+        );
     }
 
     #[test]
