@@ -6,7 +6,9 @@
 //!   its schedule, and switches the servo bus when the host sends an arm on another one;
 //! - [`reset`]: what each cause of a reset does to the servos' torque;
 //! - [`start`]: the firmware and its bus master in static memory, placed and started once, and the
-//!   main loop over them.
+//!   main loop over them;
+//! - [`watchdog`]: a watchdog's timeout chosen from its clock's worst case and the loop's longest
+//!   pass.
 //!
 //! What needs the Cortex-M itself (defmt, critical sections, linker sections) is not here, since
 //! this crate builds for the host too: it is in `firmware/boards/support`, which only the board
@@ -16,6 +18,7 @@ pub mod main_loop;
 pub mod reset;
 pub mod rx_ring;
 pub mod start;
+pub mod watchdog;
 
 pub use main_loop::MainLoop;
 pub use rx_ring::RxRing;
