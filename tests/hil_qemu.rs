@@ -43,7 +43,7 @@ fn rig_on(servos: SimConfig, arm: Option<&str>) -> Option<Rig> {
     }
     let elf = qemu::build(qemu::FIRMWARE_BIN).unwrap();
     let bus = PtyServer::spawn(servos).unwrap();
-    let board = Qemu::start(&QemuConfig { elf, bus: Some(bus.path().to_string()) }).unwrap();
+    let board = Qemu::start(&QemuConfig::new(elf, Some(bus.path().to_string()))).unwrap();
     board.wait_started(qemu::START_TIMEOUT).unwrap();
     let path = board.link_path().to_string();
     // The pty QEMU opened for UART0 (the one `armctl sim --qemu` prints) and the servos' pty.
@@ -453,7 +453,7 @@ fn each_reset_does_to_the_servos_torque_what_the_board_decides() {
     }
     let elf = qemu::build(qemu::FIRMWARE_BIN).unwrap();
     let bus = PtyServer::spawn(so101_bus(Faults::default())).unwrap();
-    let config = QemuConfig { elf, bus: Some(bus.path().to_string()) };
+    let config = QemuConfig::new(elf, Some(bus.path().to_string()));
     let board = Qemu::start_with_debugger(&config).unwrap();
     board.wait_started(qemu::START_TIMEOUT).unwrap();
     logged(&board.log().lines(), &["reset by power-on: the servos' torque goes off"]);

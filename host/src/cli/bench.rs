@@ -1,4 +1,4 @@
-//! The options of `armctl bench bus|rate|mcu|pc`, turned into the requests
+//! The options of `armctl bench bus|rate|mcu|loop-pass|pc`, turned into the requests
 //! [`crate::commands::bench`] runs: the protocol and model names become the firmware's model here.
 //! (`bench ik`'s options are in the command list itself, [`super::BenchCommand`].)
 
@@ -95,6 +95,18 @@ impl RateBenchArgs {
 /// Arguments of `armctl bench mcu`.
 #[derive(Args, Debug)]
 pub struct McuBenchArgs {
+    /// One JSON object (indented) instead of the table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Arguments of `armctl bench loop-pass`.
+#[derive(Args, Debug)]
+pub struct LoopPassBenchArgs {
+    /// Seconds of wall time the run at -icount shift=3 floods the link (the one at shift 0, twice
+    /// as long).
+    #[arg(long, default_value_t = crate::commands::bench::loop_pass::DEFAULT_SECONDS)]
+    pub seconds: f64,
     /// One JSON object (indented) instead of the table.
     #[arg(long)]
     pub json: bool,

@@ -91,8 +91,8 @@ enum Command {
     },
     /// Inverse kinematics for one target, or for every line of a JSON-lines file (JSON lines)
     Ik(ik::IkArgs),
-    /// Benchmarks: IK solve rate, bus wire time, control rate, instructions on the MCU, the core
-    /// on this PC
+    /// Benchmarks: IK solve rate, bus wire time, control rate, instructions on the MCU, the main
+    /// loop's longest pass, the core on this PC
     Bench {
         #[command(subcommand)]
         what: BenchCommand,
@@ -214,6 +214,10 @@ enum BenchCommand {
     /// Instructions per operation on the Cortex-M4F (FK, IK, player tick, bus packets), counted by
     /// the firmware's `opcount` binary under `qemu-system-arm -icount shift=0`.
     Mcu(bench::McuBenchArgs),
+    /// The main loop's longest pass (every servo silent, the link flooded with status requests),
+    /// measured on the MPS2 under QEMU at two -icount shifts, scaled to the STM32F411 at 84 MHz and
+    /// checked against its watchdog's shortest timeout; exits 1 when the margin is not met.
+    LoopPass(bench::LoopPassBenchArgs),
     /// Control rate and bus time per tick of the firmware core hosted on this PC (as --bus runs it) against
     /// simulated servos on a pseudo-terminal in real time, with or without a USB adapter's burst
     /// latency.
@@ -389,6 +393,7 @@ fn take_globals(link: &LinkArgs, mut command: Command, name: &str) -> Result<Com
         Command::Bench { what: BenchCommand::Bus(args) } => args.json |= json,
         Command::Bench { what: BenchCommand::Rate(args) } => args.json |= json,
         Command::Bench { what: BenchCommand::Mcu(args) } => args.json |= json,
+        Command::Bench { what: BenchCommand::LoopPass(args) } => args.json |= json,
         Command::Bench { what: BenchCommand::Pc(args) } => args.json |= json,
         Command::Footprint(args) => args.json |= json,
         Command::Sim(args) => match &mut args.what {
@@ -461,6 +466,9 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
         }
         Command::Footprint(args) => return crate::commands::footprint::run(&args.request(), out, err),
         Command::Bench { what: BenchCommand::Mcu(args) } => return crate::commands::bench::mcu::run(args.json, out),
+        Command::Bench { what: BenchCommand::LoopPass(args) } => {
+            return crate::commands::bench::loop_pass::run(args.seconds, args.json, out)
+        }
         Command::Bench { what: BenchCommand::Pc(args) } => {
             return crate::commands::bench::pc::run(&args.request()?, out, err)
         }

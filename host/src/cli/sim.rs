@@ -471,7 +471,7 @@ fn run_qemu(
         None => qemu::build(qemu::FIRMWARE_BIN)?,
     };
     let bus = PtyServer::spawn(crate::sim::so101_bus(faults)).context("cannot open a pseudo-terminal")?;
-    let mut board = Qemu::start(&QemuConfig { elf, bus: Some(bus.path().to_string()) })?;
+    let mut board = Qemu::start(&QemuConfig::new(elf, Some(bus.path().to_string())))?;
     board.wait_started(qemu::START_TIMEOUT)?;
     if json {
         crate::support::json_out::print_json(out, &serde_json::json!({ "port": board.link_path() }))?;

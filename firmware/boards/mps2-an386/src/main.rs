@@ -7,9 +7,11 @@
 #![no_std]
 #![no_main]
 
+use core::cell::Cell;
+
 use board_mps2_an386::clock::{self, SysTickClock};
 use board_mps2_an386::uart::{self, Uart};
-use board_mps2_an386::{halt, irq, reset, stack};
+use board_mps2_an386::{halt, irq, loop_pass, reset, stack};
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use firmware::app::{Board, Firmware};
 use firmware::board::reset::{Note, ResetCause, TorqueAfterReset};
@@ -89,22 +91,23 @@ fn start(cause: ResetCause) -> Option<(Loop, Uart)> {
 
 /// The control loop ([`MainLoop`]): host bytes as the receive interrupt kept them, a tick on the
 /// fixed schedule, and sleep in between (SysTick wakes the core every millisecond, a host byte at
-/// once); once a second, the stack's high-water mark, logged when it grew.
+/// once); once a second, the stack's high-water mark, logged when it grew. Each pass (from a
+/// wake-up to the next idle call, the time asleep left out: [`loop_pass`]) is timed, and logged
+/// with the bytes it sent the host when it is the longest so far (`armctl bench loop-pass`).
 #[inline(never)]
-fn run(main_loop: Loop, mut link: Uart) -> ! {
+fn run(main_loop: Loop, link: Uart) -> ! {
     let clock = SysTickClock;
     let mut next_stack_check = clock.now() + STACK_CHECK_US;
     let mut stack_logged = 0;
+    let sent = Cell::new(0);
+    let mut link = loop_pass::Counted::new(link, &sent);
+    let mut pass = loop_pass::Longest::default();
+    pass.start(clock.now());
     main_loop.run(&mut link, |next_tick, rx| {
-        reset::feed();
-        // Interrupts off between the last check and `wfi`, so a byte that comes in between wakes
-        // it (a pending interrupt ends `wfi` even while masked) instead of waiting for SysTick.
-        cortex_m::interrupt::free(|_| {
-            if rx.is_empty() && clock.now() < next_tick {
-                cortex_m::asm::wfi();
-            }
-        });
         let now = clock.now();
+        if let Some(us) = pass.end(now) {
+            defmt::info!("longest loop pass: {=u32} us, {=u32} bytes sent", us, sent.get());
+        }
         if now >= next_stack_check {
             next_stack_check = now + STACK_CHECK_US;
             let depth = stack::high_water();
@@ -113,6 +116,16 @@ fn run(main_loop: Loop, mut link: Uart) -> ! {
                 defmt::info!("control loop stack high-water: {=usize} bytes", depth);
             }
         }
+        reset::feed();
+        // Interrupts off between the last check and `wfi`, so a byte that comes in between wakes
+        // it (a pending interrupt ends `wfi` even while masked) instead of waiting for SysTick.
+        cortex_m::interrupt::free(|_| {
+            if rx.is_empty() && clock.now() < next_tick {
+                cortex_m::asm::wfi();
+            }
+        });
+        sent.set(0);
+        pass.start(clock.now());
     })
 }
 

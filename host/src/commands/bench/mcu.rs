@@ -138,16 +138,23 @@ pub fn measure() -> Result<McuReport> {
 #[cfg(feature = "board-tools")]
 pub fn measure() -> Result<McuReport> {
     use anyhow::Context;
-    if !qemu::available() {
-        bail!("qemu-system-arm is not installed (apt-get install qemu-system-arm): `bench mcu` runs the firmware under it");
-    }
+    require_qemu("bench mcu")?;
     let elf = qemu::build(OPCOUNT_BIN)?;
-    let qemu = Qemu::start(&QemuConfig { elf, bus: None })?;
+    let qemu = Qemu::start(&QemuConfig::new(elf, None))?;
     let (status, lines) = qemu.wait(RUN_TIMEOUT)?;
     if !status.success() {
         bail!("{OPCOUNT_BIN} ended with {status}; its log:\n{}", lines.join("\n"));
     }
     parse(&lines).with_context(|| format!("reading the log of {OPCOUNT_BIN}:\n{}", lines.join("\n")))
+}
+
+/// Fails in one line where qemu-system-arm is missing: `armctl COMMAND` runs the firmware under it.
+#[cfg(feature = "board-tools")]
+pub(crate) fn require_qemu(command: &str) -> Result<()> {
+    if !qemu::available() {
+        bail!("qemu-system-arm is not installed (apt-get install qemu-system-arm): `{command}` runs the firmware under it");
+    }
+    Ok(())
 }
 
 /// Reads `opcount`'s log lines (as `armctl::runtime::qemu` decodes them: level, then the message).

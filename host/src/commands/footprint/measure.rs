@@ -40,7 +40,7 @@ pub struct MeasuredStack {
 /// servos, drives it, and reads the stack depths from its log.
 pub fn measure(elf: &Path) -> Result<MeasuredStack> {
     let bus = PtyServer::spawn(so101_bus(Faults::default())).context("cannot start the simulated servo bus")?;
-    let board = Qemu::start(&QemuConfig { elf: elf.to_path_buf(), bus: Some(bus.path().to_string()) })?;
+    let board = Qemu::start(&QemuConfig::new(elf.to_path_buf(), Some(bus.path().to_string())))?;
     board.wait_started(crate::runtime::qemu::START_TIMEOUT)?;
     let mut link =
         open(Target::Port { path: board.link_path().to_string(), baud: 1_000_000 }, None, &mut std::io::sink())?;

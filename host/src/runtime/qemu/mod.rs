@@ -58,6 +58,17 @@ pub struct QemuConfig {
     /// The serial device for UART1 (the servo bus), e.g. a simulated bus's pty; `None` leaves it
     /// unconnected.
     pub bus: Option<String>,
+    /// QEMU's `-icount shift=S`: every guest instruction advances virtual time by 2^S ns. 0 (one
+    /// instruction per virtual nanosecond) unless a measurement separates instructions from
+    /// fixed waits by running at two shifts (`armctl bench loop-pass`).
+    pub icount_shift: u8,
+}
+
+impl QemuConfig {
+    /// `elf` with UART1 on `bus`, at `-icount shift=0`.
+    pub fn new(elf: PathBuf, bus: Option<String>) -> Self {
+        Self { elf, bus, icount_shift: 0 }
+    }
 }
 
 /// A running QEMU; dropping it kills QEMU and removes its working directory.
@@ -70,9 +81,10 @@ pub struct Qemu {
 }
 
 impl Qemu {
-    /// Starts QEMU with instruction counting (`-icount shift=0`: one instruction per virtual
-    /// nanosecond, so timing inside the guest is repeatable) and waits for it to name UART0's pty,
-    /// which it then makes its owner's alone. Fails in one line if it cannot.
+    /// Starts QEMU with instruction counting (`-icount shift=0`, unless
+    /// [`QemuConfig::icount_shift`] says otherwise: one instruction per virtual nanosecond, so
+    /// timing inside the guest is repeatable) and waits for it to name UART0's pty, which it then
+    /// makes its owner's alone. Fails in one line if it cannot.
     pub fn start(config: &QemuConfig) -> Result<Qemu> {
         Self::spawn(config, false)
     }
@@ -102,7 +114,8 @@ impl Qemu {
             std::fs::canonicalize(&config.elf).with_context(|| format!("no firmware at {}", config.elf.display()))?;
         let mut command = Command::new("qemu-system-arm");
         command
-            .args(["-machine", "mps2-an386", "-display", "none", "-monitor", "none", "-icount", "shift=0"])
+            .args(["-machine", "mps2-an386", "-display", "none", "-monitor", "none", "-icount"])
+            .arg(format!("shift={}", config.icount_shift))
             .args(["-semihosting-config", "enable=on,target=native", "-kernel"])
             .arg(&elf)
             .args(["-serial", "pty", "-serial", config.bus.as_deref().unwrap_or("null")])
@@ -276,7 +289,7 @@ mod tests {
 
     #[test]
     fn qemu_opens_a_pty_of_its_own_for_the_link_only() {
-        let config = |bus: Option<&str>| QemuConfig { elf: PathBuf::new(), bus: bus.map(str::to_string) };
+        let config = |bus: Option<&str>| QemuConfig::new(PathBuf::new(), bus.map(str::to_string));
         assert_eq!(pty_labels(&config(None)), ["serial0"]);
         assert_eq!(pty_labels(&config(Some("/dev/pts/7"))), ["serial0"]);
         assert_eq!(pty_labels(&config(Some("pty"))), ["serial0", "serial1"]);

@@ -1,0 +1,480 @@
+//! `armctl bench loop-pass`: the longest pass of the firmware's main loop, measured on the MPS2
+//! AN386 under QEMU and scaled to the STM32F411 at 84 MHz, against the F411's independent
+//! watchdog (`firmware::board::watchdog`).
+//!
+//! The worst pass: every servo on the bus silent (the tick waits out every reply timeout, with its
+//! retries) while the host floods the link with `GetStatus` requests without waiting for their
+//! replies (a pass takes up to `DRAIN_PER_PASS` bytes of 7-byte requests from the ring and answers
+//! each with a full status). The real MPS2 firmware runs on simulated SO-101 servos that are all
+//! silent (every id, the gripper's too), and logs each pass that is the longest so far, with the
+//! bytes it sent the host (`board_mps2_an386::loop_pass`).
+//!
+//! Instructions and waits are told apart by running the same flood at two `-icount` shifts: at
+//! shift S every guest instruction advances virtual time by 2^S ns, while the bus master's reply
+//! timeouts are fixed virtual microseconds. With T the longest pass at each shift,
+//! `I = (T_hi - T_lo) / (2^hi - 2^lo)` instructions and `W = T_lo - I * 2^lo` of waiting. On the
+//! F411 the pass takes `I / 84 MHz` (one instruction a cycle) `+ W`, plus the host link's wire
+//! time of the replies it sends (its transmit blocks per byte at 1 Mbps, where QEMU's CMSDK UART
+//! takes a byte at once): 10 µs a byte, 8N1.
+
+use std::io::Write;
+
+use anyhow::{anyhow, Result};
+use firmware::board::main_loop::DRAIN_PER_PASS;
+use firmware::board::watchdog::{self, WORST_PASS_US};
+use firmware::link::frame::{encode_message, FrameKind, MAX_FRAME};
+use firmware::link::message::HostMessage;
+use serde_json::{json, Value};
+
+/// The shifts the flood runs at: 0 (as every other QEMU run) and 3 (8 ns an instruction).
+pub const SHIFTS: (u8, u8) = (0, 3);
+/// How long each run floods the link by default (s of wall time).
+pub const DEFAULT_SECONDS: f64 = 3.0;
+/// The F411's core clock (Hz).
+pub const F411_HZ: f64 = 84e6;
+/// The host link's time per byte on the F411: 10 bit times at 1 Mbps (8N1), µs.
+pub const BYTE_US: f64 = 10.0;
+/// How far apart the replies of the two runs' longest passes may be (a fraction of the larger):
+/// 5 %, three or four replies of a full pass, a few per cent of its instructions.
+pub const REPLY_TOLERANCE: f64 = 0.05;
+/// The lower shift's run floods this many times longer: at shift 0 the emulated core runs about
+/// 13 times slower than real time while it waits out the bus (it spins), so a second of flood
+/// holds fewer passes than at shift 3.
+pub const LO_SECONDS_FACTOR: f64 = 2.0;
+/// The firmware's log line of a new longest pass.
+pub const PASS_LINE: &str = "longest loop pass:";
+
+/// What one run at one shift measured.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Run {
+    /// The `-icount` shift.
+    pub shift: u8,
+    /// The longest pass the firmware logged (µs of virtual time).
+    pub pass_us: u32,
+    /// The bytes that pass sent the host (replies and nak events).
+    pub pass_bytes: u32,
+    /// Requests the host wrote.
+    pub requests: u64,
+    /// Status replies the host got.
+    pub replies: u64,
+    /// Other frames the host got (naks for frames the ring cut, events).
+    pub other_frames: u64,
+    /// The longest status reply on the wire (bytes, its delimiter included).
+    pub status_bytes: usize,
+}
+
+impl Run {
+    /// Status replies the longest pass sent (its bytes over the status length).
+    pub fn pass_replies(&self) -> f64 {
+        f64::from(self.pass_bytes) / self.status_bytes.max(1) as f64
+    }
+}
+
+/// The measurement, scaled, and the watchdog's check.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LoopPassReport {
+    /// The run at the lower shift.
+    pub lo: Run,
+    /// The run at the higher shift.
+    pub hi: Run,
+    /// Instructions of the longest pass.
+    pub instructions: f64,
+    /// Waiting in it (µs): the bus's reply timeouts.
+    pub waits_us: f64,
+    /// A request frame's length on the wire (bytes).
+    pub request_bytes: usize,
+    /// The longest status reply on the wire (bytes).
+    pub status_bytes: usize,
+    /// Replies a pass sends at most: every request frame that ends within `DRAIN_PER_PASS` bytes.
+    pub replies_per_pass: usize,
+    /// Their wire time on the F411's link (µs).
+    pub wire_us: f64,
+    /// The pass on the F411 at 84 MHz (µs): instructions at one a cycle, waits and wire time.
+    pub scaled_us: f64,
+}
+
+impl LoopPassReport {
+    /// Computes instructions, waits and the scaled pass from two runs.
+    pub fn new(lo: Run, hi: Run, request_bytes: usize) -> Self {
+        let (t_lo, t_hi) = (f64::from(lo.pass_us), f64::from(hi.pass_us));
+        let (n_lo, n_hi) = (f64::from(1u32 << lo.shift), f64::from(1u32 << hi.shift));
+        // In nanoseconds: an instruction is 2^shift ns.
+        let instructions = (t_hi - t_lo) * 1e3 / (n_hi - n_lo);
+        let waits_us = (t_lo * 1e3 - instructions * n_lo) / 1e3;
+        let status_bytes = lo.status_bytes.max(hi.status_bytes);
+        // A pass that starts on a frame's last byte completes one frame with it, and a whole frame
+        // in every further request length.
+        let replies_per_pass = 1 + (DRAIN_PER_PASS - 1) / request_bytes.max(1);
+        let wire_us = (replies_per_pass * status_bytes) as f64 * BYTE_US;
+        let scaled_us = instructions / F411_HZ * 1e6 + waits_us + wire_us;
+        Self { lo, hi, instructions, waits_us, request_bytes, status_bytes, replies_per_pass, wire_us, scaled_us }
+    }
+
+    /// Whether the two runs' longest passes are the same kind of pass: a flood pass in both, with
+    /// the same replies within [`REPLY_TOLERANCE`] (the ring's dropped bytes turn a few requests
+    /// of a pass into short naks, so the count varies by a few), and both parts of the split
+    /// positive.
+    pub fn consistent(&self) -> bool {
+        let (lo, hi) = (self.lo.pass_replies(), self.hi.pass_replies());
+        (lo - hi).abs() <= REPLY_TOLERANCE * lo.max(hi)
+            && self.lo.pass_bytes > 0
+            && self.instructions > 0.0
+            && self.waits_us > 0.0
+    }
+
+    /// The CPI (cycles per instruction) at which twice the pass would reach the watchdog's
+    /// shortest timeout: the margin's room for the M4's flash wait states and stalls.
+    pub fn cpi_covered(&self) -> f64 {
+        let cycles_us = watchdog::STM32F411.shortest_us() as f64 / 2.0 - self.waits_us - self.wire_us;
+        cycles_us * 1e-6 * F411_HZ / self.instructions.max(1.0)
+    }
+
+    /// Whether twice the scaled pass fits the F411 watchdog's shortest timeout, and the pass fits
+    /// [`WORST_PASS_US`].
+    pub fn passes(&self) -> bool {
+        2.0 * self.scaled_us <= watchdog::STM32F411.shortest_us() as f64 && self.scaled_us <= f64::from(WORST_PASS_US)
+    }
+}
+
+/// One in this many of the flood's requests is a torque off (see [`flood_frame`]).
+pub const TORQUE_OFF_EVERY: usize = 512;
+
+/// The flood's `i`-th request frame, as the host's link client encodes it (sequence number `i`
+/// modulo 256, so that no request repeats the one before): a `GetStatus`, or one in
+/// [`TORQUE_OFF_EVERY`] (about every seventh pass) a torque off. A torque off makes the firmware
+/// write the torque on its next tick and then read it back from every servo on up to ten ticks
+/// (its `CONFIRM_TRIES`), which with every servo silent waits out a second sync read: the longest
+/// tick there is, the kind every reset starts with. Without them the flood would meet only the
+/// shorter ticks that follow (QEMU takes up to a second to notice that the link's pty was opened,
+/// and the firmware's first ten ticks are over by then).
+pub fn flood_frame(i: usize) -> Vec<u8> {
+    let message = if i % TORQUE_OFF_EVERY == 0 { HostMessage::Torque { on: false } } else { HostMessage::GetStatus };
+    let mut frame = [0u8; MAX_FRAME];
+    let n = encode_message(i as u8, FrameKind::Request, &message, &mut frame).unwrap_or(0);
+    frame[..n].to_vec()
+}
+
+/// Reads the firmware's `longest loop pass: N us, M bytes sent` line (as the defmt log decodes it):
+/// `(N, M)`.
+pub fn parse_pass_line(line: &str) -> Option<(u32, u32)> {
+    let rest = &line[line.find(PASS_LINE)? + PASS_LINE.len()..];
+    let mut numbers = rest.split(|c: char| !c.is_ascii_digit()).filter(|w| !w.is_empty()).map(str::parse);
+    Some((numbers.next()?.ok()?, numbers.next()?.ok()?))
+}
+
+/// Runs the flood at both shifts (needs the `board-tools` feature).
+#[cfg(not(feature = "board-tools"))]
+pub fn measure(_seconds: f64) -> Result<LoopPassReport> {
+    Err(crate::runtime::board::without_tools("bench loop-pass"))
+}
+
+/// Builds the MPS2 firmware and runs the flood at both shifts: `seconds` at the higher,
+/// [`LO_SECONDS_FACTOR`] times that at the lower.
+#[cfg(feature = "board-tools")]
+pub fn measure(seconds: f64) -> Result<LoopPassReport> {
+    use crate::runtime::qemu;
+    super::mcu::require_qemu("bench loop-pass")?;
+    let elf = qemu::build(qemu::FIRMWARE_BIN)?;
+    let flood = std::time::Duration::from_secs_f64(seconds);
+    let lo = flood::run(&elf, SHIFTS.0, flood.mul_f64(LO_SECONDS_FACTOR))?;
+    let hi = flood::run(&elf, SHIFTS.1, flood)?;
+    Ok(LoopPassReport::new(lo, hi, flood_frame(1).len()))
+}
+
+#[cfg(feature = "board-tools")]
+mod flood {
+    //! One run: the firmware under QEMU, its servos silent, its link flooded.
+
+    use std::io::{ErrorKind, Read, Write};
+    use std::path::Path;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+    use std::time::{Duration, Instant};
+
+    use anyhow::{bail, Context, Result};
+    use firmware::link::frame::{decode_payload, FrameDecoder, MAX_ENCODED};
+    use firmware::link::message::FirmwareMessage;
+
+    use super::{flood_frame, parse_pass_line, Run, PASS_LINE, TORQUE_OFF_EVERY};
+    use crate::runtime::qemu::{self, Qemu, QemuConfig};
+    use crate::sim::{so101_bus, Faults, PtyServer};
+
+    /// How long the link may stay quiet before the replies to the flood are judged all in.
+    const QUIET: Duration = Duration::from_millis(500);
+    /// The longest the replies may keep coming after the flood stops.
+    const DRAIN: Duration = Duration::from_secs(20);
+    /// How long the last log line may take to show up.
+    const LOG_SETTLE: Duration = Duration::from_millis(300);
+
+    /// What the reading thread counted.
+    #[derive(Default)]
+    struct Heard {
+        replies: u64,
+        other: u64,
+        status_bytes: usize,
+    }
+
+    /// The flood at `shift` for `flood` of wall time.
+    pub(super) fn run(elf: &Path, shift: u8, flood: Duration) -> Result<Run> {
+        let mut servos = so101_bus(Faults::default());
+        servos.faults.silent = servos.ids.clone();
+        let bus = PtyServer::spawn(servos).context("cannot start the simulated servo bus")?;
+        let config =
+            QemuConfig { icount_shift: shift, ..QemuConfig::new(elf.to_path_buf(), Some(bus.path().to_string())) };
+        let board = Qemu::start(&config)?;
+        board.wait_started(qemu::START_TIMEOUT)?;
+        let port = serialport::new(board.link_path(), 1_000_000)
+            .timeout(Duration::from_millis(50))
+            .open_native()
+            .with_context(|| format!("cannot open the firmware's link {}", board.link_path()))?;
+        let mut writer = port.try_clone_native().context("cannot clone the link's port")?;
+        let mut reader = port;
+
+        let stop = Arc::new(AtomicBool::new(false));
+        let writing = {
+            let stop = stop.clone();
+            std::thread::spawn(move || -> std::io::Result<u64> {
+                // Each request is a new one to the firmware (a repeat of the last one, same sequence
+                // number and CRC, would be answered from its cache).
+                let frames: Vec<u8> = (0..TORQUE_OFF_EVERY).flat_map(flood_frame).collect();
+                let mut written = 0u64;
+                let mut at = 0;
+                while !stop.load(Ordering::Relaxed) {
+                    match writer.write(&frames[at..]) {
+                        Ok(n) => {
+                            written += n as u64;
+                            at = (at + n) % frames.len();
+                        }
+                        Err(e) if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock) => {}
+                        Err(e) if e.kind() == ErrorKind::Interrupted => {}
+                        Err(e) => return Err(e),
+                    }
+                }
+                Ok(written * TORQUE_OFF_EVERY as u64 / frames.len() as u64)
+            })
+        };
+        let reading = {
+            let stop = stop.clone();
+            std::thread::spawn(move || -> std::io::Result<Heard> {
+                let mut heard = Heard::default();
+                let mut decoder = FrameDecoder::<MAX_ENCODED>::new();
+                let mut buf = [0u8; 4096];
+                let mut length = 0;
+                let mut last = Instant::now();
+                let mut stopped_at = None;
+                loop {
+                    let n = match reader.read(&mut buf) {
+                        Ok(n) => n,
+                        Err(e) if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock) => 0,
+                        Err(e) if e.kind() == ErrorKind::Interrupted => 0,
+                        Err(e) => return Err(e),
+                    };
+                    if n > 0 {
+                        last = Instant::now();
+                    }
+                    for &byte in &buf[..n] {
+                        length += 1;
+                        let Some(frame) = decoder.push(byte) else { continue };
+                        let wire = std::mem::take(&mut length);
+                        match frame.ok().and_then(|f| decode_payload::<FirmwareMessage>(f.payload).ok()) {
+                            Some(FirmwareMessage::Status(_)) => {
+                                heard.replies += 1;
+                                heard.status_bytes = heard.status_bytes.max(wire);
+                            }
+                            _ => heard.other += 1,
+                        }
+                    }
+                    if stop.load(Ordering::Relaxed) {
+                        let since = *stopped_at.get_or_insert_with(Instant::now);
+                        if last.elapsed() >= QUIET || since.elapsed() >= DRAIN {
+                            return Ok(heard);
+                        }
+                    }
+                }
+            })
+        };
+        std::thread::sleep(flood);
+        stop.store(true, Ordering::Relaxed);
+        let requests = writing.join().map_err(|_| anyhow::anyhow!("the flooding thread panicked"))??;
+        let heard = reading.join().map_err(|_| anyhow::anyhow!("the reading thread panicked"))??;
+        std::thread::sleep(LOG_SETTLE);
+        let lines = board.log().lines();
+        drop(board);
+        bus.stop().context("stopping the simulated servo bus")?;
+        if let Some(error) = lines.iter().find(|l| l.starts_with("ERROR")) {
+            bail!("the firmware under QEMU (-icount shift={shift}) reported: {error}; its log:\n{}", lines.join("\n"));
+        }
+        if lines.iter().filter(|l| l.contains("reset by")).count() > 1 {
+            bail!(
+                "the firmware under QEMU (-icount shift={shift}) reset during the flood; its log:\n{}",
+                lines.join("\n")
+            );
+        }
+        let Some((pass_us, pass_bytes)) = lines.iter().rev().find_map(|l| parse_pass_line(l)) else {
+            bail!("the firmware logged no \"{PASS_LINE}\" line; its log:\n{}", lines.join("\n"));
+        };
+        if heard.replies == 0 {
+            bail!("the firmware answered none of {requests} status requests (-icount shift={shift})");
+        }
+        Ok(Run {
+            shift,
+            pass_us,
+            pass_bytes,
+            requests,
+            replies: heard.replies,
+            other_frames: heard.other,
+            status_bytes: heard.status_bytes,
+        })
+    }
+}
+
+/// `armctl bench loop-pass`: the table on `out`, or with `json` one JSON object (indented); exit
+/// code 1 when the watchdog's margin is not met or the pass exceeds [`WORST_PASS_US`].
+pub fn run(seconds: f64, json: bool, out: &mut dyn Write) -> Result<i32> {
+    if !(seconds > 0.0 && seconds <= 600.0) {
+        return Err(anyhow!("--seconds must be above 0 and at most 600"));
+    }
+    let report = measure(seconds)?;
+    if json {
+        writeln!(out, "{}", serde_json::to_string_pretty(&to_json(&report))?)?;
+    } else {
+        write_table(&report, out)?;
+    }
+    Ok(if report.passes() { 0 } else { 1 })
+}
+
+fn write_table(r: &LoopPassReport, out: &mut dyn Write) -> Result<()> {
+    let iwdg = watchdog::STM32F411;
+    writeln!(
+        out,
+        "The main loop's longest pass: the MPS2 AN386 firmware under qemu-system-arm, every SO-101 servo silent, its \
+         link flooded with GetStatus requests ({} bytes each); scaled to the STM32F411 at 84 MHz",
+        r.request_bytes
+    )?;
+    for run in [&r.lo, &r.hi] {
+        writeln!(
+            out,
+            "  -icount shift={}: longest pass {:>8} us, {} bytes sent in it ({:.1} replies); {} requests written, {} \
+             status replies ({} bytes at most) and {} other frames read",
+            run.shift,
+            run.pass_us,
+            run.pass_bytes,
+            run.pass_replies(),
+            run.requests,
+            run.replies,
+            run.status_bytes,
+            run.other_frames
+        )?;
+    }
+    let consistent = if r.consistent() {
+        "the two passes are the same kind (replies within 5 %)"
+    } else {
+        "INCONSISTENT: the two longest passes differ in kind (replies), or a part came out negative"
+    };
+    writeln!(out, "  {consistent}")?;
+    writeln!(
+        out,
+        "  instructions I   {:>12.0}   (T_hi - T_lo) / (2^{} - 2^{}) ns",
+        r.instructions, r.hi.shift, r.lo.shift
+    )?;
+    writeln!(out, "  waits W          {:>12.0} us  T_lo - I * 2^{} ns", r.waits_us, r.lo.shift)?;
+    writeln!(out, "  I at 84 MHz      {:>12.0} us  one instruction a cycle", r.instructions / F411_HZ * 1e6)?;
+    writeln!(
+        out,
+        "  wire time        {:>12.0} us  {} replies ({} bytes / {}-byte requests) x {} bytes x {} us (1 Mbps, 8N1)",
+        r.wire_us, r.replies_per_pass, DRAIN_PER_PASS, r.request_bytes, r.status_bytes, BYTE_US
+    )?;
+    writeln!(out, "  pass on the F411 {:>12.0} us  (WORST_PASS_US {} us)", r.scaled_us, WORST_PASS_US)?;
+    writeln!(
+        out,
+        "  watchdog (PR {}, RLR {}): shortest {} us (LSI 47 kHz), typical {} us (32 kHz), longest {} us (17 kHz); \
+         2 x pass {:.0} us: {}",
+        iwdg.pr,
+        iwdg.rlr,
+        iwdg.shortest_us(),
+        iwdg.timeout_us(watchdog::LSI_TYPICAL_HZ),
+        iwdg.longest_us(),
+        2.0 * r.scaled_us,
+        if r.passes() { "covered" } else { "NOT COVERED" }
+    )?;
+    writeln!(
+        out,
+        "  the margin holds up to {:.2} cycles per instruction (flash wait states, stalls) on the fastest LSI",
+        r.cpi_covered()
+    )?;
+    Ok(())
+}
+
+fn run_json(run: &Run) -> Value {
+    json!({
+        "shift": run.shift,
+        "pass_us": run.pass_us,
+        "pass_bytes": run.pass_bytes,
+        "pass_replies": run.pass_replies(),
+        "requests": run.requests,
+        "replies": run.replies,
+        "other_frames": run.other_frames,
+        "status_bytes": run.status_bytes,
+    })
+}
+
+fn to_json(r: &LoopPassReport) -> Value {
+    let iwdg = watchdog::STM32F411;
+    json!({
+        "runs": [run_json(&r.lo), run_json(&r.hi)],
+        "consistent": r.consistent(),
+        "instructions": r.instructions,
+        "waits_us": r.waits_us,
+        "instructions_us_at_84mhz": r.instructions / F411_HZ * 1e6,
+        "request_bytes": r.request_bytes,
+        "status_bytes": r.status_bytes,
+        "replies_per_pass": r.replies_per_pass,
+        "wire_us": r.wire_us,
+        "scaled_pass_us": r.scaled_us,
+        "worst_pass_us": WORST_PASS_US,
+        "watchdog": {
+            "pr": iwdg.pr,
+            "rlr": iwdg.rlr,
+            "shortest_us": iwdg.shortest_us(),
+            "typical_us": iwdg.timeout_us(watchdog::LSI_TYPICAL_HZ),
+            "longest_us": iwdg.longest_us(),
+            "twice_pass_us": 2.0 * r.scaled_us,
+            "cpi_covered": r.cpi_covered(),
+        },
+        "passes": r.passes(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(shift: u8, pass_us: u32, pass_bytes: u32) -> Run {
+        Run { shift, pass_us, pass_bytes, requests: 1000, replies: 900, other_frames: 0, status_bytes: 116 }
+    }
+
+    /// 10 ms of waits and a million instructions: 11 ms at shift 0, 18 ms at shift 3.
+    #[test]
+    fn two_shifts_separate_instructions_from_waits() {
+        let r = LoopPassReport::new(run(0, 11_000, 116 * 73), run(3, 18_000, 116 * 73), 7);
+        assert!((r.instructions - 1e6).abs() < 1e-6, "{}", r.instructions);
+        assert!((r.waits_us - 10_000.0).abs() < 1e-6, "{}", r.waits_us);
+        assert_eq!(r.replies_per_pass, 74);
+        assert_eq!(r.wire_us, 74.0 * 116.0 * 10.0);
+        assert!((r.scaled_us - (1e6 / 84e6 * 1e6 + 10_000.0 + r.wire_us)).abs() < 1e-6);
+        assert!(r.consistent());
+        assert!(LoopPassReport::new(run(0, 11_000, 116 * 70), run(3, 18_000, 116 * 73), 7).consistent());
+        // A pass of another kind at the other shift.
+        assert!(!LoopPassReport::new(run(0, 11_000, 116 * 73), run(3, 18_000, 116 * 60), 7).consistent());
+        assert!(!LoopPassReport::new(run(0, 11_000, 0), run(3, 18_000, 0), 7).consistent());
+    }
+
+    #[test]
+    fn the_request_is_seven_bytes_and_the_log_line_parses() {
+        assert_eq!(flood_frame(1).len(), 7);
+        assert_eq!(flood_frame(300).len(), 7);
+        assert_eq!(flood_frame(0).len(), 8);
+        assert_eq!(parse_pass_line("INFO  longest loop pass: 31234 us, 8468 bytes sent"), Some((31_234, 8_468)));
+        assert_eq!(parse_pass_line("INFO  control loop stack high-water: 900 bytes"), None);
+    }
+}
