@@ -607,13 +607,16 @@ fn sim_qemu_without_qemu_says_how_to_install_it() {
 
 /// Without the `board-tools` feature, each command that runs or reads a board binary fails at
 /// once, in one line that gives the build that has it; with it, they are tested in bench_mcu.rs,
-/// footprint_cli.rs and tests/hil_qemu.rs.
+/// bench_loop_pass.rs, footprint_cli.rs and tests/hil_qemu.rs.
 #[test]
 #[cfg(not(feature = "board-tools"))]
 fn board_commands_say_which_build_has_them() {
-    for (args, command) in
-        [(&["footprint"][..], "footprint"), (&["bench", "mcu"], "bench mcu"), (&["sim", "--qemu"], "sim --qemu")]
-    {
+    for (args, command) in [
+        (&["footprint"][..], "footprint"),
+        (&["bench", "mcu"], "bench mcu"),
+        (&["bench", "loop-pass"], "bench loop-pass"),
+        (&["sim", "--qemu"], "sim --qemu"),
+    ] {
         let output = std::process::Command::new(env!("CARGO_BIN_EXE_armctl")).args(args).output().unwrap();
         let stderr = String::from_utf8_lossy(&output.stderr);
         assert_eq!(output.status.code(), Some(1), "{stderr}");

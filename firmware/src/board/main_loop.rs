@@ -37,7 +37,11 @@ const CHUNK: usize = 64;
 /// tick by at most 512 bytes' work: about 5 ms when each request is answered by a reply of about
 /// its length (sent at the same 1 Mbps), about 85 ms at worst, when every request is a 7-byte
 /// `GetStatus` answered by a 116-byte status (5 joints, the gripper and a line given up, as
-/// protocol 7 reports it: 73 of them); the F411's watchdog allows 150 ms.
+/// protocol 7 reports it: 73 of them, 74 when the pass starts on a frame's last byte). That pass
+/// and a tick with every servo silent (31 ms of reply timeouts) make the longest pass: about
+/// 125 ms on the F411 at 84 MHz, measured by `armctl bench loop-pass` (docs/firmware.md, "The
+/// watchdog's margin"); the F411's watchdog ([`super::watchdog`]) waits at least twice
+/// [`super::watchdog::WORST_PASS_US`] on the fastest LSI.
 pub const DRAIN_PER_PASS: usize = 512;
 
 /// The firmware, its bus master and its link's received bytes, on one schedule.

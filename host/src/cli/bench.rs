@@ -103,8 +103,8 @@ pub struct McuBenchArgs {
 /// Arguments of `armctl bench loop-pass`.
 #[derive(Args, Debug)]
 pub struct LoopPassBenchArgs {
-    /// Seconds of wall time the run at -icount shift=3 floods the link (the one at shift 0, twice
-    /// as long).
+    /// Seconds of wall time the run at -icount shift=3 floods the link (the one at shift 0, three
+    /// times as long).
     #[arg(long, default_value_t = crate::commands::bench::loop_pass::DEFAULT_SECONDS)]
     pub seconds: f64,
     /// One JSON object (indented) instead of the table.

@@ -1,8 +1,9 @@
 //! The main loop's longest pass, for `armctl bench loop-pass`: the time from one wake-up (the
 //! return from the idle closure, after any `wfi`) to the next call of the idle closure, which is
 //! one [`firmware::board::MainLoop::poll`] and all the STM32F411's loop does between two feeds of
-//! its watchdog; and the bytes the pass sent on the host link, which tell what kind of pass it
-//! was (its replies). The board logs a pass when it is the longest so far.
+//! its watchdog; and the bytes the pass sent on the host link (its replies) and on the servo bus
+//! (which reads its tick made), which tell what kind of pass it was and how long the F411's
+//! UARTs would take to send them. The board logs a pass when it is the longest so far.
 
 use core::cell::Cell;
 

@@ -8,6 +8,7 @@
 #![no_main]
 
 use core::cell::Cell;
+use core::sync::atomic::Ordering;
 
 use board_mps2_an386::clock::{self, SysTickClock};
 use board_mps2_an386::uart::{self, Uart};
@@ -93,20 +94,24 @@ fn start(cause: ResetCause) -> Option<(Loop, Uart)> {
 /// fixed schedule, and sleep in between (SysTick wakes the core every millisecond, a host byte at
 /// once); once a second, the stack's high-water mark, logged when it grew. Each pass (from a
 /// wake-up to the next idle call, the time asleep left out: [`loop_pass`]) is timed, and logged
-/// with the bytes it sent the host when it is the longest so far (`armctl bench loop-pass`).
+/// with the bytes it sent the host and the servos when it is the longest so far (`armctl bench
+/// loop-pass`).
 #[inline(never)]
 fn run(main_loop: Loop, link: Uart) -> ! {
     let clock = SysTickClock;
     let mut next_stack_check = clock.now() + STACK_CHECK_US;
     let mut stack_logged = 0;
     let sent = Cell::new(0);
+    let mut sent_before = 0;
     let mut link = loop_pass::Counted::new(link, &sent);
     let mut pass = loop_pass::Longest::default();
     pass.start(clock.now());
     main_loop.run(&mut link, |next_tick, rx| {
         let now = clock.now();
         if let Some(us) = pass.end(now) {
-            defmt::info!("longest loop pass: {=u32} us, {=u32} bytes sent", us, sent.get());
+            let link = sent.get();
+            let bus = uart::SENT.load(Ordering::Relaxed).wrapping_sub(sent_before).wrapping_sub(link);
+            defmt::info!("longest loop pass: {=u32} us, {=u32} bytes sent, {=u32} on the bus", us, link, bus);
         }
         if now >= next_stack_check {
             next_stack_check = now + STACK_CHECK_US;
@@ -125,6 +130,7 @@ fn run(main_loop: Loop, link: Uart) -> ! {
             }
         });
         sent.set(0);
+        sent_before = uart::SENT.load(Ordering::Relaxed);
         pass.start(clock.now());
     })
 }

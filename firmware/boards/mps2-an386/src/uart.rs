@@ -4,6 +4,7 @@
 //! INTSTATUS/INTCLEAR (0x0C: bit 1 RX), BAUDDIV (0x10).
 
 use core::ptr::{read_volatile, write_volatile};
+use core::sync::atomic::{AtomicU32, Ordering};
 
 use firmware::board::BusPort;
 
@@ -22,6 +23,11 @@ const RX_INTERRUPT: u32 = 1 << 3;
 pub const UART0: usize = 0x4000_4000;
 /// UART1: the servo bus.
 pub const UART1: usize = 0x4000_5000;
+
+/// Bytes written to either UART so far (wrapping): the main loop's measurement
+/// ([`crate::loop_pass`]) takes the servo bus's share of a pass from it, which QEMU sends at once
+/// and a board's UART in wire time. Only the main loop writes to the UARTs.
+pub static SENT: AtomicU32 = AtomicU32::new(0);
 
 /// One UART, owned by whoever holds this value (the board's main creates each once).
 pub struct Uart {
@@ -132,6 +138,7 @@ impl embedded_io::Read for Uart {
 
 impl embedded_io::Write for Uart {
     fn write(&mut self, buf: &[u8]) -> Result<usize, Self::Error> {
+        SENT.store(SENT.load(Ordering::Relaxed).wrapping_add(buf.len() as u32), Ordering::Relaxed);
         for &byte in buf {
             while self.read_reg(STATE) & TX_FULL != 0 {}
             self.write_reg(DATA, u32::from(byte));

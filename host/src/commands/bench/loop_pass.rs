@@ -13,9 +13,10 @@
 //! shift S every guest instruction advances virtual time by 2^S ns, while the bus master's reply
 //! timeouts are fixed virtual microseconds. With T the longest pass at each shift,
 //! `I = (T_hi - T_lo) / (2^hi - 2^lo)` instructions and `W = T_lo - I * 2^lo` of waiting. On the
-//! F411 the pass takes `I / 84 MHz` (one instruction a cycle) `+ W`, plus the host link's wire
-//! time of the replies it sends (its transmit blocks per byte at 1 Mbps, where QEMU's CMSDK UART
-//! takes a byte at once): 10 µs a byte, 8N1.
+//! F411 the pass takes `I / 84 MHz` (one instruction a cycle) `+ W`, plus the wire time of what it
+//! sends, 10 µs a byte at 1 Mbps 8N1, where QEMU's CMSDK UARTs take a byte at once: the host
+//! link's replies (the F411's transmit blocks per byte) and the tick's instruction packets on the
+//! servo bus (each reply timeout starts once its packet is out).
 
 use std::io::Write;
 
@@ -40,7 +41,7 @@ pub const REPLY_TOLERANCE: f64 = 0.05;
 /// The lower shift's run floods this many times longer: at shift 0 the emulated core runs about
 /// 13 times slower than real time while it waits out the bus (it spins), so a second of flood
 /// holds fewer passes than at shift 3.
-pub const LO_SECONDS_FACTOR: f64 = 2.0;
+pub const LO_SECONDS_FACTOR: f64 = 3.0;
 /// The firmware's log line of a new longest pass.
 pub const PASS_LINE: &str = "longest loop pass:";
 
@@ -53,6 +54,9 @@ pub struct Run {
     pub pass_us: u32,
     /// The bytes that pass sent the host (replies and nak events).
     pub pass_bytes: u32,
+    /// The bytes that pass sent the servos (its tick's instruction packets, retries included):
+    /// which reads the tick made.
+    pub pass_bus_bytes: u32,
     /// Requests the host wrote.
     pub requests: u64,
     /// Status replies the host got.
@@ -89,6 +93,8 @@ pub struct LoopPassReport {
     pub replies_per_pass: usize,
     /// Their wire time on the F411's link (µs).
     pub wire_us: f64,
+    /// The wire time of the pass's instruction packets on the servo bus (µs).
+    pub bus_wire_us: f64,
     /// The pass on the F411 at 84 MHz (µs): instructions at one a cycle, waits and wire time.
     pub scaled_us: f64,
 }
@@ -106,17 +112,30 @@ impl LoopPassReport {
         // in every further request length.
         let replies_per_pass = 1 + (DRAIN_PER_PASS - 1) / request_bytes.max(1);
         let wire_us = (replies_per_pass * status_bytes) as f64 * BYTE_US;
-        let scaled_us = instructions / F411_HZ * 1e6 + waits_us + wire_us;
-        Self { lo, hi, instructions, waits_us, request_bytes, status_bytes, replies_per_pass, wire_us, scaled_us }
+        let bus_wire_us = f64::from(lo.pass_bus_bytes.max(hi.pass_bus_bytes)) * BYTE_US;
+        let scaled_us = instructions / F411_HZ * 1e6 + waits_us + wire_us + bus_wire_us;
+        Self {
+            lo,
+            hi,
+            instructions,
+            waits_us,
+            request_bytes,
+            status_bytes,
+            replies_per_pass,
+            wire_us,
+            bus_wire_us,
+            scaled_us,
+        }
     }
 
     /// Whether the two runs' longest passes are the same kind of pass: a flood pass in both, with
     /// the same replies within [`REPLY_TOLERANCE`] (the ring's dropped bytes turn a few requests
-    /// of a pass into short naks, so the count varies by a few), and both parts of the split
-    /// positive.
+    /// of a pass into short naks, so the count varies by a few) and the same bytes on the servo
+    /// bus (the same reads in the tick), and both parts of the split positive.
     pub fn consistent(&self) -> bool {
         let (lo, hi) = (self.lo.pass_replies(), self.hi.pass_replies());
         (lo - hi).abs() <= REPLY_TOLERANCE * lo.max(hi)
+            && self.lo.pass_bus_bytes == self.hi.pass_bus_bytes
             && self.lo.pass_bytes > 0
             && self.instructions > 0.0
             && self.waits_us > 0.0
@@ -125,7 +144,17 @@ impl LoopPassReport {
     /// The CPI (cycles per instruction) at which twice the pass would reach the watchdog's
     /// shortest timeout: the margin's room for the M4's flash wait states and stalls.
     pub fn cpi_covered(&self) -> f64 {
-        let cycles_us = watchdog::STM32F411.shortest_us() as f64 / 2.0 - self.waits_us - self.wire_us;
+        self.cpi_within(watchdog::STM32F411.shortest_us() as f64 / 2.0)
+    }
+
+    /// The CPI at which the pass itself would reach the watchdog's shortest timeout.
+    pub fn cpi_to_timeout(&self) -> f64 {
+        self.cpi_within(watchdog::STM32F411.shortest_us() as f64)
+    }
+
+    /// The CPI at which the pass takes `us`.
+    fn cpi_within(&self, us: f64) -> f64 {
+        let cycles_us = us - self.waits_us - self.wire_us - self.bus_wire_us;
         cycles_us * 1e-6 * F411_HZ / self.instructions.max(1.0)
     }
 
@@ -154,12 +183,12 @@ pub fn flood_frame(i: usize) -> Vec<u8> {
     frame[..n].to_vec()
 }
 
-/// Reads the firmware's `longest loop pass: N us, M bytes sent` line (as the defmt log decodes it):
-/// `(N, M)`.
-pub fn parse_pass_line(line: &str) -> Option<(u32, u32)> {
+/// Reads the firmware's `longest loop pass: N us, M bytes sent, B on the bus` line (as the defmt
+/// log decodes it): `(N, M, B)`.
+pub fn parse_pass_line(line: &str) -> Option<(u32, u32, u32)> {
     let rest = &line[line.find(PASS_LINE)? + PASS_LINE.len()..];
     let mut numbers = rest.split(|c: char| !c.is_ascii_digit()).filter(|w| !w.is_empty()).map(str::parse);
-    Some((numbers.next()?.ok()?, numbers.next()?.ok()?))
+    Some((numbers.next()?.ok()?, numbers.next()?.ok()?, numbers.next()?.ok()?))
 }
 
 /// Runs the flood at both shifts (needs the `board-tools` feature).
@@ -310,7 +339,7 @@ mod flood {
                 lines.join("\n")
             );
         }
-        let Some((pass_us, pass_bytes)) = lines.iter().rev().find_map(|l| parse_pass_line(l)) else {
+        let Some((pass_us, pass_bytes, pass_bus_bytes)) = lines.iter().rev().find_map(|l| parse_pass_line(l)) else {
             bail!("the firmware logged no \"{PASS_LINE}\" line; its log:\n{}", lines.join("\n"));
         };
         if heard.replies == 0 {
@@ -320,6 +349,7 @@ mod flood {
             shift,
             pass_us,
             pass_bytes,
+            pass_bus_bytes,
             requests,
             replies: heard.replies,
             other_frames: heard.other,
@@ -354,12 +384,13 @@ fn write_table(r: &LoopPassReport, out: &mut dyn Write) -> Result<()> {
     for run in [&r.lo, &r.hi] {
         writeln!(
             out,
-            "  -icount shift={}: longest pass {:>8} us, {} bytes sent in it ({:.1} replies); {} requests written, {} \
-             status replies ({} bytes at most) and {} other frames read",
+            "  -icount shift={}: longest pass {:>8} us, {} bytes sent in it ({:.1} replies), {} on the servo bus; {} \
+             requests written, {} status replies ({} bytes at most) and {} other frames read",
             run.shift,
             run.pass_us,
             run.pass_bytes,
             run.pass_replies(),
+            run.pass_bus_bytes,
             run.requests,
             run.replies,
             run.status_bytes,
@@ -367,9 +398,9 @@ fn write_table(r: &LoopPassReport, out: &mut dyn Write) -> Result<()> {
         )?;
     }
     let consistent = if r.consistent() {
-        "the two passes are the same kind (replies within 5 %)"
+        "the two passes are the same kind (replies within 5 %, the same bytes on the servo bus)"
     } else {
-        "INCONSISTENT: the two longest passes differ in kind (replies), or a part came out negative"
+        "INCONSISTENT: the two longest passes differ in kind (replies or servo-bus bytes), or a part came out negative"
     };
     writeln!(out, "  {consistent}")?;
     writeln!(
@@ -383,6 +414,13 @@ fn write_table(r: &LoopPassReport, out: &mut dyn Write) -> Result<()> {
         out,
         "  wire time        {:>12.0} us  {} replies ({} bytes / {}-byte requests) x {} bytes x {} us (1 Mbps, 8N1)",
         r.wire_us, r.replies_per_pass, DRAIN_PER_PASS, r.request_bytes, r.status_bytes, BYTE_US
+    )?;
+    writeln!(
+        out,
+        "  servo bus        {:>12.0} us  {} bytes of instruction packets x {} us",
+        r.bus_wire_us,
+        r.lo.pass_bus_bytes.max(r.hi.pass_bus_bytes),
+        BYTE_US
     )?;
     writeln!(out, "  pass on the F411 {:>12.0} us  (WORST_PASS_US {} us)", r.scaled_us, WORST_PASS_US)?;
     writeln!(
@@ -399,8 +437,10 @@ fn write_table(r: &LoopPassReport, out: &mut dyn Write) -> Result<()> {
     )?;
     writeln!(
         out,
-        "  the margin holds up to {:.2} cycles per instruction (flash wait states, stalls) on the fastest LSI",
-        r.cpi_covered()
+        "  the factor of 2 holds up to {:.2} cycles per instruction (flash wait states, stalls) on the fastest LSI; \
+         the pass reaches that timeout at {:.1}",
+        r.cpi_covered(),
+        r.cpi_to_timeout()
     )?;
     Ok(())
 }
@@ -410,6 +450,7 @@ fn run_json(run: &Run) -> Value {
         "shift": run.shift,
         "pass_us": run.pass_us,
         "pass_bytes": run.pass_bytes,
+        "pass_bus_bytes": run.pass_bus_bytes,
         "pass_replies": run.pass_replies(),
         "requests": run.requests,
         "replies": run.replies,
@@ -430,6 +471,7 @@ fn to_json(r: &LoopPassReport) -> Value {
         "status_bytes": r.status_bytes,
         "replies_per_pass": r.replies_per_pass,
         "wire_us": r.wire_us,
+        "bus_wire_us": r.bus_wire_us,
         "scaled_pass_us": r.scaled_us,
         "worst_pass_us": WORST_PASS_US,
         "watchdog": {
@@ -440,6 +482,7 @@ fn to_json(r: &LoopPassReport) -> Value {
             "longest_us": iwdg.longest_us(),
             "twice_pass_us": 2.0 * r.scaled_us,
             "cpi_covered": r.cpi_covered(),
+            "cpi_to_timeout": r.cpi_to_timeout(),
         },
         "passes": r.passes(),
     })
@@ -450,7 +493,16 @@ mod tests {
     use super::*;
 
     fn run(shift: u8, pass_us: u32, pass_bytes: u32) -> Run {
-        Run { shift, pass_us, pass_bytes, requests: 1000, replies: 900, other_frames: 0, status_bytes: 116 }
+        Run {
+            shift,
+            pass_us,
+            pass_bytes,
+            pass_bus_bytes: 111,
+            requests: 1000,
+            replies: 900,
+            other_frames: 0,
+            status_bytes: 116,
+        }
     }
 
     /// 10 ms of waits and a million instructions: 11 ms at shift 0, 18 ms at shift 3.
@@ -461,12 +513,15 @@ mod tests {
         assert!((r.waits_us - 10_000.0).abs() < 1e-6, "{}", r.waits_us);
         assert_eq!(r.replies_per_pass, 74);
         assert_eq!(r.wire_us, 74.0 * 116.0 * 10.0);
-        assert!((r.scaled_us - (1e6 / 84e6 * 1e6 + 10_000.0 + r.wire_us)).abs() < 1e-6);
+        assert_eq!(r.bus_wire_us, 1110.0);
+        assert!((r.scaled_us - (1e6 / 84e6 * 1e6 + 10_000.0 + r.wire_us + 1110.0)).abs() < 1e-6);
         assert!(r.consistent());
         assert!(LoopPassReport::new(run(0, 11_000, 116 * 70), run(3, 18_000, 116 * 73), 7).consistent());
         // A pass of another kind at the other shift.
         assert!(!LoopPassReport::new(run(0, 11_000, 116 * 73), run(3, 18_000, 116 * 60), 7).consistent());
         assert!(!LoopPassReport::new(run(0, 11_000, 0), run(3, 18_000, 0), 7).consistent());
+        let other_tick = Run { pass_bus_bytes: 84, ..run(3, 18_000, 116 * 73) };
+        assert!(!LoopPassReport::new(run(0, 11_000, 116 * 73), other_tick, 7).consistent());
     }
 
     #[test]
@@ -474,7 +529,10 @@ mod tests {
         assert_eq!(flood_frame(1).len(), 7);
         assert_eq!(flood_frame(300).len(), 7);
         assert_eq!(flood_frame(0).len(), 8);
-        assert_eq!(parse_pass_line("INFO  longest loop pass: 31234 us, 8468 bytes sent"), Some((31_234, 8_468)));
+        assert_eq!(
+            parse_pass_line("INFO  longest loop pass: 31234 us, 8468 bytes sent, 111 on the bus"),
+            Some((31_234, 8_468, 111))
+        );
         assert_eq!(parse_pass_line("INFO  control loop stack high-water: 900 bytes"), None);
     }
 }
