@@ -177,7 +177,8 @@ pub const TORQUE_OFF_EVERY: usize = 512;
 /// shorter ticks that follow (QEMU takes up to a second to notice that the link's pty was opened,
 /// and the firmware's first ten ticks are over by then).
 pub fn flood_frame(i: usize) -> Vec<u8> {
-    let message = if i % TORQUE_OFF_EVERY == 0 { HostMessage::Torque { on: false } } else { HostMessage::GetStatus };
+    let message =
+        if i.is_multiple_of(TORQUE_OFF_EVERY) { HostMessage::Torque { on: false } } else { HostMessage::GetStatus };
     let mut frame = [0u8; MAX_FRAME];
     let n = encode_message(i as u8, FrameKind::Request, &message, &mut frame).unwrap_or(0);
     frame[..n].to_vec()
