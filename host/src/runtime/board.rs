@@ -4,9 +4,9 @@
 //! [`TARGET`]. `rust-toolchain.toml` lists that target and the `llvm-tools` component, but rustup
 //! adds a toolchain file's targets and components only when it installs the toolchain: a machine
 //! that already had the pinned Rust has neither. So every board build ([`build`], shared by
-//! `armctl sim --qemu`, `armctl bench mcu`, `armctl footprint` and the HIL tests) first makes sure
-//! they are there ([`ensure_toolchain`]), installing what is missing through rustup once per
-//! process, with one line on stderr saying so.
+//! `armctl sim --qemu`, `armctl bench mcu`, `armctl bench loop-pass`, `armctl footprint` and the
+//! HIL tests) first makes sure they are there ([`ensure_toolchain`]), installing what is missing
+//! through rustup once per process, with one line on stderr saying so.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -21,8 +21,8 @@ pub const TARGET: &str = "thumbv7em-none-eabihf";
 pub const LLVM_TOOLS: &str = "llvm-tools";
 
 /// The error of `armctl COMMAND` in an armctl built without the `board-tools` feature, which the
-/// commands that run a board binary need (`sim --qemu`, `bench mcu`, `footprint`: they decode its
-/// defmt log and read its ELF). One line, with the build that has it.
+/// commands that run a board binary need (`sim --qemu`, `bench mcu`, `bench loop-pass`,
+/// `footprint`: they decode its defmt log and read its ELF). One line, with the build that has it.
 pub fn without_tools(command: &str) -> anyhow::Error {
     anyhow::anyhow!(
         "armctl {command} needs the board-tools feature, which this armctl was built without: \

@@ -5,9 +5,10 @@
 //! The worst pass: every servo on the bus silent (the tick waits out every reply timeout, with its
 //! retries) while the host floods the link with `GetStatus` requests without waiting for their
 //! replies (a pass takes up to `DRAIN_PER_PASS` bytes of 7-byte requests from the ring and answers
-//! each with a full status). The real MPS2 firmware runs on simulated SO-101 servos that are all
+//! each with a full status), and a torque off now and then ([`flood_frame`]) keeps the ticks
+//! reading the torque back, the longest tick there is. The real MPS2 firmware runs on simulated SO-101 servos that are all
 //! silent (every id, the gripper's too), and logs each pass that is the longest so far, with the
-//! bytes it sent the host (`board_mps2_an386::loop_pass`).
+//! bytes it sent the host and the servos (`board_mps2_an386::loop_pass`).
 //!
 //! Instructions and waits are told apart by running the same flood at two `-icount` shifts: at
 //! shift S every guest instruction advances virtual time by 2^S ns, while the bus master's reply
@@ -379,8 +380,9 @@ fn write_table(r: &LoopPassReport, out: &mut dyn Write) -> Result<()> {
     writeln!(
         out,
         "The main loop's longest pass: the MPS2 AN386 firmware under qemu-system-arm, every SO-101 servo silent, its \
-         link flooded with GetStatus requests ({} bytes each); scaled to the STM32F411 at 84 MHz",
-        r.request_bytes
+         link flooded with GetStatus requests ({} bytes each; a torque off every {}th); scaled to the STM32F411 at 84 \
+         MHz",
+        r.request_bytes, TORQUE_OFF_EVERY
     )?;
     for run in [&r.lo, &r.hi] {
         writeln!(

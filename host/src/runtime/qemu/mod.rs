@@ -1,7 +1,8 @@
 //! The firmware binary for the MPS2 AN386 (Cortex-M4F) under `qemu-system-arm`: building it,
 //! starting QEMU with UART0 (host link) on a pseudo-terminal (made its owner's alone as soon as
 //! QEMU names it) and UART1 on the simulated servo bus, and following its defmt log. Used by
-//! `armctl sim --qemu`, `armctl bench mcu`, `armctl footprint` and the HIL tests.
+//! `armctl sim --qemu`, `armctl bench mcu`, `armctl bench loop-pass`, `armctl footprint` and the
+//! HIL tests.
 //! ([`super::board::build`] builds any board crate, the STM32 one too.)
 
 pub mod gdb;
