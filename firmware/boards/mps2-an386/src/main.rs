@@ -38,10 +38,11 @@ static SLOTS: Slots<JOINTS, QUEUE, BusMaster> = Slots::new();
 #[entry]
 fn main() -> ! {
     // The watchdog first, before anything else can stop: from here on every way the firmware can
-    // stop ends in its reset, after which start-up takes the servos' torque off (a stopped
-    // start-up too, which the reset button's note would otherwise leave holding). Its 100 ms
-    // cover start-up many times over: start-up sends nothing on the bus and takes well under a
-    // millisecond under QEMU. The loop feeds it from its first pass.
+    // stop (start-up, a panic, a fault, the control loop) ends in its reset, after which start-up
+    // takes the servos' torque off. Started at the end of start-up instead, a start-up that
+    // stopped would leave the servos holding their last goal for good, with nothing running
+    // them. Its 100 ms cover start-up many times over (0.24 ms from here to the control loop
+    // under QEMU: nothing is sent on the bus); the loop feeds it from its first pass.
     reset::start_watchdog();
     stack::paint();
     // Why the board was reset decides the servos' torque (firmware::board::reset): logged before
@@ -74,7 +75,7 @@ fn main() -> ! {
 
 /// Brings up the hardware and the firmware core, the servos' torque as `cause` wants it; why not,
 /// in a few words, if the built-in arm is refused or this ran before (the statics are written
-/// once). Never inlined, so that its frame is gone before the control loop starts (and so that
+/// once): interned, so that the words are in the ELF's defmt table and not in flash. Never inlined, so that its frame is gone before the control loop starts (and so that
 /// the HIL tests can stop the core at its first instruction).
 #[inline(never)]
 fn start(cause: ResetCause) -> Result<(Loop, Uart), defmt::Str> {
