@@ -48,11 +48,22 @@ fn main() -> ! {
     // Why the board was reset decides the servos' torque (firmware::board::reset): logged before
     // anything is set up.
     let cause = reset::take_cause();
-    let torque = match cause.torque() {
-        TorqueAfterReset::Off => "the servos' torque goes off",
-        TorqueAfterReset::Hold => "servos found torqued are held where they stand",
+    // Interned texts: defmt keeps them in the ELF's table on the host, none in flash.
+    let what = match cause {
+        ResetCause::PowerOn => defmt::intern!("power-on"),
+        ResetCause::BrownOut => defmt::intern!("brown-out"),
+        ResetCause::Watchdog => defmt::intern!("the watchdog"),
+        ResetCause::Fault => defmt::intern!("a fault (then the watchdog)"),
+        ResetCause::LowPower => defmt::intern!("low-power management"),
+        ResetCause::Software => defmt::intern!("software (SYSRESETREQ)"),
+        ResetCause::Pin => defmt::intern!("the reset pin"),
+        ResetCause::Unknown => defmt::intern!("an unknown cause"),
     };
-    defmt::info!("mps2-an386: reset by {=str}: {=str}; starting", cause.as_str(), torque);
+    let torque = match cause.torque() {
+        TorqueAfterReset::Off => defmt::intern!("the servos' torque goes off"),
+        TorqueAfterReset::Hold => defmt::intern!("servos found torqued are held where they stand"),
+    };
+    defmt::info!("mps2-an386: reset by {=istr}: {=istr}; starting", what, torque);
     let (main_loop, link) = match start(cause) {
         Ok(started) => started,
         // The host sees no handshake; the watchdog, unfed, resets the board, and the next
