@@ -16,7 +16,7 @@ use armctl::link::arm_config::configure_messages;
 use armctl::link::session::{Keyframe, Session};
 use armctl::link::Transport;
 use armctl::runtime::connection::{open, Connection, Target};
-use armctl::runtime::qemu::{self, Qemu, QemuConfig};
+use armctl::runtime::qemu::{self, Gdb, Qemu, QemuConfig};
 use armctl::sim::so101_bus;
 use armctl::sim::{Faults, PtyServer, SimConfig};
 use firmware::link::message::{CartesianTarget, HostMessage, JointKeyframe, MovePath, RunState, Status, Timing};
@@ -428,15 +428,73 @@ fn settles_in(c: &mut Client, state: RunState) -> Status {
     poll_until(c, Duration::from_secs(10), |s| s.state == state)
 }
 
-/// Asserts that a line containing each of `texts` is among `lines`.
+/// Asserts that lines containing `texts` are among `lines`, in that order.
 fn logged(lines: &[String], texts: &[&str]) {
+    let mut from = 0;
     for text in texts {
-        let Some(line) = lines.iter().find(|l| l.contains(text)) else {
-            panic!("no \"{text}\" in the log: {lines:#?}")
+        let Some(at) = lines[from..].iter().position(|l| l.contains(text)) else {
+            panic!("no \"{text}\" in the log after line {from}: {lines:#?}")
         };
-        eprintln!("firmware: {line}");
+        eprintln!("firmware: {}", lines[from + at]);
+        from += at + 1;
     }
 }
+
+/// Whether QEMU can run here; if not, the test skips (fails where `CI` is set) saying so.
+fn qemu_here() -> bool {
+    if !qemu::available() {
+        armctl_test_support::skip(env!("CARGO_TARGET_TMPDIR"), "qemu-system-arm", "apt-get install qemu-system-arm");
+        return false;
+    }
+    true
+}
+
+/// The firmware `elf` started under QEMU with its gdb stub (`Qemu::start_with_debugger`), on
+/// simulated SO-101 servos: after a power-on, the servos' torque goes off.
+fn debugged(elf: std::path::PathBuf) -> (PtyServer, Qemu, QemuConfig) {
+    let bus = PtyServer::spawn(so101_bus(Faults::default())).unwrap();
+    let config = QemuConfig::new(elf, Some(bus.path().to_string()));
+    let board = Qemu::start_with_debugger(&config).unwrap();
+    board.wait_started(qemu::START_TIMEOUT).unwrap();
+    logged(&board.log().lines(), &["reset by power-on: the servos' torque goes off"]);
+    (bus, board, config)
+}
+
+/// The torque switched on over `link` and the firmware idle, servo 1 torqued as the servo itself
+/// says.
+fn torqued(link: &mut Connection, bus: &PtyServer) {
+    torque_on(&mut link.session);
+    settles_in(&mut link.session, RunState::Idle);
+    assert!(servo_torque_becomes(bus, 1, true), "torque on did not reach servo 1");
+}
+
+/// Points the core, stopped by `gdb`, at `instruction` (a Thumb instruction's two bytes, written
+/// to [`SCRATCH`]), and lets it run.
+fn run_at_scratch(mut gdb: Gdb, instruction: [u8; 2]) {
+    gdb.write_memory(SCRATCH, &instruction).unwrap();
+    gdb.set_pc(SCRATCH | 1).unwrap();
+    gdb.resume().unwrap();
+}
+
+/// `b .`: a branch to itself, the core stopped for good as far as the watchdog can tell.
+const SPIN: [u8; 2] = [0xfe, 0xe7];
+
+/// The firmware stopped some way after the log's first `seen` lines: lines containing `texts`
+/// come in that order (then the watchdog's NMI, then its reset, which takes the torque off), it
+/// starts again, and servo 1 goes limp. Returns the host link, opened again, the firmware settled
+/// with its torque off.
+fn watchdog_takes_the_torque_off(board: &Qemu, bus: &PtyServer, seen: usize, texts: &[&str]) -> Connection {
+    let lines = restarted(board, seen);
+    let texts = [texts, &[WATCHDOG_NMI, "reset by the watchdog: the servos' torque goes off"]].concat();
+    logged(&lines, &texts);
+    let mut link = reopen(board);
+    assert!(!servo_torque_becomes(bus, 1, false), "servo 1 kept its torque after the watchdog's reset");
+    settles_in(&mut link.session, RunState::TorqueOff);
+    link
+}
+
+/// The watchdog's NMI line: nothing has fed it for 100 ms.
+const WATCHDOG_NMI: &str = "watchdog: the firmware stopped; the board resets";
 
 /// Each reset the MPS2 can tell apart under QEMU, acted out from outside as on a board (QEMU's gdb
 /// stub stands in for a probe), does to the simulated servos' torque what
@@ -447,20 +505,12 @@ fn logged(lines: &[String], texts: &[&str]) {
 #[test]
 fn each_reset_does_to_the_servos_torque_what_the_board_decides() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
-    if !qemu::available() {
-        armctl_test_support::skip(env!("CARGO_TARGET_TMPDIR"), "qemu-system-arm", "apt-get install qemu-system-arm");
+    if !qemu_here() {
         return;
     }
-    let elf = qemu::build(qemu::FIRMWARE_BIN).unwrap();
-    let bus = PtyServer::spawn(so101_bus(Faults::default())).unwrap();
-    let config = QemuConfig::new(elf, Some(bus.path().to_string()));
-    let board = Qemu::start_with_debugger(&config).unwrap();
-    board.wait_started(qemu::START_TIMEOUT).unwrap();
-    logged(&board.log().lines(), &["reset by power-on: the servos' torque goes off"]);
+    let (bus, board, config) = debugged(qemu::build(qemu::FIRMWARE_BIN).unwrap());
     let mut link = reopen(&board);
-    torque_on(&mut link.session);
-    settles_in(&mut link.session, RunState::Idle);
-    assert!(servo_torque_becomes(&bus, 1, true), "torque on did not reach servo 1");
+    torqued(&mut link, &bus);
 
     // The reset button: held where it stands.
     drop(link);
@@ -478,26 +528,14 @@ fn each_reset_does_to_the_servos_torque_what_the_board_decides() {
     // The control loop stops (the core spins on `b .`): the watchdog resets the board, limp.
     drop(link);
     let seen = board.log().lines().len();
-    let mut gdb = board.debugger().unwrap();
-    gdb.write_memory(SCRATCH, &[0xfe, 0xe7]).unwrap();
-    gdb.set_pc(SCRATCH | 1).unwrap();
-    gdb.resume().unwrap();
-    let lines = restarted(&board, seen);
-    logged(&lines, &["watchdog: the control loop stopped", "reset by the watchdog: the servos' torque goes off"]);
-    let mut link = reopen(&board);
-    assert!(!servo_torque_becomes(&bus, 1, false), "servo 1 kept its torque after the watchdog's reset");
-    settles_in(&mut link.session, RunState::TorqueOff);
+    run_at_scratch(board.debugger().unwrap(), SPIN);
+    let mut link = watchdog_takes_the_torque_off(&board, &bus, seen, &[]);
 
     // A fault (an undefined instruction, `udf #254`): logged where, then the watchdog, limp.
-    torque_on(&mut link.session);
-    settles_in(&mut link.session, RunState::Idle);
-    assert!(servo_torque_becomes(&bus, 1, true));
+    torqued(&mut link, &bus);
     drop(link);
     let seen = board.log().lines().len();
-    let mut gdb = board.debugger().unwrap();
-    gdb.write_memory(SCRATCH, &[0xfe, 0xde]).unwrap();
-    gdb.set_pc(SCRATCH | 1).unwrap();
-    gdb.resume().unwrap();
+    run_at_scratch(board.debugger().unwrap(), [0xfe, 0xde]);
     let lines = restarted(&board, seen);
     logged(&lines, &["HardFault: pc 0x20300000", "reset by a fault (then the watchdog): the servos' torque goes off"]);
     let mut link = reopen(&board);
@@ -505,9 +543,7 @@ fn each_reset_does_to_the_servos_torque_what_the_board_decides() {
     settles_in(&mut link.session, RunState::TorqueOff);
 
     // Power-on: the board starts anew (a new QEMU) on servos still torqued.
-    torque_on(&mut link.session);
-    settles_in(&mut link.session, RunState::Idle);
-    assert!(servo_torque_becomes(&bus, 1, true));
+    torqued(&mut link, &bus);
     drop(link);
     drop(board);
     let board = Qemu::start(&config).unwrap();
@@ -516,6 +552,69 @@ fn each_reset_does_to_the_servos_torque_what_the_board_decides() {
     let mut link = reopen(&board);
     assert!(!servo_torque_becomes(&bus, 1, false), "servo 1 kept its torque after a power-on");
     settles_in(&mut link.session, RunState::TorqueOff);
+    drop(link);
+    drop(board);
+    bus.stop().unwrap();
+}
+
+/// A start-up that stops ends in the watchdog's reset, and the servos' torque goes off: the
+/// watchdog runs from the first line of `main`. Acted out with the servos torqued: the reset
+/// button (`system_reset`, which on its own keeps the torque), the core stopped by a breakpoint
+/// at the board's `start` and sent to a branch-to-self there.
+#[test]
+fn a_start_up_that_stops_ends_in_the_watchdogs_reset_with_the_torque_off() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    if !qemu_here() {
+        return;
+    }
+    let elf = qemu::build(qemu::FIRMWARE_BIN).unwrap();
+    let start = qemu::function_address(&elf, "board_mps2_an386::start").unwrap();
+    let (bus, board, _) = debugged(elf);
+    let mut link = reopen(&board);
+    torqued(&mut link, &bus);
+    drop(link);
+    let seen = board.log().lines().len();
+    let mut gdb = board.debugger().unwrap();
+    gdb.set_breakpoint(start).unwrap();
+    gdb.monitor("system_reset").unwrap();
+    let stop = gdb.run_to_stop(qemu::START_TIMEOUT).unwrap();
+    eprintln!("stopped at start ({start:#x}): {stop}");
+    gdb.remove_breakpoint(start).unwrap();
+    run_at_scratch(gdb, SPIN);
+    let link = watchdog_takes_the_torque_off(
+        &board,
+        &bus,
+        seen,
+        &["reset by the reset pin: servos found torqued are held where they stand"],
+    );
+    drop(link);
+    drop(board);
+    bus.stop().unwrap();
+}
+
+/// A panic ends in the watchdog's reset, and the servos' torque goes off: the board binary built
+/// with debug assertions (`qemu::PANIC_TEST_PROFILE`, whose panic handler logs and stops; the
+/// release build has no panic path) runs with the servos torqued, and the core is sent to its
+/// `injected_panic`.
+#[test]
+fn a_panic_ends_in_the_watchdogs_reset_with_the_torque_off() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    if !qemu_here() {
+        return;
+    }
+    let built = std::time::Instant::now();
+    let elf = qemu::build_with_profile(qemu::FIRMWARE_BIN, qemu::PANIC_TEST_PROFILE).unwrap();
+    eprintln!("the {} build: {:.1} s", qemu::PANIC_TEST_PROFILE, built.elapsed().as_secs_f64());
+    let injected = qemu::function_address(&elf, "injected_panic").unwrap();
+    let (bus, board, _) = debugged(elf);
+    let mut link = reopen(&board);
+    torqued(&mut link, &bus);
+    drop(link);
+    let seen = board.log().lines().len();
+    let mut gdb = board.debugger().unwrap();
+    gdb.set_pc(injected | 1).unwrap();
+    gdb.resume().unwrap();
+    let link = watchdog_takes_the_torque_off(&board, &bus, seen, &["panic at src/main.rs:"]);
     drop(link);
     drop(board);
     bus.stop().unwrap();

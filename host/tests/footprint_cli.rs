@@ -81,3 +81,32 @@ fn the_stm32_binary_has_no_panic_path_and_an_rtt_control_block() {
     assert!(stack_start <= statics, "stack from {stack_start:#x}, statics from {statics:#x}");
     assert!(stack_start > 0x2000_0000 + 8 * 1024, "room for the stack below the statics: {stack_start:#x}");
 }
+
+/// The STM32F411's first log line carries the voltage scale and the brown-out reset level as read
+/// back (issue 44's bring-up), and every way start-up can stop or write the option bytes says so:
+/// read from the ELF's defmt table (each format string is a symbol in `.defmt`; defmt keeps the
+/// strings on the host, so this is the one place they can be checked without a probe).
+#[test]
+fn the_stm32_binary_logs_the_supply_on_its_first_line() {
+    use object::{Object, ObjectSymbol};
+    let (mut out, mut err) = (Vec::new(), Vec::new());
+    let code =
+        armctl::cli::main(["armctl", "footprint", "--board", "stm32f411", "--no-qemu", "--json"], &mut out, &mut err);
+    assert_eq!(code, 0, "armctl footprint failed: {}", String::from_utf8_lossy(&err));
+    let report: Value = serde_json::from_slice(&out).unwrap();
+    let elf = std::fs::read(report["boards"][0]["elf"].as_str().unwrap()).unwrap();
+    let file = object::File::parse(&*elf).unwrap();
+    let strings: Vec<String> = file.symbols().filter_map(|s| s.name().ok().map(str::to_string)).collect();
+    for text in [
+        "stm32f411: {=istr}; voltage scale {=u8}, brown-out reset level {=u8} (0: off); starting the clocks",
+        "reset by power-on: servos' torque off",
+        "reset by the watchdog: servos' torque off",
+        "brown-out reset {=istr}",
+        "level 3 (2.7 V) written to the option bytes and read back",
+        "written only after a power-on",
+        "start-up stopped: {=istr}",
+        "voltage scale {=u8} (VOSRDY {=bool})",
+    ] {
+        assert!(strings.iter().any(|s| s.contains(text)), "no defmt string containing {text:?}");
+    }
+}

@@ -73,20 +73,6 @@ impl ResetCause {
             | ResetCause::Unknown => TorqueAfterReset::Off,
         }
     }
-
-    /// The cause in a few words, for the log.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            ResetCause::PowerOn => "power-on",
-            ResetCause::BrownOut => "brown-out",
-            ResetCause::Watchdog => "the watchdog",
-            ResetCause::Fault => "a fault (then the watchdog)",
-            ResetCause::LowPower => "low-power management",
-            ResetCause::Software => "software (SYSRESETREQ)",
-            ResetCause::Pin => "the reset pin",
-            ResetCause::Unknown => "an unknown cause",
-        }
-    }
 }
 
 /// The reset flags a board read, as booleans (a board sets those it has).

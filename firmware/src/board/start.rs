@@ -35,16 +35,6 @@ pub enum StartError {
     Arm(ConfigError),
 }
 
-impl StartError {
-    /// The error in a few words, for the log.
-    pub fn as_str(&self) -> &'static str {
-        match self {
-            Self::Twice => "started twice",
-            Self::Arm(_) => "built-in arm refused",
-        }
-    }
-}
-
 /// The static home of a board's firmware (`N` joints, `Q` keyframe slots) and its bus master `M`:
 /// a board declares one `static`, and [`Slots::start`] fills it once.
 pub struct Slots<const N: usize, const Q: usize, M> {

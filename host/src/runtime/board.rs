@@ -39,12 +39,19 @@ pub fn boards_dir() -> PathBuf {
 /// its target in `.cargo/config.toml`); returns the ELF's path. The target and `llvm-tools` are
 /// installed first where they are missing.
 pub fn build(dir: &Path, bin: &str) -> Result<PathBuf> {
+    build_with_profile(dir, bin, "release")
+}
+
+/// As [`build`], with the cargo profile `profile` of the board crate (`release`, `dev`, or one of
+/// its own such as the MPS2's `panic-test`); the ELF is in the profile's folder of the shared
+/// target folder, so builds of different profiles do not replace each other's.
+pub fn build_with_profile(dir: &Path, bin: &str, profile: &str) -> Result<PathBuf> {
     ensure_toolchain(dir)?;
     if links_with_flip_link(dir) {
         ensure_flip_link()?;
     }
     let status = cargo()
-        .args(["build", "--release", "--quiet", "--bin", bin])
+        .args(["build", "--profile", profile, "--quiet", "--bin", bin])
         .current_dir(dir)
         // One target folder for every board: the crates they share (firmware, kinematics,
         // nalgebra, cortex-m...) are built once. The host build's other settings (`cargo test`,
@@ -55,9 +62,19 @@ pub fn build(dir: &Path, bin: &str) -> Result<PathBuf> {
         .status()
         .with_context(|| format!("cannot run cargo in {}", dir.display()))?;
     if !status.success() {
-        bail!("building the {bin} binary in {} failed", dir.display());
+        bail!("building the {bin} binary ({profile} profile) in {} failed", dir.display());
     }
-    Ok(target_dir().join(TARGET).join("release").join(bin))
+    Ok(target_dir().join(TARGET).join(profile_dir(profile)).join(bin))
+}
+
+/// The folder under the target's where cargo puts a profile's binaries: `debug` for `dev` (and
+/// `test`), `release` for `bench`, a custom profile's own name otherwise.
+pub fn profile_dir(profile: &str) -> &str {
+    match profile {
+        "dev" | "test" => "debug",
+        "bench" => "release",
+        other => other,
+    }
 }
 
 /// The cargo that runs this (`CARGO` under cargo), or the one on the PATH.
@@ -281,6 +298,13 @@ mod tests {
         assert!(links_with_flip_link(&boards_dir().join("stm32f411")));
         // QEMU's board paints and measures its stack instead; flip-link would move it.
         assert!(!links_with_flip_link(&boards_dir().join("mps2-an386")));
+    }
+
+    #[test]
+    fn each_profile_builds_into_its_own_folder() {
+        assert_eq!(profile_dir("release"), "release");
+        assert_eq!(profile_dir("dev"), "debug");
+        assert_eq!(profile_dir("panic-test"), "panic-test");
     }
 
     #[test]

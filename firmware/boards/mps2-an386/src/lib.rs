@@ -11,7 +11,8 @@ pub mod reset;
 pub mod stack;
 pub mod uart;
 
-/// Stops the core for good (a broken start-up, or a panic).
+/// Stops the core (a start-up that stopped, or a panic in a build with debug assertions); the
+/// watchdog, running since `main`'s first line and no longer fed, then resets the board.
 pub fn halt() -> ! {
     loop {
         cortex_m::asm::wfi();

@@ -16,7 +16,7 @@ use board_mps2_an386::{halt, irq, loop_pass, reset, stack};
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use firmware::app::{Board, Firmware};
 use firmware::board::reset::{Note, ResetCause, TorqueAfterReset};
-use firmware::board::{MainLoop, Slots};
+use firmware::board::{MainLoop, Slots, StartError};
 use firmware::bus::master::{BusConfig, Master, NoDirectionPin};
 use firmware::bus::table::STS3215;
 use firmware::controller::Config;
@@ -40,16 +40,42 @@ static SLOTS: Slots<JOINTS, QUEUE, BusMaster> = Slots::new();
 
 #[entry]
 fn main() -> ! {
+    // The watchdog first, before anything else can stop: from here on every way the firmware can
+    // stop (start-up, a panic, a fault, the control loop) ends in its reset, after which start-up
+    // takes the servos' torque off. Started at the end of start-up instead, a start-up that
+    // stopped would leave the servos holding their last goal for good, with nothing running
+    // them. Its 100 ms cover start-up many times over (0.24 ms from here to the control loop
+    // under QEMU: nothing is sent on the bus); the loop feeds it from its first pass.
+    reset::start_watchdog();
     stack::paint();
     // Why the board was reset decides the servos' torque (firmware::board::reset): logged before
     // anything is set up.
     let cause = reset::take_cause();
-    let torque = match cause.torque() {
-        TorqueAfterReset::Off => "the servos' torque goes off",
-        TorqueAfterReset::Hold => "servos found torqued are held where they stand",
+    // Interned texts: defmt keeps them in the ELF's table on the host, none in flash.
+    let what = match cause {
+        ResetCause::PowerOn => defmt::intern!("power-on"),
+        ResetCause::BrownOut => defmt::intern!("brown-out"),
+        ResetCause::Watchdog => defmt::intern!("the watchdog"),
+        ResetCause::Fault => defmt::intern!("a fault (then the watchdog)"),
+        ResetCause::LowPower => defmt::intern!("low-power management"),
+        ResetCause::Software => defmt::intern!("software (SYSRESETREQ)"),
+        ResetCause::Pin => defmt::intern!("the reset pin"),
+        ResetCause::Unknown => defmt::intern!("an unknown cause"),
     };
-    defmt::info!("mps2-an386: reset by {=str}: {=str}; starting", cause.as_str(), torque);
-    let Some((main_loop, link)) = start(cause) else { halt() };
+    let torque = match cause.torque() {
+        TorqueAfterReset::Off => defmt::intern!("the servos' torque goes off"),
+        TorqueAfterReset::Hold => defmt::intern!("servos found torqued are held where they stand"),
+    };
+    defmt::info!("mps2-an386: reset by {=istr}: {=istr}; starting", what, torque);
+    let (main_loop, link) = match start(cause) {
+        Ok(started) => started,
+        // The host sees no handshake; the watchdog, unfed, resets the board, and the next
+        // start-up (torque off) tries again: a start-up that always stops says so every 200 ms.
+        Err(why) => {
+            defmt::error!("start-up stopped: {=istr}", why);
+            halt()
+        }
+    };
     defmt::info!(
         "static state: firmware {=usize} bytes, bus master {=usize} bytes; start-up stack {=usize} bytes",
         core::mem::size_of::<App>(),
@@ -61,12 +87,13 @@ fn main() -> ! {
     run(main_loop, link)
 }
 
-/// Brings up the hardware and the firmware core, the servos' torque as `cause` wants it, and the
-/// watchdog last; `None` if the built-in arm is refused or this ran before (the statics are written
-/// once).
+/// Brings up the hardware and the firmware core, the servos' torque as `cause` wants it; why not,
+/// in a few words, if the built-in arm is refused or this ran before (the statics are written
+/// once): interned, so that the words are in the ELF's defmt table and not in flash. Never inlined, so that its frame is gone before the control loop starts (and so that
+/// the HIL tests can stop the core at its first instruction).
 #[inline(never)]
-fn start(cause: ResetCause) -> Option<(Loop, Uart)> {
-    let core = cortex_m::Peripherals::take()?;
+fn start(cause: ResetCause) -> Result<(Loop, Uart), defmt::Str> {
+    let Some(core) = cortex_m::Peripherals::take() else { return Err(defmt::intern!("peripherals taken")) };
     clock::start(core.SYST);
     let mut link = Uart::new(uart::UART0, clock::SYSCLK_HZ, BAUD);
     irq::enable_link_receive(&mut link);
@@ -78,7 +105,10 @@ fn start(cause: ResetCause) -> Option<(Loop, Uart)> {
         .start(board, &firmware::builtin::SO101, cause, &irq::LINK_RX, || {
             BusMaster::new(port, NoDirectionPin, SysTickClock, bus)
         })
-        .ok()?;
+        .map_err(|e| match e {
+            StartError::Twice => defmt::intern!("started twice"),
+            StartError::Arm(_) => defmt::intern!("built-in arm refused"),
+        })?;
     defmt::info!(
         "mps2-an386: so101 built in, up to {=usize} joints, {=usize} queue slots, {=u32} us period, link and bus at {=u32} baud",
         JOINTS,
@@ -86,8 +116,7 @@ fn start(cause: ResetCause) -> Option<(Loop, Uart)> {
         main_loop.firmware().period_us(),
         BAUD
     );
-    reset::start_watchdog();
-    Some((main_loop, link))
+    Ok((main_loop, link))
 }
 
 /// The control loop ([`MainLoop`]): host bytes as the receive interrupt kept them, a tick on the
@@ -135,22 +164,24 @@ fn run(main_loop: Loop, link: Uart) -> ! {
     })
 }
 
-/// The watchdog's warning: the control loop has not fed it for `reset::WATCHDOG_MS`. Noted and
-/// logged; the watchdog's reset follows as long again later, and nothing runs until then (the
-/// servos hold their last goal). Start-up then takes their torque off.
+/// The watchdog's warning: nothing has fed it for `reset::WATCHDOG_MS` (the control loop stopped,
+/// or start-up did: it runs from `main`'s first line). Noted and logged; the watchdog's reset
+/// follows as long again later, and nothing runs until then (the servos hold their last goal).
+/// Start-up then takes their torque off.
 #[exception]
 unsafe fn NonMaskableInt() {
     reset::note_that(Note::Watchdog);
-    defmt::error!("watchdog: the control loop stopped; the board resets");
+    defmt::error!("watchdog: the firmware stopped; the board resets");
     loop {
         cortex_m::asm::nop();
     }
 }
 
-/// A fault: noted and logged (where), then the watchdog resets the board (started here if
-/// start-up had not started it). The servo bus is left alone: the fault may have come from the
-/// bus code or left its state half-written, so no packet sent from here could be trusted. The
-/// servos hold their last goal until the reset, after which start-up takes their torque off.
+/// A fault: noted and logged (where), then the watchdog resets the board (started here in case
+/// the fault came before `main` started it). The servo bus is left alone: the fault may have come
+/// from the bus code or left its state half-written, so no packet sent from here could be
+/// trusted. The servos hold their last goal until the reset, after which start-up takes their
+/// torque off.
 #[exception]
 unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
     reset::note_that(Note::Fault);
@@ -172,7 +203,6 @@ unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
 /// written so that the compiler can prove it in bounds. This handler keeps it that way: it calls a
 /// function that exists nowhere, so a change that makes any panic reachable again fails to link
 /// ("undefined symbol: firmware_reaches_a_panic"). `armctl footprint` then lists the call sites.
-/// Debug builds keep their checks and halt.
 #[cfg(not(debug_assertions))]
 #[panic_handler]
 fn panic(_: &core::panic::PanicInfo) -> ! {
@@ -183,8 +213,28 @@ fn panic(_: &core::panic::PanicInfo) -> ! {
     unsafe { firmware_reaches_a_panic() }
 }
 
+/// Builds with debug assertions (a debug build, or the `panic-test` profile the HIL tests inject a
+/// panic into) keep their checks: a panic logs where, and the core stops; the watchdog, unfed,
+/// then resets the board (its NMI notes "watchdog"), and start-up takes the servos' torque off,
+/// as after any stop.
 #[cfg(debug_assertions)]
 #[panic_handler]
-fn panic(_: &core::panic::PanicInfo) -> ! {
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    let (file, line) = info.location().map_or(("?", 0), |l| (l.file(), l.line()));
+    defmt::error!("panic at {=str}:{=u32}; the watchdog resets the board", file, line);
     halt()
 }
+
+/// A panic for the HIL tests to inject (`tests/hil_qemu.rs` points the core here through QEMU's
+/// gdb stub), in builds with debug assertions only: the release firmware has no panic path.
+#[cfg(debug_assertions)]
+#[no_mangle]
+#[inline(never)]
+extern "C" fn injected_panic() -> ! {
+    panic!("injected by a test")
+}
+
+/// Keeps [`injected_panic`] in the ELF: nothing calls it.
+#[cfg(debug_assertions)]
+#[used]
+static INJECTED_PANIC: extern "C" fn() -> ! = injected_panic;

@@ -1,7 +1,7 @@
 //! A debugger on QEMU's gdb stub (the GDB remote serial protocol over a unix socket): what the
 //! HIL tests need to do to the running firmware from outside, as a probe would on a board —
-//! write memory, move the program counter, run a monitor command (`system_reset`), resume.
-//! Connecting stops the emulated machine; [`Gdb::resume`] lets it run again.
+//! write memory, move the program counter, run a monitor command (`system_reset`), stop at a
+//! breakpoint, resume. Connecting stops the emulated machine; [`Gdb::resume`] lets it run again.
 
 use std::io::{Read, Write};
 use std::os::unix::net::UnixStream;
@@ -75,6 +75,38 @@ impl Gdb {
                 _ => bail!("monitor {command}: {reply}"),
             }
         }
+    }
+
+    /// Sets a hardware breakpoint at `address` (a Thumb instruction's, without the Thumb bit): the
+    /// machine stops when it is about to run it ([`Gdb::run_to_stop`]). QEMU keeps it through a
+    /// `system_reset`.
+    pub fn set_breakpoint(&mut self, address: u32) -> Result<()> {
+        // The kind is the instruction's size: 2 for Thumb (QEMU does not look at it).
+        self.expect_ok(&format!("Z1,{address:x},2"))
+    }
+
+    /// Removes the breakpoint [`Gdb::set_breakpoint`] set at `address`.
+    pub fn remove_breakpoint(&mut self, address: u32) -> Result<()> {
+        self.expect_ok(&format!("z1,{address:x},2"))
+    }
+
+    /// Lets the machine run until it stops again (a breakpoint), waiting up to `timeout`; returns
+    /// the stop reply (`T05...`: stopped by a trap). The session stays open.
+    pub fn run_to_stop(&mut self, timeout: Duration) -> Result<String> {
+        self.send("c")?;
+        self.stream.set_read_timeout(Some(timeout))?;
+        let stop = loop {
+            match self.receive() {
+                Ok(packet) if packet.starts_with('T') || packet.starts_with('S') => break Ok(packet),
+                Ok(packet) if packet.starts_with('W') || packet.starts_with('X') => {
+                    break Err(anyhow::anyhow!("gdb stub: the machine ended ({packet}) instead of stopping"))
+                }
+                Ok(_) => {}
+                Err(e) => break Err(e.context(format!("the machine did not stop within {timeout:?}"))),
+            }
+        };
+        self.stream.set_read_timeout(Some(REPLY))?;
+        stop
     }
 
     /// Lets the machine run again and ends the session (the stub's reply comes only at the next

@@ -9,7 +9,7 @@ pub mod gdb;
 pub mod log;
 
 use std::io::{BufRead, BufReader, Read};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
@@ -49,6 +49,27 @@ pub fn available() -> bool {
 /// Builds the MPS2 board crate's binary `bin` (release) and returns the ELF's path.
 pub fn build(bin: &str) -> Result<PathBuf> {
     super::board::build(&board_dir(), bin)
+}
+
+/// The board crate's profile with debug assertions: the release build, but its panic handler logs
+/// where and lets the watchdog reset the board, and it has `injected_panic` for a test to jump to
+/// (the release build has no panic path at all).
+pub const PANIC_TEST_PROFILE: &str = "panic-test";
+
+/// As [`build`], with the board crate's cargo profile `profile` (e.g. [`PANIC_TEST_PROFILE`]); the
+/// ELF is in the profile's own folder, so the release ELF stays as it was.
+pub fn build_with_profile(bin: &str, profile: &str) -> Result<PathBuf> {
+    super::board::build_with_profile(&board_dir(), bin, profile)
+}
+
+/// Where the function `path` is in the firmware ELF at `elf`, for a breakpoint or a jump
+/// (without the Thumb bit): a `#[no_mangle]` function's name, or a Rust path without the hash
+/// (`board_mps2_an386::start`; see [`crate::commands::footprint::elf::function_address`]).
+pub fn function_address(elf: &Path, path: &str) -> Result<u32> {
+    let bytes = std::fs::read(elf).with_context(|| format!("cannot read {}", elf.display()))?;
+    let address = crate::commands::footprint::elf::function_address(&bytes, path)
+        .with_context(|| format!("in {}", elf.display()))?;
+    u32::try_from(address).with_context(|| format!("{path} at {address:#x}, beyond 32 bits"))
 }
 
 /// What to start.
