@@ -1,6 +1,7 @@
 //! The MPS2 AN386 board support shared by the firmware binary (`main.rs`) and the instruction-count
 //! benchmark (`bin/opcount.rs`): the UARTs, the SysTick time base, defmt logging over semihosting,
-//! stack painting, the main loop's longest pass, and the reset note with the watchdog. `unsafe` lives only in this crate, each block with a SAFETY line.
+//! stack painting, the main loop's longest pass, and the reset note with the watchdog. `unsafe`
+//! lives only in this crate, each block with a SAFETY line.
 #![no_std]
 
 pub mod clock;

@@ -89,8 +89,9 @@ fn main() -> ! {
 
 /// Brings up the hardware and the firmware core, the servos' torque as `cause` wants it; why not,
 /// in a few words, if the built-in arm is refused or this ran before (the statics are written
-/// once): interned, so that the words are in the ELF's defmt table and not in flash. Never inlined, so that its frame is gone before the control loop starts (and so that
-/// the HIL tests can stop the core at its first instruction).
+/// once): interned, so that the words are in the ELF's defmt table and not in flash. Never
+/// inlined, so that its frame is gone before the control loop starts (and so that the HIL tests
+/// can stop the core at its first instruction).
 #[inline(never)]
 fn start(cause: ResetCause) -> Result<(Loop, Uart), defmt::Str> {
     let Some(core) = cortex_m::Peripherals::take() else { return Err(defmt::intern!("peripherals taken")) };
