@@ -37,8 +37,7 @@ struct Rig {
 /// The firmware under QEMU with its servo bus on `servos`, its link opened as `armctl --port PTY
 /// [--arm ARM]` opens a board's; `None` (after saying so) where qemu-system-arm is missing.
 fn rig_on(servos: SimConfig, arm: Option<&str>) -> Option<Rig> {
-    if !qemu::available() {
-        armctl_test_support::skip(env!("CARGO_TARGET_TMPDIR"), "qemu-system-arm", "apt-get install qemu-system-arm");
+    if !qemu_here() {
         return None;
     }
     let elf = qemu::build(qemu::FIRMWARE_BIN).unwrap();
@@ -442,11 +441,7 @@ fn logged(lines: &[String], texts: &[&str]) {
 
 /// Whether QEMU can run here; if not, the test skips (fails where `CI` is set) saying so.
 fn qemu_here() -> bool {
-    if !qemu::available() {
-        armctl_test_support::skip(env!("CARGO_TARGET_TMPDIR"), "qemu-system-arm", "apt-get install qemu-system-arm");
-        return false;
-    }
-    true
+    armctl_test_support::needs_qemu(env!("CARGO_TARGET_TMPDIR"), qemu::available())
 }
 
 /// The firmware `elf` started under QEMU with its gdb stub (`Qemu::start_with_debugger`), on
@@ -569,27 +564,15 @@ fn a_start_up_that_stops_ends_in_the_watchdogs_reset_with_the_torque_off() {
     }
     let elf = qemu::build(qemu::FIRMWARE_BIN).unwrap();
     let start = qemu::function_address(&elf, "board_mps2_an386::start").unwrap();
-    let (bus, board, _) = debugged(elf);
-    let mut link = reopen(&board);
-    torqued(&mut link, &bus);
-    drop(link);
-    let seen = board.log().lines().len();
-    let mut gdb = board.debugger().unwrap();
-    gdb.set_breakpoint(start).unwrap();
-    gdb.monitor("system_reset").unwrap();
-    let stop = gdb.run_to_stop(qemu::START_TIMEOUT).unwrap();
-    eprintln!("stopped at start ({start:#x}): {stop}");
-    gdb.remove_breakpoint(start).unwrap();
-    run_at_scratch(gdb, SPIN);
-    let link = watchdog_takes_the_torque_off(
-        &board,
-        &bus,
-        seen,
-        &["reset by the reset pin: servos found torqued are held where they stand"],
-    );
-    drop(link);
-    drop(board);
-    bus.stop().unwrap();
+    let held = "reset by the reset pin: servos found torqued are held where they stand";
+    stopped_while_torqued(elf, &[held], |mut gdb| {
+        gdb.set_breakpoint(start).unwrap();
+        gdb.monitor("system_reset").unwrap();
+        let stop = gdb.run_to_stop(qemu::START_TIMEOUT).unwrap();
+        eprintln!("stopped at start ({start:#x}): {stop}");
+        gdb.remove_breakpoint(start).unwrap();
+        run_at_scratch(gdb, SPIN);
+    });
 }
 
 /// A panic ends in the watchdog's reset, and the servos' torque goes off: the board binary built
@@ -606,16 +589,23 @@ fn a_panic_ends_in_the_watchdogs_reset_with_the_torque_off() {
     let elf = qemu::build_with_profile(qemu::FIRMWARE_BIN, qemu::PANIC_TEST_PROFILE).unwrap();
     eprintln!("the {} build: {:.1} s", qemu::PANIC_TEST_PROFILE, built.elapsed().as_secs_f64());
     let injected = qemu::function_address(&elf, "injected_panic").unwrap();
+    stopped_while_torqued(elf, &["panic at src/main.rs:"], |mut gdb| {
+        gdb.set_pc(injected | 1).unwrap();
+        gdb.resume().unwrap();
+    });
+}
+
+/// The firmware `elf` under QEMU, its servos torqued, then stopped by `stop` (given the debugger,
+/// the machine halted): lines containing `texts` follow in that order, then the watchdog's reset,
+/// and the servos go limp.
+fn stopped_while_torqued(elf: std::path::PathBuf, texts: &[&str], stop: impl FnOnce(Gdb)) {
     let (bus, board, _) = debugged(elf);
     let mut link = reopen(&board);
     torqued(&mut link, &bus);
     drop(link);
     let seen = board.log().lines().len();
-    let mut gdb = board.debugger().unwrap();
-    gdb.set_pc(injected | 1).unwrap();
-    gdb.resume().unwrap();
-    let link = watchdog_takes_the_torque_off(&board, &bus, seen, &["panic at src/main.rs:"]);
-    drop(link);
+    stop(board.debugger().unwrap());
+    drop(watchdog_takes_the_torque_off(&board, &bus, seen, texts));
     drop(board);
     bus.stop().unwrap();
 }

@@ -9,11 +9,7 @@
 use serde_json::Value;
 
 fn qemu_available() -> bool {
-    let found = armctl::runtime::qemu::available();
-    if !found {
-        armctl_test_support::skip(env!("CARGO_TARGET_TMPDIR"), "qemu-system-arm", "apt-get install qemu-system-arm");
-    }
-    found
+    armctl_test_support::needs_qemu(env!("CARGO_TARGET_TMPDIR"), armctl::runtime::qemu::available())
 }
 
 #[test]

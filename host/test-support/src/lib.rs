@@ -45,6 +45,16 @@ pub fn skip(tmp: &str, missing: &str, install: &str) {
     }
 }
 
+/// Whether a test that runs the firmware under QEMU can run: `available` is what
+/// `armctl::runtime::qemu::available` found. Skips it (fails under `CI`) with the install command
+/// when not.
+pub fn needs_qemu(tmp: &str, available: bool) -> bool {
+    if !available {
+        skip(tmp, "qemu-system-arm", "apt-get install qemu-system-arm");
+    }
+    available
+}
+
 /// The tests skipped so far in this `cargo test` run (the caller's parent process), removed from
 /// `tmp` as they are read. Records of runs over a day old are removed too: a test binary run
 /// outside cargo leaves records no summary reads.

@@ -5,10 +5,11 @@
 //! The worst pass: every servo on the bus silent (the tick waits out every reply timeout, with its
 //! retries) while the host floods the link with `GetStatus` requests without waiting for their
 //! replies (a pass takes up to `DRAIN_PER_PASS` bytes of 7-byte requests from the ring and answers
-//! each with a full status), and a torque off now and then ([`flood_frame`]) keeps the ticks
-//! reading the torque back, the longest tick there is. The real MPS2 firmware runs on simulated SO-101 servos that are all
-//! silent (every id, the gripper's too), and logs each pass that is the longest so far, with the
-//! bytes it sent the host and the servos (`board_mps2_an386::loop_pass`).
+//! each with a full status), and a torque off now and then ([`crate::link::flood::flood_frame`])
+//! keeps the ticks reading the torque back, the longest tick there is. The real MPS2 firmware runs
+//! on simulated SO-101 servos that are all silent (every id, the gripper's too), and logs each pass
+//! that is the longest so far, with the bytes it sent the host and the servos
+//! (`board_mps2_an386::loop_pass`).
 //!
 //! Instructions and waits are told apart by running the same flood at two `-icount` shifts: at
 //! shift S every guest instruction advances virtual time by 2^S ns, while the bus master's reply
@@ -24,9 +25,9 @@ use std::io::Write;
 use anyhow::{anyhow, Result};
 use firmware::board::main_loop::DRAIN_PER_PASS;
 use firmware::board::watchdog::{self, WORST_PASS_US};
-use firmware::link::frame::{encode_message, FrameKind, MAX_FRAME};
-use firmware::link::message::HostMessage;
 use serde_json::{json, Value};
+
+use crate::link::flood::TORQUE_OFF_EVERY;
 
 /// The shifts the flood runs at: 0 (as every other QEMU run) and 3 (8 ns an instruction).
 pub const SHIFTS: (u8, u8) = (0, 3);
@@ -166,25 +167,6 @@ impl LoopPassReport {
     }
 }
 
-/// One in this many of the flood's requests is a torque off (see [`flood_frame`]).
-pub const TORQUE_OFF_EVERY: usize = 512;
-
-/// The flood's `i`-th request frame, as the host's link client encodes it (sequence number `i`
-/// modulo 256, so that no request repeats the one before): a `GetStatus`, or one in
-/// [`TORQUE_OFF_EVERY`] (about every seventh pass) a torque off. A torque off makes the firmware
-/// write the torque on its next tick and then read it back from every servo on up to ten ticks
-/// (its `CONFIRM_TRIES`), which with every servo silent waits out a second sync read: the longest
-/// tick there is, the kind every reset starts with. Without them the flood would meet only the
-/// shorter ticks that follow (QEMU takes up to a second to notice that the link's pty was opened,
-/// and the firmware's first ten ticks are over by then).
-pub fn flood_frame(i: usize) -> Vec<u8> {
-    let message =
-        if i.is_multiple_of(TORQUE_OFF_EVERY) { HostMessage::Torque { on: false } } else { HostMessage::GetStatus };
-    let mut frame = [0u8; MAX_FRAME];
-    let n = encode_message(i as u8, FrameKind::Request, &message, &mut frame).unwrap_or(0);
-    frame[..n].to_vec()
-}
-
 /// Reads the firmware's `longest loop pass: N us, M bytes sent, B on the bus` line (as the defmt
 /// log decodes it): `(N, M, B)`.
 pub fn parse_pass_line(line: &str) -> Option<(u32, u32, u32)> {
@@ -209,7 +191,7 @@ pub fn measure(seconds: f64) -> Result<LoopPassReport> {
     let flood = std::time::Duration::from_secs_f64(seconds);
     let lo = flood::run(&elf, SHIFTS.0, flood.mul_f64(LO_SECONDS_FACTOR))?;
     let hi = flood::run(&elf, SHIFTS.1, flood)?;
-    Ok(LoopPassReport::new(lo, hi, flood_frame(1).len()))
+    Ok(LoopPassReport::new(lo, hi, crate::link::flood::flood_frame(1).len()))
 }
 
 #[cfg(feature = "board-tools")]
@@ -226,7 +208,8 @@ mod flood {
     use firmware::link::frame::{decode_payload, FrameDecoder, MAX_ENCODED};
     use firmware::link::message::FirmwareMessage;
 
-    use super::{flood_frame, parse_pass_line, Run, PASS_LINE, TORQUE_OFF_EVERY};
+    use super::{parse_pass_line, Run, PASS_LINE, TORQUE_OFF_EVERY};
+    use crate::link::flood::flood_frame;
     use crate::runtime::qemu::{self, Qemu, QemuConfig};
     use crate::sim::{so101_bus, Faults, PtyServer};
 
@@ -528,10 +511,7 @@ mod tests {
     }
 
     #[test]
-    fn the_request_is_seven_bytes_and_the_log_line_parses() {
-        assert_eq!(flood_frame(1).len(), 7);
-        assert_eq!(flood_frame(300).len(), 7);
-        assert_eq!(flood_frame(0).len(), 8);
+    fn the_log_line_parses() {
         assert_eq!(
             parse_pass_line("INFO  longest loop pass: 31234 us, 8468 bytes sent, 111 on the bus"),
             Some((31_234, 8_468, 111))

@@ -19,6 +19,7 @@ use anyhow::{bail, Context, Result};
 use serde::Serialize;
 
 use crate::runtime::board;
+use crate::support::rust_symbols::pretty;
 
 /// The two LLVM tools used.
 #[derive(Clone, Debug)]
@@ -380,57 +381,6 @@ fn branch_target(operands: &str) -> Option<&str> {
     (!target.starts_with('$')).then_some(target)
 }
 
-/// A readable Rust path from llvm-objdump's rendering of a legacy-mangled symbol: the `::h<hash>`
-/// suffix dropped and the `$LT$`-style escapes decoded
-/// (`Motion$LT$T$C$_$GT$::sample::h58..` becomes `Motion<T,_>::sample`).
-pub fn pretty(symbol: &str) -> String {
-    let symbol = match symbol.rsplit_once("::h") {
-        Some((path, hash)) if hash.len() == 16 && hash.bytes().all(|b| b.is_ascii_hexdigit()) => path,
-        _ => symbol,
-    };
-    if !symbol.contains('$') && !symbol.contains("..") {
-        return symbol.to_string();
-    }
-    const ESCAPES: [(&str, &str); 9] = [
-        ("$LT$", "<"),
-        ("$GT$", ">"),
-        ("$C$", ","),
-        ("$RF$", "&"),
-        ("$BP$", "*"),
-        ("$SP$", "@"),
-        ("$LP$", "("),
-        ("$RP$", ")"),
-        ("..", "::"),
-    ];
-    let mut text = symbol.to_string();
-    for (from, to) in ESCAPES {
-        text = text.replace(from, to);
-    }
-    // `$u20$`-style: a character by its hex code.
-    let mut out = String::with_capacity(text.len());
-    let mut rest = text.as_str();
-    while let Some(i) = rest.find("$u") {
-        out.push_str(&rest[..i]);
-        let after = &rest[i + 2..];
-        match after
-            .split_once('$')
-            .and_then(|(hex, tail)| Some((char::from_u32(u32::from_str_radix(hex, 16).ok()?)?, tail)))
-        {
-            Some((c, tail)) => {
-                out.push(c);
-                rest = tail;
-            }
-            None => {
-                out.push_str("$u");
-                rest = after;
-            }
-        }
-    }
-    out.push_str(rest);
-    // A leading `_` escapes a path segment that starts with `<` (`_<impl [T]>`).
-    out.replace("::_<", "::<")
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -541,19 +491,6 @@ mod tests {
         for name in ["firmware::app::Firmware<_,_>::tick", "core::fmt::write", "defmt_rtt::panic_count"] {
             assert!(!is_panic_entry(name), "{name}");
         }
-    }
-
-    #[test]
-    fn legacy_symbols_read_as_rust_paths() {
-        assert_eq!(
-            pretty("kinematics::trajectory::player::Motion$LT$T$C$_$GT$::sample::h5898737983f83987"),
-            "kinematics::trajectory::player::Motion<T,_>::sample"
-        );
-        assert_eq!(
-            pretty("core::slice::_$LT$impl$u20$$u5b$T$u5d$$GT$::copy_from_slice::len_mismatch_fail::h0123456789abcdef"),
-            "core::slice::<impl [T]>::copy_from_slice::len_mismatch_fail"
-        );
-        assert_eq!(pretty("main"), "main");
     }
 
     #[test]

@@ -15,6 +15,9 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
+use object::{Object, ObjectSymbol};
+
+use crate::support::rust_symbols::legacy_path;
 
 pub use gdb::Gdb;
 pub use log::DefmtLog;
@@ -64,12 +67,28 @@ pub fn build_with_profile(bin: &str, profile: &str) -> Result<PathBuf> {
 
 /// Where the function `path` is in the firmware ELF at `elf`, for a breakpoint or a jump
 /// (without the Thumb bit): a `#[no_mangle]` function's name, or a Rust path without the hash
-/// (`board_mps2_an386::start`; see [`crate::commands::footprint::elf::function_address`]).
+/// (`board_mps2_an386::start`, [`legacy_path`]). Fails if no function or more than one has it.
 pub fn function_address(elf: &Path, path: &str) -> Result<u32> {
     let bytes = std::fs::read(elf).with_context(|| format!("cannot read {}", elf.display()))?;
-    let address = crate::commands::footprint::elf::function_address(&bytes, path)
-        .with_context(|| format!("in {}", elf.display()))?;
+    let address = address_in(&bytes, path).with_context(|| format!("in {}", elf.display()))?;
     u32::try_from(address).with_context(|| format!("{path} at {address:#x}, beyond 32 bits"))
+}
+
+/// The address of the function `path` in the ELF in `bytes`, its Thumb bit cleared: `path` is a
+/// symbol's own name (`injected_panic`, a `#[no_mangle]` function) or the Rust path of a mangled
+/// one without its hash (`board_mps2_an386::start`). Fails if no function or more than one has it.
+fn address_in(bytes: &[u8], path: &str) -> Result<u64> {
+    let file = object::File::parse(bytes).map_err(|e| anyhow::anyhow!("not an ELF file: {e}"))?;
+    let mut found = file
+        .symbols()
+        .filter(|s| s.kind() == object::SymbolKind::Text)
+        .filter(|s| s.name().is_ok_and(|name| name == path || legacy_path(name).as_deref() == Some(path)))
+        .map(|s| s.address() & !1);
+    match (found.next(), found.next()) {
+        (Some(address), None) => Ok(address),
+        (None, _) => Err(anyhow::anyhow!("no function {path} in the ELF")),
+        (Some(_), Some(_)) => Err(anyhow::anyhow!("more than one function {path} in the ELF")),
+    }
 }
 
 /// What to start.
