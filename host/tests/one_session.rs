@@ -1,8 +1,9 @@
 //! The link's session is the one place in the product that builds a request to the firmware:
 //! `HostMessage::` appears in host/src only under link/ (the client's handshake and polls, the
 //! arm's configuration, the session, and `link::flood`: the requests of a host that floods the
-//! link, which `bench loop-pass` writes without waiting). A drive command, the demo, a rig, teleoperation or the
-//! view that built its own message would bypass the session's waits and checks.
+//! link, which `bench loop-pass` writes without waiting). A drive command, the demo, a rig,
+//! teleoperation or the view that built its own message would bypass the session's waits and
+//! checks.
 
 use std::path::{Path, PathBuf};
 
