@@ -46,23 +46,11 @@ fn rig_on(servos: SimConfig, arm: Option<&str>) -> Option<Rig> {
     board.wait_started(qemu::START_TIMEOUT).unwrap();
     let path = board.link_path().to_string();
     // The pty QEMU opened for UART0 (the one `armctl sim --qemu` prints) and the servos' pty.
-    assert_private(&path);
-    assert_private(bus.path());
+    armctl_test_support::assert_private(&path);
+    armctl_test_support::assert_private(bus.path());
     let link = open(Target::Port { path, baud: 1_000_000 }, arm, &mut std::io::sink()).unwrap();
     assert_eq!(link.info.queue_capacity, 32);
     Some(Rig { link, bus, board })
-}
-
-/// Asserts that the pty at `path` is its owner's alone, as `armctl::support::pty_owner` leaves every pty
-/// armctl opens or has QEMU open: mode 0600, owned by this user (the owner of /proc/self,
-/// proc(5)). Where devpts gives new ptys 0620 (a desktop's mount), only armctl's chmod makes this
-/// hold.
-fn assert_private(path: &str) {
-    use std::os::unix::fs::MetadataExt;
-    let pty = std::fs::metadata(path).unwrap_or_else(|e| panic!("{path}: {e}"));
-    let me = std::fs::metadata("/proc/self").unwrap().uid();
-    let (mode, owner) = (pty.mode() & 0o7777, pty.uid());
-    assert!(mode == 0o600 && owner == me, "{path}: mode {mode:04o}, owner {owner}; expected 0600 and {me}");
 }
 
 /// The built-in SO-101, found without `--arm`.

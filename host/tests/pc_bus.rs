@@ -4,8 +4,6 @@
 //! goal the servos receive. Timing is reported, never asserted (the machine is shared); what is
 //! asserted is what the servos got and what the commands said.
 
-use std::io::{BufRead, BufReader, Read};
-
 mod support;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -236,45 +234,6 @@ fn bad_ports_and_the_wrong_protocol_are_one_line_and_move_nothing() {
     assert!(numbers(&status["measured"]).iter().all(|x| x.abs() < 1e-3), "nothing moved: {status}");
 }
 
-/// Runs `armctl serve` with `args`; returns the child and the pty path it printed first.
-fn serve(args: &[&str]) -> (Child, String, std::thread::JoinHandle<String>) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_armctl"))
-        .arg("serve")
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("armctl serve starts");
-    let mut stderr = child.stderr.take().unwrap();
-    let errors = std::thread::spawn(move || {
-        let mut text = String::new();
-        let _ = stderr.read_to_string(&mut text);
-        text
-    });
-    let mut first = String::new();
-    BufReader::new(child.stdout.take().unwrap()).read_line(&mut first).unwrap();
-    assert!(first.starts_with("/dev/"), "first stdout line should be the pty path, got {first:?}");
-    let path = first.trim().to_string();
-    if let Err(e) = std::panic::catch_unwind(|| assert_private(&path)) {
-        let _ = child.kill();
-        let _ = child.wait();
-        std::panic::resume_unwind(e);
-    }
-    (child, path, errors)
-}
-
-/// Asserts that the pty at `path` is its owner's alone, as `armctl::support::pty_owner` leaves every pty
-/// armctl opens: mode 0600, owned by this user (the owner of /proc/self, proc(5)). Where devpts
-/// gives new ptys 0620 (a desktop's mount), only armctl's own chmod makes this hold.
-fn assert_private(path: &str) {
-    use std::os::unix::fs::MetadataExt;
-    let pty = std::fs::metadata(path).unwrap_or_else(|e| panic!("{path}: {e}"));
-    let me = std::fs::metadata("/proc/self").unwrap().uid();
-    let (mode, owner) = (pty.mode() & 0o7777, pty.uid());
-    assert!(mode == 0o600 && owner == me, "{path}: mode {mode:04o}, owner {owner}; expected 0600 and {me}");
-}
-
 /// `armctl --port PTY ARGS`.
 fn on_port(pty: &str, args: &[&str]) -> Run {
     let mut all = vec!["--port", pty];
@@ -318,7 +277,7 @@ fn end_serve(child: &mut Child, errors: std::thread::JoinHandle<String>) -> Stri
 #[test]
 fn one_served_arm_keeps_its_state_across_five_commands() {
     let _one = one_at_a_time();
-    let (mut child, pty, errors) = serve(&["--sim", "--arm", "so101"]);
+    let (mut child, pty, errors) = support::serve(&["--sim", "--arm", "so101"]);
     let port = |args: &[&str]| on_port(&pty, args);
     let q = ARMS[0].2;
     let on = port(&["torque", "on", "--json"]).json("1 torque on");
@@ -356,7 +315,7 @@ fn one_served_arm_keeps_its_state_across_five_commands() {
 #[test]
 fn a_target_the_firmware_misses_is_reached_by_the_hosts_solution() {
     let _one = one_at_a_time();
-    let (mut child, pty, errors) = serve(&["--sim", "--arm", "so101"]);
+    let (mut child, pty, errors) = support::serve(&["--sim", "--arm", "so101"]);
     let port = |args: &[&str]| on_port(&pty, args);
     let start = [1.26971, 0.326671, 1.382003, 1.155796, -1.784273];
     let goal = tool_at("so101", &[0.176832, -1.243207, -1.401943, -1.273808, 1.889245]);
@@ -371,7 +330,7 @@ fn a_target_the_firmware_misses_is_reached_by_the_hosts_solution() {
 #[test]
 fn a_move_whose_line_is_blocked_arrives_by_joints_and_says_so() {
     let _one = one_at_a_time();
-    let (mut child, pty, errors) = serve(&["--sim", "--arm", "so101"]);
+    let (mut child, pty, errors) = support::serve(&["--sim", "--arm", "so101"]);
     let port = |args: &[&str]| on_port(&pty, args);
     let (start, end) = ([0.619, 0.712, 0.457, 1.201, -1.828], [-0.576, 1.521, 1.086, -0.089, 1.206]);
     port(&["joints", "--q", &join(&start), "--json"]).json("joints");
@@ -413,7 +372,7 @@ fn a_move_whose_line_is_blocked_arrives_by_joints_and_says_so() {
 fn signals_stop_the_served_arm_then_switch_its_torque_off() {
     let _one = one_at_a_time();
     for second in [false, true] {
-        let (mut child, pty, errors) = serve(&["--sim"]);
+        let (mut child, pty, errors) = support::serve(&["--sim"]);
         let port = |args: &[&str]| on_port(&pty, args);
         port(&["torque", "on"]).ok("torque on");
         // A move at full speed (2 rad/s; braking from it takes 0.25 s at 8 rad/s²) that the signal
@@ -586,7 +545,7 @@ fn serve_sim_takes_an_arm_file() {
     let fk = armctl::arm::dof::build(ArmSpec::load(&arm, None).unwrap()).unwrap();
     let p = fk.tool_pose(&[-0.4, 0.3, 0.6, 0.0, 0.5, 0.0]).unwrap().translation;
     let target = [p.x, p.y, p.z];
-    let (mut child, pty, errors) = serve(&["--sim", "--arm", &arm]);
+    let (mut child, pty, errors) = support::serve(&["--sim", "--arm", &arm]);
     let moved = armctl(&["--port", &pty, "--arm", &arm, "move", "--to", &join(&target), "--json"]).json("move");
     assert!(largest_difference(&numbers(&moved["reached"]), &target) < 1e-3, "{moved}");
     end_serve(&mut child, errors);

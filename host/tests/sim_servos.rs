@@ -559,22 +559,11 @@ fn the_pty_server_answers_a_ping() {
         limits: None,
     })
     .unwrap();
-    assert_private(server.path());
+    armctl_test_support::assert_private(server.path());
     let expected = ping_reply(Protocol::Dxl2, 1, &[0x24, 0x04, 46]);
     let ping = [0xFF, 0xFF, 0xFD, 0x00, 0x01, 0x03, 0x00, 0x01, 0x19, 0x4E];
     assert_eq!(exchange(server.path(), &ping, expected.len()), expected);
     server.stop().unwrap();
-}
-
-/// Asserts that the pty at `path` is its owner's alone, as `armctl::support::pty_owner` leaves every pty
-/// armctl opens: mode 0600, owned by this user (the owner of /proc/self, proc(5)). Where devpts
-/// gives new ptys 0620 (a desktop's mount), only armctl's own chmod makes this hold.
-fn assert_private(path: &str) {
-    use std::os::unix::fs::MetadataExt;
-    let pty = std::fs::metadata(path).unwrap_or_else(|e| panic!("{path}: {e}"));
-    let me = std::fs::metadata("/proc/self").unwrap().uid();
-    let (mode, owner) = (pty.mode() & 0o7777, pty.uid());
-    assert!(mode == 0o600 && owner == me, "{path}: mode {mode:04o}, owner {owner}; expected 0600 and {me}");
 }
 
 /// Noise that looks like the start of a long packet, then a ping, in one burst: the servos drop
@@ -783,7 +772,7 @@ fn serve_sim(args: &[&str], stderr: std::process::Stdio) -> (std::process::Child
 #[test]
 fn armctl_sim_servos_serves_a_pty_and_refuses_bad_input() {
     let (mut child, path) = serve_sim(&["--protocol", "sts", "--ids", "1-3,7", "--pty"], std::process::Stdio::null());
-    let private = std::panic::catch_unwind(|| assert_private(&path));
+    let private = std::panic::catch_unwind(|| armctl_test_support::assert_private(&path));
     let reply = std::panic::catch_unwind(|| exchange(&path, &[0xFF, 0xFF, 0x07, 0x02, 0x01, 0xF5], 6));
     child.kill().unwrap();
     child.wait().unwrap();

@@ -18,12 +18,13 @@
 //!
 //! Each part runs `ARMCTL_LOAD_SECONDS` seconds (30 unless set): about two minutes in all.
 
-use std::io::{BufRead, BufReader, Read};
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
+
+mod support;
 
 use armctl::arm::servos::servos_of;
 use armctl::arm::ArmSpec;
@@ -158,22 +159,7 @@ fn drive(driver: &mut Driver, arm: &ArmSpec) -> (u32, u32) {
 /// `armctl serve --sim`, driven by `armctl --port` processes.
 fn serve_sim(arm: &ArmSpec) -> Part {
     let armctl = env!("CARGO_BIN_EXE_armctl");
-    let mut child = Command::new(armctl)
-        .args(["serve", "--sim", "--arm", "so101"])
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("armctl serve starts");
-    let mut stderr = child.stderr.take().unwrap();
-    let errors = std::thread::spawn(move || {
-        let mut text = String::new();
-        let _ = stderr.read_to_string(&mut text);
-        text
-    });
-    let mut first = String::new();
-    BufReader::new(child.stdout.take().unwrap()).read_line(&mut first).unwrap();
-    let pty = first.trim().to_string();
+    let (mut child, pty, errors) = support::serve(&["--sim", "--arm", "so101"]);
     let busy = BusyLoops::start(BUSY_LOOPS);
     let mut targets = Targets::of(arm);
     let started = Instant::now();

@@ -45,6 +45,18 @@ pub fn skip(tmp: &str, missing: &str, install: &str) {
     }
 }
 
+/// Asserts that the pty at `path` is its owner's alone, as `armctl::support::pty_owner` leaves every
+/// pty armctl opens or has QEMU open: mode 0600, owned by this user (the owner of /proc/self,
+/// proc(5)). Where devpts gives new ptys 0620 (a desktop's mount), only armctl's own chmod makes
+/// this hold.
+pub fn assert_private(path: &str) {
+    use std::os::unix::fs::MetadataExt;
+    let pty = std::fs::metadata(path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let me = std::fs::metadata("/proc/self").unwrap().uid();
+    let (mode, owner) = (pty.mode() & 0o7777, pty.uid());
+    assert!(mode == 0o600 && owner == me, "{path}: mode {mode:04o}, owner {owner}; expected 0600 and {me}");
+}
+
 /// Whether a test that runs the firmware under QEMU can run: `available` is what
 /// `armctl::runtime::qemu::available` found. Skips it (fails under `CI`) with the install command
 /// when not.

@@ -5,8 +5,9 @@
 pub mod view;
 
 use serde_json::Value;
+use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::{Child, Command, Stdio};
 
 /// One run of `armctl`.
 pub struct Run {
@@ -65,4 +66,33 @@ impl AsRef<Path> for TempPath {
     fn as_ref(&self) -> &Path {
         &self.path
     }
+}
+
+/// Runs `armctl serve` with `args`; returns the child, the pty path it printed first (checked to
+/// be its owner's alone) and the thread that collects its stderr.
+pub fn serve(args: &[&str]) -> (Child, String, std::thread::JoinHandle<String>) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_armctl"))
+        .arg("serve")
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("armctl serve starts");
+    let mut stderr = child.stderr.take().unwrap();
+    let errors = std::thread::spawn(move || {
+        let mut text = String::new();
+        let _ = stderr.read_to_string(&mut text);
+        text
+    });
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap()).read_line(&mut first).unwrap();
+    assert!(first.starts_with("/dev/"), "first stdout line should be the pty path, got {first:?}");
+    let path = first.trim().to_string();
+    if let Err(e) = std::panic::catch_unwind(|| armctl_test_support::assert_private(&path)) {
+        let _ = child.kill();
+        let _ = child.wait();
+        std::panic::resume_unwind(e);
+    }
+    (child, path, errors)
 }
