@@ -23,6 +23,7 @@
 
 mod angle;
 mod chain;
+pub mod collision;
 mod fk;
 pub mod ik;
 mod joint;

@@ -6,6 +6,7 @@
 
 pub mod body;
 pub mod calibration;
+pub mod collision;
 pub mod dof;
 pub mod dyn_tree;
 pub mod presets;
@@ -50,6 +51,9 @@ pub struct ArmSpec {
     /// The servos driving the joints, when the description names them (the arm file's
     /// `[servos]`); the presets' are in [`servos::ServoSetup::for_arm`].
     pub servos: Option<servos::ServoSetup>,
+    /// Its collision geometry, when the description has some (the arm file's `[collision]`, or
+    /// a preset's); see [`collision::collision_of`].
+    pub collision: Option<collision::CollisionSpec>,
 }
 
 impl ArmSpec {
@@ -116,7 +120,7 @@ impl ArmSpec {
                 upper: j.limits.upper,
             })
             .collect();
-        Self { name: name.to_string(), joints, tool: *chain.tool(), servos: None }
+        Self { name: name.to_string(), joints, tool: *chain.tool(), servos: None, collision: None }
     }
 
     /// Loads `arm`: a preset name (`ur5e`, `planar:4`, ...), a `.urdf` file (needs `tip`), or a

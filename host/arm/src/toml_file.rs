@@ -290,7 +290,7 @@ pub fn parse(text: &str) -> Result<ArmSpec> {
             Some(servos)
         }
     };
-    Ok(ArmSpec { name: file.name, joints, tool, servos })
+    Ok(ArmSpec { name: file.name, joints, tool, servos, collision: None })
 }
 
 /// The `[gripper]` table, checked against the servos.

@@ -1,0 +1,307 @@
+//! A scene: an arm's bodies, each a capsule fixed to one of its frames, the obstacles around it,
+//! the pairs that are never checked (the allowed-collision matrix) and the margin every other
+//! pair must keep. Fixed capacity, no heap, no panics: what a firmware checks every goal against.
+//!
+//! Bodies are placed from the frames forward kinematics gives (a chain's [`crate::Frames`] or a
+//! tree's [`crate::tree::TreeFrames`]), so chains and trees share it. A pair is first compared by
+//! bounding spheres, and only a pair whose spheres come within the margin is measured exactly:
+//! most pairs of an arm are far apart most of the time.
+
+use heapless::Vec;
+
+use super::distance::{capsule_capsule, distance};
+use super::shape::{Capsule, Shape};
+use crate::{Pose, Real};
+
+/// A body of the arm: a capsule in the frame of a joint (after its motion), or of the base.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Body<T: Real> {
+    /// The joint whose moving frame carries it; `None`: the base, which does not move.
+    pub frame: Option<u8>,
+    /// The capsule, in that frame.
+    pub capsule: Capsule<T>,
+}
+
+/// What a body can come too close to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Part {
+    /// Another body of the arm, by index.
+    Body(u8),
+    /// An obstacle, by index.
+    Obstacle(u8),
+}
+
+/// Two parts closer than the margin (or the closest pair, for a report).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Contact<T: Real> {
+    /// The arm's body, by index.
+    pub body: u8,
+    /// What it is close to.
+    pub other: Part,
+    /// Their signed distance (m); negative when they overlap.
+    pub distance: T,
+}
+
+/// Why a body or an obstacle was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SceneError {
+    /// Its numbers are not finite, a size not positive, a box's axes not orthonormal.
+    Invalid,
+    /// It sits on a frame the arm does not have.
+    NoFrame,
+    /// There is no room for another.
+    Full,
+    /// An index names no body or obstacle.
+    NoSuchPart,
+}
+
+impl core::fmt::Display for SceneError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            SceneError::Invalid => "a collision shape has a non-finite number or a size that is not positive",
+            SceneError::NoFrame => "a collision body is on a joint the arm does not have",
+            SceneError::Full => "too many collision bodies or obstacles for this build",
+            SceneError::NoSuchPart => "a collision pair names a body or obstacle that does not exist",
+        })
+    }
+}
+
+/// Up to `B` bodies and `O` obstacles (each at most 32: the allowed pairs are bit masks).
+#[derive(Clone, Debug)]
+pub struct Scene<T: Real, const B: usize, const O: usize> {
+    bodies: Vec<Body<T>, B>,
+    obstacles: Vec<Shape<T>, O>,
+    /// Bit `j` of `allowed_bodies[i]`: bodies `i` and `j` are never checked (both bits are set).
+    allowed_bodies: [u32; B],
+    /// Bit `o` of `allowed_obstacles[i]`: body `i` and obstacle `o` are never checked.
+    allowed_obstacles: [u32; B],
+    margin: T,
+    /// The bodies where the last check placed them (kept here, not on the stack: a firmware's
+    /// stack is small and this is its largest array).
+    placed: [Capsule<T>; B],
+}
+
+fn bit(i: usize) -> u32 {
+    1u32.checked_shl(i as u32).unwrap_or(0)
+}
+
+impl<T: Real, const B: usize, const O: usize> Scene<T, B, O> {
+    /// No bodies, no obstacles, the margin given (negative or not finite: zero).
+    pub fn new(margin: T) -> Self {
+        let nowhere = Capsule::sphere(nalgebra::Vector3::zeros(), T::zero());
+        let mut scene = Self {
+            bodies: Vec::new(),
+            obstacles: Vec::new(),
+            allowed_bodies: [0; B],
+            allowed_obstacles: [0; B],
+            margin: T::zero(),
+            placed: [nowhere; B],
+        };
+        scene.set_margin(margin);
+        scene
+    }
+
+    /// Removes every body, obstacle and allowed pair; keeps the margin.
+    pub fn clear(&mut self) {
+        *self = Self::new(self.margin);
+    }
+
+    /// Sets the distance every checked pair must keep (m); negative or not finite: zero.
+    pub fn set_margin(&mut self, margin: T) {
+        self.margin = if margin.finite() && margin > T::zero() { margin } else { T::zero() };
+    }
+
+    /// The margin every checked pair keeps.
+    pub fn margin(&self) -> T {
+        self.margin
+    }
+
+    /// The bodies, in the order they were added.
+    pub fn bodies(&self) -> &[Body<T>] {
+        &self.bodies
+    }
+
+    /// The obstacles, in the order they were added.
+    pub fn obstacles(&self) -> &[Shape<T>] {
+        &self.obstacles
+    }
+
+    /// Adds a body of an arm of `joints` joints; returns its index.
+    pub fn add_body(&mut self, body: Body<T>, joints: usize) -> Result<u8, SceneError> {
+        if !body.capsule.is_valid() {
+            return Err(SceneError::Invalid);
+        }
+        if body.frame.is_some_and(|f| usize::from(f) >= joints) {
+            return Err(SceneError::NoFrame);
+        }
+        let index = self.bodies.len();
+        if index >= B.min(32) {
+            return Err(SceneError::Full);
+        }
+        self.bodies.push(body).map_err(|_| SceneError::Full)?;
+        Ok(index as u8)
+    }
+
+    /// Adds an obstacle; returns its index.
+    pub fn add_obstacle(&mut self, shape: Shape<T>) -> Result<u8, SceneError> {
+        if !shape.is_valid() {
+            return Err(SceneError::Invalid);
+        }
+        let index = self.obstacles.len();
+        if index >= O.min(32) {
+            return Err(SceneError::Full);
+        }
+        self.obstacles.push(shape).map_err(|_| SceneError::Full)?;
+        Ok(index as u8)
+    }
+
+    /// Removes every obstacle and the pairs allowed with them; the bodies stay.
+    pub fn clear_obstacles(&mut self) {
+        self.obstacles.clear();
+        self.allowed_obstacles = [0; B];
+    }
+
+    /// Never checks body `body` against `other` (a neighbour it always touches, or the table
+    /// under the base).
+    pub fn allow(&mut self, body: u8, other: Part) -> Result<(), SceneError> {
+        let i = usize::from(body);
+        if i >= self.bodies.len() {
+            return Err(SceneError::NoSuchPart);
+        }
+        match other {
+            Part::Body(j) if usize::from(j) < self.bodies.len() => {
+                let j = usize::from(j);
+                self.allowed_bodies[i] |= bit(j);
+                self.allowed_bodies[j] |= bit(i);
+            }
+            Part::Obstacle(o) if usize::from(o) < self.obstacles.len() => {
+                self.allowed_obstacles[i] |= bit(usize::from(o));
+            }
+            _ => return Err(SceneError::NoSuchPart),
+        }
+        Ok(())
+    }
+
+    /// True if the pair is never checked.
+    pub fn allowed(&self, body: u8, other: Part) -> bool {
+        let i = usize::from(body);
+        let mask = match other {
+            Part::Body(j) => self.allowed_bodies.get(i).map(|m| m & bit(usize::from(j))),
+            Part::Obstacle(o) => self.allowed_obstacles.get(i).map(|m| m & bit(usize::from(o))),
+        };
+        // Bodies of one frame never move apart: they are not checked either.
+        let same_frame = match other {
+            Part::Body(j) => match (self.bodies.get(i), self.bodies.get(usize::from(j))) {
+                (Some(a), Some(b)) => a.frame == b.frame,
+                _ => true,
+            },
+            Part::Obstacle(_) => false,
+        };
+        same_frame || mask.is_none_or(|m| m != 0)
+    }
+
+    /// Places every body at `frames` (each joint's moving frame in the base frame).
+    fn place(&mut self, frames: &[Pose<T>]) {
+        for (placed, body) in self.placed.iter_mut().zip(self.bodies.iter()) {
+            *placed = match body.frame {
+                None => body.capsule,
+                Some(f) => match frames.get(usize::from(f)) {
+                    Some(pose) => body.capsule.placed(pose),
+                    // A frame the caller did not give: nowhere anything can be checked against,
+                    // so every pair with it reads as touching (NaN compares as "not apart").
+                    None => Capsule::sphere(nalgebra::Vector3::repeat(T::of(f64::NAN)), T::zero()),
+                },
+            };
+        }
+    }
+
+    /// The signed distance between placed body `i` and `other`, or `None` when their bounding
+    /// spheres are farther apart than `beyond`.
+    fn measured(&self, i: usize, other: Part, beyond: T) -> Option<T> {
+        let capsule = self.placed.get(i)?;
+        let (centre, radius) = capsule.bounding_sphere();
+        match other {
+            Part::Body(j) => {
+                let q = self.placed.get(usize::from(j))?;
+                let (c2, r2) = q.bounding_sphere();
+                let apart = (centre - c2).norm() - radius - r2;
+                if apart > beyond {
+                    return None;
+                }
+                Some(capsule_capsule(capsule, q))
+            }
+            Part::Obstacle(o) => {
+                let shape = self.obstacles.get(usize::from(o))?;
+                if distance(&Capsule::sphere(centre, radius), shape) > beyond {
+                    return None;
+                }
+                Some(distance(capsule, shape))
+            }
+        }
+    }
+
+    /// Every pair that is checked, bodies against later bodies then against obstacles.
+    fn pairs(&self) -> impl Iterator<Item = (u8, Part)> + '_ {
+        let (n, m) = (self.bodies.len() as u8, self.obstacles.len() as u8);
+        (0..n)
+            .flat_map(move |i| {
+                ((i + 1)..n).map(move |j| (i, Part::Body(j))).chain((0..m).map(move |o| (i, Part::Obstacle(o))))
+            })
+            .filter(move |(i, other)| !self.allowed(*i, *other))
+    }
+
+    /// The first checked pair closer than the margin at `frames`, or `None` when every pair
+    /// keeps it: the check a goal must pass.
+    pub fn first_contact(&mut self, frames: &[Pose<T>]) -> Option<Contact<T>> {
+        self.place(frames);
+        let margin = self.margin;
+        self.pairs().find_map(|(body, other)| {
+            let distance = self.measured(usize::from(body), other, margin)?;
+            // `!(d >= margin)`: a NaN distance (a frame not given, a non-finite pose) is a contact.
+            (!(distance >= margin)).then_some(Contact { body, other, distance })
+        })
+    }
+
+    /// The closest checked pair at `frames` and its distance, for a report; `None` when no pair
+    /// is checked.
+    pub fn closest(&mut self, frames: &[Pose<T>]) -> Option<Contact<T>> {
+        self.place(frames);
+        let mut best: Option<Contact<T>> = None;
+        for (body, other) in self.pairs() {
+            let beyond = best.map_or(T::of(f64::INFINITY), |b| b.distance);
+            if let Some(distance) = self.measured(usize::from(body), other, beyond) {
+                if best.is_none_or(|b| distance < b.distance) {
+                    best = Some(Contact { body, other, distance });
+                }
+            }
+        }
+        best
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Vector3;
+
+    #[test]
+    fn a_body_below_the_table_is_a_contact_and_one_above_is_not() {
+        let mut scene: Scene<f64, 4, 2> = Scene::new(0.01);
+        let capsule = Capsule { a: Vector3::zeros(), b: Vector3::new(0.1, 0.0, 0.0), radius: 0.02 };
+        scene.add_body(Body { frame: Some(0), capsule }, 1).unwrap();
+        scene.add_obstacle(Shape::table(0.0)).unwrap();
+        let up = Pose::from_translation(Vector3::new(0.0, 0.0, 0.05));
+        assert_eq!(scene.first_contact(&[up]), None);
+        let low = Pose::from_translation(Vector3::new(0.0, 0.0, 0.025));
+        let contact = scene.first_contact(&[low]).unwrap();
+        assert_eq!(contact.other, Part::Obstacle(0));
+        assert!((contact.distance - 0.005).abs() < 1e-12);
+        scene.allow(0, Part::Obstacle(0)).unwrap();
+        assert_eq!(scene.first_contact(&[low]), None);
+        // A frame not given reads as a contact, never as free.
+        let mut scene: Scene<f64, 4, 2> = Scene::new(0.01);
+        scene.add_body(Body { frame: Some(0), capsule }, 1).unwrap();
+        scene.add_obstacle(Shape::table(0.0)).unwrap();
+        assert!(scene.first_contact(&[]).is_some());
+    }
+}
