@@ -25,7 +25,11 @@ impl<T: Real> Capsule<T> {
 
     /// The same capsule moved by `pose` (its frame's pose in the base frame).
     pub fn placed(&self, pose: &Pose<T>) -> Self {
-        Self { a: pose.rotation * self.a + pose.translation, b: pose.rotation * self.b + pose.translation, radius: self.radius }
+        Self {
+            a: pose.rotation * self.a + pose.translation,
+            b: pose.rotation * self.b + pose.translation,
+            radius: self.radius,
+        }
     }
 
     /// True if every number is finite and the radius is not negative.

@@ -106,9 +106,15 @@ impl CollisionSpec {
         }
         let mut scene = Scene::new(T::of(self.margin));
         for body in &self.bodies {
-            let capsule = Capsule { a: body.capsule.a.map(T::of), b: body.capsule.b.map(T::of), radius: T::of(body.capsule.radius) };
+            let capsule = Capsule {
+                a: body.capsule.a.map(T::of),
+                b: body.capsule.b.map(T::of),
+                radius: T::of(body.capsule.radius),
+            };
             let frame = body.link.map(|l| l.min(255) as u8);
-            scene.add_body(Body { frame, capsule }, joints).map_err(|e| anyhow!("collision body {}: {e}", body.name))?;
+            scene
+                .add_body(Body { frame, capsule }, joints)
+                .map_err(|e| anyhow!("collision body {}: {e}", body.name))?;
         }
         for obstacle in &self.obstacles {
             scene.add_obstacle(cast_shape(&obstacle.shape)).map_err(|e| anyhow!("obstacle {}: {e}", obstacle.name))?;
@@ -142,4 +148,54 @@ pub fn cast_shape<T: Real>(shape: &Shape<f64>) -> Shape<T> {
 /// The collision geometry of `arm`: its own (the arm file's), else its preset's, else none.
 pub fn collision_of(arm: &ArmSpec) -> Option<CollisionSpec> {
     arm.collision.clone()
+}
+
+impl CollisionSpec {
+    /// Geometry measured from the arm's frames alone, for an arm whose meshes are not at hand: one
+    /// capsule of `radius` per link, from its joint's origin to the next joint's (the last to the
+    /// tool), named after the joint; the base a capsule from its origin to the first joint; the
+    /// table at the base plane (`z = 0`). Neighbouring links share a joint, so each is allowed
+    /// to touch the next, and the base's foot to stand on the table.
+    pub fn from_frames(arm: &ArmSpec, radius: f64) -> Self {
+        let next = |i: usize| arm.joints.get(i + 1).map_or(arm.tool.translation, |j| j.origin.translation);
+        let origin = kinematics::nalgebra::Vector3::zeros();
+        let mut bodies = vec![BodySpec {
+            name: "base".into(),
+            link: None,
+            capsule: Capsule { a: origin, b: arm.joints.first().map_or(origin, |j| j.origin.translation), radius },
+        }];
+        bodies.extend(arm.joints.iter().enumerate().map(|(i, joint)| BodySpec {
+            name: joint.name.clone(),
+            link: Some(i),
+            capsule: Capsule { a: origin, b: next(i), radius },
+        }));
+        let mut allowed: Vec<[String; 2]> =
+            bodies.windows(2).map(|pair| [pair[0].name.clone(), pair[1].name.clone()]).collect();
+        allowed.push(["base".into(), TABLE.into()]);
+        Self {
+            margin: DEFAULT_MARGIN,
+            bodies,
+            obstacles: vec![ObstacleSpec { name: TABLE.into(), shape: Shape::table(0.0) }],
+            allowed,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use kinematics::nalgebra::SVector;
+
+    #[test]
+    fn capsules_from_frames_find_the_tool_below_the_table_and_not_at_the_middle() {
+        let arm = crate::presets::by_name("so101").unwrap();
+        let spec = CollisionSpec::from_frames(&arm, 0.02);
+        let chain = arm.chain::<f64, 5>().unwrap();
+        let mut scene = spec.scene::<f64, 24, 8>(5).unwrap();
+        assert_eq!(scene.first_contact(&chain.forward(&SVector::zeros()).joints), None, "the zero pose is free");
+        // Shoulder lift pitched forward and the elbow folded down: the wrist goes under z = 0.
+        let low = chain.forward(&SVector::from([0.0, 1.6, 0.0, 0.0, 0.0]));
+        let contact = scene.first_contact(&low.joints).expect("below the table");
+        assert_eq!(spec.name(contact.other), TABLE, "{}", spec.describe(&contact));
+    }
 }
