@@ -257,8 +257,9 @@ impl<T: Real, const B: usize, const O: usize> Scene<T, B, O> {
         let margin = self.margin;
         self.pairs().find_map(|(body, other)| {
             let distance = self.measured(usize::from(body), other, margin)?;
-            // `!(d >= margin)`: a NaN distance (a frame not given, a non-finite pose) is a contact.
-            (!(distance >= margin)).then_some(Contact { body, other, distance })
+            // A NaN distance (a frame not given, a non-finite pose) is a contact, never free.
+            let keeps_margin = distance >= margin;
+            (!keeps_margin).then_some(Contact { body, other, distance })
         })
     }
 

@@ -2,6 +2,7 @@
 //! binary of its own linked the crate and instantiated its generic code again, which made these
 //! tests a fifth of the test build.
 
+mod collision;
 mod fk;
 mod ik;
 mod interpolation;
