@@ -170,8 +170,11 @@ def fcl_check(kind, data, expected):
 
 
 print("// Made by kinematics/tests/suite/collision_values.py (see there how); do not edit by hand.")
-print("// (a, b, radius_a, c, d, radius_b, signed distance)")
-print("const CAPSULE_CAPSULE: &[([f64; 3], [f64; 3], f64, [f64; 3], [f64; 3], f64, f64)] = &[")
+print("/// (a, b, radius_a, c, d, radius_b, signed distance)")
+print("type CapsulePair = ([f64; 3], [f64; 3], f64, [f64; 3], [f64; 3], f64, f64);")
+print("/// (a, b, radius, box centre, box half sizes, signed distance)")
+print("type CapsuleBox = ([f64; 3], [f64; 3], f64, [f64; 3], [f64; 3], f64);")
+print("const CAPSULE_CAPSULE: &[CapsulePair] = &[")
 for k in range(40):
     a, b, c, d = vec(-0.2, 0.2), vec(-0.2, 0.2), vec(-0.2, 0.2), vec(-0.2, 0.2)
     if k % 8 == 1:
@@ -183,10 +186,9 @@ for k in range(40):
     ra, rb = r(0.0, 0.05), r(0.0, 0.05)
     dist = sqrt(seg_seg_sq(a, b, c, d)) - Decimal(ra.numerator) / ra.denominator - Decimal(rb.numerator) / rb.denominator
     fcl_check("cc", (a, b, ra, c, d, rb), dist)
-    print(f"    ({fmt(a)}, {fmt(b)}, {float(ra)!r}, {fmt(c)}, {fmt(d)}, {float(rb)!r}, {dist:.17e}),")
+    print(f"    ({fmt(a)}, {fmt(b)}, {float(ra)!r}, {fmt(c)}, {fmt(d)}, {float(rb)!r}, {float(dist)!r}),")
 print("];")
-print("// (a, b, radius, box centre, box half sizes, signed distance)")
-print("const CAPSULE_BOX: &[([f64; 3], [f64; 3], f64, [f64; 3], [f64; 3], f64)] = &[")
+print("const CAPSULE_BOX: &[CapsuleBox] = &[")
 for k in range(40):
     c, h = vec(-0.1, 0.1), [r(0.01, 0.1) for _ in range(3)]
     a, b = vec(-0.25, 0.25), vec(-0.25, 0.25)
@@ -197,5 +199,5 @@ for k in range(40):
     ra = r(0.0, 0.04)
     dist = seg_box(a, b, c, h) - Decimal(ra.numerator) / ra.denominator
     fcl_check("cb", (a, b, ra, c, h), dist)
-    print(f"    ({fmt(a)}, {fmt(b)}, {float(ra)!r}, {fmt(c)}, {fmt(h)}, {dist:.17e}),")
+    print(f"    ({fmt(a)}, {fmt(b)}, {float(ra)!r}, {fmt(c)}, {fmt(h)}, {float(dist)!r}),")
 print("];")
