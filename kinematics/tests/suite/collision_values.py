@@ -1,4 +1,4 @@
-"""Makes the independent values kinematics/tests/collision.rs checks the signed distances against.
+"""Makes the independent values kinematics/tests/suite/collision.rs checks the signed distances against.
 
 Run once (python3 kinematics/tests/suite/collision_values.py > kinematics/tests/suite/collision_values.rs.in,
 with python-fcl and numpy installed for the cross-check); the output is committed.
