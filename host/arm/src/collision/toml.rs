@@ -273,7 +273,18 @@ pub struct Notes {
     /// A comment for each body, by index (none where missing or empty).
     pub sources: Vec<String>,
     /// The allowed pairs in groups with their reason; when empty, every pair in one group.
-    pub allowed: Vec<(String, Vec<[String; 2]>)>,
+    pub allowed: Vec<AllowedGroup>,
+}
+
+/// Allowed pairs found for one reason.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct AllowedGroup {
+    /// Why they are never checked.
+    pub reason: String,
+    /// The pairs.
+    pub pairs: Vec<[String; 2]>,
+    /// A comment after each pair, by index (none where missing or empty).
+    pub comments: Vec<String>,
 }
 
 /// Writes `spec` of `arm` as the arm file's `[collision]` and `[[obstacles]]` tables (angles in
@@ -310,12 +321,16 @@ pub fn write(out: &mut String, spec: &CollisionSpec, arm: &ArmSpec, notes: &Note
         }
         let _ = writeln!(out, "radius = {:?}", body.capsule.radius);
     }
-    let all = [(String::from("pairs never checked"), spec.allowed.clone())];
+    let all = [AllowedGroup { reason: "pairs never checked".into(), pairs: spec.allowed.clone(), comments: vec![] }];
     let groups = if notes.allowed.is_empty() { &all[..] } else { &notes.allowed[..] };
-    for (reason, pairs) in groups.iter().filter(|(_, pairs)| !pairs.is_empty()) {
-        let _ = writeln!(out, "\n[[collision.allowed]]\nreason = {}\npairs = [", quoted(reason));
-        for [a, b] in pairs {
-            let _ = writeln!(out, "  [{}, {}],", quoted(a), quoted(b));
+    for group in groups.iter().filter(|g| !g.pairs.is_empty()) {
+        let _ = writeln!(out, "\n[[collision.allowed]]\nreason = {}\npairs = [", quoted(&group.reason));
+        for (k, [a, b]) in group.pairs.iter().enumerate() {
+            let pair = format!("[{}, {}],", quoted(a), quoted(b));
+            let _ = match group.comments.get(k).filter(|c| !c.is_empty()) {
+                Some(comment) => writeln!(out, "  {pair}  # {comment}"),
+                None => writeln!(out, "  {pair}"),
+            };
         }
         let _ = writeln!(out, "]");
     }
