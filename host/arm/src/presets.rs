@@ -107,10 +107,8 @@ mod tests {
     /// random poses, so each body lands where the URDF's mesh does.
     #[test]
     fn the_so101_meshes_frames_are_the_presets() {
-        let path = std::path::Path::new("/work/shared/reference/urdf/so101_new_calib.urdf");
-        let text = std::fs::read_to_string(path)
-            .unwrap_or_else(|_| include_str!("../../tests/data/so101_new_calib.urdf").to_string());
-        let urdf = crate::dof::build(crate::urdf::parse(&text, Some("gripper_frame_link")).unwrap()).unwrap();
+        let text = include_str!("../../tests/data/so101_new_calib.urdf");
+        let urdf = crate::dof::build(crate::urdf::parse(text, Some("gripper_frame_link")).unwrap()).unwrap();
         let preset = crate::dof::build(by_name("so101").unwrap()).unwrap();
         let mut rng = kinematics::SplitMix64::new(11);
         for _ in 0..50 {

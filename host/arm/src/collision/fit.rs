@@ -199,6 +199,33 @@ mod tests {
         assert!((0.5 * (c.a + c.b) - centre).amax() < 0.001, "{c:?}");
     }
 
+    /// A mesh as an STL file gives it: a bent tube of 40 x 24 quads, two facets each, read back
+    /// from its binary STL bytes (f32), every one of its 5760 vertices inside the capsule.
+    #[test]
+    fn every_vertex_of_a_meshed_tube_is_inside() {
+        let point = |i: usize, k: usize| -> [f32; 3] {
+            let (s, a) = (i as f64 / 39.0, k as f64 / 24.0 * core::f64::consts::TAU);
+            // Along x for 0.15 m, bending up by 0.02 m, 0.02 m across.
+            let centre = Vector3::new(0.15 * s, 0.0, 0.02 * s * s);
+            let p = centre + Vector3::new(0.0, 0.02 * a.cos(), 0.02 * a.sin());
+            [p.x as f32, p.y as f32, p.z as f32]
+        };
+        let mut facets = Vec::new();
+        for i in 0..39 {
+            for k in 0..24 {
+                let (a, b, c, d) = (point(i, k), point(i + 1, k), point(i + 1, k + 1), point(i, k + 1));
+                facets.push([a, b, c]);
+                facets.push([a, c, d]);
+            }
+        }
+        let vertices = crate::collision::stl::parse(&crate::collision::stl::tests::binary_stl(&facets)).unwrap();
+        assert_eq!(vertices.len(), 39 * 24 * 2 * 3);
+        let c = capsule_around(&vertices).unwrap();
+        assert_holds(&c, &vertices);
+        // The tube's radius plus the bend's half height at most, and a step of rounding.
+        assert!(c.radius <= 0.02 + 0.01 + 2.0 * ROUNDING, "{c:?}");
+    }
+
     #[test]
     fn random_clouds_are_held_whole() {
         let mut rng = SplitMix64::new(4);
