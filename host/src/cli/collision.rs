@@ -79,17 +79,6 @@ pub struct CheckArgs {
     pub json: bool,
 }
 
-impl CollisionCommand {
-    /// Its `--json`, `--arm`, `--obstacle` and `--no-table`, for the drive options given before
-    /// the command.
-    pub fn globals(&mut self) -> (&mut bool, &mut Option<String>, Option<(&mut Vec<ObstacleSpec>, &mut bool)>) {
-        match self {
-            CollisionCommand::Fit(a) => (&mut a.json, &mut a.arm, None),
-            CollisionCommand::Check(a) => (&mut a.json, &mut a.arm, Some((&mut a.obstacles, &mut a.no_table))),
-        }
-    }
-}
-
 /// Runs `armctl collision ...`; returns the exit code.
 pub fn run(command: CollisionCommand, out: &mut dyn Write) -> Result<i32> {
     match command {

@@ -380,15 +380,18 @@ fn take_globals(link: &LinkArgs, mut command: Command, name: &str) -> Result<Com
             args.json |= json;
             args.arm.arm = either("--arm", rest.arm.take(), args.arm.arm.take())?;
         }
-        Command::Collision(args) => {
-            let (own, arm, surroundings) = args.what.globals();
-            *own |= json;
-            *arm = either("--arm", rest.arm.take(), arm.take())?;
-            if let Some((obstacles, no_table)) = surroundings {
-                obstacles.splice(0..0, std::mem::take(&mut rest.obstacles));
-                *no_table |= std::mem::take(&mut rest.no_table);
+        Command::Collision(args) => match &mut args.what {
+            collision::CollisionCommand::Fit(args) => {
+                args.json |= json;
+                args.arm = either("--arm", rest.arm.take(), args.arm.take())?;
             }
-        }
+            collision::CollisionCommand::Check(args) => {
+                args.json |= json;
+                args.arm = either("--arm", rest.arm.take(), args.arm.take())?;
+                args.obstacles.splice(0..0, std::mem::take(&mut rest.obstacles));
+                args.no_table |= std::mem::take(&mut rest.no_table);
+            }
+        },
         Command::Demo(args) => {
             args.json |= json;
             args.arm = either("--arm", rest.arm.take(), args.arm.take())?;
