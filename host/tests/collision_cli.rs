@@ -172,6 +172,8 @@ fn an_obstacle_at_the_tool_is_named_and_bad_ones_are_one_line() {
             run.stderr
         );
     }
+    let fit = armctl(&["collision", "fit", "--arm", "so101"]);
+    assert!(fit.code == 1 && fit.stderr.contains("so101 is not a .urdf file"), "{}", fit.stderr);
     // A drive command with an obstacle out of the way runs as before.
     let status = armctl(&["--sim", "--obstacle", "wall=plane:-1,0,0,-0.6", "--no-table", "status", "--json"]);
     assert_eq!(status.code, 0, "{}", status.stderr);

@@ -73,6 +73,13 @@ pub fn fit(request: &FitRequest) -> Result<FitReport> {
     if !(request.margin.is_finite() && request.margin >= 0.0) {
         bail!("--margin {}: a distance of zero or more (m)", request.margin);
     }
+    if !request.urdf.extension().is_some_and(|e| e.eq_ignore_ascii_case("urdf")) {
+        bail!(
+            "collision fit reads a URDF's <collision> elements, and {} is not a .urdf file (a preset's or an arm \
+             file's geometry is shown by `armctl collision check`)",
+            request.urdf.display()
+        );
+    }
     let (arm, spec, notes) = fitted(request)?;
     let mut toml = String::new();
     collision_toml::write(&mut toml, &spec, &arm, &notes);
