@@ -160,6 +160,8 @@ mod tests {
             assert!((x.origin.translation - y.origin.translation).amax() == 0.0, "{}", x.name);
         }
         assert_eq!(a.servos, b.servos);
+        // The collision geometry too (the presets carry theirs), number for number.
+        assert_eq!(a.collision, b.collision);
         let (ca, cb) = (a.chain::<f64, N>().unwrap(), b.chain::<f64, N>().unwrap());
         let mut rng = SplitMix64::new(3);
         for _ in 0..50 {
