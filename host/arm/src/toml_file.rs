@@ -38,6 +38,10 @@
 //! effort = 50              # optional: percent of the servo's maximum torque or current (default 50)
 //! opening_mm = 90          # distance between the jaws when open
 //! speed = 100              # optional: percent of the stroke per second (default 100)
+//!
+//! [collision]              # optional: the arm's collision geometry, see `collision::toml`
+//! margin = 0.01
+//! table = 0.0
 //! ```
 //!
 //! With `convention = "dh"` or `"modified-dh"` each `[[joint]]` holds a DH row instead of
@@ -75,6 +79,9 @@ struct ArmFile {
     tool: Option<Spanned<ToolEntry>>,
     servos: Option<Spanned<ServosEntry>>,
     gripper: Option<Spanned<GripperEntry>>,
+    collision: Option<Spanned<super::collision::toml::CollisionEntry>>,
+    #[serde(default)]
+    obstacles: Vec<Spanned<super::collision::toml::ObstacleEntry>>,
 }
 
 #[derive(Deserialize)]
@@ -290,7 +297,9 @@ pub fn parse(text: &str) -> Result<ArmSpec> {
             Some(servos)
         }
     };
-    Ok(ArmSpec { name: file.name, joints, tool, servos, collision: None })
+    let mut arm = ArmSpec { name: file.name, joints, tool, servos, collision: None };
+    arm.collision = super::collision::toml::read(text, file.collision.as_ref(), &file.obstacles, angle, &arm)?;
+    Ok(arm)
 }
 
 /// The `[gripper]` table, checked against the servos.
@@ -478,7 +487,7 @@ fn kind_name(kind: JointKind) -> &'static str {
     }
 }
 
-fn finite(at: &str, key: &str, values: &[f64]) -> Result<()> {
+pub(crate) fn finite(at: &str, key: &str, values: &[f64]) -> Result<()> {
     if values.iter().all(|v| v.is_finite()) {
         Ok(())
     } else {
@@ -487,7 +496,7 @@ fn finite(at: &str, key: &str, values: &[f64]) -> Result<()> {
 }
 
 /// "line L, column C" of byte offset `offset` (both from 1).
-fn position(text: &str, offset: usize) -> String {
+pub(crate) fn position(text: &str, offset: usize) -> String {
     let before = &text[..offset.min(text.len())];
     let line = before.matches('\n').count() + 1;
     let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;

@@ -56,6 +56,10 @@ pub fn to_text(arm: &ArmSpec, header: &[String]) -> String {
     if let Some(servos) = &arm.servos {
         servos_table(&mut out, servos);
     }
+    if let Some(collision) = &arm.collision {
+        out.push('\n');
+        super::collision::toml::write(&mut out, collision, arm, &Default::default());
+    }
     out
 }
 
@@ -92,7 +96,7 @@ fn servos_table(out: &mut String, servos: &ServoSetup) {
 }
 
 /// A TOML basic string.
-fn quoted(text: &str) -> String {
+pub(crate) fn quoted(text: &str) -> String {
     let mut out = String::from("\"");
     for c in text.chars() {
         match c {
@@ -110,14 +114,14 @@ fn quoted(text: &str) -> String {
 
 /// `[a, b, c]`, each as its `Debug` text (floats keep a point or an exponent, which TOML reads
 /// as the same `f64`).
-fn list<T: std::fmt::Debug>(values: &[T]) -> String {
+pub(crate) fn list<T: std::fmt::Debug>(values: &[T]) -> String {
     let items: Vec<String> = values.iter().map(|v| format!("{v:?}")).collect();
     format!("[{}]", items.join(", "))
 }
 
 /// The URDF origin of `pose`: its translation and the fixed-axis roll, pitch, yaw of its rotation
 /// (`R = Rz(yaw) Ry(pitch) Rx(roll)`, as [`Pose::from_xyz_rpy`] builds it).
-fn xyz_rpy(pose: &Pose<f64>) -> ([f64; 3], [f64; 3]) {
+pub(crate) fn xyz_rpy(pose: &Pose<f64>) -> ([f64; 3], [f64; 3]) {
     let r = &pose.rotation;
     // atan2 rather than asin: asin loses digits near +-90 degrees, where the SO-101 has frames.
     let cos_pitch = r[(0, 0)].hypot(r[(1, 0)]);
@@ -156,6 +160,8 @@ mod tests {
             assert!((x.origin.translation - y.origin.translation).amax() == 0.0, "{}", x.name);
         }
         assert_eq!(a.servos, b.servos);
+        // The collision geometry too (the presets carry theirs), number for number.
+        assert_eq!(a.collision, b.collision);
         let (ca, cb) = (a.chain::<f64, N>().unwrap(), b.chain::<f64, N>().unwrap());
         let mut rng = SplitMix64::new(3);
         for _ in 0..50 {

@@ -27,15 +27,15 @@ pub(crate) enum UrdfKind {
 
 /// One `<joint>` as read from the file.
 pub(crate) struct UrdfJoint<'a> {
-    name: &'a str,
+    pub(crate) name: &'a str,
     line: u32,
     pub(crate) kind: UrdfKind,
     pub(crate) parent: &'a str,
     pub(crate) child: &'a str,
     pub(crate) origin: Pose<f64>,
-    axis: [f64; 3],
+    pub(crate) axis: [f64; 3],
     /// `(lower, upper)` from `<limit>` where the element is present (a missing attribute is 0).
-    limits: Option<(f64, f64)>,
+    pub(crate) limits: Option<(f64, f64)>,
 }
 
 /// A URDF's links and joints, checked: every joint's links exist, every link has at most one
@@ -339,7 +339,7 @@ fn number(text: &str, element: Node, attribute: &str, owner: &str, line: u32) ->
 }
 
 /// An optional attribute holding one number.
-fn scalar(element: Node, attribute: &str, owner: &str, line: u32) -> Result<Option<f64>> {
+pub(crate) fn scalar(element: Node, attribute: &str, owner: &str, line: u32) -> Result<Option<f64>> {
     element.attribute(attribute).map(|text| number(text.trim(), element, attribute, owner, line)).transpose()
 }
 

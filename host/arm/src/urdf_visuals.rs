@@ -96,7 +96,7 @@ pub fn visuals(text: &str, tip: Option<&str>, base_dir: &Path) -> Result<(Vec<Vi
 }
 
 /// Where the mesh `filename` is, or why it is not there.
-fn resolve(filename: &str, base_dir: &Path) -> Result<PathBuf, String> {
+pub(crate) fn resolve(filename: &str, base_dir: &Path) -> Result<PathBuf, String> {
     if let Some(package_path) = filename.strip_prefix("package://") {
         let Some((package, rest)) = package_path.split_once('/') else {
             return Err("a package:// filename needs a package name and a path".into());

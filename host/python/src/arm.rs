@@ -187,7 +187,17 @@ impl Arm {
         baud: Option<u32>,
     ) -> PyResult<Self> {
         let protocol = protocol.map(protocol_named).transpose().or_raise()?;
-        let place = Place { port, bus, protocol, baud, sim, arm, calibration, object_mm: None };
+        let place = Place {
+            port,
+            bus,
+            protocol,
+            baud,
+            sim,
+            arm,
+            calibration,
+            object_mm: None,
+            surroundings: Default::default(),
+        };
         let mut said = Vec::new();
         let (driver, servos) = released(py, || -> Result<(Driver, Option<PtyServer>)> {
             let (target, servos) = place.target()?.in_real_time()?;

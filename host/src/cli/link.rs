@@ -1,5 +1,5 @@
 //! The drive options (`--port`/`--sim`/`--bus`, `--protocol`, `--baud`, `--arm`,
-//! `--calibration`, `--object-mm`, `--rig`, `--json`), accepted before the command or after it,
+//! `--calibration`, `--object-mm`, `--obstacle`, `--no-table`, `--rig`, `--json`), accepted before the command or after it,
 //! and what the command line makes of them: one arm's [`Place`], or a rig file.
 
 use std::path::PathBuf;
@@ -7,6 +7,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Result};
 use clap::Args;
 
+use crate::arm::collision::obstacle::Surroundings;
 use crate::cli::bus_args::ProtocolArg;
 use crate::runtime::connection::Place;
 
@@ -53,6 +54,16 @@ pub struct LinkArgs {
     /// file.
     #[arg(long, value_name = "FILE", conflicts_with_all = ["sim", "port", "bus"])]
     pub rig: Option<String>,
+    /// An obstacle around the arm, in its base frame (m): box:x,y,z,sx,sy,sz (centre and sizes),
+    /// sphere:x,y,z,r, capsule:x1,y1,z1,x2,y2,z2,r or plane:nx,ny,nz,offset (the solid where
+    /// normal . x <= offset), with NAME= first to name it. Repeatable. Added to the arm's collision
+    /// geometry, which every goal is checked against.
+    #[arg(long = "obstacle", value_name = "SPEC")]
+    pub obstacles: Vec<crate::arm::collision::ObstacleSpec>,
+    /// Without the table the arm stands on (a preset stands on one at its base plane, an arm file
+    /// where its [collision] table says).
+    #[arg(long)]
+    pub no_table: bool,
     /// Print the result as one line of JSON (view: its URL as {"url": URL}). Every command takes
     /// --json, before or after it: its --help says what it prints.
     #[arg(long)]
@@ -76,6 +87,8 @@ impl LinkArgs {
             calibration: one("--calibration", &self.calibration, &after.calibration)?,
             object_mm: one("--object-mm", &self.object_mm, &after.object_mm)?,
             rig: one("--rig", &self.rig, &after.rig)?,
+            obstacles: self.obstacles.iter().chain(&after.obstacles).cloned().collect(),
+            no_table: self.no_table || after.no_table,
             json: self.json || after.json,
         })
     }
@@ -91,6 +104,8 @@ impl LinkArgs {
             (self.arm.is_some(), "--arm"),
             (self.calibration.is_some(), "--calibration"),
             (self.object_mm.is_some(), "--object-mm"),
+            (!self.obstacles.is_empty(), "--obstacle"),
+            (self.no_table, "--no-table"),
         ]
         .into_iter()
         .filter_map(|(given, name)| given.then_some(name))
@@ -140,7 +155,13 @@ impl LinkArgs {
             arm: self.arm.clone(),
             calibration: self.calibration.clone(),
             object_mm: self.object_mm,
+            surroundings: self.surroundings(),
         }
+    }
+
+    /// What `--obstacle` and `--no-table` change around the arm.
+    pub fn surroundings(&self) -> Surroundings {
+        Surroundings { obstacles: self.obstacles.clone(), no_table: self.no_table }
     }
 }
 

@@ -5,6 +5,7 @@
 mod bench;
 pub mod bus_args;
 mod calibrate;
+pub mod collision;
 mod demo;
 mod doctor;
 pub mod drive;
@@ -168,6 +169,9 @@ enum Command {
     /// on the first line (--json: {"url": URL}); opens no browser. Drives --sim (the default, in
     /// real time), --port or --bus; --rig, every arm of a rig.
     View(view::ViewArgs),
+    /// The arm's collision geometry: fit it from a URDF (collision fit), check joint values
+    /// against it (collision check)
+    Collision(collision::CollisionArgs),
     // The drive commands (move, joints, play, status, stop, torque, gripper), each with the drive
     // options before or after it.
     #[command(flatten)]
@@ -244,7 +248,7 @@ pub const GROUPS: &[(&str, &[&str])] = &[
         "Drive an arm",
         &["move", "joints", "play", "gripper", "status", "stop", "torque", "view", "teleop", "retarget", "serve"],
     ),
-    ("Set up the servos and the arm", &["ports", "servo", "doctor", "calibrate"]),
+    ("Set up the servos and the arm", &["ports", "servo", "doctor", "calibrate", "collision"]),
     ("Kinematics", &["fk", "jacobian", "ik", "trajectory"]),
     ("Simulate and test", &["demo", "sim", "bench"]),
     ("Firmware", &["footprint"]),
@@ -376,6 +380,18 @@ fn take_globals(link: &LinkArgs, mut command: Command, name: &str) -> Result<Com
             args.json |= json;
             args.arm.arm = either("--arm", rest.arm.take(), args.arm.arm.take())?;
         }
+        Command::Collision(args) => match &mut args.what {
+            collision::CollisionCommand::Fit(args) => {
+                args.json |= json;
+                args.arm = either("--arm", rest.arm.take(), args.arm.take())?;
+            }
+            collision::CollisionCommand::Check(args) => {
+                args.json |= json;
+                args.arm = either("--arm", rest.arm.take(), args.arm.take())?;
+                args.obstacles.splice(0..0, std::mem::take(&mut rest.obstacles));
+                args.no_table |= std::mem::take(&mut rest.no_table);
+            }
+        },
         Command::Demo(args) => {
             args.json |= json;
             args.arm = either("--arm", rest.arm.take(), args.arm.take())?;
@@ -389,6 +405,8 @@ fn take_globals(link: &LinkArgs, mut command: Command, name: &str) -> Result<Com
             args.baud = either("--baud", rest.baud.take(), args.baud.take())?;
             args.arm = either("--arm", rest.arm.take(), args.arm.take())?;
             args.calibration = either("--calibration", rest.calibration.take(), args.calibration.take())?;
+            args.obstacles.splice(0..0, std::mem::take(&mut rest.obstacles));
+            args.no_table |= std::mem::take(&mut rest.no_table);
         }
         Command::Bench { what: BenchCommand::Bus(args) } => args.json |= json,
         Command::Bench { what: BenchCommand::Rate(args) } => args.json |= json,
@@ -458,6 +476,7 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
             print_json(out, &json!({"arm": arm.spec().name, "jacobian": arm.jacobian(&q)?}))?;
         }
         Command::Ik(args) => return ik::run(&args, out, err),
+        Command::Collision(args) => return collision::run(args.what, out),
         Command::Bench { what: BenchCommand::Bus(args) } => {
             return crate::commands::bench::bus::run(&args.request()?, out)
         }

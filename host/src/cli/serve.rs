@@ -58,6 +58,12 @@ pub struct ServeArgs {
     /// A LeRobot calibration file (JSON) of the arm's servos (see `armctl --help`'s --calibration).
     #[arg(long, value_name = "FILE")]
     pub calibration: Option<std::path::PathBuf>,
+    /// An obstacle more around the arm (see `armctl --help`'s --obstacle). Repeatable.
+    #[arg(long = "obstacle", value_name = "SPEC")]
+    pub obstacles: Vec<crate::arm::collision::ObstacleSpec>,
+    /// Without the table the arm stands on.
+    #[arg(long)]
+    pub no_table: bool,
     /// Print the first line as JSON, {"pty": PATH}, instead of the bare path.
     #[arg(long)]
     pub json: bool,
@@ -76,7 +82,10 @@ pub fn run(args: ServeArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
         (None, None) if args.sim => DEFAULT_SIM_ARM.to_string(),
         (None, None) => bail!("--bus needs --protocol: sts (Feetech) or dxl2 (Dynamixel)"),
     };
-    let arm = calibrated(ArmSpec::load(&arm_name, None)?, args.calibration.as_deref())?;
+    let surroundings =
+        crate::arm::collision::obstacle::Surroundings { obstacles: args.obstacles.clone(), no_table: args.no_table };
+    let arm =
+        calibrated(ArmSpec::load(&arm_name, None)?.with_surroundings(&surroundings)?, args.calibration.as_deref())?;
     let servos = servos_of(&arm)
         .ok_or_else(|| anyhow!("arm {} has no servo mapping: add a [servos] table to its arm file", arm.name))?;
     let protocol = match args.protocol {

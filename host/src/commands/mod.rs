@@ -5,6 +5,7 @@
 //!   firmware;
 //! - [`servo`]: `armctl servo`, `calibrate`, `ports`;
 //! - [`doctor`]: what is wrong with a servo bus;
+//! - [`collision`]: `armctl collision fit|check`, an arm's collision geometry made and checked;
 //! - [`bench`]: `armctl bench ik|bus|rate|mcu|pc`;
 //! - [`footprint`]: the board binaries' flash, RAM, panic sites and stack;
 //! - [`demo`]: the whole product in software in the loop;
@@ -12,6 +13,7 @@
 //! - [`retarget`]: BVH motion capture onto the arm, and `--play`;
 
 pub mod bench;
+pub mod collision;
 pub mod demo;
 pub mod doctor;
 pub mod drive;

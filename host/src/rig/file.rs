@@ -207,6 +207,7 @@ impl ArmEntry {
             arm: Some(arm),
             calibration: self.calibration.as_deref().map(|c| relative(dir, c)),
             object_mm: None,
+            surroundings: Default::default(),
         };
         // The same checks as the drive options of one arm, and the arm loaded once to prove it.
         place.target()?;

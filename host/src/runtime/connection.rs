@@ -9,6 +9,7 @@ use anyhow::{anyhow, bail, Context, Result};
 use firmware::bus::Protocol;
 use firmware::link::message::Info;
 
+use crate::arm::collision::obstacle::Surroundings;
 use crate::arm::servos::servos_of;
 use crate::arm::ArmSpec;
 use crate::link::serial::open_error;
@@ -72,6 +73,8 @@ pub struct Place {
     pub calibration: Option<PathBuf>,
     /// With `sim`: an object this wide (mm) between the jaws.
     pub object_mm: Option<f64>,
+    /// Obstacles added to the arm's collision geometry, the table taken away.
+    pub surroundings: Surroundings,
 }
 
 impl Place {
@@ -96,6 +99,11 @@ impl Place {
         Ok((self.target()?, self.arm_name()))
     }
 
+    /// The arm `name` (a preset or an arm file) with the surroundings applied.
+    pub fn load(&self, name: &str) -> Result<ArmSpec> {
+        ArmSpec::load(name, None)?.with_surroundings(&self.surroundings)
+    }
+
     /// The board or simulation to connect to; every option checked against the others.
     pub fn target(&self) -> Result<Target> {
         if self.object_mm.is_some() && !self.sim {
@@ -111,7 +119,7 @@ impl Place {
                 )
             };
             let arm = self.arm.as_deref().unwrap_or(default_bus_arm(protocol));
-            let spec = calibrated(ArmSpec::load(arm, None)?, self.calibration.as_deref())?;
+            let spec = calibrated(self.load(arm)?, self.calibration.as_deref())?;
             let options = PcOptions {
                 path: path.clone(),
                 protocol,
@@ -130,11 +138,22 @@ impl Place {
             bail!("--calibration applies to --bus (the core on this PC) only for now");
         }
         match (&self.port, self.sim) {
-            (Some(path), false) => Ok(Target::Port { path: path.clone(), baud: self.baud.unwrap_or(DEFAULT_BAUD) }),
+            (Some(path), false) => {
+                // The board's arm is sent as it is named unless the command line changes its
+                // surroundings: then the arm, loaded here with them, is sent.
+                let arm = match (&self.arm, self.surroundings.is_empty()) {
+                    (_, true) => None,
+                    (Some(arm), false) => Some(Box::new(self.load(arm)?)),
+                    (None, false) => {
+                        bail!("--obstacle and --no-table change the arm sent to the board: name it with --arm")
+                    }
+                };
+                Ok(Target::Port { path: path.clone(), baud: self.baud.unwrap_or(DEFAULT_BAUD), arm })
+            }
             (None, true) if self.baud.is_some() => bail!("--baud is the baud rate of --port; --sim has none"),
             (None, true) => {
                 let arm = self.arm.as_deref().unwrap_or(DEFAULT_SIM_ARM);
-                let options = SilOptions { object_mm: self.object_mm, ..SilOptions::new(arm)? };
+                let options = SilOptions { object_mm: self.object_mm, ..SilOptions::for_arm(self.load(arm)?)? };
                 Ok(Target::Sim(Box::new(options)))
             }
             (Some(_), true) => bail!("--port and --sim exclude each other: give one"),
@@ -162,6 +181,9 @@ pub enum Target {
         path: String,
         /// Baud rate (ignored by USB CDC boards).
         baud: u32,
+        /// The arm to send, loaded (`--obstacle` and `--no-table` applied); `None`: the one named
+        /// at the handshake, or the board's.
+        arm: Option<Box<ArmSpec>>,
     },
     /// The firmware core simulated in this process.
     Sim(Box<SilOptions>),
@@ -234,11 +256,13 @@ fn configure<T: Transport>(session: &mut Session<T>, arm: &ArmSpec) -> Result<In
 /// and wrote is said on `err`.
 pub fn open(target: Target, arm: Option<&str>, err: &mut dyn std::io::Write) -> Result<Connection> {
     let mut pc = None;
-    // The arm --bus or --sim loaded (with a calibration, or its servos simulated): sent as it is.
-    let mut loaded_arm = None;
+    // The arm --bus or --sim loaded (with a calibration, or its servos simulated), or --port's
+    // with its surroundings: sent as it is.
+    let loaded_arm;
     let transport: Box<dyn Transport> = match target {
-        Target::Port { path, baud } => {
+        Target::Port { path, baud, arm: loaded } => {
             let port = serialport::new(&path, baud).timeout(READ_TIMEOUT).open().map_err(|e| open_error(&path, e))?;
+            loaded_arm = loaded.map(|arm| *arm);
             Box::new(port)
         }
         Target::Bus(options) => {

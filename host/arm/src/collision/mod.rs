@@ -3,6 +3,14 @@
 //! from the arm file or the presets' tables (see [`collision_of`]), turned into the kinematics
 //! crate's fixed-size [`Scene`] for the host's checks and sent to the firmware with the arm.
 
+pub mod allowed;
+pub mod fit;
+pub mod obstacle;
+pub mod stl;
+pub mod toml;
+pub mod urdf;
+pub mod validate;
+
 use anyhow::{anyhow, bail, Result};
 use kinematics::collision::{Body, Capsule, Contact, Part, Scene, Shape};
 use kinematics::Real;

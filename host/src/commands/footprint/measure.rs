@@ -42,8 +42,11 @@ pub fn measure(elf: &Path) -> Result<MeasuredStack> {
     let bus = PtyServer::spawn(so101_bus(Faults::default())).context("cannot start the simulated servo bus")?;
     let board = Qemu::start(&QemuConfig::new(elf.to_path_buf(), Some(bus.path().to_string())))?;
     board.wait_started(crate::runtime::qemu::START_TIMEOUT)?;
-    let mut link =
-        open(Target::Port { path: board.link_path().to_string(), baud: 1_000_000 }, None, &mut std::io::sink())?;
+    let mut link = open(
+        Target::Port { path: board.link_path().to_string(), baud: 1_000_000, arm: None },
+        None,
+        &mut std::io::sink(),
+    )?;
     let c = &mut link.session;
     c.torque_on(NOT_READY_WAITS).context("torque on")?;
     c.move_to(
