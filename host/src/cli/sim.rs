@@ -411,6 +411,8 @@ fn prepare(args: &SimServosArgs) -> Result<(SimConfig, ServeOptions)> {
     let objects = object(args, arm.as_ref())?.into_iter().collect();
     let registers = registers(&args.register, &ids, model)?;
     let hardware_errors = hardware_errors(&args.hardware_error, &ids)?;
+    // The arm's geometry, when it has some: its links stop where they run into something.
+    let world = spec.as_ref().map(crate::sim::World::of).transpose()?.flatten();
     let config = SimConfig {
         protocol,
         model,
@@ -421,6 +423,7 @@ fn prepare(args: &SimServosArgs) -> Result<(SimConfig, ServeOptions)> {
         fixed_baud: args.fixed_baud,
         burst,
         limits,
+        world,
     };
     let options = ServeOptions { place, objects, record: None, registers, hardware_errors, echo: args.echo };
     // What a servo refuses (`moving`), before anything is served.
