@@ -129,10 +129,7 @@ pub struct Jaw {
     pub closed: i64,
 }
 
-/// Load per tick of goal past the contact, in thousandths of the servo's full effort: 25 ticks
-/// (about 2° of the horn) push at half effort. A round figure for a stiff object, not a
-/// measurement of a servo.
-pub const JAW_STIFFNESS: i64 = 20;
+pub use super::stall::JAW_STIFFNESS;
 
 impl Jaw {
     /// The jaws of `gripper` closing on an object `width_mm` wide (the opening taken as linear in

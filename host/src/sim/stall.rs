@@ -1,5 +1,5 @@
 //! A servo stalled against something its link has run into (the table, an obstacle, another link
-//! of the arm: [`super::contact`] finds where): its horn cannot pass the contact going the way it
+//! of the arm: [`super::contact`] finds where; the servo, [`super::servo`], holds the stop): its horn cannot pass the contact going the way it
 //! was going, while it stays free to move back.
 //!
 //! What the stalled servo reports, as a real one pushing against a wall would:
@@ -18,7 +18,10 @@
 
 use firmware::bus::feetech::StatusError;
 
-pub use super::servo::JAW_STIFFNESS;
+/// Load per tick of goal past the contact, in thousandths of the servo's full effort: 25 ticks
+/// (about 2° of the horn) push at half effort. A round figure for a stiff object (a gripper's
+/// jaws on it, a link on the table), not a measurement of a servo.
+pub const JAW_STIFFNESS: i64 = 20;
 
 /// How long a Feetech servo's load may stay at or above its overload torque before its overload
 /// protection trips: `Protection_Time` (address 35, 10 ms units) at 200, as read from real

@@ -142,6 +142,7 @@ pub fn run(args: &PcBenchRequest, out: &mut dyn Write, err: &mut dyn Write) -> R
         "late_ticks": summary.late,
         "goals_checked": monitor.checked,
         "violations": monitor.violation_count,
+        "contacts": monitor.contacts.as_ref().map(|c| c.json()),
     });
     writeln!(out, "{v}")?;
     Ok(if monitor.violation_count == 0 { 0 } else { 1 })

@@ -675,4 +675,53 @@ mod tests {
         at(burst, 110 * MS, &mut bus, &mut m);
         assert_eq!(m.report().violation_count, 1, "{:?}", m.report().violations);
     }
+
+    /// The collision rule on a served SO-101 whose geometry is its frames as capsules on a table:
+    /// a sync write of goals that folds the shoulder through the table is one goal configuration
+    /// within the margin, named, and the bus stops the shoulder on the table; the goals back at
+    /// the middle are judged free.
+    #[test]
+    fn goals_through_the_table_are_recorded_and_the_arm_stops_on_it() {
+        let mut arm = crate::arm::ArmSpec::load("so101", None).unwrap();
+        arm.collision = Some(crate::arm::collision::CollisionSpec::from_frames(&arm, 0.02));
+        let config = crate::sim::arm_bus(&arm, crate::sim::Faults::default()).unwrap();
+        let world = config.world.clone().expect("the arm's geometry");
+        let mut bus = config.build();
+        let mut m = RealTimeMonitor::new(config.limits.clone().unwrap()).with_collision(world.clone());
+        let items = STS3215.items;
+        let goals = |ticks: [i64; 5]| {
+            let mut data = Vec::new();
+            for (id, g) in (1u8..).zip(ticks) {
+                let mut bytes = [0u8; 2];
+                items.goal_position.encode(g, STS3215.endian, &mut bytes).unwrap();
+                data.push(id);
+                data.extend_from_slice(&bytes);
+            }
+            packet(BROADCAST, Instruction::SyncWrite { address: items.goal_position.address, length: 2, data: &data })
+        };
+        let at = |bytes: Vec<u8>, t_ns: u64, bus: &mut SimBus, m: &mut RealTimeMonitor| {
+            bus.receive_observed(&bytes, t_ns, &mut |bus, frame| m.observe(bus, frame));
+            m.end_burst();
+        };
+        let torque = Instruction::Write { address: items.torque_enable.address, data: &[1] };
+        at(packet(BROADCAST, torque), MS, &mut bus, &mut m);
+        // Shoulder lift 1.6 rad forward: the wrist below the table.
+        at(goals([2048, 3091, 2048, 2048, 2048]), 2 * MS, &mut bus, &mut m);
+        at(
+            packet(BROADCAST, Instruction::SyncRead { address: items.present_position.address, length: 2, ids: &[1] }),
+            1000 * MS,
+            &mut bus,
+            &mut m,
+        );
+        let record = m.report().contacts.clone().unwrap();
+        assert_eq!((record.checked, record.count), (1, 1), "{}", record.summary());
+        assert!(record.contacts[0].bodies.contains(&"table".to_string()), "{}", record.contacts[0]);
+        assert!(m.report().summary().contains("1 of 1 goals within the 10 mm margin"), "{}", m.report().summary());
+        let stopped = bus.servo(2).unwrap().get(items.present_position);
+        assert!(stopped < 3091 - 100, "the shoulder stops on the table, at {stopped}");
+        assert_eq!(bus.contact().unwrap().stats().last.as_ref().unwrap().1, [2]);
+        at(goals([2048; 5]), 1010 * MS, &mut bus, &mut m);
+        let record = m.report().contacts.clone().unwrap();
+        assert_eq!((record.checked, record.count), (2, 1), "{}", record.summary());
+    }
 }
