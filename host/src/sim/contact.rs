@@ -11,9 +11,9 @@
 //! be stopped within the same step. A servo whose motion alone does not close the gap (two joints
 //! that only together bring the bodies together) is not singled out: then every moving servo stops.
 //!
-//! A stalled servo keeps pushing toward its goal: at each advance its stop is lifted and found
-//! again if the contact is still there, so it moves on once another joint has taken the link away,
-//! and back as soon as its goal lies on the free side.
+//! A stalled servo keeps pushing toward its goal: whenever another joint moves, its stop is
+//! lifted at each step and found again if the contact is still there, so it moves on once another
+//! joint has taken the link away; and it moves back as soon as its goal lies on the free side.
 //!
 //! The configuration the bus starts from must be free; one that already overlaps (a horn placed
 //! by hand into the table) is left to move, except that no servo may make the overlap deeper.
@@ -74,17 +74,27 @@ impl ContactModel {
         let found: Option<Vec<usize>> = ids.iter().map(|&id| servos.iter().position(|s| s.id() == id)).collect();
         // An arm with a joint's servo missing from the bus cannot be placed: nothing to model.
         let Some(index) = found else { return };
-        let was_stopped: Vec<bool> = index.iter().map(|&i| servos[i].stop().is_some()).collect();
-        for &i in &index {
-            servos[i].release(from_ns);
-        }
-        if !index.iter().any(|&i| servos[i].in_motion(from_ns)) {
-            return;
-        }
+        // Stalls already counted: those found at the last advance, and those found in this one.
+        let mut counted: Vec<bool> = index.iter().map(|&i| servos[i].stop().is_some()).collect();
         let mut start = from_ns;
         while start < to_ns {
             let end = to_ns.min(start.saturating_add(STEP_NS));
-            self.step(servos, &index, &was_stopped, start, end);
+            let free_moving =
+                |servos: &[SimServo]| index.iter().any(|&i| servos[i].stop().is_none() && servos[i].in_motion(start));
+            // A stalled servo pushes on whenever another joint moves (it may clear the way), and
+            // leaves its stop behind when its goal lies on the free side. Otherwise nothing has
+            // changed for it: the push would find the same contact.
+            let moving = free_moving(servos);
+            for &i in &index {
+                if moving || !servos[i].pushing() {
+                    servos[i].release(start);
+                }
+            }
+            if !free_moving(servos) {
+                // Nothing moves from here to the end of the advance.
+                break;
+            }
+            self.step(servos, &index, &mut counted, start, end);
             start = end;
         }
     }
@@ -99,7 +109,7 @@ impl ContactModel {
     }
 
     /// Judges the motion from `a_ns` (where nothing overlaps deeper than it did) to `b_ns`.
-    fn step(&mut self, servos: &mut [SimServo], index: &[usize], was_stopped: &[bool], a_ns: u64, b_ns: u64) {
+    fn step(&mut self, servos: &mut [SimServo], index: &[usize], counted: &mut [bool], a_ns: u64, b_ns: u64) {
         let mut a_ns = a_ns;
         // Each round stops at least one servo, or ends.
         for _ in 0..=index.len() {
@@ -153,7 +163,8 @@ impl ContactModel {
                 let at = servo.horn_at(lo);
                 let toward = (servo.horn_at(hi) - at).signum();
                 servo.set_stop(Some(Stop { at, toward }));
-                if !was_stopped[j] {
+                if !counted[j] {
+                    counted[j] = true;
                     stopped.push(servo.id());
                 }
             }
@@ -176,6 +187,7 @@ mod tests {
     use crate::sim::SimBus;
 
     const S: u64 = 1_000_000_000;
+    const ELBOW: f64 = -1.2;
 
     /// The SO-101's servos with its joints' geometry measured from its frames, torque on.
     fn so101() -> (SimBus, World) {
@@ -259,6 +271,43 @@ mod tests {
         assert_eq!(s.get(sts3215::PRESENT_POSITION), 2048, "back from {stalled}");
         assert_eq!(s.get(sts3215::PRESENT_LOAD), 0);
         assert_eq!(s.stop(), None);
+    }
+
+    /// Self-collision the same way: with no table, the elbow folded back (1.69 rad) brings its
+    /// link onto the shoulder's; it stops there, the elbow's servo alone stalled.
+    #[test]
+    fn a_link_folded_onto_another_stops_on_it() {
+        let arm = ArmSpec::load("so101", None).unwrap();
+        let geometry = CollisionSpec::from_frames(&arm, 0.02).without(crate::arm::collision::TABLE);
+        let mut world = World::new(&arm, geometry).unwrap();
+        let (mut bus, _) = so101();
+        bus.set_contact(Some(ContactModel::new(world.clone())));
+        let goal = world_goal(&world, 2, 1.69);
+        bus.servo_mut(3).unwrap().set_register(sts3215::GOAL_POSITION, goal, 0).unwrap();
+        bus.advance_to(S);
+        let closest = world.closest(&angles(&bus, &world)).unwrap();
+        assert!(closest.distance > -1e-4 && closest.distance < 1e-3, "{}", world.describe(&closest));
+        assert_eq!(world.names(&closest), ["shoulder_pan", "elbow_flex"]);
+        let s = bus.servo(3).unwrap();
+        assert!(goal - s.get(sts3215::PRESENT_POSITION) > 20, "{} short of {goal}", s.get(sts3215::PRESENT_POSITION));
+        assert!(s.get(sts3215::PRESENT_LOAD) > 0);
+        assert_eq!(bus.contact().unwrap().stats().last.as_ref().unwrap().1, [3]);
+    }
+
+    /// A stalled servo keeps pushing: once the elbow has lifted the forearm off the table, the
+    /// shoulder moves on toward its goal.
+    #[test]
+    fn a_stalled_servo_moves_on_when_another_joint_clears_the_way() {
+        let (mut bus, world) = so101();
+        let goal = world_goal(&world, 1, 1.6);
+        bus.servo_mut(2).unwrap().set_register(sts3215::GOAL_POSITION, goal, 0).unwrap();
+        bus.advance_to(S);
+        let stalled = bus.servo(2).unwrap().get(sts3215::PRESENT_POSITION);
+        let up = world_goal(&world, 2, ELBOW);
+        bus.servo_mut(3).unwrap().set_register(sts3215::GOAL_POSITION, up, S).unwrap();
+        bus.advance_to(2 * S);
+        let further = bus.servo(2).unwrap().get(sts3215::PRESENT_POSITION);
+        assert!(further > stalled + 20, "the shoulder stayed at {further} (stalled at {stalled}, goal {goal})");
     }
 
     /// A motion that brings nothing into contact is not touched.

@@ -477,9 +477,12 @@ impl SimServo {
     /// The stop is lifted at `t_ns` (its load gone): a servo whose goal lies beyond it pushes on
     /// toward it again, as a real one does whenever what held it is gone.
     pub fn release(&mut self, t_ns: u64) {
-        if self.stop.take().is_none() {
+        if self.stop.is_none() {
             return;
         }
+        // Held at the contact up to now first: the push resumes from there.
+        self.update(t_ns);
+        self.stop = None;
         if let Some(force) = self.model.force {
             self.set(force.present, 0);
         }
@@ -489,6 +492,14 @@ impl SimServo {
             self.start_move(t_ns);
             self.overloaded_since = since;
         }
+    }
+
+    /// Whether its horn is stopped with its goal beyond the stop: it pushes against it.
+    pub fn pushing(&self) -> bool {
+        self.stop.is_some_and(|stop| {
+            let goal = self.get(self.model.items.goal_position) as f64;
+            stop.push(goal - self.corrected(stop.at)) > 0.0
+        })
     }
 
     /// Where the horn will be at `t_ns` (its own ticks), its stop included, without changing
