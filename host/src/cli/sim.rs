@@ -709,22 +709,29 @@ fn hand_command(line: &str) -> Result<Option<HandCommand>> {
     }
 }
 
-/// The monitor's violations printed so far.
+/// The monitor's violations and goals within the margin printed so far.
 #[derive(Default)]
 struct Printed {
     lines: usize,
     said_more: bool,
+    contacts: usize,
 }
 
 impl Printed {
-    /// Prints the violations found since the last call, one line each, the first
-    /// [`MAX_VIOLATIONS`] only; then one line saying that the rest are only counted.
+    /// Prints the violations and the goals within the margin found since the last call, one line
+    /// each, the first [`MAX_VIOLATIONS`] of each only; then one line saying that the rest of the
+    /// violations are only counted (the summary counts the rest of the goals).
     fn print(&mut self, server: &PtyServer, err: &mut dyn Write) -> Result<()> {
         let Some(report) = server.monitor() else { return Ok(()) };
         for v in report.violations.iter().skip(self.lines) {
             writeln!(err, "violation: {v}")?;
         }
         self.lines = report.violations.len();
+        let contacts = report.contacts.as_ref().map_or(&[][..], |c| &c.contacts[..]);
+        for c in contacts.iter().skip(self.contacts) {
+            writeln!(err, "within the margin: {c}")?;
+        }
+        self.contacts = contacts.len();
         if !self.said_more && report.violation_count > self.lines as u64 {
             writeln!(err, "more than {MAX_VIOLATIONS} violations: further ones are only counted")?;
             self.said_more = true;
