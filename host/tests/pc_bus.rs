@@ -45,6 +45,7 @@ fn servos(arm: &str, faults: Faults, burst: Option<Duration>) -> PtyServer {
         fixed_baud: false,
         burst,
         limits: Some(armctl::sim::monitor::limits_of(&spec).unwrap()),
+        world: None,
     })
     .expect("pty server starts")
 }

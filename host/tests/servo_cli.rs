@@ -58,6 +58,7 @@ fn sim(model: &'static Model, ids: &[u8], faults: Faults, duplicates: &[u8]) -> 
         fixed_baud: false,
         burst: None,
         limits: None,
+        world: None,
     })
     .expect("pty server starts")
 }

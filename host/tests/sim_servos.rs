@@ -557,6 +557,7 @@ fn the_pty_server_answers_a_ping() {
         fixed_baud: false,
         burst: None,
         limits: None,
+        world: None,
     })
     .unwrap();
     armctl_test_support::assert_private(server.path());
@@ -581,6 +582,7 @@ fn a_ping_behind_a_false_header_in_noise_is_answered() {
         fixed_baud: false,
         burst: None,
         limits: None,
+        world: None,
     })
     .unwrap();
     let noisy_ping = [0xFF, 0xFF, 0x00, 0x20, 0xFF, 0xFF, 0x01, 0x02, 0x01, 0xFB];
@@ -622,6 +624,7 @@ fn sts_on_pty(ids: &[u8], burst: Option<Duration>, limits: Option<Vec<GoalLimit>
         fixed_baud: false,
         burst,
         limits,
+        world: None,
     })
     .expect("pty server starts")
 }

@@ -189,6 +189,9 @@ fn finish(pc: &mut Pc, simulated: Option<&PtyServer>, err: &mut dyn Write) -> Re
         for v in report.violations.iter().take(MAX_VIOLATION_LINES) {
             writeln!(err, "  violation: {v}")?;
         }
+        for c in report.contacts.iter().flat_map(|c| &c.contacts).take(MAX_VIOLATION_LINES) {
+            writeln!(err, "  within the margin: {c}")?;
+        }
     }
     Ok(())
 }

@@ -411,6 +411,8 @@ fn prepare(args: &SimServosArgs) -> Result<(SimConfig, ServeOptions)> {
     let objects = object(args, arm.as_ref())?.into_iter().collect();
     let registers = registers(&args.register, &ids, model)?;
     let hardware_errors = hardware_errors(&args.hardware_error, &ids)?;
+    // The arm's geometry, when it has some: its links stop where they run into something.
+    let world = spec.as_ref().map(crate::sim::World::of).transpose()?.flatten();
     let config = SimConfig {
         protocol,
         model,
@@ -421,6 +423,7 @@ fn prepare(args: &SimServosArgs) -> Result<(SimConfig, ServeOptions)> {
         fixed_baud: args.fixed_baud,
         burst,
         limits,
+        world,
     };
     let options = ServeOptions { place, objects, record: None, registers, hardware_errors, echo: args.echo };
     // What a servo refuses (`moving`), before anything is served.
@@ -706,22 +709,29 @@ fn hand_command(line: &str) -> Result<Option<HandCommand>> {
     }
 }
 
-/// The monitor's violations printed so far.
+/// The monitor's violations and goals within the margin printed so far.
 #[derive(Default)]
 struct Printed {
     lines: usize,
     said_more: bool,
+    contacts: usize,
 }
 
 impl Printed {
-    /// Prints the violations found since the last call, one line each, the first
-    /// [`MAX_VIOLATIONS`] only; then one line saying that the rest are only counted.
+    /// Prints the violations and the goals within the margin found since the last call, one line
+    /// each, the first [`MAX_VIOLATIONS`] of each only; then one line saying that the rest of the
+    /// violations are only counted (the summary counts the rest of the goals).
     fn print(&mut self, server: &PtyServer, err: &mut dyn Write) -> Result<()> {
         let Some(report) = server.monitor() else { return Ok(()) };
         for v in report.violations.iter().skip(self.lines) {
             writeln!(err, "violation: {v}")?;
         }
         self.lines = report.violations.len();
+        let contacts = report.contacts.as_ref().map_or(&[][..], |c| &c.contacts[..]);
+        for c in contacts.iter().skip(self.contacts) {
+            writeln!(err, "within the margin: {c}")?;
+        }
+        self.contacts = contacts.len();
         if !self.said_more && report.violation_count > self.lines as u64 {
             writeln!(err, "more than {MAX_VIOLATIONS} violations: further ones are only counted")?;
             self.said_more = true;

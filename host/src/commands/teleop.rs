@@ -232,7 +232,8 @@ pub fn report_json(f: &Figures, period: Duration, lead: Duration, ending: &Endin
             "late_keyframes": f.late_keyframes, "underruns": f.underruns, "restarts": f.restarts, "retimed": f.retimed,
             "clamped_steps": f.clamped_steps, "limited_values": f.limited_values,
             "tracking_rad": {"p50": t50, "p99": t99, "max": tmax},
-            "monitor": monitor.map(|m| json!({"goals": m.checked, "violations": m.violation_count, "max_step_ratio": m.max_step_ratio})),
+            "monitor": monitor.map(|m| json!({"goals": m.checked, "violations": m.violation_count, "max_step_ratio": m.max_step_ratio,
+                                              "contacts": m.contacts.as_ref().map(|c| c.json())})),
             "recorded": recorded.map(|p| p.display().to_string()),
             "follower_at_rest": ending.rest,
     })

@@ -18,6 +18,7 @@ use firmware::bus::table::Model;
 use firmware::bus::timing::wire_time_ns;
 use firmware::bus::{Instruction, InstructionPacket, ParseError, Protocol, Status, BROADCAST};
 
+use super::contact::ContactModel;
 use super::faults::{FaultState, Faults};
 use super::servo::{error, SimServo};
 
@@ -85,6 +86,8 @@ pub struct SimBus {
     stats: BusStats,
     /// Whether the frame being carried out is a group read of the present position.
     reads_position: bool,
+    /// The arm's geometry, when its links can run into something.
+    contact: Option<ContactModel>,
 }
 
 impl SimBus {
@@ -111,6 +114,7 @@ impl SimBus {
             corrupted: false,
             stats: BusStats::default(),
             reads_position: false,
+            contact: None,
         }
     }
 
@@ -193,9 +197,30 @@ impl SimBus {
         SimServo::new(self.model, id, self.baud)
     }
 
-    /// Moves the servos' motion forward to `t_ns`.
+    /// The arm's geometry, which stops its servos where its links run into something (`None`:
+    /// nothing is in the way of any motion).
+    pub fn set_contact(&mut self, contact: Option<ContactModel>) {
+        self.contact = contact;
+    }
+
+    /// The same bus with `contact` ([`SimBus::set_contact`]).
+    pub fn with_contact(mut self, contact: Option<ContactModel>) -> Self {
+        self.contact = contact;
+        self
+    }
+
+    /// The contact model, if the bus has one.
+    pub fn contact(&self) -> Option<&ContactModel> {
+        self.contact.as_ref()
+    }
+
+    /// Moves the servos' motion forward to `t_ns`, stopping those whose links run into something.
     pub fn advance_to(&mut self, t_ns: u64) {
+        let from = self.now_ns;
         self.now_ns = self.now_ns.max(t_ns);
+        if let Some(contact) = &mut self.contact {
+            contact.advance(&mut self.servos, from, self.now_ns);
+        }
         for s in &mut self.servos {
             s.update(self.now_ns);
         }

@@ -11,6 +11,9 @@
 //! - [`latency`]: a USB serial adapter's latency timer, for the replies on a pty.
 //! - [`monitor`]: safety monitors that check every goal the servos receive.
 //! - [`scene`]: an object on the table for a simulated gripper to pick up.
+//! - [`world`]: the arm's collision geometry placed by what its servos hold.
+//! - [`contact`]: links that run into the table, an obstacle or each other stop there.
+//! - [`stall`]: a servo stalled against such a contact: its load, its overload.
 //! - [`recording`]: the served servos' positions and goals on a fixed grid of real time, as CSV.
 //!
 //! The codecs, control tables and wire-time arithmetic are the firmware's own
@@ -18,6 +21,7 @@
 
 pub mod bus;
 pub mod clock;
+pub mod contact;
 pub mod faults;
 pub mod latency;
 pub mod monitor;
@@ -27,9 +31,12 @@ pub mod pty;
 pub mod recording;
 pub mod scene;
 pub mod servo;
+pub mod stall;
+pub mod world;
 
 pub use bus::{BusStats, Frame, SimBus, WireByte};
 pub use clock::VirtualClock;
+pub use contact::ContactModel;
 pub use faults::{FaultStats, Faults};
 pub use monitor::{limits_of, GoalLimit, MonitorReport, RealTimeMonitor, DEFAULT_PERIOD};
 pub use port::{PortStats, SharedBus, SimPort};
@@ -37,6 +44,7 @@ pub use pty::{arm_bus, serve_arm, so101_bus, HandHandle, MonitorHandle, PtyServe
 pub use recording::Recorder;
 pub use scene::Scene;
 pub use servo::{Jaw, SimServo};
+pub use world::World;
 
 /// A bus shared with a port on a fresh virtual clock: what a SIL test connects a master to.
 pub fn connect(bus: SimBus) -> (SharedBus, SimPort, VirtualClock) {

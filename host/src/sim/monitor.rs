@@ -9,11 +9,15 @@
 //! - [`realtime`]: the same checks for a bus served in real time (a pty), judged goal write by
 //!   goal write over the control ticks counted between them in the byte stream.
 //! - [`arm_limits`]: an arm's goal limits as its firmware maps them, for [`realtime`].
+//! - [`collision`]: both monitors' rule on the arm's geometry: goals whose bodies come closer than
+//!   the margin are recorded with the two bodies and their distance.
 
 pub mod arm_limits;
+pub mod collision;
 pub mod realtime;
 
 pub use arm_limits::limits_of;
+pub use collision::{CollisionRule, ContactRecord, GoalContact};
 pub use realtime::{GoalLimit, GoalSample, MonitorReport, RealTimeMonitor, ServoRecord, DEFAULT_PERIOD};
 
 /// Violations kept in full; those beyond are only counted.
@@ -76,9 +80,20 @@ pub struct SafetyMonitor {
     pub violation_count: u64,
     /// Goals not judged because the line corrupted them on the way (see [`GoalState::corrupted`]).
     pub corrupted: u64,
+    /// Goal configurations within the margin of the arm's geometry (`None`: no geometry, not
+    /// judged; [`SafetyMonitor::with_collision`]).
+    pub contacts: Option<ContactRecord>,
+    rule: Option<CollisionRule>,
 }
 
 impl SafetyMonitor {
+    /// A monitor that also judges every goal configuration in `world`'s geometry
+    /// ([`collision`]).
+    pub fn with_collision(world: crate::sim::World) -> Self {
+        let rule = CollisionRule::new(world);
+        Self { contacts: Some(rule.record()), rule: Some(rule), ..Self::default() }
+    }
+
     /// Checks what the servos hold after a tick at `time` (s) of a loop with `period` (s); `None`
     /// while the torque is off (limp servos may hold any goal; checking starts afresh).
     pub fn check(&mut self, time: f64, period: f64, bounds: &[JointBounds], servos: Option<Vec<GoalState>>) {
@@ -87,11 +102,13 @@ impl SafetyMonitor {
             return;
         };
         self.last.resize(servos.len(), None);
+        let mut any_received = false;
         for (j, (b, s)) in bounds.iter().zip(&servos).enumerate() {
             let received = self.last[j].is_none_or(|(_, _, writes)| s.writes > writes);
             if !received {
                 continue;
             }
+            any_received = true;
             if s.corrupted {
                 // Not the firmware's goal: the next one is judged against the last one it sent.
                 self.corrupted += 1;
@@ -112,6 +129,17 @@ impl SafetyMonitor {
                 }
             }
             self.last[j] = Some((s.goal, time, s.writes));
+        }
+        if let (true, Some(rule), Some(record)) = (any_received, &mut self.rule, &mut self.contacts) {
+            // Every joint's goal as the servos hold them, none corrupted on the line.
+            let goal = |id: u8| {
+                let k = bounds.iter().position(|b| b.id == id)?;
+                servos.get(k).filter(|s| !s.corrupted).map(|s| s.goal)
+            };
+            let goals: Option<Vec<i64>> = rule.ids().into_iter().map(goal).collect();
+            if let Some(goals) = goals {
+                rule.judge(record, time, &goals);
+            }
         }
     }
 

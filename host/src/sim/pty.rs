@@ -44,11 +44,13 @@ use firmware::bus::Protocol;
 use serialport::{SerialPort, TTYPort};
 
 use super::bus::{SimBus, WireByte};
+use super::contact::ContactModel;
 use super::faults::{FaultState, Faults};
 use super::latency::LatencyTimer;
 use super::monitor::{GoalLimit, MonitorReport, RealTimeMonitor};
 use super::recording::Recorder;
 use super::servo::{Jaw, SimServo};
+use super::world::World;
 use firmware::bus::table::Item;
 
 /// Ticks between a duplicate servo's position and its twin's, so that their replies to a position
@@ -81,12 +83,18 @@ pub struct SimConfig {
     /// Goal limits per servo: a safety monitor then checks every goal the servos receive, over
     /// the real time between them ([`PtyServer::monitor`]). `None`: no monitor.
     pub limits: Option<Vec<GoalLimit>>,
+    /// The arm's collision geometry: its links stop where they run into the table, an obstacle
+    /// or each other ([`super::contact`]), and the monitor, if there is one, records every goal
+    /// within its margin ([`super::monitor::collision`]). `None`: nothing is in the way.
+    pub world: Option<World>,
 }
 
 impl SimConfig {
     /// The bus this describes.
     pub fn build(&self) -> SimBus {
-        let mut bus = SimBus::new(self.protocol, self.model, &self.ids, self.baud).with_faults(self.faults.clone());
+        let mut bus = SimBus::new(self.protocol, self.model, &self.ids, self.baud)
+            .with_faults(self.faults.clone())
+            .with_contact(self.world.clone().map(ContactModel::new));
         for &id in &self.duplicates {
             let mut twin = bus.new_servo(id);
             let at = twin.get(self.model.items.present_position) + TWIN_OFFSET_TICKS;
@@ -292,7 +300,14 @@ impl PtyServer {
         let stop = Arc::new(AtomicBool::new(false));
         let new_faults = Arc::new(Mutex::new(None));
         let hand = Arc::new(Mutex::new(HandQueue::default()));
-        let monitor = config.limits.clone().map(|limits| Arc::new(Mutex::new(RealTimeMonitor::new(limits))));
+        let monitor = config.limits.clone().map(|limits| {
+            let monitor = RealTimeMonitor::new(limits);
+            let monitor = match config.world.clone() {
+                Some(world) => monitor.with_collision(world),
+                None => monitor,
+            };
+            Arc::new(Mutex::new(monitor))
+        });
         let control = Control {
             stop: stop.clone(),
             new_faults: new_faults.clone(),
@@ -620,7 +635,8 @@ fn serve(
 
 /// The bus of `arm`'s servos (its `[servos]` table, or its preset's): the joints' and the
 /// gripper's, their model and protocol at its baud rate, with the safety monitor on their goal
-/// limits ([`super::monitor::limits_of`]). A board's UART may set the pty's rate to the nearest
+/// limits ([`super::monitor::limits_of`]) and the arm's collision geometry when it has some
+/// ([`World::of`]: links stop at contacts, the monitor records goals within the margin). A board's UART may set the pty's rate to the nearest
 /// standard one: the servos stay at the arm's.
 pub fn arm_bus(arm: &crate::arm::ArmSpec, faults: super::Faults) -> anyhow::Result<SimConfig> {
     let servos =
@@ -635,6 +651,7 @@ pub fn arm_bus(arm: &crate::arm::ArmSpec, faults: super::Faults) -> anyhow::Resu
         fixed_baud: true,
         burst: None,
         limits: Some(super::monitor::limits_of(arm)?),
+        world: World::of(arm)?,
     })
 }
 
@@ -661,6 +678,7 @@ pub fn so101_bus(faults: super::Faults) -> SimConfig {
         fixed_baud: true,
         burst: None,
         limits: None,
+        world: None,
     }
 }
 
@@ -683,6 +701,7 @@ mod tests {
             fixed_baud: false,
             burst: None,
             limits: None,
+            world: None,
         }
     }
 

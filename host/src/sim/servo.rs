@@ -57,6 +57,7 @@ use firmware::bus::table::{xseries, Access, Item, Model};
 use firmware::bus::{Instruction, Protocol};
 
 use super::motion::Profile;
+use super::stall::{self, Stop, OVERLOAD, OVERLOAD_TORQUE, PROTECTION_TIME_NS};
 use crate::arm::calibration::homing_offset_item;
 use crate::arm::calibration::record::DXL_POSITION_MODE_MAX_OFFSET;
 
@@ -111,6 +112,10 @@ pub struct SimServo {
     position_read_ns: Option<u64>,
     /// Read-only items set by [`SimServo::set_register`], kept through reboots and factory resets.
     pinned: Vec<(Item, i64)>,
+    /// Where its link ran into something ([`super::contact`]): the horn cannot pass it that way.
+    stop: Option<Stop>,
+    /// Since when its load has stood at or above its overload torque, virtual ns.
+    overloaded_since: Option<u64>,
 }
 
 /// An object between a gripper's jaws: the horn cannot pass `contact` going toward `closed`, and
@@ -124,10 +129,7 @@ pub struct Jaw {
     pub closed: i64,
 }
 
-/// Load per tick of goal past the contact, in thousandths of the servo's full effort: 25 ticks
-/// (about 2° of the horn) push at half effort. A round figure for a stiff object, not a
-/// measurement of a servo.
-pub const JAW_STIFFNESS: i64 = 20;
+pub use super::stall::JAW_STIFFNESS;
 
 impl Jaw {
     /// The jaws of `gripper` closing on an object `width_mm` wide (the opening taken as linear in
@@ -175,6 +177,8 @@ impl SimServo {
             jaw: None,
             position_read_ns: None,
             pinned: Vec::new(),
+            stop: None,
+            overloaded_since: None,
         };
         servo.set(model.items.id, i64::from(id));
         if let Some(index) = model.baud_index(baud) {
@@ -417,8 +421,105 @@ impl SimServo {
                 self.set(force.present, closing * value);
             }
         }
+        match self.stop.filter(|_| self.torque()) {
+            Some(stop) => {
+                if stop.blocks(p) {
+                    // Against the contact: the horn stands there (rigid, no give).
+                    p = stop.at;
+                    self.profile = Profile::hold(p, t_ns);
+                    moving = false;
+                }
+                self.push_against(stop, t_ns);
+            }
+            None => self.overloaded_since = None,
+        }
         self.set(self.model.items.present_position, self.present_of(p));
         self.set(self.model.items.moving, i64::from(moving));
+    }
+
+    /// The load of a horn held at `stop` by its goal beyond it, and a Feetech servo's overload
+    /// protection (see [`super::stall`]).
+    fn push_against(&mut self, stop: Stop, t_ns: u64) {
+        let Some(force) = self.model.force else { return };
+        let goal = self.get(self.model.items.goal_position) as f64;
+        let cap = self.get(force.limit).abs() * 1000 / i64::from(force.limit_full.max(1));
+        let load = stall::load(stop.push(goal - self.corrected(stop.at))).min(cap);
+        let value = load * i64::from(force.present_full) / 1000;
+        self.set(force.present, stop.toward.signum() as i64 * value);
+        if self.model.items.hardware_error.is_some() {
+            // A Dynamixel's overload is not modelled (see the module doc of `stall`).
+            return;
+        }
+        let threshold = self.get(OVERLOAD_TORQUE) * 10;
+        if threshold <= 0 || load < threshold {
+            self.overloaded_since = None;
+            return;
+        }
+        let since = *self.overloaded_since.get_or_insert(t_ns);
+        if t_ns.saturating_sub(since) >= PROTECTION_TIME_NS {
+            self.overloaded_since = None;
+            self.fault_bits |= OVERLOAD;
+            self.torque_off(t_ns);
+        }
+    }
+
+    /// Stops the horn where its link ran into something (`None`: nothing in the way); it takes
+    /// effect from the next [`SimServo::update`].
+    pub fn set_stop(&mut self, stop: Option<Stop>) {
+        self.stop = stop;
+    }
+
+    /// Where the horn is stopped, if it is.
+    pub fn stop(&self) -> Option<Stop> {
+        self.stop
+    }
+
+    /// The stop is lifted at `t_ns` (its load gone): a servo whose goal lies beyond it pushes on
+    /// toward it again, as a real one does whenever what held it is gone.
+    pub fn release(&mut self, t_ns: u64) {
+        if self.stop.is_none() {
+            return;
+        }
+        // Held at the contact up to now first: the push resumes from there.
+        self.update(t_ns);
+        self.stop = None;
+        if let Some(force) = self.model.force {
+            self.set(force.present, 0);
+        }
+        if self.torque() {
+            // Pushing on from the contact: the overload timer runs on if it stalls again.
+            let since = self.overloaded_since;
+            self.start_move(t_ns);
+            self.overloaded_since = since;
+        }
+    }
+
+    /// Whether its horn is stopped with its goal beyond the stop: it pushes against it.
+    pub fn pushing(&self) -> bool {
+        self.stop.is_some_and(|stop| {
+            let goal = self.get(self.model.items.goal_position) as f64;
+            stop.push(goal - self.corrected(stop.at)) > 0.0
+        })
+    }
+
+    /// Where the horn will be at `t_ns` (its own ticks), its stop included, without changing
+    /// anything: for looking ahead along its motion.
+    pub fn horn_at(&self, t_ns: u64) -> f64 {
+        let p = self.profile.at(t_ns).0;
+        match self.stop.filter(|_| self.torque()) {
+            Some(stop) => stop.clamp(p),
+            None => p,
+        }
+    }
+
+    /// The position the servo reports (fractional, offset-corrected) with its horn at `actual`.
+    pub fn reported(&self, actual: f64) -> f64 {
+        self.corrected(actual)
+    }
+
+    /// Whether its horn moves at `t_ns` (its own profile or a hand's).
+    pub fn in_motion(&self, t_ns: u64) -> bool {
+        self.profile.moving(t_ns)
     }
 
     fn torque_off(&mut self, t_ns: u64) {

@@ -96,6 +96,7 @@ pub fn run(args: &PcBenchRequest, out: &mut dyn Write, err: &mut dyn Write) -> R
         fixed_baud: false,
         burst: args.burst_ms.map(Duration::from_millis),
         limits: Some(crate::sim::monitor::limits_of(&spec)?),
+        world: crate::sim::World::of(&spec)?,
     })
     .context("cannot open a pseudo-terminal")?;
     let options = PcOptions {
@@ -141,6 +142,7 @@ pub fn run(args: &PcBenchRequest, out: &mut dyn Write, err: &mut dyn Write) -> R
         "late_ticks": summary.late,
         "goals_checked": monitor.checked,
         "violations": monitor.violation_count,
+        "contacts": monitor.contacts.as_ref().map(|c| c.json()),
     });
     writeln!(out, "{v}")?;
     Ok(if monitor.violation_count == 0 { 0 } else { 1 })

@@ -331,7 +331,8 @@ pub fn run(request: &DemoRequest, json: bool, out: &mut dyn Write) -> Result<i32
                 "loop_time_mean_us": status.timing.mean_us, "deadline_misses": status.timing.overruns,
                 "bus_timeouts": status.errors.bus_timeouts, "bus_errors": status.errors.bus_errors, "underruns": status.errors.underruns,
                 "link_requests": link.requests, "link_retransmissions": link.retransmissions},
-            "safety": {"goals_checked": monitor.checked, "violations": monitor.violation_count, "largest_step_of_limit": monitor.max_step_ratio},
+            "safety": {"goals_checked": monitor.checked, "violations": monitor.violation_count, "largest_step_of_limit": monitor.max_step_ratio,
+                "contacts": monitor.contacts.as_ref().map(|c| c.json())},
             "plot": plot_path.as_ref().map(|p| p.display().to_string()),
             "simulated_s": simulated_s, "wall_s": wall_s,
         });
@@ -389,6 +390,9 @@ pub fn run(request: &DemoRequest, json: bool, out: &mut dyn Write) -> Result<i32
             monitor.violation_count,
             monitor.max_step_ratio * 100.0
         )?;
+        if let Some(contacts) = &monitor.contacts {
+            writeln!(out, "Safety monitor, the arm's geometry: {}", contacts.summary())?;
+        }
         if let Some(path) = &plot_path {
             writeln!(out, "Plot: {}", path.display())?;
         }

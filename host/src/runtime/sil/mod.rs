@@ -15,7 +15,9 @@
 //! The safety monitor that checks every goal the servos receive is the simulator's
 //! ([`crate::sim::monitor`]), re-exported here. An object to pick up ([`crate::sim::Scene`]) can be
 //! put on the table ([`Sil::put_object`]): the harness then follows the tool by forward kinematics
-//! of the measured joints each tick.
+//! of the measured joints each tick. With collision geometry ([`SilOptions::contact`]) the
+//! simulated links stop where they run into something ([`crate::sim::contact`]) and the monitor
+//! records every goal within the margin ([`crate::sim::monitor::collision`]).
 
 pub mod board;
 pub mod group;
@@ -32,11 +34,12 @@ use firmware::controller::{Config, GripperState, TickReport};
 
 use kinematics::Pose;
 
+use crate::arm::collision::CollisionSpec;
 use crate::arm::dof::DynArm;
 use crate::arm::servos::{servos_of, ServoSetup};
 use crate::arm::ArmSpec;
 pub use crate::sim::monitor::{GoalState, SafetyMonitor, Violation};
-use crate::sim::{connect, Faults, Scene, SharedBus, SimBus, VirtualClock};
+use crate::sim::{connect, ContactModel, Faults, Scene, SharedBus, SimBus, VirtualClock, World};
 use board::{for_joints, SimBoard, SimFirmware, WithFirmware, QUEUE};
 use wire::Wire;
 
@@ -89,6 +92,13 @@ pub struct SilOptions {
     pub read_timeout_ms: u64,
     /// The width of an object between the gripper's jaws, mm (`None`: nothing to grasp).
     pub object_mm: Option<f64>,
+    /// The simulated world's collision geometry: the simulated links stop where they run into
+    /// the table, an obstacle or each other, and the safety monitor records every goal within its
+    /// margin (`None`: nothing is in the way). By default the arm's own
+    /// ([`crate::arm::collision::collision_of`]); set apart from [`SilOptions::arm`] (whose
+    /// geometry is what the firmware is sent), a test can show what the simulated arm does when
+    /// the firmware knows nothing of the table.
+    pub contact: Option<CollisionSpec>,
 }
 
 impl SilOptions {
@@ -102,7 +112,6 @@ impl SilOptions {
     pub fn for_arm(arm: ArmSpec) -> Result<Self> {
         servos(&arm)?;
         Ok(Self {
-            arm,
             link_baud: 1_000_000,
             bus_baud: 1_000_000,
             link_faults: Faults::default(),
@@ -110,6 +119,8 @@ impl SilOptions {
             control: Config::default(),
             read_timeout_ms: 20,
             object_mm: None,
+            contact: crate::arm::collision::collision_of(&arm),
+            arm,
         })
     }
 }
@@ -171,8 +182,10 @@ impl Sil {
         let arm = options.arm.clone();
         let servos = servos(&arm)?;
         let model = servos.model;
+        let world = options.contact.clone().map(|geometry| World::new(&arm, geometry)).transpose()?;
         let bus = SimBus::new(model.protocol, model, &servos.bus_ids(), options.bus_baud)
-            .with_faults(options.bus_faults.clone());
+            .with_faults(options.bus_faults.clone())
+            .with_contact(world.clone().map(ContactModel::new));
         let (bus, port, clock) = connect(bus);
         if options.object_mm.is_some() {
             put_object(&bus, &gripper_of(&arm.name, &servos)?, options.object_mm)?;
@@ -211,7 +224,7 @@ impl Sil {
             next_tick_ns: 0,
             period_ns,
             read_timeout_ns: options.read_timeout_ms * 1_000_000,
-            monitor: SafetyMonitor::default(),
+            monitor: world.map_or_else(SafetyMonitor::default, SafetyMonitor::with_collision),
             trace: None,
             last_report: None,
             stats: SilStats::default(),

@@ -30,6 +30,7 @@ use std::time::Duration;
 use crate::sim::bus::Frame;
 use crate::sim::SimBus;
 
+use super::collision::{CollisionRule, ContactRecord};
 use super::{Violation, MAX_VIOLATIONS};
 
 /// The control period a monitor assumes until told the firmware's: the firmware's default
@@ -95,6 +96,9 @@ pub struct MonitorReport {
     /// The most control ticks one read of the bus carried ([`RealTimeMonitor::end_burst`]): above 1,
     /// the serving thread fell behind the firmware and took several ticks' packets at once.
     pub max_ticks_per_burst: u64,
+    /// Goal configurations within the margin of the arm's geometry (`None`: no geometry, not
+    /// judged; [`RealTimeMonitor::with_collision`]).
+    pub contacts: Option<ContactRecord>,
 }
 
 impl MonitorReport {
@@ -107,6 +111,9 @@ impl MonitorReport {
             self.violation_count,
             100.0 * self.max_step_ratio
         );
+        if let Some(contacts) = &self.contacts {
+            line.push_str(&format!("; {}", contacts.summary()));
+        }
         if self.max_ticks_per_burst > 1 {
             line.push_str(&format!("; up to {} control ticks read in one burst", self.max_ticks_per_burst));
         }
@@ -147,6 +154,8 @@ pub struct RealTimeMonitor {
     /// Ticks counted at the end of the last burst.
     ticks_at_burst: u64,
     report: MonitorReport,
+    /// The rule on the arm's geometry, when there is one.
+    rule: Option<CollisionRule>,
 }
 
 impl RealTimeMonitor {
@@ -160,7 +169,17 @@ impl RealTimeMonitor {
             wrote_since_read: true,
             ticks_at_burst: 0,
             report: MonitorReport { servos, ..MonitorReport::default() },
+            rule: None,
         }
+    }
+
+    /// The same monitor also judging every goal configuration in `world`'s geometry
+    /// ([`super::collision`]): a frame that brings a joint's goal judges all the joints' goals.
+    pub fn with_collision(mut self, world: crate::sim::World) -> Self {
+        let rule = CollisionRule::new(world);
+        self.report.contacts = Some(rule.record());
+        self.rule = Some(rule);
+        self
     }
 
     /// The limits checked.
@@ -218,6 +237,7 @@ impl RealTimeMonitor {
             self.wrote_since_read = false;
         }
         let tick = self.report.ticks;
+        let mut any_written = false;
         for (j, sample) in servos.iter().enumerate().take(self.limits.len()) {
             let Some(s) = *sample else {
                 self.tracks[j].last = None;
@@ -227,6 +247,7 @@ impl RealTimeMonitor {
             let written = s.writes > track.writes;
             track.writes = s.writes;
             self.wrote_since_read |= written;
+            any_written |= written && s.torque;
             if !s.torque {
                 track.last = None;
                 continue;
@@ -262,6 +283,24 @@ impl RealTimeMonitor {
                 }
                 Some(_) => {}
             }
+        }
+        if any_written {
+            self.judge_configuration(frame.t_ns, servos);
+        }
+    }
+
+    /// Judges the joints' goals as the servos hold them after a frame that wrote some, when every
+    /// joint's servo is on the bus with its torque on.
+    fn judge_configuration(&mut self, t_ns: u64, servos: &[Option<GoalSample>]) {
+        let (Some(rule), Some(record)) = (&mut self.rule, &mut self.report.contacts) else { return };
+        let limits = &self.limits;
+        let goal = |id: u8| {
+            let j = limits.iter().position(|l| l.id == id)?;
+            servos.get(j).copied().flatten().filter(|s| s.torque).map(|s| s.goal)
+        };
+        let goals: Option<Vec<i64>> = rule.ids().into_iter().map(goal).collect();
+        if let Some(goals) = goals {
+            rule.judge(record, t_ns as f64 * 1e-9, &goals);
         }
     }
 
@@ -635,5 +674,54 @@ mod tests {
         burst.extend_from_slice(&goal(2048 + 100 + 20));
         at(burst, 110 * MS, &mut bus, &mut m);
         assert_eq!(m.report().violation_count, 1, "{:?}", m.report().violations);
+    }
+
+    /// The collision rule on a served SO-101 whose geometry is its frames as capsules on a table:
+    /// a sync write of goals that folds the shoulder through the table is one goal configuration
+    /// within the margin, named, and the bus stops the shoulder on the table; the goals back at
+    /// the middle are judged free.
+    #[test]
+    fn goals_through_the_table_are_recorded_and_the_arm_stops_on_it() {
+        let mut arm = crate::arm::ArmSpec::load("so101", None).unwrap();
+        arm.collision = Some(crate::arm::collision::CollisionSpec::from_frames(&arm, 0.02));
+        let config = crate::sim::arm_bus(&arm, crate::sim::Faults::default()).unwrap();
+        let world = config.world.clone().expect("the arm's geometry");
+        let mut bus = config.build();
+        let mut m = RealTimeMonitor::new(config.limits.clone().unwrap()).with_collision(world.clone());
+        let items = STS3215.items;
+        let goals = |ticks: [i64; 5]| {
+            let mut data = Vec::new();
+            for (id, g) in (1u8..).zip(ticks) {
+                let mut bytes = [0u8; 2];
+                items.goal_position.encode(g, STS3215.endian, &mut bytes).unwrap();
+                data.push(id);
+                data.extend_from_slice(&bytes);
+            }
+            packet(BROADCAST, Instruction::SyncWrite { address: items.goal_position.address, length: 2, data: &data })
+        };
+        let at = |bytes: Vec<u8>, t_ns: u64, bus: &mut SimBus, m: &mut RealTimeMonitor| {
+            bus.receive_observed(&bytes, t_ns, &mut |bus, frame| m.observe(bus, frame));
+            m.end_burst();
+        };
+        let torque = Instruction::Write { address: items.torque_enable.address, data: &[1] };
+        at(packet(BROADCAST, torque), MS, &mut bus, &mut m);
+        // Shoulder lift 1.6 rad forward: the wrist below the table.
+        at(goals([2048, 3091, 2048, 2048, 2048]), 2 * MS, &mut bus, &mut m);
+        at(
+            packet(BROADCAST, Instruction::SyncRead { address: items.present_position.address, length: 2, ids: &[1] }),
+            1000 * MS,
+            &mut bus,
+            &mut m,
+        );
+        let record = m.report().contacts.clone().unwrap();
+        assert_eq!((record.checked, record.count), (1, 1), "{}", record.summary());
+        assert!(record.contacts[0].bodies.contains(&"table".to_string()), "{}", record.contacts[0]);
+        assert!(m.report().summary().contains("1 of 1 goals within the 10 mm margin"), "{}", m.report().summary());
+        let stopped = bus.servo(2).unwrap().get(items.present_position);
+        assert!(stopped < 3091 - 100, "the shoulder stops on the table, at {stopped}");
+        assert_eq!(bus.contact().unwrap().stats().last.as_ref().unwrap().1, [2]);
+        at(goals([2048; 5]), 1010 * MS, &mut bus, &mut m);
+        let record = m.report().contacts.clone().unwrap();
+        assert_eq!((record.checked, record.count), (2, 1), "{}", record.summary());
     }
 }
