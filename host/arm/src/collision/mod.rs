@@ -3,6 +3,8 @@
 //! from the arm file or the presets' tables (see [`collision_of`]), turned into the kinematics
 //! crate's fixed-size [`Scene`] for the host's checks and sent to the firmware with the arm.
 
+pub mod edit;
+
 use anyhow::{anyhow, bail, Result};
 use kinematics::collision::{Body, Capsule, Contact, Part, Scene, Shape};
 use kinematics::Real;
