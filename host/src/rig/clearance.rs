@@ -54,7 +54,8 @@ impl Near {
 
     /// Whether they are closer than the margin.
     pub fn too_close(&self) -> bool {
-        !(self.distance >= self.margin)
+        // A NaN distance is never apart.
+        self.distance < self.margin || self.distance.is_nan()
     }
 }
 
@@ -163,10 +164,13 @@ impl Clearance {
     }
 }
 
-/// One arm's motion on the timeline: knots (time, positions, velocity or `None` for the
-/// Catmull-Rom one), from where it stands.
+/// A knot of an arm's motion: time (s), positions, and velocities (`None`: the player's
+/// Catmull-Rom ones).
+type Knot = (f64, Vec<f64>, Option<Vec<f64>>);
+
+/// One arm's motion on the timeline, from where it stands.
 struct Track {
-    knots: Vec<(f64, Vec<f64>, Option<Vec<f64>>)>,
+    knots: Vec<Knot>,
 }
 
 impl Track {
@@ -233,7 +237,7 @@ pub enum Verdict {
 /// the one before.
 pub fn timeline(rig: &Rig, parts: &[(usize, &[(usize, Keyframe)])], current: &[Vec<f64>]) -> Result<Verdict> {
     let clearance = Clearance::of(rig);
-    let mut solved: Vec<(usize, Vec<(f64, Vec<f64>, Option<Vec<f64>>)>)> = Vec::new();
+    let mut solved: Vec<(usize, Vec<Knot>)> = Vec::new();
     for &(arm, keyframes) in parts {
         let model = rig.arms[arm].driver.model();
         let mut seed = current.get(arm).cloned();
@@ -299,7 +303,7 @@ pub fn timeline(rig: &Rig, parts: &[(usize, &[(usize, Keyframe)])], current: &[V
 fn first_contact(
     rig: &Rig,
     clearance: &Clearance,
-    solved: &[(usize, Vec<(f64, Vec<f64>, Option<Vec<f64>>)>)],
+    solved: &[(usize, Vec<Knot>)],
     keep: &[usize],
     current: &[Vec<f64>],
 ) -> Result<std::result::Result<Option<Near>, Collision>> {
