@@ -21,6 +21,8 @@ use kinematics::Pose;
 use super::Rig;
 use crate::arm::collision::edit::geometry_of;
 use crate::arm::collision::CollisionSpec;
+use crate::arm::dof::DynArm;
+use crate::arm::ArmSpec;
 use crate::link::session::Keyframe;
 use crate::motion::reach;
 
@@ -62,6 +64,7 @@ impl Near {
 /// Every arm's bodies, and how the arms' bases hang together.
 pub struct Clearance {
     names: Vec<String>,
+    models: Vec<Box<dyn DynArm>>,
     specs: Vec<CollisionSpec>,
     bases: Vec<Pose<f64>>,
     mounts: Vec<Option<usize>>,
@@ -70,14 +73,31 @@ pub struct Clearance {
 
 impl Clearance {
     /// The bodies of every arm of `rig`.
-    pub fn of(rig: &Rig) -> Self {
-        Self {
-            names: rig.arms.iter().map(|a| a.name.clone()).collect(),
-            specs: rig.arms.iter().map(|a| geometry_of(a.driver.arm())).collect(),
-            bases: rig.arms.iter().map(|a| a.base).collect(),
-            mounts: rig.arms.iter().map(|a| a.mount).collect(),
-            hands_meet: rig.hands_meet.clone(),
+    pub fn of(rig: &Rig) -> Result<Self> {
+        let arms: Vec<(String, ArmSpec, Pose<f64>, Option<usize>)> =
+            rig.arms.iter().map(|a| (a.name.clone(), a.driver.arm().clone(), a.base, a.mount)).collect();
+        Self::new(arms, rig.hands_meet.clone())
+    }
+
+    /// The bodies of arms given by name, description, base and mount (the arm carrying the base,
+    /// by index), and the pairs whose hands may meet.
+    pub fn new(arms: Vec<(String, ArmSpec, Pose<f64>, Option<usize>)>, hands_meet: Vec<[usize; 2]>) -> Result<Self> {
+        let mut clearance = Self {
+            names: Vec::new(),
+            models: Vec::new(),
+            specs: Vec::new(),
+            bases: Vec::new(),
+            mounts: Vec::new(),
+            hands_meet,
+        };
+        for (name, arm, base, mount) in arms {
+            clearance.specs.push(geometry_of(&arm));
+            clearance.models.push(crate::arm::dof::build(arm)?);
+            clearance.names.push(name);
+            clearance.bases.push(base);
+            clearance.mounts.push(mount);
         }
+        Ok(clearance)
     }
 
     /// Whether body `a` of arm `i` and body `b` of arm `j` are both hands of arms whose hands meet.
@@ -95,21 +115,30 @@ impl Clearance {
         self.mounts.get(i).copied().flatten() != Some(j) && self.mounts.get(j).copied().flatten() != Some(i)
     }
 
-    /// Every arm's bodies in the world frame with the arms at `q` (one row of joint values per arm).
-    pub fn placed(&self, rig: &Rig, q: &[Vec<f64>]) -> Result<Vec<Vec<Capsule<f64>>>> {
+    /// Every arm's bodies in the world frame with the arms at `q` (one row of joint values per
+    /// arm; an arm without one, `None`, has no bodies: its place is not known).
+    pub fn placed(&self, q: &[Option<Vec<f64>>]) -> Result<Vec<Vec<Capsule<f64>>>> {
         let mut world: Vec<Pose<f64>> = Vec::new();
         let mut placed = Vec::new();
-        for (i, arm) in rig.arms.iter().enumerate() {
-            let qi = q.get(i).ok_or_else(|| anyhow!("no joint values for arm {}", arm.name))?;
+        for (i, model) in self.models.iter().enumerate() {
+            let name = &self.names[i];
             // A mounted arm's base rides on the tool of an earlier arm.
             let base = match self.mounts[i] {
                 None => self.bases[i],
                 Some(m) => {
-                    let carrier = world.get(m).ok_or_else(|| anyhow!("arm {} is mounted on a later arm", arm.name))?;
-                    carrier.compose(&rig.arms[m].driver.model().tool_pose(&q[m])?).compose(&self.bases[i])
+                    let carrier = world.get(m).ok_or_else(|| anyhow!("arm {name} is mounted on a later arm"))?;
+                    match q.get(m).and_then(Option::as_ref) {
+                        Some(qm) => carrier.compose(&self.models[m].tool_pose(qm)?).compose(&self.bases[i]),
+                        None => Pose::from_translation(kinematics::nalgebra::Vector3::repeat(f64::NAN)),
+                    }
                 }
             };
-            let frames = arm.driver.model().joint_frames(qi)?;
+            world.push(base);
+            let Some(qi) = q.get(i).and_then(Option::as_ref) else {
+                placed.push(Vec::new());
+                continue;
+            };
+            let frames = model.joint_frames(qi)?;
             let bodies = self.specs[i]
                 .bodies
                 .iter()
@@ -121,7 +150,6 @@ impl Clearance {
                     b.capsule.placed(&frame)
                 })
                 .collect();
-            world.push(base);
             placed.push(bodies);
         }
         Ok(placed)
@@ -236,7 +264,7 @@ pub enum Verdict {
 /// every arm's joint values now. Cartesian keyframes are solved on the host, each seeded from
 /// the one before.
 pub fn timeline(rig: &Rig, parts: &[(usize, &[(usize, Keyframe)])], current: &[Vec<f64>]) -> Result<Verdict> {
-    let clearance = Clearance::of(rig);
+    let clearance = Clearance::of(rig)?;
     let mut solved: Vec<(usize, Vec<Knot>)> = Vec::new();
     for &(arm, keyframes) in parts {
         let model = rig.arms[arm].driver.model();
@@ -264,7 +292,7 @@ pub fn timeline(rig: &Rig, parts: &[(usize, &[(usize, Keyframe)])], current: &[V
     let mut keep: Vec<usize> = solved.iter().map(|(_, k)| k.len()).collect();
     let mut first: Option<Collision> = None;
     loop {
-        let found = first_contact(rig, &clearance, &solved, &keep, current)?;
+        let found = first_contact(&clearance, &solved, &keep, current)?;
         match (found, &first) {
             (Ok(closest), None) => return Ok(Verdict::Clear(closest)),
             (Ok(_), Some(collision)) => {
@@ -301,7 +329,6 @@ pub fn timeline(rig: &Rig, parts: &[(usize, &[(usize, Keyframe)])], current: &[V
 
 /// The first sample at which two arms are too close (`Err`), or the closest they came (`Ok`).
 fn first_contact(
-    rig: &Rig,
     clearance: &Clearance,
     solved: &[(usize, Vec<Knot>)],
     keep: &[usize],
@@ -327,11 +354,11 @@ fn first_contact(
     times.dedup();
     let mut closest: Option<Near> = None;
     for t in times {
-        let mut q: Vec<Vec<f64>> = current.to_vec();
+        let mut q: Vec<Option<Vec<f64>>> = current.iter().cloned().map(Some).collect();
         for (arm, track) in &tracks {
-            q[*arm] = track.at(t);
+            q[*arm] = Some(track.at(t));
         }
-        if let Some(near) = clearance.closest(&clearance.placed(rig, &q)?) {
+        if let Some(near) = clearance.closest(&clearance.placed(&q)?) {
             if near.too_close() {
                 return Ok(Err(Collision { at: t, near }));
             }

@@ -264,8 +264,9 @@ fn move_tree(
     let solved = tree
         .solve(&q, &wanted, &names)
         .map_err(|e| anyhow::anyhow!("move {} (world): {e:#}; no arm moved", shown.join(", ")))?;
-    let clearance = Clearance::of(rig);
-    if let Some(near) = clearance.closest(&clearance.placed(rig, &solved.q)?).filter(|n| n.too_close()) {
+    let clearance = Clearance::of(rig)?;
+    let ends: Vec<Option<Vec<f64>>> = solved.q.iter().cloned().map(Some).collect();
+    if let Some(near) = clearance.closest(&clearance.placed(&ends)?).filter(|n| n.too_close()) {
         bail!("move {} (world): the arms would end too close: {}; no arm moved", shown.join(", "), near.describe());
     }
     // One duration for all: the tool speed over the longest tool travel, or --duration; each
@@ -348,8 +349,9 @@ fn move_arms(
         }
     }
     // Each arm an obstacle for the others: where they would end too close, none moves.
-    let clearance = Clearance::of(rig);
-    if let Some(near) = clearance.closest(&clearance.placed(rig, &ends)?).filter(|n| n.too_close()) {
+    let clearance = Clearance::of(rig)?;
+    let ends: Vec<Option<Vec<f64>>> = ends.into_iter().map(Some).collect();
+    if let Some(near) = clearance.closest(&clearance.placed(&ends)?).filter(|n| n.too_close()) {
         bail!("move: the arms would end too close: {}; no arm moved", near.describe());
     }
     let mut starts = Vec::new();
