@@ -368,3 +368,36 @@ fn two_arms_driven_toward_each_other_stop_short_named() {
         assert_eq!(rig.sim.as_ref().unwrap().board(i).monitor().violation_count, 0);
     }
 }
+
+/// A file whose first keyframes, at time 0, put the arms into each other: the way there (which
+/// the players take before their clocks run) is checked too, and nothing moves.
+#[test]
+fn a_first_keyframe_into_the_other_arm_moves_nothing() {
+    let spec = RigSpec::load("bimanual-so101").unwrap();
+    let mut rig = Rig::open(&spec, &mut std::io::sink()).unwrap();
+    let before: Vec<Vec<f32>> = rig.arms.iter_mut().map(|a| a.driver.status().unwrap().measured.to_vec()).collect();
+    // Both bases turned 0.6 rad toward the other arm, the arms stretched out: their wrists meet.
+    let text = "t,left.q1,left.q2,left.q3,left.q4,left.q5,right.q1,right.q2,right.q3,right.q4,right.q5\n\
+                0,0.6,0,0,0,0,-0.6,0,0,0,0\n1,0.6,0,0,0,0,-0.6,0,0,0,0\n";
+    let names: Vec<&str> = rig.arms.iter().map(|a| a.name.as_str()).collect();
+    let bases: Vec<_> = rig.arms.iter().map(|a| a.base).collect();
+    let parts = armctl::rig::columns::split(text, Path::new("into.csv"), &names, &bases, 30.0).unwrap();
+    let e = format!("{:#}", play::play(&mut rig, parts, &mut Vec::new()).err().expect("refused"));
+    assert!(e.contains("0.00 s into the play") && e.contains("refused, nothing moved"), "{e}");
+    assert!(e.contains("left/") && e.contains("right/"), "{e}");
+    for (arm, q0) in rig.arms.iter_mut().zip(before) {
+        let status = arm.driver.status().unwrap();
+        assert_eq!(status.queued, 0, "nothing was queued");
+        let moved = status.measured.iter().zip(&q0).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+        assert!(moved < 1e-3, "{} moved {moved} rad", arm.name);
+    }
+}
+
+/// Two tools sent to the same world point: the arms would end in each other, and no arm moves.
+#[test]
+fn a_move_that_would_end_in_the_other_arm_moves_no_arm() {
+    refused(
+        &["--rig", "bimanual-so101", "move", "--to", "left=0.25,0.0,0.1", "--to", "right=0.25,0.0,0.1"],
+        "the arms would end too close: left/",
+    );
+}

@@ -28,6 +28,8 @@ use crate::motion::reach;
 
 /// The timeline's sampling period (s): the firmware's control period.
 pub const STEP: f64 = 0.01;
+/// Points checked on the way to a first keyframe at time 0.
+const APPROACH_STEPS: usize = 50;
 
 /// Two arms' closest bodies.
 #[derive(Clone, Debug, PartialEq)]
@@ -334,19 +336,37 @@ fn first_contact(
     keep: &[usize],
     current: &[Vec<f64>],
 ) -> Result<std::result::Result<Option<Near>, Collision>> {
+    // Arms whose first keyframe is at 0: the player takes them there from where they stand before
+    // its clock runs; that way is checked as a straight line in joint space, all of them together.
+    let mut approaches: Vec<(usize, Vec<f64>, Vec<f64>)> = Vec::new();
     let tracks: Vec<(usize, Track)> = solved
         .iter()
         .zip(keep)
         .map(|((arm, knots), &n)| {
             let mut all = vec![(0.0, current[*arm].clone(), None)];
-            // A first keyframe at 0 is where the arm goes first: it replaces where it stands.
             all.extend(knots.iter().take(n).cloned());
             if all.len() > 1 && all[1].0 <= 0.0 {
-                all.remove(0);
+                let (_, from, _) = all.remove(0);
+                approaches.push((*arm, from, all[0].1.clone()));
             }
             (*arm, Track { knots: all })
         })
         .collect();
+    if !approaches.is_empty() {
+        let mut q: Vec<Option<Vec<f64>>> = current.iter().cloned().map(Some).collect();
+        for (arm, track) in &tracks {
+            q[*arm] = Some(track.at(0.0));
+        }
+        for k in 0..=APPROACH_STEPS {
+            let s = k as f64 / APPROACH_STEPS as f64;
+            for (arm, from, to) in &approaches {
+                q[*arm] = Some(from.iter().zip(to).map(|(a, b)| a + s * (b - a)).collect());
+            }
+            if let Some(near) = clearance.closest(&clearance.placed(&q)?).filter(Near::too_close) {
+                return Ok(Err(Collision { at: 0.0, near }));
+            }
+        }
+    }
     let end = tracks.iter().filter_map(|(_, t)| t.knots.last().map(|k| k.0)).fold(0.0, f64::max);
     let mut times: Vec<f64> = (0..=((end / STEP).ceil() as usize)).map(|i| (i as f64 * STEP).min(end)).collect();
     times.extend(tracks.iter().flat_map(|(_, t)| t.knots.iter().map(|k| k.0)));
