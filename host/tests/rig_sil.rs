@@ -306,3 +306,98 @@ fn a_shared_joint_makes_the_rig_one_tree_and_random_reachable_targets_are_reache
     let v = json_of(&["--rig", &torso_rig(), "play", joints.to_str().unwrap(), "--json"]);
     assert!((v["arms"]["torso"]["joints"][0].as_f64().unwrap() - 0.3).abs() < 0.01, "{v}");
 }
+
+/// Each arm is an obstacle for the other: both tools driven to the same point between the bases
+/// (Cartesian columns, world frame), the play stops both arms short of each other at their last
+/// keyframes before the contact, and says which two bodies, of which arms, would have come how
+/// close. Where they stopped is checked from their measured joints by the test: every body of one
+/// arm at least the margin from every body of the other.
+#[test]
+fn two_arms_driven_toward_each_other_stop_short_named() {
+    use armctl::arm::collision::edit::geometry_of;
+    use kinematics::collision::distance::capsule_capsule;
+
+    let spec = RigSpec::load("bimanual-so101").unwrap();
+    let mut rig = Rig::open(&spec, &mut std::io::sink()).unwrap();
+    let mut text = String::from("t,left.x,left.y,left.z,right.x,right.y,right.z\n");
+    // From 10 cm either side of the middle to the middle, in 2 s.
+    for k in 0..=20 {
+        let (t, y) = (0.5 + 0.1 * f64::from(k), 0.10 * (1.0 - f64::from(k) / 20.0));
+        text += &format!("{t:.2},0.22,{y:.4},0.12,0.22,{:.4},0.12\n", -y);
+    }
+    let names: Vec<&str> = rig.arms.iter().map(|a| a.name.as_str()).collect();
+    let bases: Vec<_> = rig.arms.iter().map(|a| a.base).collect();
+    let parts = armctl::rig::columns::split(&text, Path::new("meet.csv"), &names, &bases, 30.0).unwrap();
+    let (mut err, started) = (Vec::new(), std::time::Instant::now());
+    let e = format!("{:#}", play::play(&mut rig, parts, &mut err).err().expect("the play stops short"));
+    eprintln!("{e} ({:.1} s)", started.elapsed().as_secs_f64());
+    assert!(!e.contains('\n'), "one line: {e}");
+    assert!(e.contains("the arms would come too close"), "{e}");
+    assert!(e.contains(" left/") && e.contains(" and right/") && e.contains("mm"), "names both arms' bodies: {e}");
+    assert!(e.contains("every arm stopped short"), "{e}");
+
+    // Where they are now, from their measured joints.
+    let margin = rig.arms.iter().map(|a| geometry_of(a.driver.arm()).margin).fold(0.0, f64::max);
+    let mut placed = Vec::new();
+    let mut tools = Vec::new();
+    for arm in &mut rig.arms {
+        let status = arm.driver.status().unwrap();
+        assert_eq!(status.state, RunState::Idle, "{} is at rest", arm.name);
+        let q: Vec<f64> = status.measured.iter().map(|&x| f64::from(x)).collect();
+        let frames = arm.driver.model().joint_frames(&q).unwrap();
+        let bodies: Vec<_> = geometry_of(arm.driver.arm())
+            .bodies
+            .iter()
+            .map(|b| b.capsule.placed(&arm.base.compose(&b.link.map_or(kinematics::Pose::identity(), |l| frames[l]))))
+            .collect();
+        placed.push(bodies);
+        tools.push(arm.base.compose(&arm.driver.model().tool_pose(&q).unwrap()).translation);
+    }
+    let closest =
+        placed[0].iter().flat_map(|a| placed[1].iter().map(move |b| capsule_capsule(a, b))).fold(f64::MAX, f64::min);
+    eprintln!(
+        "stopped {:.1} mm apart (margin {:.0} mm), tools {:.1} mm apart",
+        closest * 1e3,
+        margin * 1e3,
+        (tools[0] - tools[1]).norm() * 1e3
+    );
+    assert!(closest >= margin, "the arms stopped {:.1} mm apart, within the margin {margin}", closest * 1e3);
+    // They did move toward each other: the tools started 200 mm apart.
+    assert!((tools[0] - tools[1]).norm() < 0.17, "the tools are {:.3} m apart", (tools[0] - tools[1]).norm());
+    for i in 0..2 {
+        assert_eq!(rig.sim.as_ref().unwrap().board(i).monitor().violation_count, 0);
+    }
+}
+
+/// A file whose first keyframes, at time 0, put the arms into each other: the way there (which
+/// the players take before their clocks run) is checked too, and nothing moves.
+#[test]
+fn a_first_keyframe_into_the_other_arm_moves_nothing() {
+    let spec = RigSpec::load("bimanual-so101").unwrap();
+    let mut rig = Rig::open(&spec, &mut std::io::sink()).unwrap();
+    let before: Vec<Vec<f32>> = rig.arms.iter_mut().map(|a| a.driver.status().unwrap().measured.to_vec()).collect();
+    // Both bases turned 0.6 rad toward the other arm, the arms stretched out: their wrists meet.
+    let text = "t,left.q1,left.q2,left.q3,left.q4,left.q5,right.q1,right.q2,right.q3,right.q4,right.q5\n\
+                0,0.6,0,0,0,0,-0.6,0,0,0,0\n1,0.6,0,0,0,0,-0.6,0,0,0,0\n";
+    let names: Vec<&str> = rig.arms.iter().map(|a| a.name.as_str()).collect();
+    let bases: Vec<_> = rig.arms.iter().map(|a| a.base).collect();
+    let parts = armctl::rig::columns::split(text, Path::new("into.csv"), &names, &bases, 30.0).unwrap();
+    let e = format!("{:#}", play::play(&mut rig, parts, &mut Vec::new()).err().expect("refused"));
+    assert!(e.contains("0.00 s into the play") && e.contains("refused, nothing moved"), "{e}");
+    assert!(e.contains("left/") && e.contains("right/"), "{e}");
+    for (arm, q0) in rig.arms.iter_mut().zip(before) {
+        let status = arm.driver.status().unwrap();
+        assert_eq!(status.queued, 0, "nothing was queued");
+        let moved = status.measured.iter().zip(&q0).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+        assert!(moved < 1e-3, "{} moved {moved} rad", arm.name);
+    }
+}
+
+/// Two tools sent to the same world point: the arms would end in each other, and no arm moves.
+#[test]
+fn a_move_that_would_end_in_the_other_arm_moves_no_arm() {
+    refused(
+        &["--rig", "bimanual-so101", "move", "--to", "left=0.25,0.0,0.1", "--to", "right=0.25,0.0,0.1"],
+        "the arms would end too close: left/",
+    );
+}

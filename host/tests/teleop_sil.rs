@@ -222,3 +222,65 @@ fn a_rig_has_one_leader_per_follower() {
         assert!(errors[0].contains(needle), "{args:?}: {:?} does not say {needle:?}", errors[0]);
     }
 }
+
+/// Each follower of a teleoperated rig is an obstacle for the others: two leaders turned toward
+/// each other (the arms stretched out, each base turning toward the other arm), and the readings
+/// that would bring the followers within their margin are held back, counted and named; where
+/// the followers rest, the test places every body from their measured joints and finds them
+/// apart by the margin at least.
+#[test]
+fn a_rigs_followers_are_held_apart_when_their_leaders_meet() {
+    use armctl::arm::collision::edit::geometry_of;
+    use kinematics::collision::distance::capsule_capsule;
+
+    let dir = scratch("meet");
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(
+        dir.join("left.csv"),
+        "t,q1,q2,q3,q4,q5,gripper\n0,0,0,0,0,0,50\n1.5,0.6,0,0,0,0,50\n2.0,0.6,0,0,0,0,50\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("right.csv"),
+        "t,q1,q2,q3,q4,q5,gripper\n0,0,0,0,0,0,50\n1.5,-0.6,0,0,0,0,50\n2.0,-0.6,0,0,0,0,50\n",
+    )
+    .unwrap();
+    let pair = |name: &str, y: f64| {
+        format!(
+            "[[arm]]\nname = \"{name}\"\narm = \"so101\"\nsim = true\nxyz = [0.0, {y}, 0.0]\n[arm.leader]\nsim = true\nscript = \"{name}.csv\"\n"
+        )
+    };
+    let rig = dir.join("rig.toml");
+    std::fs::write(&rig, format!("name = \"meet\"\n{}{}", pair("left", 0.15), pair("right", -0.15))).unwrap();
+    let run = armctl(&["teleop", "--rig", s(&rig), "--json"]);
+    assert_eq!(run.code, 0, "stderr: {}", run.stderr);
+    let report: Value = serde_json::from_str(run.stdout.trim()).unwrap_or_else(|e| panic!("{e}: {}", run.stdout));
+    let held: u64 =
+        ["left", "right"].iter().map(|n| report["arms"][n]["held_apart"]["readings"].as_u64().unwrap()).sum();
+    assert!(held > 0, "no reading was held back: {report}");
+    let named =
+        ["left", "right"].iter().filter_map(|n| report["arms"][n]["held_apart"]["first"].as_str()).next().unwrap();
+    assert!(named.contains("left/") && named.contains("right/") && named.contains("margin"), "{named}");
+    assert!(run.stderr.contains("held back"), "{}", run.stderr);
+    let so101 = armctl::arm::ArmSpec::load("so101", None).unwrap();
+    let model = armctl::arm::dof::build(so101.clone()).unwrap();
+    let spec = geometry_of(&so101);
+    let mut placed = Vec::new();
+    for (name, y) in [("left", 0.15), ("right", -0.15)] {
+        let arm = &report["arms"][name];
+        assert_eq!(arm["monitor"]["violations"], 0, "{name}: {arm}");
+        let q: Vec<f64> = arm["follower_at_rest"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+        let frames = model.joint_frames(&q).unwrap();
+        let base = kinematics::Pose::from_translation(kinematics::nalgebra::Vector3::new(0.0, y, 0.0));
+        let bodies: Vec<_> = spec
+            .bodies
+            .iter()
+            .map(|b| b.capsule.placed(&base.compose(&b.link.map_or(kinematics::Pose::identity(), |l| frames[l]))))
+            .collect();
+        placed.push(bodies);
+    }
+    let closest =
+        placed[0].iter().flat_map(|a| placed[1].iter().map(move |b| capsule_capsule(a, b))).fold(f64::MAX, f64::min);
+    eprintln!("{named}; {held} readings held; at rest {:.1} mm apart", closest * 1e3);
+    assert!(closest >= spec.margin, "the followers rest {:.1} mm apart", closest * 1e3);
+}

@@ -273,3 +273,69 @@ fn refuses_bad_options_before_opening_anything() {
         assert!(!run.stderr.contains("set-up:"), "{args:?} opened the servos first: {}", run.stderr);
     }
 }
+
+/// The collision geometry: listed for drawing (every body on a joint's frame or the base, the
+/// table under the arm), obstacles added and removed for the commands that follow, bad ones
+/// refused with the reason and nothing changed, and the telemetry saying that it changed.
+#[test]
+fn lists_the_collision_geometry_and_takes_obstacles() {
+    let view = View::start(&[]);
+    let (code, geometry) = view.call("GET", "/api/collision", "");
+    assert_eq!(code, 200, "{geometry}");
+    let bodies = geometry["bodies"].as_array().unwrap();
+    assert!(!bodies.is_empty(), "{geometry}");
+    for b in bodies {
+        assert!(b["link"].is_null() || b["link"].as_u64().is_some_and(|l| l < 5), "{b}");
+        assert!(b["radius"].as_f64().is_some_and(|r| r > 0.0), "{b}");
+    }
+    let names = |g: &Value| -> Vec<String> {
+        g["obstacles"].as_array().unwrap().iter().map(|o| o["name"].as_str().unwrap().to_string()).collect()
+    };
+    assert_eq!(names(&geometry), ["table"], "a preset stands on a table");
+    assert_eq!(geometry["obstacles"][0]["shape"], "table");
+    assert!(geometry["base"].is_null(), "the one-arm view speaks the base frame");
+    let version = view.status()["collision_version"].as_u64().unwrap();
+
+    // The firmware takes new geometry with the arm, which it takes with the torque off only.
+    assert_eq!(view.post("torque", json!({"on": false})).0, 200);
+    let crate_ = json!({"shape": "box", "name": "crate", "centre": [0.2, 0.1, 0.05], "size": [0.06, 0.06, 0.1]});
+    let ball = json!({"shape": "sphere", "centre": [0.15, -0.1, 0.12], "radius": 0.03});
+    let (code, added) = view.post("obstacles", json!({"add": [crate_, ball]}));
+    assert_eq!(code, 200, "{added}");
+    assert_eq!(names(&added), ["table", "crate", "sphere"]);
+    assert_eq!(added["obstacles"][1]["size"], json!([0.06, 0.06, 0.1]));
+    assert!(added["sent_to_firmware"].is_boolean(), "{added}");
+    assert_eq!(names(&view.call("GET", "/api/collision", "").1), ["table", "crate", "sphere"]);
+    view.wait_for(|s| s["collision_version"].as_u64() == Some(version + 1), "the telemetry's collision_version", 5.0);
+
+    // Refused, all or nothing: the obstacles stay as they were.
+    let bad: &[(Value, &str)] = &[
+        (
+            json!({"add": [{"shape": "box", "centre": [0.2, 0, 0], "size": [0.1, -0.1, 0.1]}]}),
+            "size[1]: -0.1 m is not a size",
+        ),
+        (json!({"add": [{"shape": "sphere", "centre": [0.2, 0], "radius": 0.1}]}), "centre: expected 3 numbers"),
+        (json!({"add": [{"shape": "cone"}]}), "one of box, sphere"),
+        (json!({"add": [{"shape": "table", "name": "crate"}]}), "named crate already"),
+        (json!({"remove": ["crate", "shelf"]}), "no obstacle named shelf"),
+        (json!({}), "nothing to do"),
+    ];
+    for (body, words) in bad {
+        let (code, answer) = view.post("obstacles", body.clone());
+        let error = answer["error"].as_str().unwrap_or_else(|| panic!("{body}: no error in {answer}"));
+        assert_eq!(code, 400, "{body}: {error}");
+        assert!(error.contains(words), "{body}: {error:?} does not say {words:?}");
+        assert!(!error.contains('\n'), "{error:?}");
+    }
+    assert_eq!(names(&view.call("GET", "/api/collision", "").1), ["table", "crate", "sphere"]);
+
+    let (code, removed) = view.post("obstacles", json!({"remove": ["crate", "table"]}));
+    assert_eq!(code, 200, "{removed}");
+    assert_eq!(names(&removed), ["sphere"]);
+    // The arm still drives.
+    let q = [0.2, -0.2, 0.3, 0.1, 0.0];
+    assert_eq!(view.post("joints", json!({"q": q})).0, 200);
+    view.wait_for(|s| at_rest(s) && distance(&numbers(&s["measured"]), &q) < 2e-3, "joint move", 10.0);
+    let (code, stderr) = view.stop();
+    assert_eq!(code, 0, "{stderr}");
+}

@@ -60,6 +60,7 @@ fn mutating(q: &[f64]) -> Vec<(&'static str, String)> {
         ("gripper", json!({"percent": 10}).to_string()),
         ("play", json!({"name": "evil.csv", "csv": wave(2.0, 0.8)}).to_string()),
         ("stop", "{}".to_string()),
+        ("obstacles", json!({"remove": ["table"]}).to_string()),
     ]
 }
 
@@ -120,13 +121,16 @@ fn only_the_owner_drives_the_arm() {
             assert!(error.contains(words), "{what}, POST /api/{endpoint}: {error:?} does not say {words:?}");
         }
     }
+    // The obstacles are as they were: the table was not removed.
+    let (code, geometry) = view.call("GET", "/api/collision", "");
+    assert_eq!((code, &geometry["obstacles"][0]["name"]), (200, &json!("table")), "{geometry}");
     // Reading is refused alike: the status tells where the arm is.
     for (headers, what) in [
         (format!("Host: {host}\r\n"), "no token"),
         (format!("Host: evil.example:{port}\r\n{auth}"), "a foreign Host"),
         (format!("Host: {host}\r\n{foreign}{auth}"), "a foreign Origin"),
     ] {
-        for path in ["/api/status", "/api/arm", "/api/mesh/0"] {
+        for path in ["/api/status", "/api/arm", "/api/mesh/0", "/api/collision"] {
             assert_eq!(request(&view, "GET", path, &headers, "").0, 403, "{what}: GET {path}");
         }
     }

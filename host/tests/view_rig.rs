@@ -62,6 +62,14 @@ fn draws_and_drives_both_arms_in_the_world_frame() {
     assert_eq!(code, 200);
     assert_eq!(left["joints"].as_array().unwrap().len(), 5);
     assert_eq!(numbers(&left["base"]["p"]), BASES[0]);
+    // Each arm's collision geometry, in its own base frame, with its base in the world for drawing.
+    for (name, base) in ARMS.iter().zip(BASES) {
+        let (code, geometry) = view.call("GET", &format!("/api/arm/{name}/collision"), "");
+        assert_eq!(code, 200, "{geometry}");
+        assert_eq!(numbers(&geometry["base"]["p"]), base);
+        assert!(!geometry["bodies"].as_array().unwrap().is_empty(), "{geometry}");
+        assert_eq!(geometry["obstacles"][0]["name"], "table");
+    }
 
     // The status of both arms, each naming itself, in the world frame: at the same joints the
     // left arm's every frame is the right arm's 0.3 m along y.

@@ -392,6 +392,16 @@ class Arm:
 
     Each method is its command's request and returns the command's JSON answer as a dict.
 
+    The surroundings: a preset stands on a table at its base plane (``table=False`` leaves it
+    out); ``obstacles`` adds boxes, spheres, capsules and planes in the base frame, each a dict
+    (``{"shape": "box", "centre": [x, y, z], "size": [sx, sy, sz], "name": "crate"}``, as the
+    view's API takes them) or a tuple (``("box", centre, size)``, ``("sphere", centre, radius)``,
+    ``("capsule", a, b, radius)``, ``("table", height)``, ``("plane", normal, offset)``). A bad
+    one (a NaN, a size not above zero) raises ``ValueError`` before anything opens. Every later
+    command is checked against them (:attr:`obstacles`, :meth:`add_obstacle`,
+    :meth:`remove_obstacle`, :meth:`clear_obstacles`); the firmware gets them with the arm, which
+    it takes only with the torque off.
+
     An ``Arm`` is driven from the thread that opened it: its connection (the simulated board's
     virtual clock among it) is not made to cross threads, and a call from another thread raises
     :class:`ArmctlError` saying so, sending nothing. Open the arm in the thread that drives it (a
@@ -399,13 +409,14 @@ class Arm:
 
     def __init__(self, *, sim: str | bool | None = None, port: str | None = None, bus: str | None = None,
                  protocol: str | None = None, arm: str | None = None, calibration: str | None = None,
-                 baud: int | None = None):
+                 baud: int | None = None, obstacles: Iterable[Any] | None = None, table: bool = True):
         if isinstance(sim, str):
             if arm is not None and arm != sim:
                 raise ArmctlError(f"sim={sim!r} and arm={arm!r}: name the simulated arm once")
             arm, sim = sim, True
         self._native = _armctl.Arm(sim=bool(sim), port=port, bus=bus, protocol=protocol, arm=arm,
-                                   calibration=None if calibration is None else str(calibration), baud=baud)
+                                   calibration=None if calibration is None else str(calibration), baud=baud,
+                                   obstacles=None if obstacles is None else list(obstacles), table=bool(table))
         self._owner = threading.current_thread()
 
     @property
@@ -447,6 +458,30 @@ class Arm:
     def sim_port(self) -> str | None:
         """The simulated servos' pseudo-terminal (``sim``), or None."""
         return self._a.sim_port
+
+    @property
+    def obstacles(self) -> list[dict[str, Any]]:
+        """The obstacles every command is checked against (the table's too), base frame."""
+        return self._a.obstacles
+
+    @property
+    def collision(self) -> dict[str, Any]:
+        """The collision geometry: ``margin``, ``bodies`` (each on joint ``link``'s frame, None for
+        the base), ``obstacles``, ``allowed`` pairs, and its ``source``."""
+        return self._a.collision
+
+    def add_obstacle(self, obstacle: dict[str, Any] | tuple) -> str:
+        """Adds an obstacle (a dict or a tuple, see the class) for the commands that follow;
+        returns its name. Raises ``ValueError`` for a bad one, and nothing changes."""
+        return self._a.add_obstacle(obstacle)
+
+    def remove_obstacle(self, name: str) -> None:
+        """Removes the obstacle named ``name`` (``"table"``: the table)."""
+        self._a.remove_obstacle(name)
+
+    def clear_obstacles(self) -> None:
+        """Removes every obstacle but the table."""
+        self._a.clear_obstacles()
 
     def status(self) -> dict[str, Any]:
         """State, ``measured`` and ``setpoints`` joints, ``tool`` position, gripper, queue, errors."""

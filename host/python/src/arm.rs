@@ -14,6 +14,8 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, Result};
+use armctl::arm::collision::edit::{geometry_json, geometry_of, obstacle_json, source_of};
+use armctl::arm::collision::{CollisionSpec, TABLE};
 use armctl::commands::drive::gripper::{GripperGoal, GripperRequest};
 use armctl::commands::drive::joints::JointsRequest;
 use armctl::commands::drive::move_to::MoveRequest;
@@ -25,10 +27,12 @@ use armctl::runtime::connection::{protocol_named, Place};
 use armctl::runtime::driver::Driver;
 use armctl::sim::PtyServer;
 use firmware::link::message::{CartesianTarget, MovePath};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use serde::Serialize;
 
 use crate::errors::{interrupted, to_py, OrRaise};
+use crate::obstacles;
 
 /// Runs `f` with the GIL released, so that Python's other threads (a camera's reader) run while
 /// the arm is waited for. `detach` runs `f` on this very thread and returns its value here; its
@@ -126,6 +130,17 @@ impl Arm {
         python(py, &report)
     }
 
+    /// New collision geometry for the commands that follow (sent with the arm where the
+    /// firmware's copy changes: only with the torque off); refused while a stream is open.
+    fn set_geometry(&mut self, py: Python<'_>, spec: CollisionSpec) -> PyResult<()> {
+        if self.stream.is_some() {
+            return Err(to_py(anyhow!("a stream is open: close it before changing the obstacles (nothing changed)")));
+        }
+        let driver = self.driver()?;
+        released(py, || driver.set_collision(Some(spec))).or_raise()?;
+        Ok(())
+    }
+
     fn open_stream(&mut self, py: Python<'_>, request: StreamRequest) -> PyResult<()> {
         if self.stream.is_some() {
             return Err(to_py(anyhow!("a stream is open already: close it before opening another")));
@@ -174,7 +189,7 @@ impl Arm {
 #[pymethods]
 impl Arm {
     #[new]
-    #[pyo3(signature = (*, sim = false, port = None, bus = None, protocol = None, arm = None, calibration = None, baud = None))]
+    #[pyo3(signature = (*, sim = false, port = None, bus = None, protocol = None, arm = None, calibration = None, baud = None, obstacles = None, table = true))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -185,27 +200,68 @@ impl Arm {
         arm: Option<String>,
         calibration: Option<PathBuf>,
         baud: Option<u32>,
+        obstacles: Option<Vec<Bound<'_, PyAny>>>,
+        table: bool,
     ) -> PyResult<Self> {
         let protocol = protocol.map(protocol_named).transpose().or_raise()?;
-        let place = Place {
-            port,
-            bus,
-            protocol,
-            baud,
-            sim,
-            arm,
-            calibration,
-            object_mm: None,
-            surroundings: Default::default(),
-        };
+        // Every obstacle read before anything opens: a bad one moves nothing.
+        let given = obstacles.unwrap_or_default().iter().map(obstacles::obstacle).collect::<PyResult<Vec<_>>>()?;
+        let place = Place { port, bus, protocol, baud, sim, arm, calibration, object_mm: None, surroundings: Default::default() };
         let mut said = Vec::new();
-        let (driver, servos) = released(py, || -> Result<(Driver, Option<PtyServer>)> {
+        let (mut driver, servos) = released(py, || -> Result<(Driver, Option<PtyServer>)> {
             let (target, servos) = place.target()?.in_real_time()?;
             Ok((Driver::open(target, place.arm_name(), &mut said)?, servos))
         })
         .or_raise()?;
+        if !given.is_empty() || !table {
+            let spec = obstacles::edited(geometry_of(driver.arm()), table, &[], given)?;
+            released(py, || driver.set_collision(Some(spec))).or_raise()?;
+        }
         let connected = String::from_utf8_lossy(&said).trim().to_string();
         Ok(Self { driver: Some(driver), servos, stream: None, connected })
+    }
+
+    /// The obstacles every command is checked against, each a dict as `add_obstacle` takes one
+    /// (the table's too), in the base frame.
+    #[getter]
+    fn obstacles(&mut self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        let spec = geometry_of(self.driver()?.arm());
+        let list: Vec<serde_json::Value> = spec.obstacles.iter().map(obstacle_json).collect();
+        python(py, &list)
+    }
+
+    /// The whole collision geometry: `margin`, `bodies` (each on its joint's frame, `link`, or the
+    /// base's, None), `obstacles`, `allowed` pairs, and where it comes from (`source`).
+    #[getter]
+    fn collision(&mut self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        let arm = self.driver()?.arm();
+        let mut value = geometry_json(&geometry_of(arm));
+        value["source"] = serde_json::json!(source_of(arm));
+        python(py, &value)
+    }
+
+    /// Adds an obstacle (a dict or a tuple, see the module `obstacles`) for the commands that
+    /// follow; returns its name. A bad one raises `ValueError` and changes nothing.
+    fn add_obstacle(&mut self, py: Python<'_>, obstacle: Bound<'_, PyAny>) -> PyResult<String> {
+        let (name, shape) = obstacles::obstacle(&obstacle)?;
+        let mut spec = geometry_of(self.driver()?.arm());
+        let added = spec.add_obstacle(name.as_deref(), shape).map_err(|e| PyValueError::new_err(format!("{e:#}")))?;
+        self.set_geometry(py, spec)?;
+        Ok(added)
+    }
+
+    /// Removes the obstacle named `name` (`"table"` for the table).
+    fn remove_obstacle(&mut self, py: Python<'_>, name: &str) -> PyResult<()> {
+        let spec = obstacles::edited(geometry_of(self.driver()?.arm()), true, &[name.to_string()], Vec::new())?;
+        self.set_geometry(py, spec)
+    }
+
+    /// Removes every obstacle but the table (`remove_obstacle("table")` removes that).
+    fn clear_obstacles(&mut self, py: Python<'_>) -> PyResult<()> {
+        let spec = geometry_of(self.driver()?.arm());
+        let names: Vec<String> = spec.obstacles.iter().map(|o| o.name.clone()).filter(|n| n != TABLE).collect();
+        let spec = obstacles::edited(spec, true, &names, Vec::new())?;
+        self.set_geometry(py, spec)
     }
 
     /// The arm's name.

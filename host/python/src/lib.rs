@@ -6,6 +6,7 @@
 //! - [`model`]: an arm's kinematics (forward kinematics, Jacobian, IK) and trajectory sampling;
 //! - [`tree_model`]: a tree's (a URDF with several leaves): every end effector at once;
 //! - [`arm`]: an arm driven through the firmware core, as every drive command drives it;
+//! - [`obstacles`]: obstacles as Python gives them (dicts, tuples), read as the view reads them;
 //! - [`calibrate`]: LeRobot's calibration procedure, answered on standard input;
 //! - [`errors`]: `ArmctlError`, carrying the command line's one-line messages, and Ctrl-C.
 
@@ -13,6 +14,7 @@ mod arm;
 mod calibrate;
 mod errors;
 mod model;
+mod obstacles;
 mod tree_model;
 
 use pyo3::prelude::*;

@@ -28,7 +28,7 @@ use anyhow::{bail, Result};
 use serde_json::json;
 
 use crate::arm::ArmSpec;
-use crate::motion::teleop::leader::LeaderSpec;
+use crate::motion::teleop::leader::{LeaderSpec, Reading};
 use crate::motion::teleop::stream::{quantile, Figures, Settings};
 use crate::runtime::connection::{calibrated, Place, Target, SIM_ADAPTER_LATENCY};
 use crate::runtime::driver::{Driver, Waited};
@@ -118,19 +118,30 @@ pub fn run(
     }
     let settings = &request.settings;
     interrupt::catch();
-    let s = session(target, arm.map(str::to_string), &request.leader, settings, request.record.as_deref(), err)?;
+    let s = session(target, arm.map(str::to_string), &request.leader, settings, request.record.as_deref(), None, err)?;
     report(&s.figures, settings.period, settings.lead, &s.ending, json, out)?;
     Ok(if s.ending.monitor.is_some_and(|m| m.violation_count > 0) { 1 } else { s.code })
 }
 
+/// What looks at every leader reading before it goes to the follower, and may hold it back (a
+/// rig's arms kept apart: [`crate::rig::teleop`]).
+pub trait Guard {
+    /// The follower's measured joints once it is connected, before the first reading.
+    fn begin(&mut self, measured: &[f64]);
+    /// A reading about to go to the follower: changed in place to hold it back.
+    fn check(&mut self, reading: &mut Reading);
+}
+
 /// One leader driving one follower (`target`, running `arm` if named) until the duration, the
-/// script's end or Ctrl-C; then the follower brought to rest. What opening said goes to `err`.
+/// script's end or Ctrl-C; then the follower brought to rest. What opening said goes to `err`;
+/// `guard`, if given, sees every reading first.
 pub fn session(
     target: Target,
     arm: Option<String>,
     source: &LeaderSpec,
     settings: &LoopSettings,
     record: Option<&std::path::Path>,
+    mut guard: Option<&mut dyn Guard>,
     err: &mut dyn Write,
 ) -> Result<Session> {
     let LoopSettings { rate, period, lead, max_step, duration } = *settings;
@@ -184,7 +195,17 @@ pub fn session(
     if let Some(l) = simulated_leader.as_mut() {
         l.start()?;
     }
-    let mut read = || leader.read();
+    if let Some(g) = guard.as_deref_mut() {
+        let measured: Vec<f64> = driver.status()?.measured.iter().map(|&x| f64::from(x)).collect();
+        g.begin(&measured);
+    }
+    let mut read = || {
+        let mut reading = leader.read()?;
+        if let Some(g) = guard.as_deref_mut() {
+            g.check(&mut reading);
+        }
+        Ok(reading)
+    };
     let mut done = |elapsed: Duration| interrupt::requested() || until.is_some_and(|u| elapsed >= u);
     let figures = crate::motion::teleop::stream::run(&mut driver, &mut read, &settings, recorder.as_mut(), &mut done);
     let figures = match figures {

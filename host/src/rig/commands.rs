@@ -8,6 +8,7 @@ use anyhow::{bail, Context, Result};
 use firmware::link::message::{CartesianTarget, MovePath, Timing};
 use kinematics::Pose;
 
+use super::clearance::Clearance;
 use super::columns::{self, ArmPart};
 use super::play::stop_all;
 use super::report::{ArmMoved, ArmStatus, ArmStopped, ByArm, RigMove, RigReport, RigStatus, RigStop, RigTorque};
@@ -263,6 +264,11 @@ fn move_tree(
     let solved = tree
         .solve(&q, &wanted, &names)
         .map_err(|e| anyhow::anyhow!("move {} (world): {e:#}; no arm moved", shown.join(", ")))?;
+    let clearance = Clearance::of(rig)?;
+    let ends: Vec<Option<Vec<f64>>> = solved.q.iter().cloned().map(Some).collect();
+    if let Some(near) = clearance.closest(&clearance.placed(&ends)?).filter(|n| n.too_close()) {
+        bail!("move {} (world): the arms would end too close: {}; no arm moved", shown.join(", "), near.describe());
+    }
     // One duration for all: the tool speed over the longest tool travel, or --duration; each
     // firmware lengthens it where its joint limits need longer, so the speed limit still holds.
     let before = tree.tools(&q);
@@ -326,16 +332,27 @@ fn move_arms(
     err: &mut dyn Write,
 ) -> Result<Option<RigMove>> {
     // Every target solved on the host first: one out of reach moves no arm.
+    let mut ends = Vec::new();
+    for arm in &mut rig.arms {
+        ends.push(arm.driver.status()?.measured.iter().map(|&x| f64::from(x)).collect::<Vec<f64>>());
+    }
     for target in targets {
         let arm = &mut rig.arms[target.arm];
         let status = arm.driver.status()?;
-        if host_solution(&arm.driver, &status, &in_base(&arm.base, target))?.is_none() {
-            bail!(
+        match host_solution(&arm.driver, &status, &in_base(&arm.base, target))? {
+            Some(q) => ends[target.arm] = q,
+            None => bail!(
                 "move {} to {} m (world): out of reach within the joint limits; no arm moved",
                 arm.name,
                 fmt3(&target.position.map(f64::from))
-            );
+            ),
         }
+    }
+    // Each arm an obstacle for the others: where they would end too close, none moves.
+    let clearance = Clearance::of(rig)?;
+    let ends: Vec<Option<Vec<f64>>> = ends.into_iter().map(Some).collect();
+    if let Some(near) = clearance.closest(&clearance.placed(&ends)?).filter(|n| n.too_close()) {
+        bail!("move: the arms would end too close: {}; no arm moved", near.describe());
     }
     let mut starts = Vec::new();
     for (k, target) in targets.iter().enumerate() {

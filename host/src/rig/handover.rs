@@ -214,6 +214,8 @@ pub fn run(name: &str, json_out: bool, out: &mut dyn Write) -> Result<i32> {
     }
     let mut quiet = std::io::sink();
     let mut rig = Rig::open(&spec, &mut quiet)?;
+    // The grippers meet on the object; the rest of each arm is still an obstacle for the other.
+    rig.hands_meet.push([0, 1]);
     let group = rig.sim.clone().context("the rig's simulated boards")?;
     let mut grippers = Vec::new();
     for (i, arm) in rig.arms.iter().enumerate() {

@@ -6,12 +6,14 @@
 //! - [`Rig`]: the arms connected. Arms simulated in this process (`sim = true`) share one virtual
 //!   clock ([`crate::runtime::sil::group`]), so their cores run in step as two boards would.
 //! - [`commands`]: `armctl --rig FILE status|stop|torque|move|play`.
+//! - [`clearance`]: each arm an obstacle for the others, checked on the rig's timeline and moves.
 //! - [`columns`]: a keyframe file with every arm's columns, split into one file per arm.
 //! - [`teleop`]: `armctl teleop --rig`, every arm driven by its own leader.
 //! - [`handover`]: `armctl demo --rig`, two simulated arms handing an object over.
 //! - [`tree`]: a rig whose arms are mounted on one another (a shared joint) as one kinematic tree.
 //! - [`retarget`]: `armctl retarget FILE.bvh --rig FILE`, the human's arms onto every arm at once.
 
+pub mod clearance;
 pub mod columns;
 pub mod commands;
 pub mod file;
@@ -57,6 +59,9 @@ pub struct Rig {
     pub arms: Vec<RigArm>,
     /// The simulated boards of the arms with `sim = true`, on one virtual clock.
     pub sim: Option<SilGroup>,
+    /// Pairs of arms whose hands may touch (a handover): the bodies on each one's last joint are
+    /// not checked against the other's ([`clearance`]); everything else of theirs still is.
+    pub hands_meet: Vec<[usize; 2]>,
 }
 
 impl Rig {
@@ -93,7 +98,7 @@ impl Rig {
             .with_context(|| format!("arm {}", arm.name))?;
             arms.push(RigArm { name: arm.name.clone(), base: arm.base, mount: arm.mount, driver: Driver::on(conn)? });
         }
-        Ok(Self { name: spec.name.clone(), arms, sim: group })
+        Ok(Self { name: spec.name.clone(), arms, sim: group, hands_meet: Vec::new() })
     }
 
     /// Arm `i`'s base in the world frame now: fixed, or carried by the arm it is mounted on (whose

@@ -15,6 +15,7 @@ use std::time::Instant;
 use anyhow::{bail, Result};
 use firmware::link::message::{RunState, Status};
 
+use super::clearance::{self, Verdict};
 use super::columns::ArmPart;
 use super::report::{ArmPlayedReport, ByArm, RigPlay, RigReport};
 use super::Rig;
@@ -125,7 +126,7 @@ pub fn report(rig: &mut Rig, parts: Vec<ArmPart>, err: &mut dyn Write) -> Result
 
 /// Plays the parts on their arms: checked, queued, started together, topped up, waited for.
 /// `None` after Ctrl-C (every arm stopped). Warnings go to `err`.
-pub fn play(rig: &mut Rig, parts: Vec<ArmPart>, err: &mut dyn Write) -> Result<Option<Played>> {
+pub fn play(rig: &mut Rig, mut parts: Vec<ArmPart>, err: &mut dyn Write) -> Result<Option<Played>> {
     let seconds = parts.iter().map(|p| p.plan.seconds()).fold(0.0, f64::max);
     let timeout = parts.iter().map(|p| p.plan.timeout()).fold(0.0, f64::max);
     let mut tracks = Vec::new();
@@ -149,6 +150,9 @@ pub fn play(rig: &mut Rig, parts: Vec<ArmPart>, err: &mut dyn Write) -> Result<O
             bail!("arm {} is busy ({:?}): wait, or `stop` it first; nothing was sent", arm.name, status.state);
         }
     }
+    // Each arm an obstacle for the others: the whole timeline checked before anything moves, and
+    // cut where two arms would come too close, so that every arm stops short of it.
+    let stop_short = keep_clear(rig, &mut parts, &mut tracks)?;
     for i in 0..tracks.len() {
         let arm = &mut rig.arms[tracks[i].arm];
         match arm.driver.ready_to_move() {
@@ -265,6 +269,9 @@ pub fn play(rig: &mut Rig, parts: Vec<ArmPart>, err: &mut dyn Write) -> Result<O
             t.last = Some(rig.arms[t.arm].driver.settle(status)?);
         }
     }
+    if let Some(why) = stop_short {
+        bail!("{why}");
+    }
     for t in &tracks {
         if t.switched {
             writeln!(err, "{}: torque was off: switched it on", rig.arms[t.arm].name)?;
@@ -298,6 +305,37 @@ pub fn play(rig: &mut Rig, parts: Vec<ArmPart>, err: &mut dyn Write) -> Result<O
         });
     }
     Ok(Some(Played { arms, seconds, skew_s, skew_from }))
+}
+
+/// Checks the timeline ([`clearance::timeline`]) with every arm where it stands; where two arms
+/// would come too close, cuts every part at its last keyframe before (an arm left with none
+/// does not move) and returns what to say once they have stopped there. Refuses, with nothing
+/// sent, when no arm could move at all.
+fn keep_clear(rig: &mut Rig, parts: &mut Vec<ArmPart>, tracks: &mut Vec<Track>) -> Result<Option<String>> {
+    let mut current = Vec::new();
+    for arm in &mut rig.arms {
+        current.push(arm.driver.status()?.measured.iter().map(|&x| f64::from(x)).collect::<Vec<f64>>());
+    }
+    let keyframes: Vec<(usize, &[(usize, Keyframe)])> = tracks.iter().map(|t| (t.arm, t.messages.as_slice())).collect();
+    let (collision, keep, until) = match clearance::timeline(rig, &keyframes, &current)? {
+        Verdict::Clear(_) => return Ok(None),
+        Verdict::StopShort { collision, keep, until } => (collision, keep, until),
+    };
+    let said =
+        format!("the arms would come too close {:.2} s into the play: {}", collision.at, collision.near.describe());
+    if keep.iter().all(|&n| n == 0) {
+        bail!("{said}; refused, nothing moved");
+    }
+    for i in (0..tracks.len()).rev() {
+        match keep[i] {
+            0 => {
+                tracks.remove(i);
+                parts.remove(i);
+            }
+            n => tracks[i].messages.truncate(n),
+        }
+    }
+    Ok(Some(format!("{said}; every arm stopped short, at its last keyframe before ({until:.2} s)")))
 }
 
 /// Switches torque off again on the arms whose torque this play switched on.

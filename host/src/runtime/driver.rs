@@ -168,6 +168,34 @@ impl Driver {
         Ok(self.conn.session.settle(status)?)
     }
 
+    /// Gives the arm new collision geometry (obstacles added or removed by a front end): the host's
+    /// copy at once, so every later command is checked against it, and the firmware's by sending
+    /// the arm again through the session ([`Session::configure_arm`]) where what the firmware
+    /// holds changes (its digest says so). A firmware takes a new arm only with the torque off (a
+    /// new arm starts limp): with the torque on that is refused, and nothing changes. Returns
+    /// whether the arm was sent again.
+    pub fn set_collision(&mut self, collision: Option<crate::arm::collision::CollisionSpec>) -> Result<bool> {
+        let mut arm = self.conn.arm.clone();
+        arm.collision = collision;
+        let servos = crate::arm::servos::servos_of(&arm);
+        let digest = servos.as_ref().map(|s| crate::link::arm_config::arm_digest(&arm, s)).transpose()?;
+        let resend = digest.is_some_and(|d| d != self.conn.info.arm_digest);
+        if resend {
+            if !matches!(self.status()?.state, RunState::TorqueOff) {
+                bail!(
+                    "the firmware takes new collision geometry with the arm, which it takes only with the torque off \
+                     (a new arm starts limp): switch the torque off first; nothing changed"
+                );
+            }
+            let servos = servos.ok_or_else(|| anyhow!("arm {} has no servo mapping to send", arm.name))?;
+            self.conn.session.configure_arm(&arm, &servos, 0)?;
+            self.conn.info = self.conn.session.hello()?;
+        }
+        self.fk = dof::build(arm.clone())?;
+        self.conn.arm = arm;
+        Ok(resend)
+    }
+
     /// After Ctrl-C: stops the arm, waits until it is at rest, and says where it stopped, after
     /// `before` (a line of what had been done, or nothing).
     pub fn stop_for_interrupt(&mut self, before: &str) -> Result<String> {

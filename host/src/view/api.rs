@@ -2,7 +2,10 @@
 //! missing field, a string where a number goes, a value out of its range. Each problem is an
 //! [`ApiError`] with the HTTP status and one line in words.
 
+use kinematics::collision::Shape;
 use serde_json::Value;
+
+use crate::arm::collision::edit::obstacle_from_json;
 
 /// The largest request body: a keyframe file of some 50,000 lines.
 pub const MAX_BODY: usize = 4 << 20;
@@ -72,6 +75,16 @@ pub enum Request {
         /// Its text.
         csv: String,
     },
+    /// The collision geometry, for drawing (`GET /api/collision`).
+    Collision,
+    /// Obstacles removed by name, then added (each checked, the names its own or none): all or
+    /// nothing, for the commands that follow.
+    Obstacles {
+        /// Names of obstacles to remove.
+        remove: Vec<String>,
+        /// Obstacles to add: a name (or `None` for one after its kind) and a shape in the base frame.
+        add: Vec<(Option<String>, Shape<f64>)>,
+    },
 }
 
 /// Parses a body as a JSON object.
@@ -133,7 +146,7 @@ fn boolean(v: &Value, what: &str) -> Result<bool, ApiError> {
 }
 
 /// The endpoints of `POST /api/<endpoint>` (`/api/arm/NAME/<endpoint>` in a rig's view).
-pub const ENDPOINTS: [&str; 6] = ["joints", "target", "stop", "torque", "gripper", "play"];
+pub const ENDPOINTS: [&str; 7] = ["joints", "target", "stop", "torque", "gripper", "play", "obstacles"];
 
 /// Parses the body of `POST /api/<endpoint>`.
 pub fn parse(endpoint: &str, body: &[u8]) -> Result<Request, ApiError> {
@@ -206,6 +219,27 @@ pub fn parse(endpoint: &str, body: &[u8]) -> Result<Request, ApiError> {
             };
             Ok(Request::Play { name, csv })
         }
+        "obstacles" => {
+            refuse_unknown(&map, &["add", "remove"])?;
+            let list = |name: &str| match map.get(name) {
+                None => Ok(Vec::new()),
+                Some(Value::Array(items)) => Ok(items.clone()),
+                Some(v) => Err(ApiError::bad(format!("{name}: expected an array, found {}", kind(v)))),
+            };
+            let remove = list("remove")?
+                .iter()
+                .map(|v| v.as_str().map(str::to_string).ok_or_else(|| ApiError::bad("remove: expected obstacle names")))
+                .collect::<Result<Vec<_>, _>>()?;
+            let add = list("add")?
+                .iter()
+                .enumerate()
+                .map(|(i, v)| obstacle_from_json(v).map_err(|e| ApiError::bad(format!("add[{i}]: {e:#}"))))
+                .collect::<Result<Vec<_>, _>>()?;
+            if remove.is_empty() && add.is_empty() {
+                return Err(ApiError::bad("nothing to do: give \"add\" (obstacles) or \"remove\" (names), or both"));
+            }
+            Ok(Request::Obstacles { remove, add })
+        }
         other => Err(ApiError::new(404, format!("no endpoint POST /api/{other}"))),
     }
 }
@@ -235,6 +269,15 @@ mod tests {
             parse("play", br#"{"name": "a.csv", "csv": "t,q1\n0,0\n"}"#).unwrap(),
             Request::Play { name: "a.csv".into(), csv: "t,q1\n0,0\n".into() }
         );
+        let Request::Obstacles { remove, add } = parse(
+            "obstacles",
+            br#"{"remove": ["table"], "add": [{"shape": "sphere", "centre": [0.2, 0, 0.1], "radius": 0.03}]}"#,
+        )
+        .unwrap() else {
+            panic!("obstacles")
+        };
+        assert_eq!(remove, ["table"]);
+        assert_eq!(add.len(), 1);
     }
 
     #[test]
@@ -259,6 +302,13 @@ mod tests {
         assert_eq!(err("gripper", r#"{"percent": 101}"#).status, 400);
         assert!(err("stop", r#"{"now": true}"#).message.starts_with("unknown field \"now\""));
         assert_eq!(err("fly", "{}").status, 404);
+        let bad_box = r#"{"add": [{"shape": "box", "centre": [0.2, 0, 0], "size": [0.1, 0, 0.1]}]}"#;
+        assert_eq!(
+            err("obstacles", bad_box).message,
+            "add[0]: obstacle box: size[1]: 0 m is not a size: it must be above 0"
+        );
+        assert_eq!(err("obstacles", "{}").status, 400);
+        assert_eq!(err("obstacles", r#"{"remove": [1]}"#).message, "remove: expected obstacle names");
         let huge = format!("{{\"csv\": \"{}\"}}", "x".repeat(MAX_BODY));
         assert_eq!(err("play", &huge).status, 413);
     }

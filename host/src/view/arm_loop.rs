@@ -21,6 +21,7 @@ use serde_json::{json, Value};
 use super::api::{ApiError, Request};
 use super::jobs::{Answer, JobQueue};
 use super::telemetry::{self, Extras, LastSecond, Latest, Placement};
+use crate::arm::collision::edit::{geometry_json, geometry_of, source_of};
 use crate::arm::dof::DynArm;
 use crate::arm::ArmSpec;
 use crate::commands::drive::path::{self, RefusedBy};
@@ -423,6 +424,24 @@ impl LoopState {
                 }
                 Ok(solution)
             }
+            Request::Collision => Ok(self.collision_json()),
+            Request::Obstacles { remove, add } => {
+                // A file's keyframes were checked against the obstacles there were.
+                self.busy_playing()?;
+                let mut spec = geometry_of(self.driver.arm());
+                let bad = |e: anyhow::Error| ApiError::bad(format!("{e:#}"));
+                for name in &remove {
+                    spec.remove_obstacle(name).map_err(bad)?;
+                }
+                for (name, shape) in add {
+                    spec.add_obstacle(name.as_deref(), shape).map_err(bad)?;
+                }
+                let sent = self.driver.set_collision(Some(spec)).map_err(|e| ApiError::new(409, format!("{e:#}")))?;
+                self.extras.collision_version += 1;
+                let mut answer = self.collision_json();
+                answer["sent_to_firmware"] = json!(sent);
+                Ok(answer)
+            }
             Request::Play { name, csv } => {
                 self.busy_playing()?;
                 let plan = Plan::parse(&csv, std::path::Path::new(&name), PLAY_MARGIN)
@@ -463,6 +482,21 @@ impl LoopState {
                 Ok(answer)
             }
         }
+    }
+
+    /// The collision geometry the arm's commands are checked against ([`geometry_of`]), for
+    /// drawing: the bodies on their joints' frames (as the telemetry's `frames` place them), the
+    /// obstacles in the base frame, and the base where the API's frame has it (a rig's world).
+    fn collision_json(&self) -> Value {
+        let arm = self.driver.arm();
+        let mut value = geometry_json(&geometry_of(arm));
+        value["source"] = json!(source_of(arm));
+        value["base"] = match self.seat.placement.base() {
+            Some(base) => telemetry::frame(base),
+            None => Value::Null,
+        };
+        value["version"] = json!(self.extras.collision_version);
+        value
     }
 
     /// Torque on if it is off; an emergency stop is left to the person.

@@ -231,6 +231,13 @@ fn connection(mut stream: TcpStream, guard: Counted) {
             let answer = post(&shared, &mut stream, &head, early, arm, &endpoint).unwrap_or_else(|e| Answer::error(&e));
             http::respond(&mut stream, &answer);
         }
+        Route::Job(arm, request) => {
+            let answer = shared.served.arms[arm].jobs.submit(request);
+            http::respond(
+                &mut stream,
+                &answer.map(|body| Answer::json(200, &body)).unwrap_or_else(|e| Answer::error(&e)),
+            );
+        }
         Route::Websocket(key) => websocket(stream, &shared, &key, guard),
     }
 }
@@ -240,6 +247,8 @@ enum Route {
     Answer(Answer),
     /// A POST to one arm (its index), or to every arm (`None`: a rig's stop).
     Post(Option<usize>, String),
+    /// A GET the arm loop answers (what only it knows: the collision geometry now).
+    Job(usize, Request),
     Websocket(String),
 }
 
@@ -301,6 +310,7 @@ fn route(shared: &Shared, head: &Head, local: IpAddr) -> Route {
         // The page asks first: `null` says one arm, and the API names none.
         ("GET", "rig") => Route::Answer(Answer::json(200, &Value::Null)),
         ("GET", "status") => status(served, 0),
+        ("GET", "collision") => Route::Job(0, Request::Collision),
         ("GET", p) if p.starts_with("mesh/") => Route::Answer(mesh(&p["mesh/".len()..], served)),
         ("POST", endpoint) => Route::Post(Some(0), endpoint.to_string()),
         _ => refused(405, format!("{method} {path}: not an endpoint (see docs/view.md, the API)")),
@@ -332,6 +342,7 @@ fn rig_route(served: &Served, rig: &Rig, method: &str, endpoint: &str) -> Route 
         return match (method, what) {
             ("GET", "") => Route::Answer(Answer::json(200, &served.arms[index].arm)),
             ("GET", "status") => status(served, index),
+            ("GET", "collision") => Route::Job(index, Request::Collision),
             ("POST", what) if !what.is_empty() => Route::Post(Some(index), what.to_string()),
             _ => refused(405, format!("{method} /api/arm/{name}/{what}: not an endpoint (see docs/view.md, the API)")),
         };

@@ -91,6 +91,9 @@ pub struct Extras {
     pub last_error: Option<String>,
     /// Keyframe queue capacity of the firmware.
     pub queue_capacity: usize,
+    /// Counts the changes of the obstacles, so a page redraws them when another client changed
+    /// them.
+    pub collision_version: u64,
 }
 
 /// The telemetry object of one status (see docs/view.md, the API), its positions in
@@ -135,6 +138,7 @@ pub fn telemetry(
         "play": extras.play,
         "target": extras.target,
         "last_error": extras.last_error,
+        "collision_version": extras.collision_version,
         "rate_hz": rate_hz,
     }))
 }

@@ -4,6 +4,7 @@
 //! crate's fixed-size [`Scene`] for the host's checks and sent to the firmware with the arm.
 
 pub mod allowed;
+pub mod edit;
 pub mod fit;
 pub mod obstacle;
 pub mod stl;

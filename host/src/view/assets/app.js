@@ -30,6 +30,7 @@ window.armView = {
   arms: () => arms.map((a) => a.name),
   selected: () => (arms[selected] ? arms[selected].name : null),
   drawnArms: () => (scene ? scene.drawnArms() : []),
+  drawnCollision: () => (scene ? scene.drawnCollision() : []),
 };
 
 /** The path of an endpoint of the arm the controls drive. */
@@ -92,6 +93,7 @@ async function start() {
   wireTarget();
   wireButtons();
   wirePlay();
+  wireCollision();
   connectTelemetry({ onMessage: onTelemetry, onClose: onDisconnect });
   requestAnimationFrame(frame);
 }
@@ -401,11 +403,35 @@ function onTelemetry(t) {
     targetInitialised = true;
     targetToTool(t);
   }
+  // Obstacles changed (by this page or another client): drawn again.
+  if (typeof t.collision_version === 'number' && t.collision_version !== a.collisionVersion) {
+    a.collisionVersion = t.collision_version;
+    loadCollision(index);
+  }
   // Shown when it changes only, so an older server error does not hide a newer request's.
   if (t.last_error !== a.lastServerError) {
     a.lastServerError = t.last_error;
     if (t.last_error) showError(rig ? `${a.name}: ${t.last_error}` : t.last_error);
   }
+}
+
+// ---- collision geometry --------------------------------------------------------------------
+
+/** Arm `index`'s collision geometry from the server, drawn (shown with the checkbox). */
+async function loadCollision(index) {
+  const a = arms[index];
+  const path = rig ? `/api/arm/${encodeURIComponent(a.name)}/collision` : '/api/collision';
+  try {
+    scene.setCollision(await getJSON(path), index);
+  } catch (e) {
+    showError(`cannot read the collision geometry (${path}): ${e.message}`);
+  }
+}
+
+function wireCollision() {
+  const box = $('show-collision');
+  box.checked = false;
+  box.addEventListener('change', () => scene.showCollision(box.checked));
 }
 
 // ---- the rig's arms ----------------------------------------------------------------------

@@ -236,8 +236,22 @@ export class ArmScene {
         meshFrames.push(g);
         scene.add(g);
       }
-      return { arm, chain, preview, ghost, meshFrames, disc };
+      // The collision geometry (GET /api/collision), shown with the checkbox: bodies in frame
+      // groups as the meshes are (0 the base, k telemetry frames[k-1]), obstacles in the base frame.
+      const collisionFrames = [];
+      for (let k = 0; k <= arm.dof; k++) {
+        const g = k === 0 ? placed(new THREE.Group()) : new THREE.Group();
+        g.visible = false;
+        collisionFrames.push(g);
+        scene.add(g);
+      }
+      const obstacles = placed(new THREE.Group());
+      obstacles.visible = false;
+      scene.add(obstacles);
+      return { arm, chain, preview, ghost, meshFrames, disc, collisionFrames, obstacles, collision: null };
     });
+    this.showingCollision = false;
+    this.floorHalf = half;
     this.markSelected();
     this.drawn.forEach((d) => this.loadMeshes(d, d.arm.meshes || [], onError));
     // The one-arm view's names for the one arm.
@@ -323,12 +337,101 @@ export class ArmScene {
     }
   }
 
+  /**
+   * Arm `index`'s collision geometry as GET /api/collision gives it: each body a capsule (a
+   * cylinder and two balls) on its joint's frame, each obstacle in the base frame (a table a
+   * translucent plane at its height).
+   */
+  setCollision(geometry, index = 0) {
+    const d = this.drawn[index];
+    if (!d) return;
+    const clear = (g) => { while (g.children.length) g.remove(g.children[0]); };
+    d.collisionFrames.forEach(clear);
+    clear(d.obstacles);
+    d.collision = geometry;
+    const translucent = (color, opacity) => new THREE.MeshStandardMaterial({
+      color, roughness: 0.6, transparent: true, opacity, depthWrite: false, side: THREE.DoubleSide,
+    });
+    const bodyMaterial = translucent(0xff9800, 0.35);
+    const obstacleMaterial = translucent(0x546e7a, 0.45);
+    const capsule = (group, a, b, radius, material) => {
+      const pa = new THREE.Vector3().fromArray(a), pb = new THREE.Vector3().fromArray(b);
+      const tube = new THREE.Mesh(unitCylinder, material);
+      placeSegment(tube, pa, pb, radius);
+      group.add(tube);
+      for (const p of pa.distanceTo(pb) > 1e-9 ? [pa, pb] : [pa]) {
+        const ball = new THREE.Mesh(unitSphere, material);
+        ball.position.copy(p);
+        ball.scale.setScalar(radius);
+        group.add(ball);
+      }
+    };
+    for (const b of geometry.bodies || []) {
+      const frame = d.collisionFrames[b.link === null || b.link === undefined ? 0 : b.link + 1];
+      if (frame) capsule(frame, b.a, b.b, b.radius, bodyMaterial);
+    }
+    const size = 2 * this.floorHalf;
+    for (const o of geometry.obstacles || []) {
+      if (o.shape === 'box') {
+        const m = new THREE.Mesh(new THREE.BoxGeometry(...o.size), obstacleMaterial);
+        m.position.fromArray(o.centre);
+        if (o.rotation) {
+          const r = o.rotation;
+          m.quaternion.setFromRotationMatrix(new THREE.Matrix4().set(
+            r[0][0], r[0][1], r[0][2], 0, r[1][0], r[1][1], r[1][2], 0, r[2][0], r[2][1], r[2][2], 0, 0, 0, 0, 1));
+        }
+        d.obstacles.add(m);
+      } else if (o.shape === 'sphere') {
+        capsule(d.obstacles, o.centre, o.centre, o.radius, obstacleMaterial);
+      } else if (o.shape === 'capsule') {
+        capsule(d.obstacles, o.a, o.b, o.radius, obstacleMaterial);
+      } else if (o.shape === 'table' || o.shape === 'plane') {
+        // PlaneGeometry faces +Z: turned to the normal, at the plane's offset along it.
+        const normal = new THREE.Vector3().fromArray(o.shape === 'table' ? [0, 0, 1] : o.normal);
+        const m = new THREE.Mesh(new THREE.PlaneGeometry(size, size), translucent(0x8d6e63, 0.25));
+        m.quaternion.setFromUnitVectors(new THREE.Vector3(0, 0, 1), normal);
+        m.position.copy(normal).multiplyScalar(o.shape === 'table' ? o.height : o.offset);
+        d.obstacles.add(m);
+      }
+    }
+    this.showCollision(this.showingCollision);
+  }
+
+  /** Shows or hides every arm's collision geometry (the checkbox). */
+  showCollision(on) {
+    this.showingCollision = on;
+    for (const d of this.drawn) {
+      d.obstacles.visible = on;
+      d.collisionFrames.forEach((g, k) => { g.visible = on && (k === 0 || d.chain.group.visible); });
+    }
+    this.dirty = true;
+  }
+
+  /** What is drawn of the collision geometry (for the browser tests): per arm, whether it shows,
+   * the body meshes and the obstacle meshes. */
+  drawnCollision() {
+    return this.drawn.map((d) => ({
+      shown: d.obstacles.visible,
+      bodies: d.collisionFrames.reduce((n, g) => n + g.children.length, 0),
+      obstacles: d.obstacles.children.length,
+      names: d.collision ? (d.collision.obstacles || []).map((o) => o.name) : [],
+    }));
+  }
+
   /** frames: arm `index`'s telemetry frames. */
   setFrames(frames, index = 0) {
     const d = this.drawn[index];
     if (!d) return;
     d.chain.group.visible = true;
     d.chain.update(frames);
+    for (let k = 1; k < d.collisionFrames.length; k++) {
+      const f = frames[k - 1];
+      const g = d.collisionFrames[k];
+      g.visible = this.showingCollision && !!f;
+      if (!f) continue;
+      g.position.fromArray(f.p);
+      setQuat(g.quaternion, f.q);
+    }
     for (let k = 1; k < d.meshFrames.length; k++) {
       const f = frames[k - 1];
       const g = d.meshFrames[k];
