@@ -3,7 +3,7 @@
 //!
 //! Each pair is exactly one `armctl teleop` session ([`crate::commands::teleop::session`]); what
 //! is the rig's alone is running them side by side, each pair's lines prefixed with its arm's
-//! name, the figures reported per arm, and the arms kept apart ([`KeepApart`]): every reading of
+//! name, the figures reported per arm, and the arms kept apart (`KeepApart`): every reading of
 //! a leader is checked against the last reading each other follower took, and one that would
 //! bring two arms within their margin is held back (the follower stays at its last reading), and
 //! counted in the report with the first two bodies named.

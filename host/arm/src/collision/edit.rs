@@ -7,7 +7,7 @@
 //!
 //! | shape | fields |
 //! |---|---|
-//! | `box` | `centre` [x,y,z], `size` [sx,sy,sz] (full sizes), optional `rotation` (3 rows, the box's axes as columns) |
+//! | `box` | `centre` `[x, y, z]`, `size` `[sx, sy, sz]` (full sizes), optional `rotation` (3 rows, the box's axes as columns) |
 //! | `sphere` | `centre`, `radius` |
 //! | `capsule` | `a`, `b` (the core segment's ends), `radius` |
 //! | `table` | optional `height` (m, default 0): the solid below the plane z = height |
