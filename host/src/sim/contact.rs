@@ -15,9 +15,12 @@
 //! lifted at each step and found again if the contact is still there, so it moves on once another
 //! joint has taken the link away; and it moves back as soon as its goal lies on the free side.
 //!
-//! The configuration the bus starts from must be free; one that already overlaps (a horn placed
-//! by hand into the table) is left to move, except that no servo may make the overlap deeper.
+//! A pair that already overlaps where a step starts (horns placed by hand into the table, or
+//! geometry that overlaps at rest) may stay so, but no servo may make that overlap deeper; every
+//! other pair is judged as usual.
 //! Limp servos (torque off) are never stopped: a hand moves them where it will.
+
+use kinematics::collision::Contact;
 
 use super::servo::SimServo;
 use super::stall::Stop;
@@ -108,37 +111,37 @@ impl ContactModel {
             .collect()
     }
 
-    /// Judges the motion from `a_ns` (where nothing overlaps deeper than it did) to `b_ns`.
+    /// The first checked pair (its index in [`World::pairs`]) that overlaps at `t_ns` deeper than
+    /// `floor` allows, and the distances there.
+    fn worse(&self, servos: &[SimServo], index: &[usize], floor: &[f64], t_ns: u64) -> Option<(usize, Vec<f64>)> {
+        let d = self.world.pair_distances(&self.angles(servos, index, t_ns))?;
+        let k = d.iter().zip(floor).position(|(d, f)| d < f)?;
+        Some((k, d))
+    }
+
+    /// Judges the motion from `a_ns` to `b_ns`: no checked pair may overlap, or overlap deeper
+    /// than it did at `a_ns` (a configuration placed overlapping may move, but not deeper in).
     fn step(&mut self, servos: &mut [SimServo], index: &[usize], counted: &mut [bool], a_ns: u64, b_ns: u64) {
         let mut a_ns = a_ns;
         // Each round stops at least one servo, or ends.
         for _ in 0..=index.len() {
-            let q_b = self.angles(servos, index, b_ns);
-            let Some(contact) = self.world.touching(&q_b) else { return };
-            let q_a = self.angles(servos, index, a_ns);
-            let before = self.world.distance(&q_a, contact.body, contact.other);
-            let (lo, hi) = if before >= 0.0 {
-                // Free at the start: the first instant of contact, by bisection.
-                let (mut lo, mut hi) = (a_ns, b_ns);
-                while hi - lo > RESOLUTION_NS {
-                    let mid = lo + (hi - lo) / 2;
-                    let q = self.angles(servos, index, mid);
-                    if self.world.touching(&q).is_some() {
-                        hi = mid;
-                    } else {
-                        lo = mid;
-                    }
+            let Some(start) = self.world.pair_distances(&self.angles(servos, index, a_ns)) else { return };
+            // A hair below the start's own overlap: rounding is no deeper contact.
+            let floor: Vec<f64> = start.iter().map(|d| d.min(0.0) - 1e-9).collect();
+            let Some(mut found) = self.worse(servos, index, &floor, b_ns) else { return };
+            // The first instant of contact, by bisection.
+            let (mut lo, mut hi) = (a_ns, b_ns);
+            while hi - lo > RESOLUTION_NS {
+                let mid = lo + (hi - lo) / 2;
+                match self.worse(servos, index, &floor, mid) {
+                    Some(at_mid) => (hi, found) = (mid, at_mid),
+                    None => lo = mid,
                 }
-                (lo, hi)
-            } else if contact.distance < before {
-                // Already overlapping (placed so): only a deeper overlap is refused.
-                (a_ns, b_ns)
-            } else {
-                return;
-            };
+            }
+            let (k, distances) = found;
+            let (body, other) = self.world.pairs()[k];
             let (q_lo, q_hi) = (self.angles(servos, index, lo), self.angles(servos, index, hi));
-            let contact = self.world.touching(&q_hi).unwrap_or(contact);
-            let gap = self.world.distance(&q_lo, contact.body, contact.other);
+            let gap = self.world.distance(&q_lo, body, other);
             let moving: Vec<usize> =
                 (0..index.len()).filter(|&j| servos[index[j]].torque() && q_hi[j] != q_lo[j]).collect();
             let mut closing: Vec<usize> = moving
@@ -147,7 +150,7 @@ impl ContactModel {
                 .filter(|&j| {
                     let mut q = q_lo.clone();
                     q[j] = q_hi[j];
-                    self.world.distance(&q, contact.body, contact.other) < gap
+                    self.world.distance(&q, body, other) < gap
                 })
                 .collect();
             if closing.is_empty() {
@@ -170,6 +173,7 @@ impl ContactModel {
             }
             if !stopped.is_empty() {
                 self.stats.stalls += stopped.len() as u64;
+                let contact = Contact { body, other, distance: distances[k] };
                 self.stats.last = Some((self.world.describe(&contact), stopped));
             }
             a_ns = lo;
@@ -308,6 +312,38 @@ mod tests {
         bus.advance_to(2 * S);
         let further = bus.servo(2).unwrap().get(sts3215::PRESENT_POSITION);
         assert!(further > stalled + 20, "the shoulder stayed at {further} (stalled at {stalled}, goal {goal})");
+    }
+
+    /// A Dynamixel arm (the OpenManipulator-X's XM430s) stops the same way; its overload is not
+    /// modelled, so it pushes on without an error.
+    #[test]
+    fn an_open_manipulator_stops_on_the_table_without_an_overload() {
+        use firmware::bus::table::xseries;
+        let arm = ArmSpec::load("open-manipulator-x", None).unwrap();
+        let world = World::new(&arm, CollisionSpec::from_frames(&arm, 0.02)).unwrap();
+        let servos = crate::arm::servos::servos_of(&arm).unwrap();
+        let mut bus = SimBus::new(servos.model.protocol, servos.model, &servos.bus_ids(), servos.baud)
+            .with_contact(Some(ContactModel::new(world.clone())));
+        for s in bus.servos_mut() {
+            s.set_register(xseries::TORQUE_ENABLE, 1, 0).unwrap();
+        }
+        let id = world.ids()[1];
+        // Its first link's capsule dips 3 mm into the table at rest: that overlap may stay, no
+        // deeper; every other pair must keep clear.
+        let start = world.pair_distances(&angles(&bus, &world)).unwrap();
+        let goal = world_goal(&world, 1, 1.5);
+        bus.servo_mut(id).unwrap().set_register(xseries::GOAL_POSITION, goal, 0).unwrap();
+        bus.advance_to(4 * S);
+        let end = world.pair_distances(&angles(&bus, &world)).unwrap();
+        for (k, (a, b)) in start.iter().zip(&end).enumerate() {
+            assert!(*b > a.min(0.0) - 1e-4, "pair {:?}: {a} m at rest, {b} m", world.pairs()[k]);
+        }
+        let (what, ids) = bus.contact().unwrap().stats().last.clone().unwrap();
+        assert!(what.contains("table") && !what.starts_with("joint1"), "{what}");
+        assert_eq!(ids, [id]);
+        let s = bus.servo(id).unwrap();
+        assert!((goal - s.get(xseries::PRESENT_POSITION)).abs() > 20);
+        assert!(s.torque() && s.status_error(0) == 0, "no overload modelled on a Dynamixel");
     }
 
     /// A motion that brings nothing into contact is not touched.

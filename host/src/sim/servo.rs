@@ -31,6 +31,10 @@
 //!   offset-corrected frame, so a move never takes the other way round the turn.
 //! - A hand can turn a horn whose torque is off ([`SimServo::hand_move`]): at once, or at a
 //!   steady speed; the present position follows it.
+//! - A horn whose link has run into something ([`super::contact`] finds it) is stopped there
+//!   ([`SimServo::set_stop`]): it does not pass the contact that way, its load follows the goal's
+//!   distance past it, and a Feetech servo pushing at overload torque for its protection time sets
+//!   its overload bit ([`super::stall`]).
 //! - A servo whose baud item does not match the bus's baud rate hears nothing (after changing it,
 //!   or after a factory reset that restores it).
 //!

@@ -34,6 +34,8 @@ pub struct World {
     touching: ArmScene,
     /// The geometry's margin: what every goal must keep.
     near: ArmScene,
+    /// The pairs checked.
+    pairs: Vec<(u8, Part)>,
 }
 
 impl std::fmt::Debug for World {
@@ -62,7 +64,16 @@ impl World {
         let mut touching = near.clone();
         touching.set_margin(0.0);
         let model = Arc::from(dof::build(arm.clone())?);
-        Ok(Self { arm: arm.clone(), geometry, model, mappings, touching, near })
+        let (bodies, obstacles) = (near.bodies().len() as u8, near.obstacles().len() as u8);
+        let pairs = (0..bodies)
+            .flat_map(|i| {
+                ((i + 1)..bodies)
+                    .map(move |j| (i, Part::Body(j)))
+                    .chain((0..obstacles).map(move |o| (i, Part::Obstacle(o))))
+            })
+            .filter(|&(i, other)| !near.allowed(i, other))
+            .collect();
+        Ok(Self { arm: arm.clone(), geometry, model, mappings, touching, near, pairs })
     }
 
     /// `arm` in its own geometry ([`crate::arm::collision::collision_of`]); `None` when it has none.
@@ -119,9 +130,28 @@ impl World {
         self.near.closest(&frames)
     }
 
+    /// Every pair the geometry checks (the allowed pairs and those on one frame left out), in a
+    /// fixed order: the order of [`World::pair_distances`].
+    pub fn pairs(&self) -> &[(u8, Part)] {
+        &self.pairs
+    }
+
+    /// The signed distance of every checked pair at `q` ([`World::pairs`]; `None` when `q`
+    /// cannot be placed).
+    pub fn pair_distances(&self, q: &[f64]) -> Option<Vec<f64>> {
+        let frames = self.frames(q)?;
+        Some(self.pairs.iter().map(|&(body, other)| self.measure(&frames, body, other)).collect())
+    }
+
     /// The signed distance of body `body` and `other` at `q` (NaN when `q` cannot be placed).
     pub fn distance(&self, q: &[f64], body: u8, other: Part) -> f64 {
-        let Some(frames) = self.frames(q) else { return f64::NAN };
+        match self.frames(q) {
+            Some(frames) => self.measure(&frames, body, other),
+            None => f64::NAN,
+        }
+    }
+
+    fn measure(&self, frames: &[Pose<f64>], body: u8, other: Part) -> f64 {
         let scene = &self.near;
         let place = |i: u8| -> Option<Capsule<f64>> {
             let b = scene.bodies().get(usize::from(i))?;
