@@ -101,9 +101,35 @@ impl<T: Real, const B: usize, const O: usize> Scene<T, B, O> {
         scene
     }
 
+    /// Makes this scene a copy of `other`, in place: no second scene is built on the stack (a
+    /// firmware's scene is a few kilobytes, its stack budget eight).
+    pub fn assign(&mut self, other: &Self) {
+        self.bodies.clear();
+        // Both hold the same capacity, so every body and obstacle fits.
+        for body in other.bodies.iter() {
+            let _ = self.bodies.push(*body);
+        }
+        self.obstacles.clear();
+        for shape in other.obstacles.iter() {
+            let _ = self.obstacles.push(*shape);
+        }
+        self.allowed_bodies = other.allowed_bodies;
+        self.allowed_obstacles = other.allowed_obstacles;
+        self.margin = other.margin;
+    }
+
+    /// Whether there is any pair to check: at least one body, and another body or an obstacle.
+    pub fn is_empty(&self) -> bool {
+        self.bodies.is_empty() || (self.bodies.len() < 2 && self.obstacles.is_empty())
+    }
+
     /// Removes every body, obstacle and allowed pair; keeps the margin.
     pub fn clear(&mut self) {
-        *self = Self::new(self.margin);
+        // In place, not `*self = Self::new(..)`: that would build a whole scene on the stack.
+        self.bodies.clear();
+        self.obstacles.clear();
+        self.allowed_bodies = [0; B];
+        self.allowed_obstacles = [0; B];
     }
 
     /// Sets the distance every checked pair must keep (m); negative or not finite: zero.
