@@ -186,12 +186,15 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         self.setpoint
     }
 
-    /// The contact a target `q` is in, if it is checked and not free: a move to it is refused.
+    /// The contact a target `q` is in, if it is checked and not free: a move to it is refused,
+    /// naming the closest pair (once per command, so the full search is affordable).
     pub(super) fn target_contact(&mut self, q: &SVector<f32, N>) -> Option<Contact<f32>> {
         if !self.guard.active() {
             return None;
         }
-        self.guard.contact_at(&self.chain, q)
+        let first = self.guard.contact_at(&self.chain, q)?;
+        let frames = self.chain.forward(q);
+        Some(self.guard.scene.closest(&frames.joints).unwrap_or(first))
     }
 
     /// What goals are checked against and the last stop.
