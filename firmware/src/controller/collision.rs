@@ -208,3 +208,46 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         self.guard.set(scene, check);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use kinematics::nalgebra::Vector2;
+
+    #[test]
+    fn a_brake_segment_is_sampled_every_tenth_of_a_radian_up_to_six_times() {
+        assert_eq!(brake_samples(0.0), 1);
+        assert_eq!(brake_samples(0.05), 1);
+        assert_eq!(brake_samples(0.25), 3);
+        assert_eq!(brake_samples(5.0), MAX_SAMPLES);
+        assert_eq!(brake_samples(f32::NAN), 1);
+    }
+
+    /// The synchronised brake from 1 rad/s and 0.5 rad/s at 4 rad/s^2: the slower joint's
+    /// deceleration is scaled so both stop together after 0.25 s, each at half its speed times
+    /// that time; clamped into the limits.
+    #[test]
+    fn the_rest_point_is_where_the_synchronised_brake_ends() {
+        let limits = JointLimits::new(
+            Vector2::repeat(-1.0),
+            Vector2::new(1.0, 0.05),
+            Vector2::repeat(2.0),
+            Vector2::repeat(4.0),
+        )
+        .unwrap();
+        let from = Setpoint { position: Vector2::new(0.1, 0.0), velocity: Vector2::new(1.0, 0.5) };
+        let rest = rest_point(&from, &limits);
+        assert!((rest[0] - 0.225).abs() < 1e-6, "{rest:?}");
+        assert_eq!(rest[1], 0.05, "clamped to the upper limit");
+        // The discrete brake of the controller ends within a period's travel of it: stepping
+        // at 100 Hz from the same start, as `Mode::Stopping` does.
+        let (dt, t) = (0.01f32, 0.25f32);
+        let mut p = from.position[0];
+        let mut v = from.velocity[0];
+        while v > 0.0 {
+            v = (v - from.velocity[0] / t * dt).max(0.0);
+            p += v * dt;
+        }
+        assert!(p <= rest[0] + 1e-6 && rest[0] - p <= from.velocity[0] * dt, "{p} against {}", rest[0]);
+    }
+}
