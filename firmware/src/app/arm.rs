@@ -99,6 +99,18 @@ impl<const N: usize> ArmSetup<N> {
         }
     }
 
+    /// Writes [`ArmSetup::blank`] at `at`. Never inlined: the blank set-up (its collision scene
+    /// included, about 4 KB) is then built in this function's own frame, which a board's start-up
+    /// leaves before it goes deeper, not in the frame of the start-up itself.
+    ///
+    /// # Safety
+    /// `at` must be valid for writes and aligned; nothing there is read or dropped.
+    #[inline(never)]
+    #[allow(unsafe_code)]
+    pub(crate) unsafe fn blank_at(at: *mut Self, model: &'static Model) {
+        at.write(Self::blank(model));
+    }
+
     /// Makes this slot the arm `arm` describes, in place (the chain alone is larger than a
     /// board's stack can spare twice); its gripper, bus and digest are left to the caller. On
     /// failure the slot holds part of an arm: it is a scratch slot, never the running arm.

@@ -114,7 +114,6 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
         crate::place::place_fields!(at: Self {
             board: board,
             builtin: None,
-            incoming: ArmSetup::blank(board.model),
             arm: None,
             staging: Staging::new(),
             telemetry: None,
@@ -123,6 +122,7 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
         } in place {
             controller: Controller::blank(board.model, board.control)
                 => |controller| Controller::blank_at(controller, board.model, board.control),
+            incoming: ArmSetup::blank(board.model) => |incoming| ArmSetup::blank_at(incoming, board.model),
         });
     }
 

@@ -82,6 +82,17 @@ impl Guard {
         Self { scene: ArmScene::new(0.0), check: true, last: None }
     }
 
+    /// Writes [`Guard::empty`] at `at`. Never inlined: the empty scene (2 KB) is then built in
+    /// this function's frame, not in that of the board's start-up, which goes deeper later.
+    ///
+    /// # Safety
+    /// `at` must be valid for writes and aligned; nothing there is read or dropped.
+    #[inline(never)]
+    #[allow(unsafe_code)]
+    pub(crate) unsafe fn empty_at(at: *mut Self) {
+        at.write(Self::empty());
+    }
+
     /// No bodies, the check asked for, no stop: what a new arm starts with.
     pub fn clear(&mut self) {
         self.scene.clear();

@@ -287,7 +287,8 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             gripper: None,
             last_move: None,
             move_active: false,
-            guard: Guard::empty(),
+        } in place {
+            guard: Guard::empty() => |guard| Guard::empty_at(guard),
         });
     }
 

@@ -194,14 +194,18 @@ impl<T: Real, const B: usize, const O: usize> Scene<T, B, O> {
         if i >= self.bodies.len() {
             return Err(SceneError::NoSuchPart);
         }
+        // Through `get_mut`: the lengths are within the masks' `B`, which the compiler cannot
+        // see, and a firmware links no panic path.
         match other {
             Part::Body(j) if usize::from(j) < self.bodies.len() => {
                 let j = usize::from(j);
-                self.allowed_bodies[i] |= bit(j);
-                self.allowed_bodies[j] |= bit(i);
+                let (mi, mj) = (bit(i), bit(j));
+                self.allowed_bodies.get_mut(i).map(|m| *m |= mj).ok_or(SceneError::NoSuchPart)?;
+                self.allowed_bodies.get_mut(j).map(|m| *m |= mi).ok_or(SceneError::NoSuchPart)?;
             }
             Part::Obstacle(o) if usize::from(o) < self.obstacles.len() => {
-                self.allowed_obstacles[i] |= bit(usize::from(o));
+                let mo = bit(usize::from(o));
+                self.allowed_obstacles.get_mut(i).map(|m| *m |= mo).ok_or(SceneError::NoSuchPart)?;
             }
             _ => return Err(SceneError::NoSuchPart),
         }
