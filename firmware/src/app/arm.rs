@@ -108,7 +108,19 @@ impl<const N: usize> ArmSetup<N> {
     #[inline(never)]
     #[allow(unsafe_code)]
     pub(crate) unsafe fn blank_at(at: *mut Self, model: &'static Model) {
-        at.write(Self::blank(model));
+        // Field by field: a whole set-up built here first would double this frame.
+        crate::place::place_fields!(at: Self {
+            name: String::new(),
+            chain: Chain::motionless(),
+            mappings: [padding_mapping(model); N],
+            model: model,
+            limits: JointLimits::still(),
+            gripper: None,
+            baud: None,
+            digest: 0,
+            scene: ArmScene::new(0.0),
+            collision_check: true,
+        });
     }
 
     /// Makes this slot the arm `arm` describes, in place (the chain alone is larger than a

@@ -92,17 +92,17 @@ impl<T: Real, const B: usize, const O: usize> Scene<T, B, O> {
     /// No bodies, no obstacles, the margin given (negative or not finite: zero).
     pub fn new(margin: T) -> Self {
         let nowhere = Capsule::sphere(nalgebra::Vector3::zeros(), T::zero());
-        let mut scene = Self {
+        // Returned as one literal, not built in a local and then returned: the compiler then
+        // writes it straight into its destination, and a firmware's start-up stack holds no copy.
+        Self {
             bodies: Vec::new(),
             obstacles: Vec::new(),
             allowed_bodies: [0; B],
             allowed_obstacles: [0; B],
-            margin: T::zero(),
+            margin: if margin.finite() && margin > T::zero() { margin } else { T::zero() },
             placed: [nowhere; B],
             spheres: [(nalgebra::Vector3::zeros(), T::zero()); B],
-        };
-        scene.set_margin(margin);
-        scene
+        }
     }
 
     /// Makes this scene a copy of `other`, in place: no second scene is built on the stack (a
