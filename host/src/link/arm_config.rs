@@ -207,7 +207,7 @@ pub fn collision_messages(spec: &CollisionSpec, joints: usize, check: CollisionC
     let mut messages =
         vec![HostMessage::ConfigureCollision { margin: spec.margin as f32, check: check == CollisionCheck::On }];
     for (i, body) in spec.bodies.iter().enumerate() {
-        let frame = body.link.map(|l| u8::try_from(l)).transpose()?;
+        let frame = body.link.map(u8::try_from).transpose()?;
         let c = &body.capsule;
         let config = BodyConfig { frame, a: f32s_of(&c.a), b: f32s_of(&c.b), radius: c.radius as f32 };
         messages.push(HostMessage::ConfigureBody { index: i as u8, body: config });

@@ -7,6 +7,8 @@
 //! bounding spheres, and only a pair whose spheres come within the margin is measured exactly:
 //! most pairs of an arm are far apart most of the time.
 
+use core::cmp::Ordering;
+
 use heapless::Vec;
 
 use super::distance::{capsule_capsule, distance};
@@ -324,7 +326,8 @@ impl<T: Real, const B: usize, const O: usize> Scene<T, B, O> {
         self.pairs().find_map(|(body, other)| {
             let distance = self.measured(usize::from(body), other, margin)?;
             // `!(d >= margin)`: a NaN distance (a frame not given, a non-finite pose) is a contact.
-            (!(distance >= margin)).then_some(Contact { body, other, distance })
+            let keeps = matches!(distance.partial_cmp(&margin), Some(Ordering::Greater | Ordering::Equal));
+            (!keeps).then_some(Contact { body, other, distance })
         })
     }
 
@@ -379,7 +382,7 @@ mod tests {
         let mut rng = crate::SplitMix64::new(7);
         for _ in 0..300 {
             let mut scene: Scene<f64, 8, 4> = Scene::new(rng.uniform(0.0, 0.05));
-            let mut point = |rng: &mut crate::SplitMix64| {
+            let point = |rng: &mut crate::SplitMix64| {
                 Vector3::new(rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), rng.uniform(-0.1, 0.4))
             };
             for k in 0..6u8 {
@@ -409,7 +412,7 @@ mod tests {
                 })
                 .collect();
             let margin = scene.margin();
-            let first = exact.iter().find(|c| !(c.distance >= margin)).copied();
+            let first = exact.iter().find(|c| c.distance.partial_cmp(&margin).is_none_or(|o| o.is_lt())).copied();
             assert_eq!(scene.first_contact(&frames), first);
             let closest = exact.iter().copied().reduce(|a, b| if b.distance < a.distance { b } else { a });
             assert_eq!(scene.closest(&frames).map(|c| c.distance), closest.map(|c| c.distance));
