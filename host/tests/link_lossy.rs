@@ -102,6 +102,8 @@ impl Toy {
             gripper: None,
             last_move: None,
             largest_pass: 0.0,
+            collision_check: firmware::link::message::CollisionCheck::NoGeometry,
+            last_collision: None,
         }
     }
 

@@ -15,8 +15,17 @@ use super::Board;
 use crate::bus::mapping::{Direction, JointMapping};
 use crate::bus::table::Model;
 use crate::bus::Protocol;
-use crate::controller::{joint_limits, ConfigError, Controller, GripperConfig};
-use crate::link::message::{Field, JointConfig, JointType, NakReason, Problem, ValueError, MAX_NAME};
+use crate::controller::{joint_limits, ArmScene, ConfigError, Controller, GripperConfig};
+use crate::link::message::{
+    BodyConfig, CollisionPart, Field, JointConfig, JointType, NakReason, ObstacleShape, Problem, ValueError, MAX_NAME,
+};
+use kinematics::collision::{Body, Capsule, Part, SceneError, Shape};
+
+// The link carries no more bodies and obstacles than the controller holds.
+const _: () = assert!(
+    crate::link::message::MAX_BODIES <= crate::controller::MAX_BODIES
+        && crate::link::message::MAX_OBSTACLES <= crate::controller::MAX_OBSTACLES
+);
 
 /// Everything the controller needs about an arm.
 #[derive(Clone, Debug)]
@@ -37,6 +46,11 @@ pub struct ArmSetup<const N: usize> {
     pub baud: Option<u32>,
     /// Its digest as its sender computed it (see [`crate::link::message::Info::arm_digest`]).
     pub digest: u32,
+    /// Its collision geometry (empty: nothing is checked), built here as it arrives: a scene is
+    /// a few kilobytes, too much to build on a board's stack and copy.
+    pub scene: ArmScene,
+    /// Whether its sender asked for every goal to be checked against the scene.
+    pub collision_check: bool,
 }
 
 /// What pads joint `j` of an arm with fewer joints than the build: fixed at the tool end, no
@@ -80,7 +94,33 @@ impl<const N: usize> ArmSetup<N> {
             gripper: None,
             baud: None,
             digest: 0,
+            scene: ArmScene::new(0.0),
+            collision_check: true,
         }
+    }
+
+    /// Writes [`ArmSetup::blank`] at `at`. Never inlined: the blank set-up (its collision scene
+    /// included, about 4 KB) is then built in this function's own frame, which a board's start-up
+    /// leaves before it goes deeper, not in the frame of the start-up itself.
+    ///
+    /// # Safety
+    /// `at` must be valid for writes and aligned; nothing there is read or dropped.
+    #[inline(never)]
+    #[allow(unsafe_code)]
+    pub(crate) unsafe fn blank_at(at: *mut Self, model: &'static Model) {
+        // Field by field: a whole set-up built here first would double this frame.
+        crate::place::place_fields!(at: Self {
+            name: String::new(),
+            chain: Chain::motionless(),
+            mappings: [padding_mapping(model); N],
+            model: model,
+            limits: JointLimits::still(),
+            gripper: None,
+            baud: None,
+            digest: 0,
+            scene: ArmScene::new(0.0),
+            collision_check: true,
+        });
     }
 
     /// Makes this slot the arm `arm` describes, in place (the chain alone is larger than a
@@ -117,7 +157,9 @@ impl<const N: usize> ArmSetup<N> {
         controller: &mut Controller<N, Q>,
         board: &Board,
     ) -> Result<(), ConfigError> {
-        controller.configure(&self.chain, &self.mappings, self.model, &self.limits, self.gripper, board.control)
+        controller.configure(&self.chain, &self.mappings, self.model, &self.limits, self.gripper, board.control)?;
+        controller.set_collision(&self.scene, self.collision_check);
+        Ok(())
     }
 }
 
@@ -133,6 +175,10 @@ pub struct Staging<const N: usize> {
     bus: Option<(Protocol, u32)>,
     /// The digest named by the host.
     digest: u32,
+    /// A collision message of this arm was refused: the arm is refused as a whole at commit.
+    collision_refused: bool,
+    /// The check was turned off by the sender.
+    unchecked: bool,
 }
 
 /// The arm-wide part of an arm being received.
@@ -180,17 +226,35 @@ fn bad(field: Field, problem: Problem) -> NakReason {
 impl<const N: usize> Staging<N> {
     /// Nothing received.
     pub const fn new() -> Self {
-        Self { begun: None, joints: [EMPTY; N], received: 0, gripper: None, bus: None, digest: 0 }
+        Self {
+            begun: None,
+            joints: [EMPTY; N],
+            received: 0,
+            gripper: None,
+            bus: None,
+            digest: 0,
+            collision_refused: false,
+            unchecked: false,
+        }
     }
 
     /// Starts an arm of `joints` joints (1 to this firmware's `N`), dropping any arm half
-    /// received.
-    pub fn begin(&mut self, name: &String<MAX_NAME>, joints: u8, tool: Pose<f32>, model: u16) -> Result<(), NakReason> {
+    /// received (and its collision geometry, built in `into`).
+    pub fn begin(
+        &mut self,
+        name: &String<MAX_NAME>,
+        joints: u8,
+        tool: Pose<f32>,
+        model: u16,
+        into: &mut ArmSetup<N>,
+    ) -> Result<(), NakReason> {
         let joints = usize::from(joints);
         if joints == 0 || joints > N {
             return Err(bad(Field::JointCount, Problem::Count));
         }
         *self = Self::new();
+        into.scene.clear();
+        into.scene.set_margin(0.0);
         self.begun = Some(Begun { name: name.clone(), joints, tool, model });
         Ok(())
     }
@@ -240,6 +304,77 @@ impl<const N: usize> Staging<N> {
         Ok(())
     }
 
+    /// The arm's collision margin, and whether goals are checked.
+    pub fn collision(&mut self, margin: f32, check: bool, into: &mut ArmSetup<N>) -> Result<(), NakReason> {
+        if self.begun.is_none() {
+            return Err(NakReason::NotReady);
+        }
+        into.scene.set_margin(margin);
+        self.unchecked = !check;
+        Ok(())
+    }
+
+    /// A refused collision message: the arm will be refused at commit as well.
+    fn refuse_collision(&mut self, field: Field, error: SceneError) -> NakReason {
+        self.collision_refused = true;
+        match error {
+            SceneError::Invalid => bad(field, Problem::OutOfRange),
+            SceneError::NoFrame | SceneError::Full | SceneError::NoSuchPart => bad(field, Problem::Count),
+        }
+    }
+
+    /// Stores body `index` in `into`'s scene. Bodies come in order; one sent again as it was is
+    /// a repeat (nothing changes), another in its place is refused.
+    pub fn body(&mut self, index: u8, body: &BodyConfig, into: &mut ArmSetup<N>) -> Result<(), NakReason> {
+        let begun = self.begun.as_ref().ok_or(NakReason::NotReady)?;
+        let body = Body {
+            frame: body.frame,
+            capsule: Capsule { a: Vector3::from(body.a), b: Vector3::from(body.b), radius: body.radius },
+        };
+        let held = into.scene.bodies();
+        if let Some(old) = held.get(usize::from(index)) {
+            return if *old == body { Ok(()) } else { Err(self.refuse_collision(Field::Body, SceneError::Full)) };
+        }
+        if usize::from(index) != held.len() {
+            return Err(self.refuse_collision(Field::Body, SceneError::NoSuchPart));
+        }
+        let joints = begun.joints;
+        into.scene.add_body(body, joints).map(|_| ()).map_err(|e| self.refuse_collision(Field::Body, e))
+    }
+
+    /// Stores obstacle `index` in `into`'s scene, in order as the bodies.
+    pub fn obstacle(&mut self, index: u8, shape: &ObstacleShape, into: &mut ArmSetup<N>) -> Result<(), NakReason> {
+        if self.begun.is_none() {
+            return Err(NakReason::NotReady);
+        }
+        let shape = match *shape {
+            ObstacleShape::Capsule { a, b, radius } => {
+                Shape::Capsule(Capsule { a: Vector3::from(a), b: Vector3::from(b), radius })
+            }
+            ObstacleShape::Box { centre, rotation, half } => match Pose::rotation_from_quaternion_wxyz(rotation) {
+                Some(rotation) => Shape::Box { centre: Vector3::from(centre), rotation, half: Vector3::from(half) },
+                None => return Err(self.refuse_collision(Field::Obstacle, SceneError::Invalid)),
+            },
+            ObstacleShape::HalfSpace { normal, offset } => Shape::HalfSpace { normal: Vector3::from(normal), offset },
+        };
+        let held = into.scene.obstacles();
+        if let Some(old) = held.get(usize::from(index)) {
+            return if *old == shape { Ok(()) } else { Err(self.refuse_collision(Field::Obstacle, SceneError::Full)) };
+        }
+        if usize::from(index) != held.len() {
+            return Err(self.refuse_collision(Field::Obstacle, SceneError::NoSuchPart));
+        }
+        into.scene.add_obstacle(shape).map(|_| ()).map_err(|e| self.refuse_collision(Field::Obstacle, e))
+    }
+
+    /// Never checks `body` against `other` (both already sent).
+    pub fn allowed(&mut self, body: u8, other: CollisionPart, into: &mut ArmSetup<N>) -> Result<(), NakReason> {
+        if self.begun.is_none() {
+            return Err(NakReason::NotReady);
+        }
+        into.scene.allow(body, Part::from(other)).map_err(|e| self.refuse_collision(Field::Allowed, e))
+    }
+
     /// The whole arm, checked, built in `into`: every joint sent, distinct servo ids, a model of
     /// the arm's bus protocol (the one named, or `board`'s), a valid chain, limits that leave
     /// each joint a range within its servo's. The staging is emptied on success; on failure it is
@@ -250,6 +385,9 @@ impl<const N: usize> Staging<N> {
         // N is at most MAX_JOINTS (8), so the mask fits.
         if self.received != (1u32 << n) - 1 {
             return Err(NakReason::NotReady);
+        }
+        if self.collision_refused {
+            return Err(NakReason::BadCollision);
         }
         let configs = self.joints.get(..n).ok_or(NakReason::NotReady)?;
         let protocol = self.bus.map_or(board.bus.protocol, |(p, _)| p);
@@ -266,6 +404,7 @@ impl<const N: usize> Staging<N> {
         })?;
         into.baud = self.bus.map(|(_, baud)| baud);
         into.digest = self.digest;
+        into.collision_check = !self.unchecked;
         if let Some(g) = self.gripper {
             // Within the servo's range, and not one of the joints' servos.
             let top = i64::from(model.ticks_per_revolution) - 1;

@@ -114,7 +114,6 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
         crate::place::place_fields!(at: Self {
             board: board,
             builtin: None,
-            incoming: ArmSetup::blank(board.model),
             arm: None,
             staging: Staging::new(),
             telemetry: None,
@@ -123,6 +122,7 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
         } in place {
             controller: Controller::blank(board.model, board.control)
                 => |controller| Controller::blank_at(controller, board.model, board.control),
+            incoming: ArmSetup::blank(board.model) => |incoming| ArmSetup::blank_at(incoming, board.model),
         });
     }
 
@@ -400,5 +400,59 @@ mod tests {
         assert_eq!(firmware.arm_name(), crate::builtin::NAME);
         assert_eq!(firmware.core.arm.as_ref().map(|a| a.digest), Some(crate::builtin::DIGEST));
         assert_eq!(*firmware.bus(), board().bus);
+    }
+
+    /// Collision geometry goes with the arm: sent between begin and commit it is the running
+    /// arm's; one refused message (a body on a joint the arm lacks) refuses the whole arm at
+    /// commit, and the arm before stays.
+    #[test]
+    fn collision_geometry_is_committed_with_the_arm_or_refused_with_it() {
+        use crate::link::message::{
+            BodyConfig, CollisionPart, Field, FirmwareMessage, HostMessage, NakReason, ObstacleShape, Problem,
+            ValueError,
+        };
+        let mut firmware = Firmware::<6, 32>::new(board(), Some(&crate::builtin::SO101)).unwrap();
+        let link = report::LinkCounts::of(&firmware.decoder.stats(), &firmware.session.stats());
+        let apply = |firmware: &mut Firmware<6, 32>, message: &HostMessage| firmware.core.apply(message, 0, link);
+        let body = |frame| BodyConfig { frame, a: [0.0; 3], b: [0.1, 0.0, 0.0], radius: 0.02 };
+        let geometry = |last_frame| {
+            [
+                HostMessage::ConfigureCollision { margin: 0.01, check: true },
+                HostMessage::ConfigureBody { index: 0, body: body(None) },
+                HostMessage::ConfigureBody { index: 1, body: body(Some(last_frame)) },
+                HostMessage::ConfigureObstacle {
+                    index: 0,
+                    shape: ObstacleShape::HalfSpace { normal: [0.0, 0.0, 1.0], offset: 0.0 },
+                },
+                HostMessage::ConfigureAllowed { body: 0, other: CollisionPart::Obstacle(0) },
+            ]
+        };
+        let send = |firmware: &mut Firmware<6, 32>, last_frame: u8| {
+            let mut replies = std::vec::Vec::new();
+            for message in crate::builtin::SO101.messages() {
+                if message == HostMessage::ConfigureCommit {
+                    replies.extend(geometry(last_frame).iter().map(|m| apply(firmware, m)));
+                }
+                replies.push(apply(firmware, &message));
+            }
+            replies
+        };
+        let replies = send(&mut firmware, 4);
+        assert!(replies.iter().all(|r| matches!(r, FirmwareMessage::Ack { .. })), "{replies:?}");
+        let scene = firmware.controller().unwrap().collision().scene();
+        assert_eq!((scene.bodies().len(), scene.obstacles().len(), scene.margin()), (2, 1, 0.01));
+        assert!(firmware.controller().unwrap().collision().active());
+
+        // The SO-101 has five joints: a body on a sixth is refused, and the arm with it.
+        let replies = send(&mut firmware, 5);
+        let bad = NakReason::BadValue(ValueError { field: Field::Body, problem: Problem::Count });
+        assert!(replies.contains(&FirmwareMessage::Nak { reason: bad }), "{replies:?}");
+        assert_eq!(replies.last(), Some(&FirmwareMessage::Nak { reason: NakReason::BadCollision }));
+        // The arm before runs on, its geometry unchanged.
+        assert_eq!(firmware.controller().unwrap().collision().scene().bodies().len(), 2);
+
+        // The built-in arm carries none: nothing is checked.
+        assert!(matches!(apply(&mut firmware, &HostMessage::UseBuiltinArm), FirmwareMessage::Ack { .. }));
+        assert!(!firmware.controller().unwrap().collision().active());
     }
 }

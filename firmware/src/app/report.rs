@@ -7,7 +7,8 @@ use super::Core;
 use crate::controller::{self, Mode};
 use crate::link::frame::FrameStats;
 use crate::link::message::{
-    ErrorCounters, GripperStatus, IkStatus, Joints, LoopTiming, MoveOutcome, PathTaken, RunState, Status,
+    CollisionCheck, CollisionStop, ErrorCounters, GripperStatus, IkStatus, Joints, LoopTiming, MoveOutcome, PathTaken,
+    RunState, Status,
 };
 use crate::link::session::SessionStats;
 
@@ -102,6 +103,8 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
                 gripper: None,
                 last_move: None,
                 largest_pass: 0.0,
+                collision_check: CollisionCheck::NoGeometry,
+                last_collision: None,
             };
         };
         let counters = c.counters();
@@ -157,12 +160,33 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
                     controller::PathTaken::LineThenJoints => PathTaken::LineThenJoints,
                     controller::PathTaken::Joints => PathTaken::Joints,
                     controller::PathTaken::LineStopped => PathTaken::LineStopped,
+                    controller::PathTaken::CollisionStopped => PathTaken::CollisionStopped,
                 },
                 blocked_at: m.blocked_at,
                 line_length: m.line_length,
             }),
             largest_pass: c.largest_pass(),
+            collision_check: collision_check(c.collision()),
+            last_collision: c.collision().last().map(|stop| CollisionStop {
+                body: stop.contact.body,
+                other: stop.contact.other.into(),
+                distance: stop.contact.distance,
+                count: stop.count,
+            }),
         }
+    }
+}
+
+/// What goals are checked against, as the link reports it.
+fn collision_check(guard: &controller::Guard) -> CollisionCheck {
+    let scene = guard.scene();
+    if scene.is_empty() {
+        CollisionCheck::NoGeometry
+    } else if guard.requested() {
+        let count = |n: usize| u8::try_from(n).unwrap_or(u8::MAX);
+        CollisionCheck::On { bodies: count(scene.bodies().len()), obstacles: count(scene.obstacles().len()) }
+    } else {
+        CollisionCheck::Off
     }
 }
 

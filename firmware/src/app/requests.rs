@@ -52,6 +52,9 @@ fn nak(refusal: Refusal) -> NakReason {
         Refusal::QueueFull => NakReason::QueueFull,
         Refusal::TimeNotIncreasing => NakReason::KeyframeTime,
         Refusal::NoGripper => NakReason::NoGripper,
+        Refusal::Collision { contact } => {
+            NakReason::Collision { body: contact.body, other: contact.other.into(), distance: contact.distance }
+        }
     }
 }
 
@@ -165,8 +168,14 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
         let staged = match message {
             HostMessage::ConfigureBegin { name, joints, tool_xyz, tool_rpy, model } => {
                 let tool = kinematics::Pose::from_xyz_rpy(*tool_xyz, *tool_rpy);
-                self.staging.begin(name, *joints, tool, *model)
+                self.staging.begin(name, *joints, tool, *model, &mut self.incoming)
             }
+            HostMessage::ConfigureCollision { margin, check } => {
+                self.staging.collision(*margin, *check, &mut self.incoming)
+            }
+            HostMessage::ConfigureBody { index, body } => self.staging.body(*index, body, &mut self.incoming),
+            HostMessage::ConfigureObstacle { index, shape } => self.staging.obstacle(*index, shape, &mut self.incoming),
+            HostMessage::ConfigureAllowed { body, other } => self.staging.allowed(*body, *other, &mut self.incoming),
             HostMessage::ConfigureJoint { index, joint } => self.staging.joint(*index, joint),
             HostMessage::ConfigureGripper(g) => self.staging.gripper(g),
             HostMessage::ConfigureDigest { digest } => self.staging.digest(*digest),
@@ -275,6 +284,10 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
             | HostMessage::ConfigureBus { .. }
             | HostMessage::ConfigureDigest { .. }
             | HostMessage::ConfigureCommit
+            | HostMessage::ConfigureCollision { .. }
+            | HostMessage::ConfigureBody { .. }
+            | HostMessage::ConfigureObstacle { .. }
+            | HostMessage::ConfigureAllowed { .. }
             | HostMessage::UseBuiltinArm => return Err(NakReason::UnknownMessage),
         };
         controller.command(command, now_us).map_err(nak)?;

@@ -264,6 +264,9 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             return Err(Refusal::BadParameter);
         }
         self.ready()?;
+        if let Some(contact) = self.target_contact(&q) {
+            return Err(Refusal::Collision { contact });
+        }
         let needed = self.limits.rest_to_rest_time(&self.setpoint.position, &q);
         let duration = duration.max(needed).max(self.config.period_us as f32 * 1e-6);
         let rest = Some(SVector::zeros());
@@ -280,6 +283,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             self.mode = Mode::Playing;
             self.tool = None;
         }
+        self.move_active = true;
         Ok(())
     }
 
@@ -311,6 +315,8 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             self.play.queued_fresh = true;
         }
         self.player.push(keyframe).map_err(refusal)?;
+        // Keyframes are a stream of their own now: a collision stop ends it, not the last move.
+        self.move_active = false;
         self.queue_tail = keyframe.position;
         let play_time = self.play_time();
         if let (Some(pct), Some(g)) = (gripper, self.gripper.as_mut()) {
@@ -391,6 +397,11 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         // Refuse what IK cannot reach from here, with restarts, before anything moves; the
         // solution is where the arm goes by joints if the line turns out to be blocked.
         let solution = self.solve_reachable(target, self.setpoint.position)?;
+        // A target whose solution is in contact is refused before anything moves. (Another
+        // solution might be free; the host's planner looks for one.)
+        if let Some(contact) = self.target_contact(&solution) {
+            return Err(Refusal::Collision { contact });
+        }
         let start = self.tool_position(&self.setpoint.position);
         let distance = (target.position() - start).norm();
         let speed = if is_speed { value } else { (distance / value).max(1e-6) };
@@ -405,6 +416,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         self.tool =
             Some(ToolGoal { target, via: start, speed, solution, best: f32::INFINITY, stalled: 0.0, path, start });
         self.mode = Mode::Tracking;
+        self.move_active = true;
         self.last_move = Some(MoveOutcome { path: PathTaken::Line, blocked_at: None, line_length: distance });
         Ok(())
     }

@@ -19,6 +19,7 @@
 //! # Panics
 //! Nothing here panics, allocates or loops without a bound.
 
+pub mod collision;
 mod command;
 mod config;
 pub mod gripper;
@@ -29,6 +30,7 @@ mod tick;
 #[cfg(test)]
 mod tool_steps;
 
+pub use collision::{ArmScene, CollisionStop, Guard, MAX_BODIES, MAX_OBSTACLES};
 pub use command::{Command, Pace, ToolPath};
 pub use config::{joint_limits, minimum_period_us, Config, ConfigError};
 pub use gripper::{GripperConfig, GripperState};
@@ -111,6 +113,8 @@ pub enum PathTaken {
     Joints,
     /// Along the line until it was blocked ([`ToolPath::Line`]), then stopped there.
     LineStopped,
+    /// Stopped short of a contact by the collision check ([`Controller::collision`] names it).
+    CollisionStopped,
 }
 
 /// The last move accepted by [`Controller::command`] and how it went, kept until the next move
@@ -206,6 +210,10 @@ pub struct Controller<const N: usize, const Q: usize> {
     gripper: Option<gripper::Gripper<Q>>,
     /// The last move accepted and how it went.
     last_move: Option<MoveOutcome>,
+    /// The last move accepted is still under way (a collision stop then ends it).
+    move_active: bool,
+    /// The collision scene every goal is checked against, and the last stop.
+    guard: Guard,
 }
 
 impl<const N: usize, const Q: usize> Controller<N, Q> {
@@ -278,6 +286,9 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             queue_tail: zero,
             gripper: None,
             last_move: None,
+            move_active: false,
+        } in place {
+            guard: Guard::empty() => |guard| Guard::empty_at(guard),
         });
     }
 
@@ -349,6 +360,8 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         self.queue_tail = start;
         self.gripper = gripper.map(gripper::Gripper::new);
         self.last_move = None;
+        self.move_active = false;
+        self.guard.clear();
         Ok(())
     }
 
@@ -520,6 +533,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
     /// Holds the current setpoint from now on.
     fn enter_hold(&mut self) {
         self.mode = Mode::Holding;
+        self.move_active = false;
         self.hold = self.setpoint.position;
         self.tool = None;
         self.reset_player();

@@ -33,6 +33,11 @@ pub enum Refusal {
     WrongMode,
     /// The arm has no gripper.
     NoGripper,
+    /// The target brings two checked parts closer than the collision margin.
+    Collision {
+        /// The pair and their distance at the target.
+        contact: kinematics::collision::Contact<f32>,
+    },
 }
 
 impl core::fmt::Display for Refusal {
@@ -49,6 +54,9 @@ impl core::fmt::Display for Refusal {
             Self::TimeNotIncreasing => write!(f, "keyframe time not later than the previous one"),
             Self::WrongMode => write!(f, "not possible in this mode"),
             Self::NoGripper => write!(f, "the arm has no gripper"),
+            Self::Collision { contact } => {
+                write!(f, "body {} within {} m of {:?}", contact.body, contact.distance, contact.other)
+            }
         }
     }
 }

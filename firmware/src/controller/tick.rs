@@ -66,7 +66,8 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         if self.torque {
             self.watchdog(now_us, &mut report);
             let (desired, velocity) = self.desired(dt, &mut report);
-            self.setpoint = limit_step(&self.setpoint, &desired, &velocity, &self.limits, dt);
+            let next = limit_step(&self.setpoint, &desired, &velocity, &self.limits, dt);
+            self.setpoint = self.guarded(next, dt, &mut report);
             self.after_step();
             // The gripper's track is in the sender's timeline, as the joints' keyframes are.
             let playing = (self.mode == Mode::Playing).then_some(self.play_time());
@@ -338,7 +339,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
 
     /// What the mode asks for this tick, before the limits: a position and the velocity at which it
     /// moves (zero for a goal to stop on).
-    fn desired(&mut self, dt: f32, report: &mut TickReport) -> (SVector<f32, N>, SVector<f32, N>) {
+    pub(super) fn desired(&mut self, dt: f32, report: &mut TickReport) -> (SVector<f32, N>, SVector<f32, N>) {
         match self.mode {
             Mode::Idle | Mode::Holding | Mode::EStopped => (self.hold, SVector::zeros()),
             Mode::Playing => {

@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 use super::frame::{FrameError, MAX_FRAME};
 
 /// The protocol version carried by the handshake; bumped on any change to the wire format.
-pub const PROTOCOL_VERSION: u16 = 8;
+pub const PROTOCOL_VERSION: u16 = 9;
 /// The most joints a message carries.
 pub const MAX_JOINTS: usize = 8;
 /// The longest arm name, in bytes of UTF-8.
@@ -27,6 +27,13 @@ pub const MAX_NAME: usize = 24;
 
 /// Joint values (radians or metres), one per joint.
 pub type Joints = Vec<f32, MAX_JOINTS>;
+
+/// The most collision bodies an arm carries (protocol version 9).
+pub const MAX_BODIES: usize = 24;
+/// The most obstacles an arm carries.
+pub const MAX_OBSTACLES: usize = 8;
+/// Largest collision margin (m): far more than any arm keeps, so only garbage fails.
+pub const MAX_MARGIN: f32 = 1.0;
 
 /// Largest |coordinate| of a Cartesian target (m): far beyond any desk arm, so only garbage fails.
 pub const MAX_REACH: f32 = 10.0;
@@ -300,6 +307,141 @@ pub enum HostMessage {
         /// The sender's digest of the arm's other configure messages.
         digest: u32,
     },
+    // Added in protocol version 9: the arm's collision geometry, after ConfigureBegin and before
+    // ConfigureCommit, covered by the digest like the rest of the arm. Without it nothing is
+    // checked.
+    /// The margin every checked pair keeps, and whether the firmware checks at all.
+    ConfigureCollision {
+        /// The distance every checked pair keeps (m, 0..=[`MAX_MARGIN`]).
+        margin: f32,
+        /// Check every goal against the bodies and obstacles; `false` only for a test that must
+        /// see the arm reach a contact (`--no-collision-check`): the status says it is off.
+        check: bool,
+    },
+    /// One body of the arm: a capsule (a sphere when `a == b`) fixed to a frame. Bodies are sent
+    /// in order of their index.
+    ConfigureBody {
+        /// Its index (0-based, below [`MAX_BODIES`]).
+        index: u8,
+        /// The capsule and its frame.
+        body: BodyConfig,
+    },
+    /// One obstacle, in the base frame. Obstacles are sent in order of their index, after the
+    /// bodies.
+    ConfigureObstacle {
+        /// Its index (0-based, below [`MAX_OBSTACLES`]).
+        index: u8,
+        /// Its shape.
+        shape: ObstacleShape,
+    },
+    /// A pair never checked (neighbouring links, the base on the table), after the bodies and
+    /// obstacles it names.
+    ConfigureAllowed {
+        /// The arm's body.
+        body: u8,
+        /// The other part.
+        other: CollisionPart,
+    },
+}
+
+/// A collision body as the link carries it: a capsule in the frame of a joint after its motion,
+/// or of the base (protocol version 9).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BodyConfig {
+    /// The joint (0-based) whose moving frame carries it; `None`: the base.
+    pub frame: Option<u8>,
+    /// One end of the core segment, in that frame (m).
+    pub a: [f32; 3],
+    /// The other end (m); `a` again for a sphere.
+    pub b: [f32; 3],
+    /// Radius (m, >= 0).
+    pub radius: f32,
+}
+
+/// An obstacle's shape, in the base frame (protocol version 9).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub enum ObstacleShape {
+    /// A capsule, or a sphere when `a == b`.
+    Capsule {
+        /// One end (m).
+        a: [f32; 3],
+        /// The other end (m).
+        b: [f32; 3],
+        /// Radius (m, >= 0).
+        radius: f32,
+    },
+    /// A box.
+    Box {
+        /// Centre (m).
+        centre: [f32; 3],
+        /// Its axes as a unit quaternion, w-first.
+        rotation: [f32; 4],
+        /// Half its size along each axis (m, > 0).
+        half: [f32; 3],
+    },
+    /// The half-space `normal . x <= offset` (a table: normal up, offset its height).
+    HalfSpace {
+        /// Unit normal, out of the solid.
+        normal: [f32; 3],
+        /// The surface's distance from the origin along the normal (m).
+        offset: f32,
+    },
+}
+
+/// What a body can come too close to, by index (protocol version 9).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum CollisionPart {
+    /// Another body of the arm.
+    Body(u8),
+    /// An obstacle.
+    Obstacle(u8),
+}
+
+impl From<CollisionPart> for kinematics::collision::Part {
+    fn from(p: CollisionPart) -> Self {
+        match p {
+            CollisionPart::Body(i) => Self::Body(i),
+            CollisionPart::Obstacle(o) => Self::Obstacle(o),
+        }
+    }
+}
+
+impl From<kinematics::collision::Part> for CollisionPart {
+    fn from(p: kinematics::collision::Part) -> Self {
+        match p {
+            kinematics::collision::Part::Body(i) => Self::Body(i),
+            kinematics::collision::Part::Obstacle(o) => Self::Obstacle(o),
+        }
+    }
+}
+
+/// What the firmware checks goals against (protocol version 9).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum CollisionCheck {
+    /// The arm came without collision geometry: nothing is checked.
+    NoGeometry,
+    /// Every goal is checked against this many bodies and obstacles.
+    On {
+        /// Bodies.
+        bodies: u8,
+        /// Obstacles.
+        obstacles: u8,
+    },
+    /// The arm has geometry but its sender turned the check off (`--no-collision-check`).
+    Off,
+}
+
+/// The last time the firmware stopped the arm short of a contact (protocol version 9).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CollisionStop {
+    /// The arm's body.
+    pub body: u8,
+    /// What it would have come too close to.
+    pub other: CollisionPart,
+    /// Their signed distance where the arm would have gone (m; negative: overlapping).
+    pub distance: f32,
+    /// Collision stops since the arm was configured (wraps): a host tells a new stop by it.
+    pub count: u32,
 }
 
 /// Lowest servo bus baud rate an arm may name (the slowest either protocol's servos offer).
@@ -468,6 +610,11 @@ pub struct Status {
     /// moving (a stream that stopped), in this playback: rad (or m), the largest joint's; 0 when
     /// they never ran out. It then went back to that keyframe and ended there.
     pub largest_pass: f32,
+    // Added in protocol version 9.
+    /// What goals are checked against.
+    pub collision_check: CollisionCheck,
+    /// The last collision stop since the arm was configured; `None` before one.
+    pub last_collision: Option<CollisionStop>,
 }
 
 /// The way the tool went on a move (protocol version 7).
@@ -484,6 +631,9 @@ pub enum PathTaken {
     /// Along the straight line until it ran into the joint limits ([`MovePath::Line`]), then
     /// stopped there, short of the target.
     LineStopped,
+    /// Stopped short of a contact (protocol version 9): the status's `last_collision` names the
+    /// pair.
+    CollisionStopped,
 }
 
 /// The last move and how it went (protocol version 7): set when the firmware accepts a `MoveTo`
@@ -538,6 +688,16 @@ pub enum Field {
     Gripper,
     /// The servo bus of an arm: its baud rate, or a control period it cannot keep.
     Bus,
+    // Added in protocol version 9.
+    /// The collision margin.
+    Margin,
+    /// A collision body: its index, frame, ends or radius.
+    Body,
+    /// An obstacle: its index, place, rotation or size.
+    Obstacle,
+    /// An allowed pair: an index that names nothing, or bodies or obstacles that are not valid
+    /// together.
+    Allowed,
 }
 
 /// What is wrong with a field.
@@ -563,7 +723,7 @@ pub struct ValueError {
 }
 
 /// Why a request was refused. A refused request changes nothing.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub enum NakReason {
     /// A frame failed its CRC or COBS decoding (its sequence number cannot be trusted).
     Corrupt,
@@ -593,6 +753,19 @@ pub enum NakReason {
     EStopped,
     /// A gripper command or value for an arm without a gripper.
     NoGripper,
+    // Added in protocol version 9.
+    /// A move's target brings two checked parts closer than the margin.
+    Collision {
+        /// The arm's body.
+        body: u8,
+        /// What it comes too close to.
+        other: CollisionPart,
+        /// Their signed distance at the target (m).
+        distance: f32,
+    },
+    /// The arm's collision geometry was refused at commit: a body on a joint the arm does not
+    /// have, more than this build holds, or an allowed pair naming nothing.
+    BadCollision,
 }
 
 /// The nak reported for bytes that are no frame, or a payload that is no message. Here rather than
@@ -622,6 +795,10 @@ impl core::fmt::Display for NakReason {
             Self::TorqueOff => write!(f, "torque is off (turn it on first)"),
             Self::EStopped => write!(f, "emergency-stopped (torque on to leave it)"),
             Self::NoGripper => write!(f, "the arm has no gripper"),
+            Self::Collision { body, other, distance } => {
+                write!(f, "the target brings body {body} within {:.1} mm of {other:?}", distance * 1e3)
+            }
+            Self::BadCollision => write!(f, "the arm's collision geometry does not fit it or this build"),
         }
     }
 }
@@ -754,6 +931,47 @@ impl JointConfig {
     }
 }
 
+fn capsule(field: Field, a: &[f32; 3], b: &[f32; 3], radius: f32) -> Result<(), ValueError> {
+    all_range(field, a, MAX_REACH)?;
+    all_range(field, b, MAX_REACH)?;
+    range(field, radius, 0.0, MAX_REACH)
+}
+
+impl BodyConfig {
+    fn validate(&self) -> Result<(), ValueError> {
+        check(Field::Body, self.frame.is_none_or(|f| usize::from(f) < MAX_JOINTS), Problem::OutOfRange)?;
+        capsule(Field::Body, &self.a, &self.b, self.radius)
+    }
+}
+
+impl ObstacleShape {
+    fn validate(&self) -> Result<(), ValueError> {
+        match self {
+            Self::Capsule { a, b, radius } => capsule(Field::Obstacle, a, b, *radius),
+            Self::Box { centre, rotation, half } => {
+                all_range(Field::Obstacle, centre, MAX_REACH)?;
+                unit(Field::Obstacle, rotation)?;
+                all_range(Field::Obstacle, half, MAX_REACH)?;
+                check(Field::Obstacle, half.iter().all(|h| *h > 0.0), Problem::OutOfRange)
+            }
+            Self::HalfSpace { normal, offset } => {
+                unit(Field::Obstacle, normal)?;
+                range(Field::Obstacle, *offset, -MAX_REACH, MAX_REACH)
+            }
+        }
+    }
+}
+
+impl CollisionPart {
+    fn validate(&self) -> Result<(), ValueError> {
+        let ok = match *self {
+            Self::Body(i) => usize::from(i) < MAX_BODIES,
+            Self::Obstacle(o) => usize::from(o) < MAX_OBSTACLES,
+        };
+        check(Field::Allowed, ok, Problem::OutOfRange)
+    }
+}
+
 impl HostMessage {
     /// Checks every value the message carries on its own (not against the arm): finite, in
     /// range, counts within [`MAX_JOINTS`] and consistent, quaternions and axes unit.
@@ -802,6 +1020,19 @@ impl HostMessage {
             Self::SetTelemetry { rate_hz } => check(Field::Rate, *rate_hz <= MAX_TELEMETRY_HZ, Problem::OutOfRange),
             Self::ConfigureBus { baud, .. } => {
                 check(Field::Bus, (MIN_BAUD..=MAX_BAUD).contains(baud), Problem::OutOfRange)
+            }
+            Self::ConfigureCollision { margin, .. } => range(Field::Margin, *margin, 0.0, MAX_MARGIN),
+            Self::ConfigureBody { index, body } => {
+                check(Field::Body, usize::from(*index) < MAX_BODIES, Problem::OutOfRange)?;
+                body.validate()
+            }
+            Self::ConfigureObstacle { index, shape } => {
+                check(Field::Obstacle, usize::from(*index) < MAX_OBSTACLES, Problem::OutOfRange)?;
+                shape.validate()
+            }
+            Self::ConfigureAllowed { body, other } => {
+                check(Field::Allowed, usize::from(*body) < MAX_BODIES, Problem::OutOfRange)?;
+                other.validate()
             }
         }
     }

@@ -112,7 +112,19 @@ fn status(n: usize) -> Status {
         last_move: Some(MoveOutcome { path: PathTaken::LineThenJoints, blocked_at: Some(0.075), line_length: 0.145 }),
         // 3 degrees past the last keyframe (protocol 8).
         largest_pass: 0.05236,
+        // The largest collision report (protocol 9): the count at its longest varint.
+        collision_check: CollisionCheck::On { bodies: MAX_BODIES as u8, obstacles: MAX_OBSTACLES as u8 },
+        last_collision: Some(CollisionStop {
+            body: 23,
+            other: CollisionPart::Obstacle(7),
+            distance: -0.0032,
+            count: u32::MAX,
+        }),
     }
+}
+
+fn body_config() -> BodyConfig {
+    BodyConfig { frame: Some(5), a: [0.0; 3], b: [0.0, 0.0, 0.1], radius: 0.02 }
 }
 
 fn joint_config() -> JointConfig {
@@ -172,6 +184,21 @@ fn host_messages() -> std::vec::Vec<HostMessage> {
         HostMessage::Gripper { opening: 0.0, effort: None },
         HostMessage::ConfigureBus { protocol: firmware::link::message::BusProtocol::Dynamixel2, baud: 4_500_000 },
         HostMessage::ConfigureDigest { digest: 0xb24a_4ff4 },
+        HostMessage::ConfigureCollision { margin: 0.01, check: false },
+        HostMessage::ConfigureBody { index: 23, body: body_config() },
+        HostMessage::ConfigureObstacle {
+            index: 7,
+            shape: ObstacleShape::Box { centre: [0.3, 0.0, 0.1], rotation: [1.0, 0.0, 0.0, 0.0], half: [0.1; 3] },
+        },
+        HostMessage::ConfigureObstacle {
+            index: 0,
+            shape: ObstacleShape::Capsule { a: [0.3, 0.0, 0.1], b: [0.3, 0.0, 0.3], radius: 0.05 },
+        },
+        HostMessage::ConfigureObstacle {
+            index: 1,
+            shape: ObstacleShape::HalfSpace { normal: [0.0, 0.0, 1.0], offset: 0.0 },
+        },
+        HostMessage::ConfigureAllowed { body: 0, other: CollisionPart::Obstacle(0) },
         HostMessage::PushKeyframe(JointKeyframe {
             time: 0.0,
             positions: joints(1, 0.0),
@@ -202,6 +229,8 @@ fn firmware_messages() -> std::vec::Vec<FirmwareMessage> {
         NakReason::QueueFull,
         NakReason::NotReady,
         NakReason::Unreachable,
+        NakReason::Collision { body: 23, other: CollisionPart::Body(22), distance: -0.5 },
+        NakReason::BadCollision,
     ] {
         out.push(FirmwareMessage::Nak { reason });
     }
@@ -296,6 +325,9 @@ fn the_last_move_bytes() {
     ];
     let mut without = status(5);
     without.last_move = None;
+    // Protocol 9's collision fields at their shortest (two bytes) after protocol 8's pass.
+    without.collision_check = CollisionCheck::NoGeometry;
+    without.last_collision = None;
     let mut buf = [0u8; MAX_PAYLOAD];
     let before = postcard::to_slice(&FirmwareMessage::Status(without.clone()), &mut buf).unwrap().to_vec();
     for (outcome, bytes) in cases {
@@ -306,7 +338,7 @@ fn the_last_move_bytes() {
         // `largest_pass` come after it).
         let status = Status { last_move: outcome, ..without.clone() };
         let encoded = postcard::to_slice(&FirmwareMessage::Status(status.clone()), &mut buf).unwrap().to_vec();
-        let (head, pass) = (&before[..before.len() - 5], &before[before.len() - 4..]);
+        let (head, pass) = (&before[..before.len() - 7], &before[before.len() - 6..]);
         assert_eq!(encoded, [head, bytes, pass].concat(), "{outcome:?}");
         assert_eq!(round_trip(3, FrameKind::Reply, &FirmwareMessage::Status(status)), encoded.len() + OVERHEAD);
     }
@@ -317,13 +349,104 @@ fn the_last_move_bytes() {
 #[test]
 fn the_largest_pass_bytes() {
     let mut buf = [0u8; MAX_PAYLOAD];
-    let status = Status { largest_pass: 0.5, ..status(5) };
+    let status =
+        Status { largest_pass: 0.5, collision_check: CollisionCheck::NoGeometry, last_collision: None, ..status(5) };
     let encoded = postcard::to_slice(&FirmwareMessage::Status(status.clone()), &mut buf).unwrap().to_vec();
-    assert_eq!(encoded[encoded.len() - 4..], [0x00, 0x00, 0x00, 0x3F]);
+    // Then protocol 9's two collision fields, at their shortest.
+    assert_eq!(encoded[encoded.len() - 6..], [0x00, 0x00, 0x00, 0x3F, 0x00, 0x00]);
     let zero = Status { largest_pass: 0.0, ..status.clone() };
     let zero = postcard::to_slice(&FirmwareMessage::Status(zero), &mut buf).unwrap().to_vec();
-    assert_eq!(zero[..zero.len() - 4], encoded[..encoded.len() - 4]);
+    assert_eq!(zero[..zero.len() - 6], encoded[..encoded.len() - 6]);
     assert_eq!(round_trip(3, FrameKind::Reply, &FirmwareMessage::Status(status)), encoded.len() + OVERHEAD);
+}
+
+/// The collision messages of protocol 9, byte for byte: each a new variant index after the
+/// others (ConfigureCollision is 21, ConfigureBody 22, ConfigureObstacle 23, ConfigureAllowed 24),
+/// then its fields in order: f32s as four little-endian bytes, `bool` and `u8` as one byte, an
+/// `Option` as 0 or 1 before its value, an enum as its variant's index.
+#[test]
+fn the_collision_configure_bytes() {
+    // 0.01 is 0A D7 23 3C; 0.1 CD CC CC 3D; 0.02 0A D7 A3 3C; 1.0 00 00 80 3F; 0.25 00 00 80 3E.
+    let cases: [(HostMessage, &[u8]); 6] = [
+        (HostMessage::ConfigureCollision { margin: 0.01, check: true }, &[21, 0x0A, 0xD7, 0x23, 0x3C, 0x01]),
+        (HostMessage::ConfigureCollision { margin: 0.0, check: false }, &[21, 0, 0, 0, 0, 0x00]),
+        (
+            HostMessage::ConfigureBody { index: 2, body: body_config() },
+            &[
+                22, 2, 1, 5, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0xCD, 0xCC, 0xCC, 0x3D, 0x0A,
+                0xD7, 0xA3, 0x3C,
+            ],
+        ),
+        (
+            HostMessage::ConfigureObstacle {
+                index: 1,
+                shape: ObstacleShape::HalfSpace { normal: [0.0, 0.0, 1.0], offset: 0.25 },
+            },
+            &[23, 1, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0x00, 0x00, 0x80, 0x3F, 0x00, 0x00, 0x80, 0x3E],
+        ),
+        (HostMessage::ConfigureAllowed { body: 0, other: CollisionPart::Obstacle(1) }, &[24, 0, 1, 1]),
+        (HostMessage::ConfigureAllowed { body: 3, other: CollisionPart::Body(4) }, &[24, 3, 0, 4]),
+    ];
+    for (message, bytes) in cases {
+        let mut out = [0u8; 64];
+        assert_eq!(postcard::to_slice(&message, &mut out).unwrap(), bytes, "{message:?}");
+        assert_eq!(postcard::from_bytes::<HostMessage>(bytes), Ok(message.clone()));
+        assert_eq!(message.validate(), Ok(()), "{message:?}");
+        round_trip(9, FrameKind::Request, &message);
+    }
+    // A box: its quaternion between the centre and the half sizes.
+    let boxed = HostMessage::ConfigureObstacle {
+        index: 0,
+        shape: ObstacleShape::Box { centre: [0.0; 3], rotation: [1.0, 0.0, 0.0, 0.0], half: [0.25; 3] },
+    };
+    let mut out = [0u8; 64];
+    let encoded = postcard::to_slice(&boxed, &mut out).unwrap();
+    assert_eq!(encoded.len(), 3 + 4 * 10);
+    assert_eq!(encoded[..3], [23, 0, 1]);
+    assert_eq!(encoded[15..19], [0x00, 0x00, 0x80, 0x3F]);
+    assert_eq!(encoded[31..], [0x00, 0x00, 0x80, 0x3E, 0x00, 0x00, 0x80, 0x3E, 0x00, 0x00, 0x80, 0x3E]);
+}
+
+/// Every collision value is checked on its own, the nak naming the field.
+#[test]
+fn collision_values_are_refused_naming_the_field() {
+    let err = |field, problem| Err(ValueError { field, problem });
+    let margin = |m| HostMessage::ConfigureCollision { margin: m, check: true };
+    assert_eq!(margin(f32::NAN).validate(), err(Field::Margin, Problem::NotFinite));
+    assert_eq!(margin(-0.01).validate(), err(Field::Margin, Problem::OutOfRange));
+    assert_eq!(margin(2.0).validate(), err(Field::Margin, Problem::OutOfRange));
+    let body = |b: BodyConfig| HostMessage::ConfigureBody { index: 0, body: b };
+    assert_eq!(body(BodyConfig { radius: -0.01, ..body_config() }).validate(), err(Field::Body, Problem::OutOfRange));
+    assert_eq!(body(BodyConfig { radius: f32::NAN, ..body_config() }).validate(), err(Field::Body, Problem::NotFinite));
+    assert_eq!(
+        body(BodyConfig { a: [0.0, f32::INFINITY, 0.0], ..body_config() }).validate(),
+        err(Field::Body, Problem::NotFinite)
+    );
+    assert_eq!(
+        body(BodyConfig { frame: Some(MAX_JOINTS as u8), ..body_config() }).validate(),
+        err(Field::Body, Problem::OutOfRange)
+    );
+    assert_eq!(
+        HostMessage::ConfigureBody { index: MAX_BODIES as u8, body: body_config() }.validate(),
+        err(Field::Body, Problem::OutOfRange)
+    );
+    let obstacle = |shape| HostMessage::ConfigureObstacle { index: 0, shape };
+    let boxed = |rotation, half| obstacle(ObstacleShape::Box { centre: [0.0; 3], rotation, half });
+    assert_eq!(boxed([1.0, 0.0, 0.0, 0.0], [0.1, 0.0, 0.1]).validate(), err(Field::Obstacle, Problem::OutOfRange));
+    assert_eq!(boxed([1.0, 0.0, 0.0, 0.0], [0.1, -0.1, 0.1]).validate(), err(Field::Obstacle, Problem::OutOfRange));
+    assert_eq!(boxed([1.0, 0.0, 0.0, 0.0], [f32::NAN; 3]).validate(), err(Field::Obstacle, Problem::NotFinite));
+    assert_eq!(boxed([0.5, 0.0, 0.0, 0.0], [0.1; 3]).validate(), err(Field::Obstacle, Problem::NotUnit));
+    let sphere = ObstacleShape::Capsule { a: [0.0; 3], b: [0.0; 3], radius: -1.0 };
+    assert_eq!(obstacle(sphere).validate(), err(Field::Obstacle, Problem::OutOfRange));
+    let plane = ObstacleShape::HalfSpace { normal: [0.0, 0.0, 2.0], offset: 0.0 };
+    assert_eq!(obstacle(plane).validate(), err(Field::Obstacle, Problem::NotUnit));
+    assert_eq!(
+        HostMessage::ConfigureObstacle { index: MAX_OBSTACLES as u8, shape: sphere }.validate(),
+        err(Field::Obstacle, Problem::OutOfRange)
+    );
+    let allowed = |body, other| HostMessage::ConfigureAllowed { body, other };
+    assert_eq!(allowed(24, CollisionPart::Body(0)).validate(), err(Field::Allowed, Problem::OutOfRange));
+    assert_eq!(allowed(0, CollisionPart::Obstacle(8)).validate(), err(Field::Allowed, Problem::OutOfRange));
 }
 
 /// The figure for the report: a 6-joint keyframe push with velocities.

@@ -257,6 +257,7 @@ pub fn report_json(f: &Figures, period: Duration, lead: Duration, ending: &Endin
                                               "contacts": m.contacts.as_ref().map(|c| c.json())})),
             "recorded": recorded.map(|p| p.display().to_string()),
             "follower_at_rest": ending.rest,
+            "collision_stops": f.collision_stops, "last_collision": f.last_collision,
     })
 }
 
@@ -301,6 +302,14 @@ pub fn report(
     )?;
     if let Some(m) = monitor {
         writeln!(out, "safety monitor (simulated follower servos): {}", m.summary())?;
+    }
+    if let Some(last) = &f.last_collision {
+        writeln!(
+            out,
+            "collision: the follower was held short of a contact {} times (last: {last}); it held there until the \
+             leader moved away",
+            f.collision_stops
+        )?;
     }
     if let Some(q) = &ending.rest {
         writeln!(

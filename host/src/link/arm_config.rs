@@ -1,16 +1,24 @@
 //! The messages that send an arm to the firmware: [`HostMessage::ConfigureBegin`], its bus
 //! ([`HostMessage::ConfigureBus`]), one
 //! [`HostMessage::ConfigureJoint`] per joint, [`HostMessage::ConfigureGripper`] if the arm has a
-//! gripper, its digest ([`HostMessage::ConfigureDigest`]), [`HostMessage::ConfigureCommit`]. The
-//! geometry comes
+//! gripper, its collision geometry if it has any ([`HostMessage::ConfigureCollision`], one
+//! [`HostMessage::ConfigureBody`] per body, [`HostMessage::ConfigureObstacle`] per obstacle,
+//! [`HostMessage::ConfigureAllowed`] per allowed pair: see [`collision_messages`]), its digest
+//! ([`HostMessage::ConfigureDigest`]), [`HostMessage::ConfigureCommit`]. The geometry comes
 //! from the host's arm description ([`ArmSpec`]); the servos (model, ids, speed limits) from a
 //! [`ServoSetup`].
 
-use anyhow::{bail, Result};
+use anyhow::{anyhow, bail, Result};
 use firmware::bus::mapping::{Direction, JointMapping};
-use firmware::link::message::{GripperConfig, HostMessage, JointConfig, JointType, ServoConfig, MAX_JOINTS, MAX_NAME};
+use firmware::link::message::{
+    BodyConfig, CollisionPart, GripperConfig, HostMessage, JointConfig, JointType, ObstacleShape, ServoConfig,
+    MAX_BODIES, MAX_JOINTS, MAX_NAME, MAX_OBSTACLES,
+};
+use kinematics::collision::{Part, Shape};
 use kinematics::nalgebra::Matrix3;
 use kinematics::JointKind;
+
+use crate::arm::collision::{collision_of, CollisionSpec};
 
 use crate::arm::servos::ServoSetup;
 use crate::arm::ArmSpec;
@@ -62,23 +70,48 @@ pub fn digest_of(messages: &[HostMessage]) -> u32 {
     hash.max(1)
 }
 
+/// Whether the firmware checks every goal against the arm's collision geometry.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum CollisionCheck {
+    /// It does (the default): the geometry is sent with the check on.
+    #[default]
+    On,
+    /// It does not (`--no-collision-check`, for a test that must see the arm reach a contact):
+    /// the geometry is sent with the check off, and the firmware's status says so.
+    Off,
+}
+
 /// The digest [`configure_messages`] sends for `arm` with `servos`.
 pub fn arm_digest(arm: &ArmSpec, servos: &ServoSetup) -> Result<u32> {
-    Ok(digest_of(&arm_messages(arm, servos)?))
+    arm_digest_checked(arm, servos, CollisionCheck::On)
+}
+
+/// The digest [`configure_messages_checked`] sends: the check's state is part of the arm.
+pub fn arm_digest_checked(arm: &ArmSpec, servos: &ServoSetup, check: CollisionCheck) -> Result<u32> {
+    Ok(digest_of(&arm_messages(arm, servos, check)?))
 }
 
 /// The messages that configure `arm` with `servos` on the firmware: the arm, its digest, commit.
 pub fn configure_messages(arm: &ArmSpec, servos: &ServoSetup) -> Result<Vec<HostMessage>> {
-    let mut messages = arm_messages(arm, servos)?;
+    configure_messages_checked(arm, servos, CollisionCheck::On)
+}
+
+/// [`configure_messages`] with the collision check on or off.
+pub fn configure_messages_checked(
+    arm: &ArmSpec,
+    servos: &ServoSetup,
+    check: CollisionCheck,
+) -> Result<Vec<HostMessage>> {
+    let mut messages = arm_messages(arm, servos, check)?;
     let digest = digest_of(&messages);
     messages.push(HostMessage::ConfigureDigest { digest });
     messages.push(HostMessage::ConfigureCommit);
     Ok(messages)
 }
 
-/// The messages that describe `arm` with `servos` (begin, bus, joints, gripper), each checked as
-/// the firmware will check it.
-fn arm_messages(arm: &ArmSpec, servos: &ServoSetup) -> Result<Vec<HostMessage>> {
+/// The messages that describe `arm` with `servos` (begin, bus, joints, gripper, collision
+/// geometry), each checked as the firmware will check it.
+fn arm_messages(arm: &ArmSpec, servos: &ServoSetup, check: CollisionCheck) -> Result<Vec<HostMessage>> {
     let n = arm.joints.len();
     if n == 0 || n > MAX_JOINTS {
         bail!("arm {} has {n} joints; the link carries 1 to {MAX_JOINTS}", arm.name);
@@ -135,9 +168,68 @@ fn arm_messages(arm: &ArmSpec, servos: &ServoSetup) -> Result<Vec<HostMessage>> 
             speed: g.speed as f32,
         }));
     }
+    if let Some(spec) = collision_of(arm) {
+        messages.extend(collision_messages(&spec, n, check).map_err(|e| anyhow!("arm {}: {e:#}", arm.name))?);
+    }
     for m in &messages {
         if let Err(e) = m.validate() {
             bail!("arm {} cannot be sent: {:?} is {:?}", arm.name, e.field, e.problem);
+        }
+    }
+    Ok(messages)
+}
+
+fn f32s_of(v: &kinematics::nalgebra::Vector3<f64>) -> [f32; 3] {
+    [v.x as f32, v.y as f32, v.z as f32]
+}
+
+/// The link's form of an obstacle's shape (a box's axes as a unit quaternion, w-first).
+pub fn obstacle_shape(shape: &Shape<f64>) -> ObstacleShape {
+    match shape {
+        Shape::Capsule(c) => ObstacleShape::Capsule { a: f32s_of(&c.a), b: f32s_of(&c.b), radius: c.radius as f32 },
+        Shape::Box { centre, rotation, half } => ObstacleShape::Box {
+            centre: f32s_of(centre),
+            rotation: kinematics::quaternion_wxyz(rotation).map(|x| x as f32),
+            half: f32s_of(half),
+        },
+        Shape::HalfSpace { normal, offset } => {
+            ObstacleShape::HalfSpace { normal: f32s_of(normal), offset: *offset as f32 }
+        }
+    }
+}
+
+/// The messages that send `spec`, the geometry of an arm of `joints` joints: the margin and the
+/// check, each body and obstacle in order, each allowed pair by index. The whole geometry is
+/// first built as the firmware will build it (in f32, at its capacity), so what it would refuse
+/// is refused here, by name, before anything is sent.
+pub fn collision_messages(spec: &CollisionSpec, joints: usize, check: CollisionCheck) -> Result<Vec<HostMessage>> {
+    spec.scene::<f32, MAX_BODIES, MAX_OBSTACLES>(joints)?;
+    let mut messages =
+        vec![HostMessage::ConfigureCollision { margin: spec.margin as f32, check: check == CollisionCheck::On }];
+    for (i, body) in spec.bodies.iter().enumerate() {
+        let frame = body.link.map(u8::try_from).transpose()?;
+        let c = &body.capsule;
+        let config = BodyConfig { frame, a: f32s_of(&c.a), b: f32s_of(&c.b), radius: c.radius as f32 };
+        messages.push(HostMessage::ConfigureBody { index: i as u8, body: config });
+    }
+    for (o, obstacle) in spec.obstacles.iter().enumerate() {
+        messages.push(HostMessage::ConfigureObstacle { index: o as u8, shape: obstacle_shape(&obstacle.shape) });
+    }
+    for [a, b] in &spec.allowed {
+        // Named as `scene` found them: a body first, then the other part.
+        let (body, other) = match (spec.part(a), spec.part(b)) {
+            (Some(Part::Body(i)), Some(other)) | (Some(other), Some(Part::Body(i))) => (i, other),
+            _ => bail!("allowed pair {a} and {b}: not a body and another part"),
+        };
+        let other = match other {
+            Part::Body(j) => CollisionPart::Body(j),
+            Part::Obstacle(o) => CollisionPart::Obstacle(o),
+        };
+        messages.push(HostMessage::ConfigureAllowed { body, other });
+    }
+    for m in &messages {
+        if let Err(e) = m.validate() {
+            bail!("collision geometry cannot be sent: {}", crate::link::client::Value(&e));
         }
     }
     Ok(messages)

@@ -139,6 +139,18 @@ impl std::fmt::Display for Reason<'_> {
             NakReason::TorqueOff => write!(f, "the torque is off (`torque on` first)"),
             NakReason::EStopped => write!(f, "the arm is emergency-stopped (`torque on` leaves the emergency stop)"),
             NakReason::NoGripper => write!(f, "the arm has no gripper (name one in the arm file's [gripper] table)"),
+            NakReason::Collision { body, other, distance } => write!(
+                f,
+                "the target brings collision body {body} {:.1} mm from {} (closer than the margin)",
+                f64::from(*distance) * 1e3,
+                match other {
+                    firmware::link::message::CollisionPart::Body(i) => format!("body {i}"),
+                    firmware::link::message::CollisionPart::Obstacle(o) => format!("obstacle {o}"),
+                }
+            ),
+            NakReason::BadCollision => {
+                write!(f, "the arm's collision geometry was refused (a body on a joint the arm lacks, or too many)")
+            }
         }
     }
 }
@@ -167,6 +179,10 @@ impl std::fmt::Display for Value<'_> {
             Field::Name => "arm name",
             Field::Gripper => "gripper opening, effort or configuration",
             Field::Bus => "servo bus (its baud rate, or a cycle too long for the control period)",
+            Field::Margin => "collision margin",
+            Field::Body => "collision body (its index, joint, ends or radius)",
+            Field::Obstacle => "obstacle (its index, place, rotation or size)",
+            Field::Allowed => "allowed collision pair",
         };
         let problem = match self.0.problem {
             Problem::NotFinite => "not a finite number",
@@ -190,7 +206,7 @@ pub struct LinkClient<T: Read + Write> {
 }
 
 /// What came in while waiting for a reply.
-// A reply is a status at its largest (212 bytes since protocol 8's `largest_pass`), held for one
+// A reply is a status at its largest (228 bytes since protocol 9's collision report), held for one
 // call on the stack: boxing it would allocate for every reply, to save nothing worth having.
 #[allow(clippy::large_enum_variant)]
 enum Heard {

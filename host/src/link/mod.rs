@@ -1,12 +1,14 @@
 //! The host side of the link protocol ([`firmware::link`]): a client that sends requests with
 //! retransmission and keyframe flow control over any byte transport, the arm configuration
-//! messages built from the host's arm description, [`session`]: the one session that builds every
+//! messages built from the host's arm description, [`collision`]: the firmware's collision
+//! reports named from the arm's geometry, [`session`]: the one session that builds every
 //! request the product sends and waits on the firmware, [`flood`]: the requests of a host that
 //! floods the link, for load measurements, and [`serial`]: a real serial port as a byte stream.
 
 pub mod arm_config;
 pub mod channel;
 pub mod client;
+pub mod collision;
 pub mod flood;
 pub mod serial;
 pub mod session;

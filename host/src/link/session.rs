@@ -137,12 +137,25 @@ pub fn seconds_waited(s: f64) -> String {
 /// The session over one link to a firmware core.
 pub struct Session<T: Transport> {
     client: LinkClient<T>,
+    /// Whether an arm it sends has its goals checked against its collision geometry.
+    collision_check: super::arm_config::CollisionCheck,
 }
 
 impl<T: Transport> Session<T> {
     /// A session over a link client.
     pub fn new(client: LinkClient<T>) -> Self {
-        Self { client }
+        Self { client, collision_check: super::arm_config::CollisionCheck::On }
+    }
+
+    /// Sends the arms of [`Session::configure_arm`] with the collision check on (the default) or
+    /// off (`--no-collision-check`, for a test that must see the arm reach a contact).
+    pub fn set_collision_check(&mut self, check: super::arm_config::CollisionCheck) {
+        self.collision_check = check;
+    }
+
+    /// Whether the arms this session sends are checked.
+    pub fn collision_check(&self) -> super::arm_config::CollisionCheck {
+        self.collision_check
     }
 
     /// A session over `io` with the default retransmission settings; `io`'s reads must time out
@@ -203,7 +216,7 @@ impl<T: Transport> Session<T> {
         servos: &crate::arm::servos::ServoSetup,
         waits: usize,
     ) -> anyhow::Result<()> {
-        for message in super::arm_config::configure_messages(arm, servos)? {
+        for message in super::arm_config::configure_messages_checked(arm, servos, self.collision_check)? {
             self.when_ready(&message, waits)?;
         }
         Ok(())
@@ -465,6 +478,8 @@ pub(crate) mod tests {
             gripper: None::<GripperStatus>,
             last_move: None,
             largest_pass: 0.0,
+            collision_check: firmware::link::message::CollisionCheck::NoGeometry,
+            last_collision: None,
         })
     }
 

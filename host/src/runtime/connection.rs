@@ -343,7 +343,8 @@ pub fn handshake_with<T: Transport>(session: &mut Session<T>, arm: Option<ArmSpe
             if info.arm_name.as_str() != spec.name {
                 info = configure(session, &spec)?;
             } else if let Some(servos) = servos_of(&spec) {
-                let digest = crate::link::arm_config::arm_digest(&spec, &servos)?;
+                let check = session.collision_check();
+                let digest = crate::link::arm_config::arm_digest_checked(&spec, &servos, check)?;
                 if info.arm_digest == firmware::builtin::DIGEST && digest != info.arm_digest {
                     // The default the board starts with gives way to the arm the host names.
                     info = configure(session, &spec)?;

@@ -7,6 +7,7 @@
 //! bounding spheres, and only a pair whose spheres come within the margin is measured exactly:
 //! most pairs of an arm are far apart most of the time.
 
+
 use heapless::Vec;
 
 use super::distance::{capsule_capsule, distance};
@@ -79,6 +80,9 @@ pub struct Scene<T: Real, const B: usize, const O: usize> {
     /// The bodies where the last check placed them (kept here, not on the stack: a firmware's
     /// stack is small and this is its largest array).
     placed: [Capsule<T>; B],
+    /// The bounding sphere of each placed body (centre, radius): computed once a check, not once
+    /// a pair (a square root each, in software on a Cortex-M4F).
+    spheres: [(nalgebra::Vector3<T>, T); B],
 }
 
 fn bit(i: usize) -> u32 {
@@ -89,21 +93,48 @@ impl<T: Real, const B: usize, const O: usize> Scene<T, B, O> {
     /// No bodies, no obstacles, the margin given (negative or not finite: zero).
     pub fn new(margin: T) -> Self {
         let nowhere = Capsule::sphere(nalgebra::Vector3::zeros(), T::zero());
-        let mut scene = Self {
+        // Returned as one literal, not built in a local and then returned: the compiler then
+        // writes it straight into its destination, and a firmware's start-up stack holds no copy.
+        Self {
             bodies: Vec::new(),
             obstacles: Vec::new(),
             allowed_bodies: [0; B],
             allowed_obstacles: [0; B],
-            margin: T::zero(),
+            margin: if margin.finite() && margin > T::zero() { margin } else { T::zero() },
             placed: [nowhere; B],
-        };
-        scene.set_margin(margin);
-        scene
+            spheres: [(nalgebra::Vector3::zeros(), T::zero()); B],
+        }
+    }
+
+    /// Makes this scene a copy of `other`, in place: no second scene is built on the stack (a
+    /// firmware's scene is a few kilobytes, its stack budget eight).
+    pub fn assign(&mut self, other: &Self) {
+        self.bodies.clear();
+        // Both hold the same capacity, so every body and obstacle fits.
+        for body in other.bodies.iter() {
+            let _ = self.bodies.push(*body);
+        }
+        self.obstacles.clear();
+        for shape in other.obstacles.iter() {
+            let _ = self.obstacles.push(*shape);
+        }
+        self.allowed_bodies = other.allowed_bodies;
+        self.allowed_obstacles = other.allowed_obstacles;
+        self.margin = other.margin;
+    }
+
+    /// Whether there is any pair to check: at least one body, and another body or an obstacle.
+    pub fn is_empty(&self) -> bool {
+        self.bodies.is_empty() || (self.bodies.len() < 2 && self.obstacles.is_empty())
     }
 
     /// Removes every body, obstacle and allowed pair; keeps the margin.
     pub fn clear(&mut self) {
-        *self = Self::new(self.margin);
+        // In place, not `*self = Self::new(..)`: that would build a whole scene on the stack.
+        self.bodies.clear();
+        self.obstacles.clear();
+        self.allowed_bodies = [0; B];
+        self.allowed_obstacles = [0; B];
     }
 
     /// Sets the distance every checked pair must keep (m); negative or not finite: zero.
@@ -168,14 +199,18 @@ impl<T: Real, const B: usize, const O: usize> Scene<T, B, O> {
         if i >= self.bodies.len() {
             return Err(SceneError::NoSuchPart);
         }
+        // Through `get_mut`: the lengths are within the masks' `B`, which the compiler cannot
+        // see, and a firmware links no panic path.
         match other {
             Part::Body(j) if usize::from(j) < self.bodies.len() => {
                 let j = usize::from(j);
-                self.allowed_bodies[i] |= bit(j);
-                self.allowed_bodies[j] |= bit(i);
+                let (mi, mj) = (bit(i), bit(j));
+                self.allowed_bodies.get_mut(i).map(|m| *m |= mj).ok_or(SceneError::NoSuchPart)?;
+                self.allowed_bodies.get_mut(j).map(|m| *m |= mi).ok_or(SceneError::NoSuchPart)?;
             }
             Part::Obstacle(o) if usize::from(o) < self.obstacles.len() => {
-                self.allowed_obstacles[i] |= bit(usize::from(o));
+                let mo = bit(usize::from(o));
+                self.allowed_obstacles.get_mut(i).map(|m| *m |= mo).ok_or(SceneError::NoSuchPart)?;
             }
             _ => return Err(SceneError::NoSuchPart),
         }
@@ -213,27 +248,59 @@ impl<T: Real, const B: usize, const O: usize> Scene<T, B, O> {
                 },
             };
         }
+        for (sphere, placed) in self.spheres.iter_mut().zip(self.placed.iter()).take(self.bodies.len()) {
+            *sphere = placed.bounding_sphere();
+        }
     }
 
     /// The signed distance between placed body `i` and `other`, or `None` when their bounding
-    /// spheres are farther apart than `beyond`.
+    /// spheres are farther apart than `beyond`. The spheres are compared by squared distances, so
+    /// a pair that is far apart costs no square root.
     fn measured(&self, i: usize, other: Part, beyond: T) -> Option<T> {
         let capsule = self.placed.get(i)?;
-        let (centre, radius) = capsule.bounding_sphere();
+        let (centre, radius) = *self.spheres.get(i)?;
+        // Farther apart than `reach` (which is negative where `beyond` is an overlap already
+        // found): a NaN gap (a frame not given) is never far, so it is measured and reads as a
+        // contact.
+        let far = |gap_squared: T, reach: T| {
+            gap_squared > reach * reach && reach >= T::zero() || reach < T::zero() && gap_squared >= T::zero()
+        };
         match other {
             Part::Body(j) => {
                 let q = self.placed.get(usize::from(j))?;
-                let (c2, r2) = q.bounding_sphere();
-                let apart = (centre - c2).norm() - radius - r2;
-                if apart > beyond {
+                let (c2, r2) = *self.spheres.get(usize::from(j))?;
+                if far((centre - c2).norm_squared(), radius + r2 + beyond) {
                     return None;
                 }
                 Some(capsule_capsule(capsule, q))
             }
             Part::Obstacle(o) => {
                 let shape = self.obstacles.get(usize::from(o))?;
-                if distance(&Capsule::sphere(centre, radius), shape) > beyond {
-                    return None;
+                let outside = match shape {
+                    // The squared distance from the sphere's centre to the box, outside it.
+                    Shape::Box { centre: c, rotation, half } => {
+                        let local = rotation.tr_mul(&(centre - c));
+                        Some((local.abs() - half).map(|x| x.max(T::zero())).norm_squared())
+                    }
+                    Shape::Capsule(c) => {
+                        let (c2, r2) = c.bounding_sphere();
+                        let reach = radius + r2 + beyond;
+                        if far((centre - c2).norm_squared(), reach) {
+                            return None;
+                        }
+                        None
+                    }
+                    Shape::HalfSpace { .. } => None,
+                };
+                match outside {
+                    Some(gap_squared) if far(gap_squared, radius + beyond) => return None,
+                    Some(_) => {}
+                    None if matches!(shape, Shape::HalfSpace { .. })
+                        && distance(&Capsule::sphere(centre, radius), shape) > beyond =>
+                    {
+                        return None
+                    }
+                    None => {}
                 }
                 Some(distance(capsule, shape))
             }
@@ -304,5 +371,50 @@ mod tests {
         scene.add_body(Body { frame: Some(0), capsule }, 1).unwrap();
         scene.add_obstacle(Shape::table(0.0)).unwrap();
         assert!(scene.first_contact(&[]).is_some());
+    }
+
+    /// The bounding-sphere filter never changes an answer: the first contact and the closest pair
+    /// are those of every pair measured exactly, over random placements of capsules, boxes, a
+    /// capsule obstacle and a table.
+    #[test]
+    fn the_filter_changes_no_answer() {
+        let mut rng = crate::SplitMix64::new(7);
+        for _ in 0..300 {
+            let mut scene: Scene<f64, 8, 4> = Scene::new(rng.uniform(0.0, 0.05));
+            let point = |rng: &mut crate::SplitMix64| {
+                Vector3::new(rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), rng.uniform(-0.1, 0.4))
+            };
+            for k in 0..6u8 {
+                let capsule = Capsule { a: point(&mut rng), b: point(&mut rng), radius: rng.uniform(0.0, 0.05) };
+                scene.add_body(Body { frame: Some(k % 3), capsule }, 3).unwrap();
+            }
+            let rotation = crate::axis_angle_matrix(&Vector3::new(0.3, -0.5, 0.8).normalize(), rng.uniform(-3.0, 3.0));
+            let half = Vector3::new(rng.uniform(0.01, 0.1), rng.uniform(0.01, 0.1), rng.uniform(0.01, 0.1));
+            scene.add_obstacle(Shape::Box { centre: point(&mut rng), rotation, half }).unwrap();
+            let capsule = Capsule { a: point(&mut rng), b: point(&mut rng), radius: 0.02 };
+            scene.add_obstacle(Shape::Capsule(capsule)).unwrap();
+            scene.add_obstacle(Shape::table(rng.uniform(-0.1, 0.1))).unwrap();
+            let frames: std::vec::Vec<Pose<f64>> = (0..3)
+                .map(|_| Pose::from_xyz_rpy([rng.uniform(-0.1, 0.1), 0.0, 0.1], [rng.uniform(-1.0, 1.0), 0.0, 0.3]))
+                .collect();
+            // Every pair measured exactly, in the order `pairs` visits them.
+            scene.place(&frames);
+            let exact: std::vec::Vec<Contact<f64>> = scene
+                .pairs()
+                .map(|(body, other)| {
+                    let c = scene.placed[usize::from(body)];
+                    let distance = match other {
+                        Part::Body(j) => capsule_capsule(&c, &scene.placed[usize::from(j)]),
+                        Part::Obstacle(o) => distance(&c, &scene.obstacles[usize::from(o)]),
+                    };
+                    Contact { body, other, distance }
+                })
+                .collect();
+            let margin = scene.margin();
+            let first = exact.iter().find(|c| c.distance.partial_cmp(&margin).is_none_or(|o| o.is_lt())).copied();
+            assert_eq!(scene.first_contact(&frames), first);
+            let closest = exact.iter().copied().reduce(|a, b| if b.distance < a.distance { b } else { a });
+            assert_eq!(scene.closest(&frames).map(|c| c.distance), closest.map(|c| c.distance));
+        }
     }
 }

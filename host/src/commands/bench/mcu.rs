@@ -33,10 +33,16 @@ pub const CALIBRATION: &str = "calib_nop";
 const EMPTY: &str = "empty";
 
 /// The goals the issue sets, in instructions per operation.
-pub const GOALS: [(&str, u64); 3] = [("ik_track_1cm", 50_000), ("fk6", 4_000), ("hermite6_gripper", 1_500)];
+pub const GOALS: [(&str, u64); 5] = [
+    ("ik_track_1cm", 50_000),
+    ("fk6", 4_000),
+    ("hermite6_gripper", 1_500),
+    ("collision_so101", 20_000),
+    ("collision_24x8", 20_000),
+];
 
 /// What each operation is, for the table's readers.
-const DESCRIPTIONS: [(&str, &str); 15] = [
+const DESCRIPTIONS: [(&str, &str); 17] = [
     ("fk6", "forward kinematics of the 6-joint UR5e, every frame, f32"),
     ("sincos", "one f32 sin and cos (kinematics::trig, in f32)"),
     ("sincos_libm", "the same with libm's sincosf (f64 inside, software)"),
@@ -47,6 +53,8 @@ const DESCRIPTIONS: [(&str, &str); 15] = [
     ("tree_fk", "FK of a two-arm tree (torso, 2 x 5 joints), every frame"),
     ("tree_jacobian", "both hands' Jacobians of that tree, from its frames"),
     ("tree_ik_track_1cm", "tree IK, both hands 1 cm away, positions, warm start"),
+    ("collision_so101", "FK + collision check, SO-101: 6 capsules, table, box (median of free poses)"),
+    ("collision_24x8", "FK + collision check, 24 capsules, 8 obstacles (median of free poses)"),
     ("sync_write6_sts", "encode a Feetech sync write of 6 goals"),
     ("sync_write6_dxl2", "encode a Dynamixel 2.0 sync write of 6 goals"),
     ("sync_read6_sts", "decode 6 Feetech replies of a sync read"),

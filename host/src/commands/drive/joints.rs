@@ -84,10 +84,18 @@ pub fn joints(driver: &mut Driver, request: &JointsRequest, notes: &mut dyn Writ
     interrupt::catch();
     if let Err(e) = driver.session().move_joints(positions.clone(), request.timing) {
         let undone = driver.undo_torque(switched);
-        return Err(DriveError::failed(format!("joints {}: {e}; nothing moved{undone}", fmt_list(&positions))));
+        let named = match &e {
+            crate::link::client::LinkError::Nak(reason) => super::collision::refusal(driver.arm(), reason),
+            _ => None,
+        };
+        let why = named.unwrap_or_else(|| e.to_string());
+        return Err(DriveError::failed(format!("joints {}: {why}; nothing moved{undone}", fmt_list(&positions))));
     }
     Driver::note_torque(switched, notes)?;
     let status = rest(driver, request.timeout)?;
+    if let Some(why) = super::collision::stopped(driver.arm(), &status) {
+        return Err(DriveError::failed(format!("joints {}: {why}", fmt_list(&positions))));
+    }
     let max_error = positions.iter().zip(&status.measured).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
     Ok(JointsReport {
         command: "joints",

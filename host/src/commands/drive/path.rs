@@ -59,9 +59,15 @@ impl Refused {
         Self { reason: reason.to_string(), hint: "", by: RefusedBy::Host }
     }
 
-    fn link(e: LinkError) -> Self {
+    /// A request the link did not carry out; a collision refusal names the pair from `arm`'s
+    /// geometry.
+    fn link(arm: &ArmSpec, e: LinkError) -> Self {
         let by = if matches!(e, LinkError::Nak(_)) { RefusedBy::Firmware } else { RefusedBy::Link };
-        Self { reason: e.to_string(), hint: "", by }
+        let named = match &e {
+            LinkError::Nak(reason) => super::collision::refusal(arm, reason),
+            _ => None,
+        };
+        Self { reason: named.unwrap_or_else(|| e.to_string()), hint: "", by }
     }
 }
 
@@ -105,11 +111,12 @@ pub fn take(
                 Timing::MaxSpeed(_) => Timing::MaxSpeed(MAX_SPEED),
                 other => other,
             };
-            driver.session().move_joints(positions, timing).map_err(Refused::link)?;
+            let sent = driver.session().move_joints(positions, timing);
+            sent.map_err(|e| Refused::link(driver.arm(), e))?;
             route.solved_on_host = true;
             Ok(route)
         }
-        Err(e) => Err(Refused::link(e)),
+        Err(e) => Err(Refused::link(driver.arm(), e)),
     }
 }
 
@@ -132,6 +139,9 @@ pub fn outcome(arm: &ArmSpec, route: &Route, end: &Status, error_mm: f64) -> Res
     let reported = end.last_move;
     let given_up = reported.and_then(|m| m.blocked_at.map(|at| (f64::from(at), f64::from(m.line_length))));
     let along = |(at, length): (f64, f64)| format!(" (blocked {:.0} mm along its {:.0} mm)", at * 1e3, length * 1e3);
+    if let Some(why) = super::collision::stopped(arm, end) {
+        return Err(why);
+    }
     let stopped = reported.is_some_and(|m| m.path == PathTaken::LineStopped);
     if route.sent == MovePath::Line && (stopped || error_mm > 1.0) {
         return Err(format!(
@@ -166,7 +176,10 @@ pub fn outcome(arm: &ArmSpec, route: &Route, end: &Status, error_mm: f64) -> Res
                 given_up.map(along).unwrap_or_default()
             )),
         },
-        PathTaken::Line | PathTaken::LineStopped => Outcome { path: "line", blocked_at: None, why: None },
+        // A collision stop failed above.
+        PathTaken::Line | PathTaken::LineStopped | PathTaken::CollisionStopped => {
+            Outcome { path: "line", blocked_at: None, why: None }
+        }
     })
 }
 

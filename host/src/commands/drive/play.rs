@@ -366,6 +366,17 @@ pub fn play(driver: &mut Driver, plan: &Plan, notes: &mut dyn Write) -> DriveRes
         }
         let status = driver.status()?;
         progress.update(notes, played(&status, pushed), clock(&status));
+        // A collision stop ends the playback: the firmware braked short of the contact, dropped
+        // the queue and holds there; playing on would only run into it again.
+        if status.last_collision.map(|c| c.count) != start.last_collision.map(|c| c.count) {
+            progress.clear(notes);
+            let pair = status.last_collision.as_ref().map(|c| super::collision::stop(driver.arm(), c));
+            return Err(DriveError::failed(format!(
+                "the firmware stopped the arm short of a collision after {} of {total} keyframes: {} where it was                  going; it holds there, the rest of the file dropped",
+                played(&status, pushed),
+                pair.unwrap_or_default()
+            )));
+        }
         match status.state {
             RunState::Idle if pushed == total && status.queued == 0 => break driver.settle(status)?,
             RunState::Idle if status.queued > 0 => {

@@ -22,6 +22,8 @@ pub struct StatusReport {
     /// The gripper's opening in mm, if the arm has a gripper whose span is known.
     #[serde(skip)]
     pub gripper_mm: Option<f64>,
+    /// The collision check and its last stop in words, the parts named from the arm's geometry.
+    pub collision: String,
 }
 
 impl StatusReport {
@@ -43,6 +45,7 @@ impl StatusReport {
             format!("tool       {} m (measured)", fmt3(&self.tool)),
             format!("queue      {} queued, {} free", s.queued, s.free_slots),
             format!("last move  {}", last_move(s.last_move.as_ref())),
+            format!("collision  {}", self.collision),
         ];
         // Only once it happened: keyframes that ran out while moving, braked past, then back.
         if s.largest_pass > 0.0 {
@@ -92,6 +95,7 @@ fn last_move(outcome: Option<&MoveOutcome>) -> String {
         // The firmware always says where it gave a line up; worded without it all the same.
         (PathTaken::LineThenJoints, None) => "line, then joints".to_string(),
         (PathTaken::LineStopped, None) => "line, stopped where it was blocked".to_string(),
+        (PathTaken::CollisionStopped, _) => "stopped short of a collision (see collision)".to_string(),
     }
 }
 
@@ -101,7 +105,8 @@ pub fn report(driver: &Driver, status: Status) -> DriveResult<StatusReport> {
     let gripper_mm = status
         .gripper
         .and_then(|g| driver.gripper().map(|spec| f64::from(g.opening).clamp(0.0, 100.0) / 100.0 * spec.opening_mm));
-    Ok(StatusReport { status, arm: driver.arm().name.clone(), tool, gripper_mm })
+    let collision = super::collision::status_line(driver.arm(), &status);
+    Ok(StatusReport { status, arm: driver.arm().name.clone(), tool, gripper_mm, collision })
 }
 
 /// Reads the controller's status.

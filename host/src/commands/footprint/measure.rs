@@ -48,6 +48,21 @@ pub fn measure(elf: &Path) -> Result<MeasuredStack> {
         &mut std::io::sink(),
     )?;
     let c = &mut link.session;
+    // The SO-101 with collision geometry (its frames' capsules, the table and a box), so that
+    // every step below goes through the collision check as well.
+    let servos = ServoSetup::for_arm("so101").context("no servo set-up for so101")?;
+    let mut checked = ArmSpec::load("so101", None)?;
+    let mut geometry = crate::arm::collision::CollisionSpec::from_frames(&checked, 0.02);
+    geometry.obstacles.push(crate::arm::collision::ObstacleSpec {
+        name: "box".into(),
+        shape: kinematics::collision::Shape::aligned_box(
+            kinematics::nalgebra::Vector3::new(0.25, -0.25, 0.1),
+            kinematics::nalgebra::Vector3::repeat(0.1),
+        ),
+    });
+    checked.collision = Some(geometry);
+    checked.name = "so101-checked".into();
+    c.configure_arm(&checked, &servos, NOT_READY_WAITS).context("sending the so101 with collision geometry")?;
     c.torque_on(NOT_READY_WAITS).context("torque on")?;
     c.move_to(
         CartesianTarget { position: [0.2, 0.05, 0.15], orientation: None },
@@ -75,7 +90,6 @@ pub fn measure(elf: &Path) -> Result<MeasuredStack> {
     // The firmware takes a new arm only with the torque off.
     c.torque_off()?;
     let so101 = ArmSpec::load("so101", None)?;
-    let servos = ServoSetup::for_arm("so101").context("no servo set-up for so101")?;
     c.configure_arm(&so101, &servos, NOT_READY_WAITS).context("sending the so101 arm over the link")?;
     std::thread::sleep(SETTLE);
     let log = board.log();

@@ -1,5 +1,5 @@
 //! `armctl footprint`: what each board binary costs the microcontroller, against the goals for a
-//! 6-joint arm (flash at most 64 KiB, static RAM at most 16 KiB, stack at most 8 KiB), and what of
+//! 6-joint arm (flash at most 96 KiB, static RAM at most 16 KiB, stack at most 8 KiB), and what of
 //! core's panic machinery the release firmware can reach.
 //!
 //! Flash and static RAM come from the ELF's section headers ([`elf`]). The stack is reported twice:
@@ -28,8 +28,9 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 
-/// Flash goal for a 6-joint arm.
-pub const FLASH_GOAL: u64 = 64 * 1024;
+/// Flash goal for a 6-joint arm with up to 24 collision bodies and 8 obstacles: raised from
+/// 64 KiB for the collision check on every goal (issue 45).
+pub const FLASH_GOAL: u64 = 96 * 1024;
 /// Static RAM goal.
 pub const STATIC_RAM_GOAL: u64 = 16 * 1024;
 /// Stack goal.

@@ -124,6 +124,11 @@ pub struct Figures {
     pub restarts: u64,
     /// Pushes retimed later after an underrun shifted the follower's queue.
     pub retimed: u64,
+    /// Times the follower's collision check stopped it short of a contact (it then holds there
+    /// until the stream moves it away), and the last such stop in words.
+    pub collision_stops: u64,
+    /// The last collision stop, its pair named.
+    pub last_collision: Option<String>,
 }
 
 impl Figures {
@@ -164,6 +169,10 @@ pub struct Summary {
     /// The follower's setpoint against the reading one lead earlier, rad: median, 99th
     /// percentile, largest.
     pub tracking_rad: Tracking,
+    /// Times the follower's collision check held it short of a contact.
+    pub collision_stops: u64,
+    /// The last of them, its pair named.
+    pub last_collision: Option<String>,
 }
 
 /// Latencies of a stream, ms.
@@ -214,6 +223,8 @@ impl Figures {
                 p99: quantile(&self.tracking, 0.99),
                 max: quantile(&self.tracking, 1.0),
             },
+            collision_stops: self.collision_stops,
+            last_collision: self.last_collision.clone(),
         }
     }
 }
@@ -381,6 +392,8 @@ pub struct Streamer {
     recorded: f64,
     underruns_before: u32,
     started: Instant,
+    /// The count of the follower's last collision stop, as last seen.
+    collision_count: Option<u32>,
 }
 
 impl Streamer {
@@ -408,6 +421,7 @@ impl Streamer {
             recorded: 0.0,
             underruns_before: status.errors.underruns,
             started,
+            collision_count: status.last_collision.map(|c| c.count),
         })
     }
 
@@ -565,6 +579,15 @@ impl Streamer {
     fn look(&mut self, driver: &mut Driver) -> Result<()> {
         let sent = Instant::now();
         let status = driver.status()?;
+        let count = status.last_collision.map(|c| c.count);
+        if count.is_some() && count != self.collision_count {
+            // Stopped short of a contact: the follower holds there, and the stream goes on from
+            // there (a new playback once it has run dry), held short as long as it pushes on.
+            self.collision_count = count;
+            self.figures.collision_stops += 1;
+            self.figures.last_collision =
+                status.last_collision.as_ref().map(|c| crate::link::collision::stop(driver.arm(), c));
+        }
         match status.state {
             RunState::Moving => self.clock.observe(status.play_time, sent, Instant::now()),
             RunState::Idle => {

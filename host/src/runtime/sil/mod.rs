@@ -138,6 +138,9 @@ pub struct TraceSample {
     pub gripper: Option<GripperState>,
     /// Whether the jaws held the object on the table (`None` without one: [`Sil::put_object`]).
     pub object_held: Option<bool>,
+    /// Each servo's goal after the tick, read from the simulated servo (id, ticks): what the
+    /// servos received, whatever the firmware thinks it sent. Empty while any torque is off.
+    pub goals: Vec<(u8, i64)>,
 }
 
 /// Counts of the run.
@@ -378,6 +381,10 @@ impl Sil {
         }
         let goals = self.goals();
         let bounds = self.board.bounds();
+        let held: Vec<(u8, i64)> = match (&goals, &self.trace) {
+            (Some(g), Some(_)) => bounds.iter().zip(g).map(|(b, g)| (b.id, g.goal)).collect(),
+            _ => Vec::new(),
+        };
         self.monitor.check(time, self.period_ns as f64 * 1e-9, &bounds, goals);
         if let Some(trace) = &mut self.trace {
             trace.push(TraceSample {
@@ -386,6 +393,7 @@ impl Sil {
                 measured: self.board.measured(),
                 gripper: self.board.gripper(),
                 object_held: self.scene.as_ref().map(|(scene, ..)| scene.held()),
+                goals: held,
             });
         }
     }

@@ -36,6 +36,7 @@ use kinematics::ik::{DampedLeastSquares, IkConfig, IkMethod, IkStatus, Residual,
 use kinematics::nalgebra::{ComplexField, SVector, Vector3};
 use kinematics::trajectory::{JointLimits, Player, PlayerKeyframe};
 use kinematics::tree::{Effector, EffectorTarget, Tree, TreeProblem, TreeSolution, TreeStatus};
+use kinematics::collision::{Body, Capsule, Part, Scene, Shape};
 use kinematics::{presets, Joint, Limits, Pose};
 
 /// Guest instructions per SysTick tick: 1 instruction per ns (`-icount shift=0`) over a 25 MHz clock.
@@ -92,6 +93,7 @@ fn main() -> ! {
     report("empty", EMPTY_REPS, measure(&mut syst, EMPTY_REPS, || black_box(0u32)));
     kinematics_ops(&mut syst);
     tree_ops(&mut syst);
+    collision_ops(&mut syst);
     bus_ops(&mut syst, &STS3215, "sts");
     bus_ops(&mut syst, &XL430_W250, "dxl2");
 
@@ -362,6 +364,134 @@ fn decode_sync_read(
         }
     }
     answered
+}
+
+/// Poses of the SO-101 (rad) the collision check is timed at: across the joint ranges, every one
+/// free of contact with the scenes below, so each check runs to the end (a check that finds a
+/// contact stops at it, sooner).
+const COLLISION_POSES: [[f32; 5]; 9] = [
+    [0.0, 0.0, 0.0, 0.0, 0.0],
+    [0.5, -0.4, 0.6, 0.3, 0.0],
+    [-0.6, 0.3, -0.5, 0.8, 1.0],
+    [1.2, -1.0, 1.2, -0.5, -1.5],
+    [-1.4, 0.5, 0.3, 0.4, 2.0],
+    [0.3, -0.8, -0.6, 1.0, 0.5],
+    [-0.2, 0.2, 0.9, -0.9, -0.7],
+    [0.9, -0.3, -1.2, 0.6, 1.4],
+    [-1.0, -0.6, 0.4, -0.2, -2.0],
+];
+
+/// The SO-101's bodies as the host's `CollisionSpec::from_frames` makes them: the base from its
+/// origin to the first joint, each link from its joint to the next (the last to the tool), 20 mm
+/// radius, cut into `per_link` capsules along it; bodies on neighbouring frames are allowed to
+/// touch (they meet at the joint between), and the base's to stand on the table (obstacle 0).
+fn so101_bodies<const B: usize, const O: usize>(
+    chain: &kinematics::Chain<f32, 5>,
+    scene: &mut Scene<f32, B, O>,
+    per_link: usize,
+) -> Option<()> {
+    let origin = Vector3::zeros();
+    let ends = |k: usize| chain.joints().get(k + 1).map_or(chain.tool().translation, |j| j.origin.translation);
+    let first = chain.joints().first()?.origin.translation;
+    let frames = core::iter::once((None, first)).chain((0..5).map(|k| (Some(k as u8), ends(k))));
+    // Each body's frame as a number, the base's 0 and joint k's k + 1: neighbours differ by 1.
+    let mut rank = [0u8; 32];
+    for (frame, end) in frames {
+        for i in 0..per_link {
+            let (t0, t1) = (i as f32 / per_link as f32, (i + 1) as f32 / per_link as f32);
+            let capsule = Capsule { a: origin + end * t0, b: origin + end * t1, radius: 0.02 };
+            let index = scene.add_body(Body { frame, capsule }, 5).ok()?;
+            *rank.get_mut(usize::from(index))? = frame.map_or(0, |f| f + 1);
+        }
+    }
+    let n = scene.bodies().len() as u8;
+    for i in 0..n {
+        for j in (i + 1)..n {
+            let (a, b) = (*rank.get(usize::from(i))?, *rank.get(usize::from(j))?);
+            if a.abs_diff(b) == 1 {
+                scene.allow(i, Part::Body(j)).ok()?;
+            }
+        }
+        if *rank.get(usize::from(i))? == 0 {
+            scene.allow(i, Part::Obstacle(0)).ok()?;
+        }
+    }
+    Some(())
+}
+
+/// One full collision check as the controller runs it per sample of a brake path (forward
+/// kinematics of every joint frame, then every checked pair: bounding spheres first, exact
+/// distances where they come within the margin), on the SO-101: with its six frame capsules, the
+/// table and a box (the case), and at the firmware's capacity (24 bodies, 8 obstacles).
+/// Each is timed at every pose of [`COLLISION_POSES`]; the line reports the median pose's count.
+fn collision_ops(syst: &mut SYST) {
+    let Ok(chain) = presets::so101::<f32>() else { halt() };
+    let mut small: Scene<f32, 24, 8> = Scene::new(0.01);
+    let table = Shape::table(0.0);
+    let cube = Shape::aligned_box(Vector3::new(0.25, -0.2, 0.05), Vector3::repeat(0.1));
+    if small.add_obstacle(table).is_err() || small.add_obstacle(cube).is_err() {
+        halt()
+    }
+    if so101_bodies(&chain, &mut small, 1).is_none() {
+        halt()
+    }
+    time_check(syst, "collision_so101", &chain, &mut small);
+
+    // The worst case: four capsules per link and the base (24), the table and seven obstacles
+    // around the arm's workspace (boxes, a tilted one, capsules, spheres).
+    let mut full: Scene<f32, 24, 8> = Scene::new(0.01);
+    let tilted = kinematics::axis_angle_matrix(&Vector3::new(0.0, 0.0, 1.0), 0.5);
+    let around = [
+        table,
+        cube,
+        Shape::aligned_box(Vector3::new(-0.2, 0.2, 0.1), Vector3::new(0.1, 0.1, 0.2)),
+        Shape::Box { centre: Vector3::new(0.1, 0.3, 0.3), rotation: tilted, half: Vector3::new(0.05, 0.1, 0.02) },
+        Shape::Capsule(Capsule { a: Vector3::new(0.4, 0.2, 0.0), b: Vector3::new(0.4, 0.2, 0.4), radius: 0.03 }),
+        Shape::Capsule(Capsule { a: Vector3::new(-0.3, -0.3, 0.2), b: Vector3::new(0.0, -0.4, 0.2), radius: 0.02 }),
+        Shape::Capsule(Capsule::sphere(Vector3::new(0.0, 0.0, 0.55), 0.05)),
+        Shape::Capsule(Capsule::sphere(Vector3::new(0.45, -0.1, 0.3), 0.04)),
+    ];
+    for shape in around {
+        if full.add_obstacle(shape).is_err() {
+            halt()
+        }
+    }
+    if so101_bodies(&chain, &mut full, 4).is_none() {
+        halt()
+    }
+    time_check(syst, "collision_24x8", &chain, &mut full);
+}
+
+/// Times one check of `scene` at each pose of [`COLLISION_POSES`] free of contact (a check that
+/// finds one stops there, sooner) and reports the median, with the poses timed and those left out.
+fn time_check<const B: usize, const O: usize>(
+    syst: &mut SYST,
+    name: &str,
+    chain: &kinematics::Chain<f32, 5>,
+    scene: &mut Scene<f32, B, O>,
+) {
+    let mut counts = [0u32; COLLISION_POSES.len()];
+    let mut timed = 0;
+    for pose in COLLISION_POSES {
+        let q = SVector::<f32, 5>::from(pose);
+        if scene.first_contact(&chain.forward(&q).joints).is_some() {
+            continue;
+        }
+        let ticks = measure(syst, REPS, || {
+            let frames = chain.forward(black_box(&q));
+            scene.first_contact(black_box(&frames.joints))
+        });
+        let Some(ticks) = ticks else { return report(name, REPS, None) };
+        if let Some(slot) = counts.get_mut(timed) {
+            *slot = ticks;
+            timed += 1;
+        }
+    }
+    let Some(free) = counts.get_mut(..timed) else { halt() };
+    free.sort_unstable();
+    let median = free.get(timed / 2).copied();
+    let skipped = (COLLISION_POSES.len() - timed) as u32;
+    report_with2(name, REPS, median, ("poses", timed as u32), ("in_contact", skipped));
 }
 
 /// SysTick ticks taken by `reps` calls of `op`, or `None` if the 24-bit counter wrapped (the batch
