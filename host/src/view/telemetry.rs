@@ -135,6 +135,10 @@ pub fn telemetry(
         // How the firmware says the last move went (the line, the line then joints, joints;
         // where a line was blocked), as `armctl status` reports it.
         "last_move": status.last_move,
+        // What goals are checked against, and the last collision stop (parts by index, as the
+        // arm's collision geometry numbers them).
+        "collision_check": status.collision_check,
+        "last_collision": status.last_collision,
         "play": extras.play,
         "target": extras.target,
         "last_error": extras.last_error,
