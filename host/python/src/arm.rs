@@ -206,7 +206,18 @@ impl Arm {
         let protocol = protocol.map(protocol_named).transpose().or_raise()?;
         // Every obstacle read before anything opens: a bad one moves nothing.
         let given = obstacles.unwrap_or_default().iter().map(obstacles::obstacle).collect::<PyResult<Vec<_>>>()?;
-        let place = Place { port, bus, protocol, baud, sim, arm, calibration, object_mm: None, surroundings: Default::default() };
+        let place = Place {
+            port,
+            bus,
+            protocol,
+            baud,
+            sim,
+            arm,
+            calibration,
+            object_mm: None,
+            surroundings: Default::default(),
+            no_collision_check: false,
+        };
         let mut said = Vec::new();
         let (mut driver, servos) = released(py, || -> Result<(Driver, Option<PtyServer>)> {
             let (target, servos) = place.target()?.in_real_time()?;

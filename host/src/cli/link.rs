@@ -64,6 +64,11 @@ pub struct LinkArgs {
     /// where its [collision] table says).
     #[arg(long)]
     pub no_table: bool,
+    /// With --sim only: send the firmware the arm's collision geometry with its check off, so
+    /// that the simulated arm is seen to run into the table or an obstacle and stall there (the
+    /// simulator's contact). Status says CHECK OFF. For tests; a real arm is always checked.
+    #[arg(long)]
+    pub no_collision_check: bool,
     /// Print the result as one line of JSON (view: its URL as {"url": URL}). Every command takes
     /// --json, before or after it: its --help says what it prints.
     #[arg(long)]
@@ -89,6 +94,7 @@ impl LinkArgs {
             rig: one("--rig", &self.rig, &after.rig)?,
             obstacles: self.obstacles.iter().chain(&after.obstacles).cloned().collect(),
             no_table: self.no_table || after.no_table,
+            no_collision_check: self.no_collision_check || after.no_collision_check,
             json: self.json || after.json,
         })
     }
@@ -106,6 +112,7 @@ impl LinkArgs {
             (self.object_mm.is_some(), "--object-mm"),
             (!self.obstacles.is_empty(), "--obstacle"),
             (self.no_table, "--no-table"),
+            (self.no_collision_check, "--no-collision-check"),
         ]
         .into_iter()
         .filter_map(|(given, name)| given.then_some(name))
@@ -156,6 +163,7 @@ impl LinkArgs {
             calibration: self.calibration.clone(),
             object_mm: self.object_mm,
             surroundings: self.surroundings(),
+            no_collision_check: self.no_collision_check,
         }
     }
 

@@ -208,6 +208,7 @@ impl ArmEntry {
             calibration: self.calibration.as_deref().map(|c| relative(dir, c)),
             object_mm: None,
             surroundings: Default::default(),
+            no_collision_check: false,
         };
         // The same checks as the drive options of one arm, and the arm loaded once to prove it.
         place.target()?;

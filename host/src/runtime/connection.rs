@@ -12,6 +12,7 @@ use firmware::link::message::Info;
 use crate::arm::collision::obstacle::Surroundings;
 use crate::arm::servos::servos_of;
 use crate::arm::ArmSpec;
+use crate::link::arm_config::CollisionCheck;
 use crate::link::serial::open_error;
 use crate::link::session::Session;
 use crate::link::Transport;
@@ -75,6 +76,9 @@ pub struct Place {
     pub object_mm: Option<f64>,
     /// Obstacles added to the arm's collision geometry, the table taken away.
     pub surroundings: Surroundings,
+    /// With `sim`: the firmware is sent the geometry with its check off (`--no-collision-check`),
+    /// so that the simulated arm can be seen to run into what is in the way.
+    pub no_collision_check: bool,
 }
 
 impl Place {
@@ -106,6 +110,9 @@ impl Place {
 
     /// The board or simulation to connect to; every option checked against the others.
     pub fn target(&self) -> Result<Target> {
+        if self.no_collision_check && !self.sim {
+            bail!("--no-collision-check is for the simulated arm only (--sim): a real arm is always checked");
+        }
         if self.object_mm.is_some() && !self.sim {
             bail!("--object-mm puts an object between the simulated gripper's jaws: it needs --sim");
         }
@@ -153,7 +160,9 @@ impl Place {
             (None, true) if self.baud.is_some() => bail!("--baud is the baud rate of --port; --sim has none"),
             (None, true) => {
                 let arm = self.arm.as_deref().unwrap_or(DEFAULT_SIM_ARM);
-                let options = SilOptions { object_mm: self.object_mm, ..SilOptions::for_arm(self.load(arm)?)? };
+                let collision_check = if self.no_collision_check { CollisionCheck::Off } else { CollisionCheck::On };
+                let options =
+                    SilOptions { object_mm: self.object_mm, collision_check, ..SilOptions::for_arm(self.load(arm)?)? };
                 Ok(Target::Sim(Box::new(options)))
             }
             (Some(_), true) => bail!("--port and --sim exclude each other: give one"),
@@ -259,6 +268,7 @@ pub fn open(target: Target, arm: Option<&str>, err: &mut dyn std::io::Write) -> 
     // The arm --bus or --sim loaded (with a calibration, or its servos simulated), or --port's
     // with its surroundings: sent as it is.
     let loaded_arm;
+    let mut check = CollisionCheck::On;
     let transport: Box<dyn Transport> = match target {
         Target::Port { path, baud, arm: loaded } => {
             let port = serialport::new(&path, baud).timeout(READ_TIMEOUT).open().map_err(|e| open_error(&path, e))?;
@@ -276,24 +286,25 @@ pub fn open(target: Target, arm: Option<&str>, err: &mut dyn std::io::Write) -> 
         Target::Sim(mut options) => {
             options.read_timeout_ms = READ_TIMEOUT.as_millis() as u64;
             let sil = Sil::new(&options)?;
+            check = options.collision_check;
             loaded_arm = Some(options.arm);
             Box::new(sil)
         }
     };
-    connect(transport, loaded_arm, arm, pc)
+    connect(transport, loaded_arm, arm, pc, check)
 }
 
 /// The link to a simulated board already made (the demo's, recording its ticks), with `arm` (the
 /// one the board was made for) sent as it is.
 pub fn open_sil(sil: Sil, arm: ArmSpec) -> Result<Connection> {
-    connect(Box::new(sil), Some(arm), None, None)
+    connect(Box::new(sil), Some(arm), None, None, CollisionCheck::On)
 }
 
 /// Opens the link of board `index` of a group of simulated boards on one clock (a rig's arms in
 /// SIL), with `arm` (the one the board was made for) sent as it is.
 pub fn open_in_group(group: &crate::runtime::sil::group::SilGroup, index: usize, arm: ArmSpec) -> Result<Connection> {
     let member = group.member(index).ok_or_else(|| anyhow!("no simulated board {index} in the group"))?;
-    connect(Box::new(member), Some(arm), None, None)
+    connect(Box::new(member), Some(arm), None, None, CollisionCheck::On)
 }
 
 /// The handshake over `transport`, with `loaded_arm` sent as it is or else `arm` by name; then,
@@ -303,8 +314,10 @@ fn connect(
     loaded_arm: Option<ArmSpec>,
     arm: Option<&str>,
     pc: Option<Pc>,
+    check: CollisionCheck,
 ) -> Result<Connection> {
     let mut session = Session::over(transport);
+    session.set_collision_check(check);
     let (info, spec) = match loaded_arm {
         Some(spec) => handshake_with(&mut session, Some(spec))?,
         None => handshake(&mut session, arm)?,

@@ -7,7 +7,6 @@
 //! bounding spheres, and only a pair whose spheres come within the margin is measured exactly:
 //! most pairs of an arm are far apart most of the time.
 
-
 use heapless::Vec;
 
 use super::distance::{capsule_capsule, distance};

@@ -99,6 +99,9 @@ pub struct SilOptions {
     /// geometry is what the firmware is sent), a test can show what the simulated arm does when
     /// the firmware knows nothing of the table.
     pub contact: Option<CollisionSpec>,
+    /// Whether the firmware checks the goals against the geometry it is sent (`Off`:
+    /// `--no-collision-check`, for a test that must see the simulated arm reach a contact).
+    pub collision_check: crate::link::arm_config::CollisionCheck,
 }
 
 impl SilOptions {
@@ -120,6 +123,7 @@ impl SilOptions {
             read_timeout_ms: 20,
             object_mm: None,
             contact: crate::arm::collision::collision_of(&arm),
+            collision_check: Default::default(),
             arm,
         })
     }
