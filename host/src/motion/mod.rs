@@ -3,6 +3,7 @@
 //! sampling, its plot).
 
 pub mod cartesian_file;
+pub mod collision;
 pub mod line;
 pub mod reach;
 pub mod sample;
