@@ -7,34 +7,76 @@
 //! A segment is checked by conservative advancement: every joint `i` moves any point of any body
 //! by at most `reach[i]` metres per radian (the longest lever from its axis to a body it carries,
 //! bounded from the arm's frames so that it holds in every configuration). Over a piece of the
-//! segment whose joints move by `dq`, no point moves more than `sum |dq_i| reach[i]`, so two
-//! bodies' distance changes by at most twice that. A piece whose middle is clear of the margin by
-//! more than that bound is clear all along and is not looked at again; other pieces are halved,
-//! down to pieces over which no point moves more than a quarter of the margin ([`Checker::step`]),
-//! whose middle must keep the margin: between two such samples no pair comes closer than half the
-//! margin. Far from everything a segment costs one or two checks; near an obstacle it is sampled
-//! at that resolution.
+//! segment whose joints move by `dq`, no point moves more than `sum |dq_i| reach[i]`, so a pair's
+//! distance changes by at most twice that. From the clearances beyond the margin at a piece's two
+//! ends and that bound, the lowest the clearance can be anywhere on the piece follows; a piece
+//! where it cannot go below zero is clear all along and is not looked at again, others are
+//! halved. A segment passes only when every piece is shown clear, so every point of it, not only
+//! the samples, keeps the margin; pieces are halved down to a sixteenth of the margin of motion
+//! ([`Checker::step`]), and one still not shown clear there counts as blocked (a pair grazing the
+//! margin). Far from everything a segment costs two or three checks; near an obstacle the pieces
+//! get as fine as the clearance needs.
 
-use anyhow::{anyhow, Result};
+use anyhow::{anyhow, bail, Result};
 use kinematics::collision::{Contact, Scene};
-use kinematics::JointKind;
+use kinematics::nalgebra::SVector;
+use kinematics::{Chain, JointKind};
 
 use crate::arm::collision::{collision_of, CollisionSpec, MAX_BODIES, MAX_OBSTACLES};
 use crate::arm::dof::DynArm;
 
-/// The finest piece a segment is cut into, as a fraction of the margin: no point of any body
-/// moves more than this between two samples.
-pub const STEP_OF_MARGIN: f64 = 0.25;
-/// The finest piece when the margin is zero (m).
-const MIN_STEP: f64 = 0.5e-3;
+/// The finest piece a segment is cut into, as a fraction of the margin: over it no point of any
+/// body moves more than this.
+pub const STEP_OF_MARGIN: f64 = 1.0 / 16.0;
+/// The finest piece when the margin is small (m).
+const MIN_STEP: f64 = 0.1e-3;
 /// Halvings of a segment at most (2^30 pieces: far beyond any arm's reach over the step).
 const MAX_DEPTH: u32 = 30;
+
+/// The scene every check uses.
+type ArmScene = Scene<f64, MAX_BODIES, MAX_OBSTACLES>;
+
+/// An arm's chain of a fixed joint count placing its bodies in the scene. Instantiated here, in
+/// this crate (the arm crate's generic code is built without optimisation for tests, and a check
+/// is the planner's inner loop).
+trait Placer: Send + Sync {
+    fn check(&self, scene: &mut ArmScene, q: &[f64], closest: bool) -> Result<Option<Contact<f64>>>;
+}
+
+impl<const N: usize> Placer for Chain<f64, N> {
+    fn check(&self, scene: &mut ArmScene, q: &[f64], closest: bool) -> Result<Option<Contact<f64>>> {
+        if q.len() != N {
+            bail!("the arm has {N} joints but {} joint values were given", q.len());
+        }
+        let frames = self.forward(&SVector::from_column_slice(q));
+        Ok(if closest { scene.closest(&frames.joints) } else { scene.first_contact(&frames.joints) })
+    }
+}
+
+/// The chain of `spec` for the joint counts the firmware carries (1 to 8).
+fn placer(spec: &crate::arm::ArmSpec) -> Result<Box<dyn Placer>> {
+    fn of<const N: usize>(spec: &crate::arm::ArmSpec) -> Result<Box<dyn Placer>> {
+        Ok(Box::new(spec.chain::<f64, N>()?))
+    }
+    match spec.dof() {
+        1 => of::<1>(spec),
+        2 => of::<2>(spec),
+        3 => of::<3>(spec),
+        4 => of::<4>(spec),
+        5 => of::<5>(spec),
+        6 => of::<6>(spec),
+        7 => of::<7>(spec),
+        8 => of::<8>(spec),
+        n => bail!("collisions are checked for arms of 1 to 8 joints, as the firmware carries; {} has {n}", spec.name),
+    }
+}
 
 /// An arm's collision check: its geometry, the scene it makes and each joint's reach.
 pub struct Checker<'a> {
     arm: &'a dyn DynArm,
+    placer: Box<dyn Placer>,
     spec: CollisionSpec,
-    scene: Scene<f64, MAX_BODIES, MAX_OBSTACLES>,
+    scene: ArmScene,
     reach: Vec<f64>,
     step: f64,
     checks: u64,
@@ -135,7 +177,7 @@ impl<'a> Checker<'a> {
         let scene = spec.scene::<f64, MAX_BODIES, MAX_OBSTACLES>(joints)?;
         let reach = reach(arm.spec(), &spec);
         let step = (spec.margin * STEP_OF_MARGIN).max(MIN_STEP);
-        Ok(Self { arm, spec, scene, reach, step, checks: 0 })
+        Ok(Self { arm, placer: placer(arm.spec())?, spec, scene, reach, step, checks: 0 })
     }
 
     /// The arm checked.
@@ -169,11 +211,20 @@ impl<'a> Checker<'a> {
         self.spec.describe(contact)
     }
 
+    /// A contact along a segment in words: [`Checker::describe`], and where the pair keeps the
+    /// margin there but grazes it, that the check could not show it clear at its finest piece.
+    pub fn describe_along(&self, found: &SegmentContact) -> String {
+        let words = self.describe(&found.contact);
+        match found.contact.distance >= self.spec.margin {
+            true => format!("{words}, too close to show clear at the check's finest step ({:.2} mm)", self.step * 1e3),
+            false => words,
+        }
+    }
+
     /// The first pair closer than the margin at `q`, or `None` when every pair keeps it.
     pub fn contact(&mut self, q: &[f64]) -> Result<Option<Contact<f64>>> {
-        let frames = self.arm.joint_frames(q)?;
         self.checks += 1;
-        Ok(self.scene.first_contact(&frames))
+        self.placer.check(&mut self.scene, q, false)
     }
 
     /// True if `q` keeps the margin (a `q` of the wrong length is not free).
@@ -183,9 +234,8 @@ impl<'a> Checker<'a> {
 
     /// The closest checked pair at `q` (its distance may be below the margin).
     pub fn closest(&mut self, q: &[f64]) -> Result<Option<Contact<f64>>> {
-        let frames = self.arm.joint_frames(q)?;
         self.checks += 1;
-        Ok(self.scene.closest(&frames))
+        self.placer.check(&mut self.scene, q, true)
     }
 
     /// How far any point of any body moves, at most, when the joints change by `dq`.
@@ -193,43 +243,67 @@ impl<'a> Checker<'a> {
         dq.iter().zip(&self.reach).map(|(d, r)| d.abs() * r).sum()
     }
 
-    /// A contact on the straight segment from `from` to `to`, its start not included (it is
-    /// where the arm is, or a checked node); `None` when it keeps the margin all along.
+    /// A contact on the straight segment from `from` to `to` (its ends included); `None` when it
+    /// keeps the margin all along.
     pub fn straight(&mut self, from: &[f64], to: &[f64]) -> Result<Option<SegmentContact>> {
-        if let Some(contact) = self.contact(to)? {
-            return Ok(Some(SegmentContact { at: 1.0, q: to.to_vec(), contact }));
-        }
         self.along(&Straight { from, to })
     }
 
-    /// True if the straight segment from `from` to `to` keeps the margin (its start not checked).
+    /// True if the straight segment from `from` to `to` keeps the margin all along.
     pub fn straight_free(&mut self, from: &[f64], to: &[f64]) -> bool {
         matches!(self.straight(from, to), Ok(None))
     }
 
-    /// A contact inside `segment` (its two ends not included: they are keyframes, checked on
-    /// their own), found by halving it; `None` when it keeps the margin all along.
+    /// A contact on `segment` (its ends included), found by halving it; `None` when every point
+    /// of it keeps the margin.
     pub fn along(&mut self, segment: &dyn Segment) -> Result<Option<SegmentContact>> {
-        self.piece(segment, 0.0, 1.0, 0)
+        let mut ends = [(0.0, f64::INFINITY); 2];
+        for (end, s) in ends.iter_mut().zip([0.0, 1.0]) {
+            let q = segment.at(s);
+            let (clearance, closest) = self.clearance(&q)?;
+            if let Some(contact) = closest.filter(|_| !(clearance >= 0.0)) {
+                return Ok(Some(SegmentContact { at: s, q, contact }));
+            }
+            *end = (s, clearance);
+        }
+        self.piece(segment, ends[0], ends[1], 0)
     }
 
-    fn piece(&mut self, segment: &dyn Segment, s0: f64, s1: f64, depth: u32) -> Result<Option<SegmentContact>> {
-        let middle = 0.5 * (s0 + s1);
-        // From the middle to either end of the piece, no point moves more than this.
-        let half = 0.5 * self.motion(&segment.speed(s0, s1)) * (s1 - s0);
-        let q = segment.at(middle);
-        let Some(closest) = self.closest(&q)? else { return Ok(None) };
-        if !(closest.distance >= self.spec.margin) {
-            return Ok(Some(SegmentContact { at: middle, q, contact: closest }));
-        }
-        // Two bodies approach by at most twice what each moves.
-        if 2.0 * half <= closest.distance - self.spec.margin || half <= 0.5 * self.step || depth >= MAX_DEPTH {
+    /// How far beyond the margin the closest pair at `q` is (m; infinite with no pair checked),
+    /// and that pair.
+    fn clearance(&mut self, q: &[f64]) -> Result<(f64, Option<Contact<f64>>)> {
+        let closest = self.closest(q)?;
+        Ok((closest.map_or(f64::INFINITY, |c| c.distance - self.spec.margin), closest))
+    }
+
+    /// The piece between `(s0, c0)` and `(s1, c1)` (where, and the clearance there; both keep the
+    /// margin).
+    fn piece(
+        &mut self,
+        segment: &dyn Segment,
+        (s0, c0): (f64, f64),
+        (s1, c1): (f64, f64),
+        depth: u32,
+    ) -> Result<Option<SegmentContact>> {
+        // No point moves more than `motion` over the piece, so a pair's distance changes by at
+        // most twice that: at `u` along it the clearance is at least `c0 - 2 motion u` and at
+        // least `c1 - 2 motion (1 - u)`, whose lower envelope's lowest point is this.
+        let motion = self.motion(&segment.speed(s0, s1)) * (s1 - s0);
+        if 0.5 * (c0 + c1) - motion >= 0.0 {
             return Ok(None);
         }
-        if let Some(found) = self.piece(segment, s0, middle, depth + 1)? {
+        let middle = 0.5 * (s0 + s1);
+        let q = segment.at(middle);
+        let (cm, closest) = self.clearance(&q)?;
+        let Some(contact) = closest else { return Ok(None) };
+        if !(cm >= 0.0) || motion <= self.step || depth >= MAX_DEPTH {
+            // Inside the margin; or at the finest piece, not shown to keep it all along.
+            return Ok(Some(SegmentContact { at: middle, q, contact }));
+        }
+        if let Some(found) = self.piece(segment, (s0, c0), (middle, cm), depth + 1)? {
             return Ok(Some(found));
         }
-        self.piece(segment, middle, s1, depth + 1)
+        self.piece(segment, (middle, cm), (s1, c1), depth + 1)
     }
 }
 
@@ -283,7 +357,7 @@ pub fn refuse_contact(checker: &mut Checker<'_>, q: &[f64], what: &str) -> Resul
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::arm::collision::ObstacleSpec;
     use crate::arm::dof::build;
@@ -343,7 +417,8 @@ mod tests {
         let (left, right) = ([0.8, -0.2, 0.5, 1.0, 0.0], [-0.8, -0.2, 0.5, 1.0, 0.0]);
         assert!(checker.is_free(&left) && checker.is_free(&right), "ends free");
         let found = checker.straight(&left, &right).unwrap().expect("through the box");
-        assert_eq!(checker.spec().name(found.contact.other), "box", "{}", checker.describe(&found.contact));
+        assert_eq!(checker.spec().name(found.contact.other), "box", "{}", checker.describe_along(&found));
+        assert!(found.contact.distance < spec.margin, "{}", checker.describe_along(&found));
         assert!(found.at > 0.0 && found.at < 1.0);
         // Lifted: clear all along, checked point by point at a tenth of the step.
         let (up_left, up_right) = ([0.8, -0.3, -0.2, 0.2, 0.0], [-0.8, -0.3, -0.2, 0.2, 0.0]);
@@ -354,6 +429,32 @@ mod tests {
             let closest = checker.closest(&q).unwrap().unwrap();
             assert!(closest.distance >= spec.margin, "{}", checker.describe(&closest));
         }
+        // A turn of the pan at a posture that keeps the wrist a fifth of a step beyond the margin
+        // above the table all the way (the distance to the table does not change with the pan):
+        // never inside the margin, but grazing it, so blocked all the same, and said so.
+        let mut table = Checker::new(arm.as_ref(), spec.clone().without("box")).unwrap();
+        let posture = |lift: f64| [0.0, lift, 0.5, 1.0, 0.0];
+        let wanted = spec.margin + 0.2 * table.step();
+        let (mut clear, mut low) = (-0.2, 1.0);
+        for _ in 0..50 {
+            let lift = 0.5 * (clear + low);
+            let closest = table.closest(&posture(lift)).unwrap().unwrap();
+            if closest.distance < wanted {
+                low = lift
+            } else {
+                clear = lift
+            }
+        }
+        let closest = table.closest(&posture(clear)).unwrap().unwrap();
+        assert!(
+            table.describe(&closest).contains("table") && closest.distance - wanted < 1e-9,
+            "{}",
+            table.describe(&closest)
+        );
+        let (a, b) = (posture(clear), [-0.5, clear, 0.5, 1.0, 0.0]);
+        let found = table.straight(&a, &b).unwrap().expect("too close to show clear");
+        assert!(found.contact.distance >= spec.margin, "{}", table.describe_along(&found));
+        assert!(table.describe_along(&found).contains("too close to show clear"), "{}", table.describe_along(&found));
     }
 
     /// The Hermite segment's derivative bound holds at every sample, and its ends are its
