@@ -58,6 +58,17 @@ impl Driver {
         self.fk.as_ref()
     }
 
+    /// Replaces the collision geometry the host checks moves against (the arm's own, from its
+    /// file or preset, by default; `None`: nothing is checked). The firmware's is its own, sent
+    /// with the arm.
+    pub fn set_collision(&mut self, collision: Option<crate::arm::collision::CollisionSpec>) -> Result<()> {
+        let mut arm = self.conn.arm.clone();
+        arm.collision = collision;
+        self.fk = dof::build(arm.clone())?;
+        self.conn.arm = arm;
+        Ok(())
+    }
+
     /// The arm the firmware runs.
     pub fn arm(&self) -> &ArmSpec {
         &self.conn.arm
