@@ -355,6 +355,41 @@ pub fn keyframes(corners: &[Vec<f64>], max_velocity: f64, max_acceleration: f64,
     Keyframes { times, positions, velocities }
 }
 
+/// The keyframes as the firmware's player plays them from `start` (at rest, at time zero): a
+/// velocity not given is the one the player chooses, `(p_next - p_before) / (t_next - t_before)`
+/// clamped to `max_velocity`, zero at the last keyframe; a first keyframe sooner than the
+/// rest-to-rest time from `start` is reached in that time, the rest shifted with it, as the player
+/// shifts late keyframes.
+pub fn as_played(
+    start: &[f64],
+    times: &[f64],
+    positions: &[Vec<f64>],
+    velocities: Option<&[Vec<f64>]>,
+    max_velocity: f64,
+    max_acceleration: f64,
+) -> Keyframes {
+    let first = positions.first().map_or(0.0, |p| rest_to_rest(start, p, max_velocity, max_acceleration));
+    let shift = times.first().map_or(0.0, |t| (first - t).max(0.0));
+    let times: Vec<f64> = times.iter().map(|t| t + shift).collect();
+    let chosen = (0..positions.len())
+        .map(|k| match velocities {
+            Some(v) => v[k].clone(),
+            None if k + 1 < positions.len() => {
+                let (before, t_before) =
+                    if k == 0 { (start, 0.0) } else { (positions[k - 1].as_slice(), times[k - 1]) };
+                let span = times[k + 1] - t_before;
+                positions[k + 1]
+                    .iter()
+                    .zip(before)
+                    .map(|(after, before)| ((after - before) / span).clamp(-max_velocity, max_velocity))
+                    .collect()
+            }
+            None => vec![0.0; start.len()],
+        })
+        .collect();
+    Keyframes { times, positions: positions.to_vec(), velocities: chosen }
+}
+
 /// A contact on the path the player plays from `start` through `keyframes` (each segment the
 /// cubic Hermite between two keyframes with their velocities, the start at rest at time zero),
 /// with the keyframes it lies between (1 = the first keyframe; 0 = the start).

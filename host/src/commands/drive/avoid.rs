@@ -222,4 +222,24 @@ mod tests {
         assert!(report.text().contains("the straight line is blocked"), "{}", report.text());
         assert!(every_goal_keeps_the_margin(&mut driver, &spec) > 100);
     }
+
+    /// `play` checks the whole file before anything moves and names the first keyframe pair
+    /// whose segment, as the player plays it, collides.
+    #[test]
+    fn play_names_the_first_keyframe_pair_that_collides_and_nothing_moves() {
+        let (mut driver, _) = driver();
+        let left = vec![0.8, -0.2, 0.5, 1.0, 0.0];
+        joints(&mut driver, &JointsRequest::new(left, None, None, 20.0).unwrap(), &mut std::io::sink()).unwrap();
+        let before = driver.status().unwrap().measured;
+        let text = "t,q1,q2,q3,q4,q5\n1,0.8,-0.3,0.5,1.0,0\n2,0.8,-0.2,0.5,1.0,0\n4,-0.8,-0.2,0.5,1.0,0\n";
+        let plan = crate::commands::drive::play::Plan::parse(text, std::path::Path::new("sweep.csv"), 30.0).unwrap();
+        let e = crate::commands::drive::play::play(&mut driver, &plan, &mut std::io::sink()).unwrap_err().to_string();
+        assert!(
+            e.starts_with("sweep.csv: between keyframes 2 and 3 (lines 3 and 4): ")
+                && e.contains(" and box ")
+                && e.ends_with("; nothing was sent, nothing moved"),
+            "{e}"
+        );
+        assert_eq!(driver.status().unwrap().measured, before);
+    }
 }
