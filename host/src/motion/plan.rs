@@ -19,11 +19,15 @@
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Result};
+use kinematics::collision::Shape;
 use kinematics::nalgebra::SVector;
+use kinematics::nalgebra::Vector3;
 use kinematics::trajectory::JointLimits;
 use kinematics::SplitMix64;
 
 use super::collision::{shown, Checker, Hermite, SegmentContact};
+use crate::arm::collision::{collision_of, CollisionSpec, ObstacleSpec};
+use crate::arm::dof::DynArm;
 
 /// Samples RRT-Connect draws before it gives up.
 pub const DEFAULT_SAMPLES: usize = 4000;
@@ -304,6 +308,18 @@ fn point_at(path: &[Vec<f64>], along: f64) -> (usize, Vec<f64>) {
     }
     let last = path.len() - 1;
     (last.saturating_sub(1), path[last].clone())
+}
+
+/// The scene of the planner's property test and of `armctl bench plan`: the arm's own collision
+/// geometry, else capsules of 20 mm from its frames with the table at its base
+/// ([`CollisionSpec::from_frames`]), and a box 6 cm deep, 16 cm wide and 12 cm high standing on
+/// the table in front of the arm at half the reach of its middle pose.
+pub fn boxed_scene(arm: &dyn DynArm) -> Result<CollisionSpec> {
+    let mut spec = collision_of(arm.spec()).unwrap_or_else(|| CollisionSpec::from_frames(arm.spec(), 0.02));
+    let reach = arm.tool_pose(&arm.middle())?.translation.norm();
+    let shape = Shape::aligned_box(Vector3::new(0.5 * reach, 0.0, 0.06), Vector3::new(0.06, 0.16, 0.12));
+    spec.obstacles.push(ObstacleSpec { name: "box".into(), shape });
+    Ok(spec)
 }
 
 /// Keyframes as the firmware's player takes them.
