@@ -148,3 +148,27 @@ impl PcBenchArgs {
         })
     }
 }
+
+/// Arguments of `armctl bench plan`.
+#[derive(Args, Debug)]
+pub struct PlanBenchArgs {
+    /// Arm: a preset or an arm file.
+    #[arg(long, default_value = "so101")]
+    pub arm: String,
+    /// Blocked moves planned.
+    #[arg(long, default_value_t = 200)]
+    pub moves: usize,
+    /// Seed of the move sampler.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// One JSON object (indented) instead of the summary line.
+    #[arg(long)]
+    pub json: bool,
+}
+
+impl PlanBenchArgs {
+    /// The request.
+    pub fn request(&self) -> crate::commands::bench::plan::PlanBenchRequest {
+        crate::commands::bench::plan::PlanBenchRequest { arm: self.arm.clone(), moves: self.moves, seed: self.seed }
+    }
+}

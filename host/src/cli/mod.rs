@@ -226,6 +226,10 @@ enum BenchCommand {
     /// simulated servos on a pseudo-terminal in real time, with or without a USB adapter's burst
     /// latency.
     Pc(bench::PcBenchArgs),
+    /// Planning around obstacles on the host: time (median, p99) over blocked moves between random
+    /// free configurations, with the arm on its table and a box in front of it, and one full
+    /// collision check's time.
+    Plan(bench::PlanBenchArgs),
 }
 
 #[derive(Args, Debug)]
@@ -413,6 +417,7 @@ fn take_globals(link: &LinkArgs, mut command: Command, name: &str) -> Result<Com
         Command::Bench { what: BenchCommand::Mcu(args) } => args.json |= json,
         Command::Bench { what: BenchCommand::LoopPass(args) } => args.json |= json,
         Command::Bench { what: BenchCommand::Pc(args) } => args.json |= json,
+        Command::Bench { what: BenchCommand::Plan(args) } => args.json |= json,
         Command::Footprint(args) => args.json |= json,
         Command::Sim(args) => match &mut args.what {
             Some(sim::SimCommand::Servos(servos)) => servos.json |= json,
@@ -490,6 +495,9 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
         }
         Command::Bench { what: BenchCommand::Pc(args) } => {
             return crate::commands::bench::pc::run(&args.request()?, out, err)
+        }
+        Command::Bench { what: BenchCommand::Plan(args) } => {
+            return crate::commands::bench::plan::run(&args.request(), args.json, out)
         }
         Command::Servo(args) => return crate::cli::servo::run(args, out, err),
         Command::Doctor(args) => return doctor::run(link, args, out, err),

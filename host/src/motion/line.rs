@@ -2,8 +2,10 @@
 //! line solved in turn, each seeded by the last, as the firmware's tracking follows a moving point,
 //! with the firmware's method and scalar (damped least squares in f32). A point that does not
 //! solve, or a jump of a joint between two points (another branch of the IK, which tracking would
-//! not follow smoothly), blocks the line there. Used by the demo's planner and by `armctl move`.
+//! not follow smoothly), blocks the line there; so does a point, or the joint segment to it, in
+//! collision when the arm has collision geometry. Used by the demo's planner and by `armctl move`.
 
+use super::collision::Checker;
 use crate::arm::dof::{DynArm, IkRequest, Scalar, SolverName};
 use kinematics::ik::IkStatus;
 
@@ -33,6 +35,8 @@ pub struct Blocked {
     pub length: f64,
     /// The joints at that point: where tracking would stand.
     pub q: Vec<f64>,
+    /// The pair in collision beyond it, in words, when that is what blocks it.
+    pub contact: Option<String>,
 }
 
 impl Line {
@@ -54,6 +58,19 @@ impl Line {
     /// included; the joints at its end, or where it is blocked. An error is a request the solver
     /// cannot take at all (an orientation for an arm too short of joints to choose one).
     pub fn follow(&self, arm: &dyn DynArm, q: &[f64], points: usize) -> anyhow::Result<Result<Vec<f64>, Blocked>> {
+        self.follow_checked(arm, q, points, None)
+    }
+
+    /// [`Line::follow`], with every point's joints, and the joint segment from the point before,
+    /// checked against the arm's collision geometry when `checker` is given: the line is blocked
+    /// where the arm would come closer than the margin to something.
+    pub fn follow_checked(
+        &self,
+        arm: &dyn DynArm,
+        q: &[f64],
+        points: usize,
+        mut checker: Option<&mut Checker<'_>>,
+    ) -> anyhow::Result<Result<Vec<f64>, Blocked>> {
         let mut q = q.to_vec();
         let mut last = 0.0;
         for k in 1..points {
@@ -70,7 +87,13 @@ impl Line {
             let outcome = arm.solve(&request)?;
             let step = outcome.q.iter().zip(&q).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
             if outcome.status != IkStatus::Converged || step > MAX_JOINT_STEP {
-                return Ok(Err(Blocked { along: last * self.length(), length: self.length(), q }));
+                return Ok(Err(Blocked { along: last * self.length(), length: self.length(), q, contact: None }));
+            }
+            if let Some(checker) = checker.as_deref_mut() {
+                if let Some(found) = checker.straight(&q, &outcome.q)? {
+                    let contact = Some(checker.describe_along(&found));
+                    return Ok(Err(Blocked { along: last * self.length(), length: self.length(), q, contact }));
+                }
             }
             q = outcome.q;
             last = u;

@@ -3,7 +3,11 @@
 //! sampling, its plot).
 
 pub mod cartesian_file;
+pub mod collision;
 pub mod line;
+pub mod plan;
+#[cfg(test)]
+mod plan_property;
 pub mod reach;
 pub mod sample;
 pub mod trajectory;

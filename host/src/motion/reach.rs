@@ -35,12 +35,15 @@ pub fn solve(
 }
 
 /// Fails, naming the file lines, if any keyframe is out of reach; `at(line)` says where a line is.
-pub fn check(arm: &dyn DynArm, k: &CartesianKeyframes, at: &dyn Fn(usize) -> String) -> Result<()> {
+/// Returns the joints of each keyframe, as solved.
+pub fn check(arm: &dyn DynArm, k: &CartesianKeyframes, at: &dyn Fn(usize) -> String) -> Result<Vec<Vec<f64>>> {
     let mut seed: Option<Vec<f64>> = None;
     let mut missed = Vec::new();
+    let mut solved = Vec::with_capacity(k.positions.len());
     for (i, position) in k.positions.iter().enumerate() {
         let outcome = solve(arm, *position, k.orientations.as_ref().map(|o| o[i]), seed.clone())?;
         if outcome.status == IkStatus::Converged {
+            solved.push(outcome.q.clone());
             seed = Some(outcome.q);
         } else {
             let angle = match k.orientations {
@@ -55,7 +58,7 @@ pub fn check(arm: &dyn DynArm, k: &CartesianKeyframes, at: &dyn Fn(usize) -> Str
         }
     }
     if missed.is_empty() {
-        return Ok(());
+        return Ok(solved);
     }
     let more = match missed.len().saturating_sub(NAMED) {
         0 => String::new(),

@@ -13,6 +13,7 @@ use super::columns::{self, ArmPart};
 use super::play::stop_all;
 use super::report::{ArmMoved, ArmStatus, ArmStopped, ByArm, RigMove, RigReport, RigStatus, RigStop, RigTorque};
 use super::{Rig, RigSpec};
+use crate::commands::drive::avoid;
 use crate::commands::drive::move_to::{check_position, check_quaternion, positive, tool_timing};
 use crate::commands::drive::path::{self, host_solution};
 use crate::commands::drive::state;
@@ -282,12 +283,20 @@ fn move_tree(
         Timing::Duration(d) => d,
         Timing::MaxSpeed(speed) => ((travel / f64::from(speed)) as f32).max(0.5),
     };
+    // Every arm's goal checked before any arm moves.
+    for (a, arm) in rig.arms.iter().enumerate() {
+        avoid::check_goal(&arm.driver, &solved.q[a], &format!("arm {}'s goal", arm.name))
+            .map_err(|e| anyhow::anyhow!("move {} (world): {e}; no arm moved", shown.join(", ")))?;
+    }
     let mut switched = Vec::new();
     for (a, arm) in rig.arms.iter_mut().enumerate() {
         let (_, on) = arm.driver.ready_to_move().with_context(|| format!("arm {}", arm.name))?;
         switched.push(on);
-        let positions = check_joints(&arm.driver, &solved.q[a], &format!("arm {}", arm.name))?;
-        if let Err(e) = arm.driver.session().move_joints(positions, Timing::Duration(seconds)) {
+        check_joints(&arm.driver, &solved.q[a], &format!("arm {}", arm.name))?;
+        // Each arm's move checked as `armctl joints` checks it: in collision refused, a blocked
+        // straight path planned around (stretched to the same duration where it can be).
+        let from: Vec<f64> = arm.driver.status()?.measured.iter().map(|&x| f64::from(x)).collect();
+        if let Err(e) = avoid::send(&mut arm.driver, &from, &solved.q[a], Timing::Duration(seconds)) {
             let name = arm.name.clone();
             let stopped = stop_all(rig);
             bail!("move: arm {name} refused its joints: {e}; {stopped}");

@@ -58,6 +58,12 @@ impl Driver {
         self.fk.as_ref()
     }
 
+    /// Whether goals are checked against the arm's collision geometry: always, but with
+    /// `--no-collision-check` on the simulated arm (the firmware's check and the host's alike).
+    pub fn collision_checked(&self) -> bool {
+        self.conn.session.collision_check() == crate::link::arm_config::CollisionCheck::On
+    }
+
     /// The arm the firmware runs.
     pub fn arm(&self) -> &ArmSpec {
         &self.conn.arm

@@ -359,10 +359,19 @@ impl LoopState {
             }
             Request::Joints { q, speed } => {
                 self.busy_playing()?;
-                let positions = check_joints(&self.driver, &q, "q").map_err(|e| ApiError::bad(format!("{e:#}")))?;
+                check_joints(&self.driver, &q, "q").map_err(|e| ApiError::bad(format!("{e:#}")))?;
                 self.ready()?;
                 let timing = Timing::MaxSpeed(speed.map_or(MAX_SPEED, |s| s as f32));
-                self.driver.session().move_joints(positions, timing).map_err(link_error)?;
+                // As `armctl joints` goes: a target in collision refused, a blocked path planned.
+                let start = self.driver.status().map_err(|e| ApiError::new(503, format!("{e:#}")))?;
+                let from: Vec<f64> = start.measured.iter().map(|&x| f64::from(x)).collect();
+                match crate::commands::drive::avoid::send(&mut self.driver, &from, &q, timing) {
+                    Ok(_) => {}
+                    Err(crate::commands::drive::avoid::NotSent::Host(e)) => {
+                        return Err(ApiError::bad(format!("{e:#}")))
+                    }
+                    Err(crate::commands::drive::avoid::NotSent::Link(e)) => return Err(link_error(e)),
+                }
                 self.extras.last_error = None;
                 ok()
             }
@@ -396,7 +405,15 @@ impl LoopState {
                         Ok(route) => {
                             // The last word on the way is the firmware's refusal, if the host's
                             // solution went instead.
+                            let avoided = route.avoided.as_ref().map(|sent| {
+                                let ahead =
+                                    route.blocked_ahead.as_ref().map(|b| path::where_blocked(self.driver.arm(), b));
+                                let why =
+                                    [ahead, sent.why.clone()].into_iter().flatten().collect::<Vec<_>>().join("; ");
+                                (sent.path, if why.is_empty() { "by joints".to_string() } else { why })
+                            });
                             let (taken, how) = match (&route.blocked_ahead, route.solved_on_host) {
+                                _ if avoided.is_some() => avoided.unwrap_or_default(),
                                 (_, true) => ("joint", path::SOLVED_ON_HOST.to_string()),
                                 (Some(b), false) => (
                                     "joint",

@@ -1,10 +1,13 @@
-//! `joints`: every joint to values, arriving together; waits until the arm is at rest.
+//! `joints`: every joint to values, arriving together; waits until the arm is at rest. Checked
+//! against the arm's collision geometry first ([`super::avoid`]): a target in collision is refused,
+//! and one whose straight joint path is blocked is reached by a planned path.
 
 use std::io::Write;
 
 use firmware::link::message::{Timing, MAX_SPEED, MAX_TIME};
 use serde::Serialize;
 
+use super::avoid;
 use super::error::{rest, DriveError, DriveResult};
 use super::move_to::{check_finite, positive};
 use crate::runtime::driver::{check_joints, fmt3, fmt_list, Driver};
@@ -49,6 +52,11 @@ impl JointsRequest {
 pub struct JointsReport {
     /// Always "joints".
     pub command: &'static str,
+    /// The way the arm went: "joint" (straight in joint space) or "planned" (around what was in
+    /// the way of the straight path).
+    pub path: &'static str,
+    /// Keyframes of the planned path (0 for a straight move).
+    pub planned_keyframes: usize,
     /// The joint values sent.
     pub target: Vec<f32>,
     /// The measured joints at rest.
@@ -60,13 +68,17 @@ pub struct JointsReport {
     pub tool: [f64; 3],
     /// Controller seconds from the request to rest.
     pub time_s: f64,
+    /// Why the arm went by a planned path, in words.
+    #[serde(skip)]
+    pub why: Option<String>,
 }
 
 impl JointsReport {
     /// The report as `armctl joints` prints it.
     pub fn text(&self) -> String {
+        let how = self.why.as_ref().map(|why| format!("; {why}")).unwrap_or_default();
         format!(
-            "joints: target {}, reached {} (largest error {:.4}), tool at {} m, took {:.2} s",
+            "joints: target {}, reached {} (largest error {:.4}), tool at {} m, took {:.2} s{how}",
             fmt_list(&self.target),
             fmt_list(&self.reached),
             self.max_error,
@@ -82,15 +94,22 @@ pub fn joints(driver: &mut Driver, request: &JointsRequest, notes: &mut dyn Writ
     let positions = check_joints(driver, &request.q, "--q").map_err(DriveError::Input)?;
     let (start, switched) = driver.ready_to_move()?;
     interrupt::catch();
-    if let Err(e) = driver.session().move_joints(positions.clone(), request.timing) {
-        let undone = driver.undo_torque(switched);
-        let named = match &e {
-            crate::link::client::LinkError::Nak(reason) => super::collision::refusal(driver.arm(), reason),
-            _ => None,
-        };
-        let why = named.unwrap_or_else(|| e.to_string());
-        return Err(DriveError::failed(format!("joints {}: {why}; nothing moved{undone}", fmt_list(&positions))));
-    }
+    let from: Vec<f64> = start.measured.iter().map(|&x| f64::from(x)).collect();
+    let sent = match avoid::send(driver, &from, &request.q, request.timing) {
+        Ok(sent) => sent,
+        Err(e) => {
+            let undone = driver.undo_torque(switched);
+            // A firmware's refusal names the pair from the arm's geometry.
+            let named = match &e {
+                avoid::NotSent::Link(crate::link::client::LinkError::Nak(reason)) => {
+                    super::collision::refusal(driver.arm(), reason)
+                }
+                _ => None,
+            };
+            let why = named.unwrap_or_else(|| e.to_string());
+            return Err(DriveError::failed(format!("joints {}: {why}; nothing moved{undone}", fmt_list(&positions))));
+        }
+    };
     Driver::note_torque(switched, notes)?;
     let status = rest(driver, request.timeout)?;
     if let Some(why) = super::collision::stopped(driver.arm(), &status) {
@@ -99,10 +118,13 @@ pub fn joints(driver: &mut Driver, request: &JointsRequest, notes: &mut dyn Writ
     let max_error = positions.iter().zip(&status.measured).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
     Ok(JointsReport {
         command: "joints",
+        path: sent.path,
+        planned_keyframes: sent.keyframes,
         target: positions.to_vec(),
         reached: status.measured.to_vec(),
         max_error,
         tool: driver.tool_position(&status.measured)?,
         time_s: f64::from(status.time - start.time),
+        why: sent.why,
     })
 }

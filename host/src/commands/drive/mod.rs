@@ -15,6 +15,7 @@
 //!
 //! [`Driver`]: crate::runtime::driver::Driver
 
+pub mod avoid;
 pub mod collision;
 pub mod error;
 pub mod gripper;

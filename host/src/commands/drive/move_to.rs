@@ -105,7 +105,9 @@ pub fn tool_timing(speed: Option<f64>, duration: Option<f64>) -> anyhow::Result<
 pub struct MoveReport {
     /// Always "move".
     pub command: &'static str,
-    /// The way the tool went: "line", "line, then joints" or "joint".
+    /// The way the tool went: "line", "line, then joints", "joint" or "planned" (by joints around
+    /// what was in the way of the line and of the straight joint path, for an arm with collision
+    /// geometry).
     pub path: &'static str,
     /// Where the straight line was found blocked (mm along it), if it was: by the host's check
     /// before the move (the arm then went by joints), or by the firmware on the way (it went the

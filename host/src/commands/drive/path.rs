@@ -5,13 +5,20 @@
 //! its loop) can miss a solution that exists: where it refuses the target as unreachable, the
 //! host's solution is sent as a joint move. After the move, [`outcome`] says which way the arm
 //! went.
+//!
+//! An arm with collision geometry is checked first ([`take_checked`]): the target's IK solution
+//! must be free (other solutions are tried before the target is refused, naming the pair); the
+//! straight line is checked at every IK point; where it is blocked, the arm goes by joints to the
+//! free solution, straight or by a planned path ([`super::avoid`]).
 
 use anyhow::Result;
 use firmware::link::message::{CartesianTarget, MovePath, NakReason, PathTaken, Status, Timing, MAX_SPEED};
 use kinematics::ik::IkStatus;
 
+use super::avoid::{self, NotSent, Sent};
 use crate::arm::ArmSpec;
 use crate::link::client::LinkError;
+use crate::motion::collision::Checker;
 use crate::motion::line::{Blocked, Line};
 use crate::motion::reach;
 use crate::runtime::driver::{check_joints, Driver};
@@ -30,6 +37,9 @@ pub struct Route {
     pub blocked_ahead: Option<Blocked>,
     /// Whether the host's IK solution went as a joint move, the firmware having found none.
     pub solved_on_host: bool,
+    /// How the move went by joints to the host's collision-free solution, for an arm with
+    /// collision geometry: straight, or planned around what was in the way.
+    pub avoided: Option<Sent>,
 }
 
 /// A move that was not sent, or that the firmware refused: nothing moved.
@@ -80,7 +90,10 @@ pub fn take(
     timing: Timing,
     asked: MovePath,
 ) -> Result<Route, Refused> {
-    let mut route = Route { sent: asked, blocked_ahead: None, solved_on_host: false };
+    if avoid::host_checker(driver).map_err(|e| Refused::because(format!("{e:#}")))?.is_some() {
+        return take_checked(driver, start, target, timing, asked);
+    }
+    let mut route = Route { sent: asked, blocked_ahead: None, solved_on_host: false, avoided: None };
     if asked != MovePath::Joint {
         match check_line(driver, start, &target).map_err(|e| Refused::because(format!("{e:#}")))? {
             Ok(_) => {}
@@ -120,10 +133,117 @@ pub fn take(
     }
 }
 
+/// [`take`] for an arm with collision geometry: the host's free solution first, then the line
+/// checked at every point, then by joints around what is in the way.
+fn take_checked(
+    driver: &mut Driver,
+    start: &Status,
+    target: CartesianTarget,
+    timing: Timing,
+    asked: MovePath,
+) -> Result<Route, Refused> {
+    let host = |e: anyhow::Error| Refused::because(format!("{e:#}"));
+    let goal = free_solution(driver, start, &target)?;
+    let mut route = Route { sent: asked, blocked_ahead: None, solved_on_host: false, avoided: None };
+    if asked != MovePath::Joint {
+        let mut checker = avoid::host_checker(driver).map_err(host)?;
+        match check_line_with(driver, start, &target, checker.as_mut()).map_err(host)? {
+            Ok(_) => {
+                drop(checker);
+                let sent = driver.session().move_to(target, timing, asked);
+                sent.map_err(|e| Refused::link(driver.arm(), e))?;
+                return Ok(route);
+            }
+            Err(blocked) if asked == MovePath::Line => {
+                return Err(Refused {
+                    reason: where_blocked(driver.arm(), &blocked),
+                    hint: "; --path auto or joint goes there by joints",
+                    by: RefusedBy::Host,
+                })
+            }
+            Err(blocked) => route.blocked_ahead = Some(blocked),
+        }
+    }
+    // A tool speed means nothing to a joint move: as fast as the limits allow; a duration is kept.
+    let timing = match timing {
+        Timing::MaxSpeed(_) => Timing::MaxSpeed(MAX_SPEED),
+        other => other,
+    };
+    let from: Vec<f64> = start.measured.iter().map(|&x| f64::from(x)).collect();
+    let sent = avoid::send(driver, &from, &goal, timing);
+    let sent = sent.map_err(|e| match e {
+        NotSent::Host(e) => Refused::because(format!("{e:#}")),
+        NotSent::Link(e) => Refused::link(driver.arm(), e),
+    })?;
+    route.sent = MovePath::Joint;
+    route.avoided = Some(sent);
+    Ok(route)
+}
+
+/// Seeds tried for a free IK solution beyond the one from where the arm is.
+const SEEDS: usize = 12;
+
+/// The host's IK solution of `target` that keeps the margin, nearest where the arm is: the one
+/// seeded from there, else the closed form's others and ones seeded across the joint ranges
+/// (fixed seeds, so a move repeats). Refused naming the pair when every solution found is in
+/// collision, or when none is found.
+fn free_solution(driver: &Driver, start: &Status, target: &CartesianTarget) -> Result<Vec<f64>, Refused> {
+    let host = |e: anyhow::Error| Refused::because(format!("{e:#}"));
+    let arm = driver.model();
+    let from: Vec<f64> = start.measured.iter().map(|&x| f64::from(x)).collect();
+    let position = target.position.map(f64::from);
+    let orientation = target.orientation.map(|o| o.map(f64::from));
+    let mut checker = Checker::of(arm).map_err(host)?.ok_or_else(|| Refused::because("no collision geometry"))?;
+    let mut rng = kinematics::SplitMix64::new(crate::motion::plan::DEFAULT_SEED);
+    let mut seeds = vec![from.clone(), arm.middle()];
+    seeds.extend((0..SEEDS).map(|_| arm.random_configuration(&mut rng)));
+    let mut first_contact: Option<String> = None;
+    let mut best: Option<(f64, Vec<f64>)> = None;
+    let mut found = 0usize;
+    for (i, seed) in seeds.into_iter().enumerate() {
+        let solved = reach::solve(arm, position, orientation, Some(seed)).map_err(host)?;
+        if solved.status != IkStatus::Converged || !arm.admits(&solved.q) {
+            continue;
+        }
+        found += 1;
+        match checker.contact(&solved.q).map_err(host)? {
+            Some(contact) => {
+                first_contact.get_or_insert_with(|| checker.describe(&contact));
+            }
+            None => {
+                let d = crate::motion::plan::length(&[from.clone(), solved.q.clone()]);
+                // The solution from where the arm is wins when it is free: the posture it keeps.
+                if i == 0 {
+                    return Ok(solved.q);
+                }
+                if best.as_ref().is_none_or(|(b, _)| d < *b) {
+                    best = Some((d, solved.q));
+                }
+            }
+        }
+    }
+    match (best, first_contact) {
+        (Some((_, q)), _) => Ok(q),
+        (None, Some(contact)) => Err(Refused {
+            reason: format!(
+                "the target is in collision: {contact} ({found} IK solutions found from {} seeds, none free)",
+                SEEDS + 2
+            ),
+            hint: "",
+            by: RefusedBy::Host,
+        }),
+        (None, None) => Err(Refused {
+            reason: format!("{}: the host's IK finds no solution", LinkError::Nak(NakReason::Unreachable)),
+            hint: "",
+            by: RefusedBy::Host,
+        }),
+    }
+}
+
 /// Which way a move went, and why it went by joints if it did.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Outcome {
-    /// "line", "line, then joints" or "joint".
+    /// "line", "line, then joints", "joint" or "planned".
     pub path: &'static str,
     /// Where the straight line was found blocked, m along it: by the host's check before the move,
     /// or by the firmware on the way (its status says where it gave the line up).
@@ -150,6 +270,15 @@ pub fn outcome(arm: &ArmSpec, route: &Route, end: &Status, error_mm: f64) -> Res
             given_up.map(along).unwrap_or_default(),
             at_limits(arm, end.measured.iter().map(|&x| f64::from(x)))
         ));
+    }
+    if let Some(sent) = &route.avoided {
+        let ahead = route.blocked_ahead.as_ref().map(|b| where_blocked(arm, b));
+        let why = match (ahead, &sent.why) {
+            (Some(ahead), Some(why)) => Some(format!("{ahead}; {why}")),
+            (Some(ahead), None) => Some(format!("{ahead}, so the arm went by joints")),
+            (None, why) => why.clone(),
+        };
+        return Ok(Outcome { path: sent.path, blocked_at: route.blocked_ahead.as_ref().map(|b| b.along), why });
     }
     if let Some(b) = &route.blocked_ahead {
         let why = format!("{}, so the arm went by joints", where_blocked(arm, b));
@@ -195,24 +324,33 @@ pub fn host_solution(driver: &Driver, start: &Status, target: &CartesianTarget) 
 /// The straight line from the tool (at the joints of `start`) to `target`, checked by IK as the
 /// firmware will track it ([`Line::follow`]).
 pub fn check_line(driver: &Driver, start: &Status, target: &CartesianTarget) -> Result<Result<Vec<f64>, Blocked>> {
+    check_line_with(driver, start, target, None)
+}
+
+/// [`check_line`], every point also checked against the arm's collision geometry by `checker`.
+pub fn check_line_with(
+    driver: &Driver,
+    start: &Status,
+    target: &CartesianTarget,
+    checker: Option<&mut Checker<'_>>,
+) -> Result<Result<Vec<f64>, Blocked>> {
     let q: Vec<f64> = start.measured.iter().map(|&x| f64::from(x)).collect();
     let line = Line {
         from: driver.tool_position(&start.measured)?,
         to: target.position.map(f64::from),
         orientation: target.orientation.map(|o| o.map(f64::from)),
     };
-    line.follow(driver.model(), &q, line.points())
+    line.follow_checked(driver.model(), &q, line.points(), checker)
 }
 
 /// Where the host's check found the line blocked, in words ("the straight line is blocked 75 mm
 /// along its 145 mm, joint 1 (shoulder_pan) at its upper limit 1.920").
 pub fn where_blocked(arm: &crate::arm::ArmSpec, b: &Blocked) -> String {
-    format!(
-        "the straight line is blocked {:.0} mm along its {:.0} mm{}",
-        b.along * 1e3,
-        b.length * 1e3,
-        at_limits(arm, b.q.iter().copied())
-    )
+    let why = match &b.contact {
+        Some(contact) => format!(": {contact}"),
+        None => at_limits(arm, b.q.iter().copied()),
+    };
+    format!("the straight line is blocked {:.0} mm along its {:.0} mm{why}", b.along * 1e3, b.length * 1e3)
 }
 
 /// The joints within 0.02 rad (or m) of a limit at `q`, in words (", joint 2 (shoulder_lift) at its
@@ -256,7 +394,7 @@ mod tests {
     }
 
     fn route(sent: MovePath) -> Route {
-        Route { sent, blocked_ahead: None, solved_on_host: false }
+        Route { sent, blocked_ahead: None, solved_on_host: false, avoided: None }
     }
 
     /// The way a move went is the firmware's account, and the words say where the line was given
@@ -295,8 +433,9 @@ mod tests {
         assert_eq!(outcome(&arm, &by_host, &joints, 0.1).unwrap().why.as_deref(), Some(SOLVED_ON_HOST));
         let ahead = Route {
             sent: MovePath::Joint,
-            blocked_ahead: Some(Blocked { along: 0.075, length: 0.145, q: vec![0.0; 5] }),
+            blocked_ahead: Some(Blocked { along: 0.075, length: 0.145, q: vec![0.0; 5], contact: None }),
             solved_on_host: false,
+            avoided: None,
         };
         let o = outcome(&arm, &ahead, &joints, 0.1).unwrap();
         assert_eq!((o.path, o.blocked_at), ("joint", Some(0.075)));

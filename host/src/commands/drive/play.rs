@@ -17,11 +17,14 @@ use firmware::link::message::{
 };
 use serde::Serialize;
 
+use super::avoid;
 use super::error::{interrupted, DriveError, DriveResult};
 use super::progress::Progress;
 use crate::link::session::seconds_waited;
 use crate::link::session::Keyframe;
 use crate::motion::cartesian_file::{self, parse_cartesian_keyframes, CartesianKeyframes};
+use crate::motion::mocap::retarget::timebase::limits_of;
+use crate::motion::plan::{as_played, check_keyframes};
 use crate::motion::trajectory::{self, Keyframes};
 use crate::runtime::driver::{check_joints, fmt3, Driver};
 use crate::support::interrupt;
@@ -182,6 +185,28 @@ impl Plan {
         }
     }
 
+    /// Checks every segment the player will play, from where the arm stands (`start`) through
+    /// every keyframe, against the arm's collision geometry (nothing to check without one): fails
+    /// naming the first keyframe pair whose segment collides, the pair of bodies and their
+    /// distance. Cartesian keyframes are checked at the host's IK solutions of them.
+    pub fn check_collisions(&self, driver: &Driver, start: &[f64]) -> Result<()> {
+        let Some(mut checker) = avoid::host_checker(driver)? else { return Ok(()) };
+        let (times, lines, positions, velocities) = match &self.frames {
+            Frames::Joint(k) => (&k.times, &k.lines, k.positions.clone(), k.velocities.as_deref()),
+            Frames::Cartesian(k) => {
+                (&k.times, &k.lines, crate::motion::reach::check(driver.model(), k, &|line| self.at(line))?, None)
+            }
+        };
+        let (max_velocity, max_acceleration) = limits_of(driver.model());
+        let played = as_played(start, times, &positions, velocities, max_velocity, max_acceleration);
+        let Some((k, found)) = check_keyframes(&mut checker, start, &played)? else { return Ok(()) };
+        let pair = match k {
+            0 => format!("from where the arm stands to keyframe 1 (line {})", lines[0]),
+            k => format!("between keyframes {k} and {} (lines {} and {})", k + 1, lines[k - 1], lines[k]),
+        };
+        bail!("{}: {pair}: {}; nothing was sent, nothing moved", self.path.display(), checker.describe_along(&found))
+    }
+
     /// The keyframes with their file lines, checked against the connected arm.
     pub fn keyframes(&self, driver: &Driver) -> Result<Vec<(usize, Keyframe)>> {
         let column = match &self.frames {
@@ -291,6 +316,8 @@ pub fn play(driver: &mut Driver, plan: &Plan, notes: &mut dyn Write) -> DriveRes
     let keyframes = plan.keyframes(driver).map_err(DriveError::Input)?;
     let total = keyframes.len();
     let status = driver.status()?;
+    let measured: Vec<f64> = status.measured.iter().map(|&x| f64::from(x)).collect();
+    plan.check_collisions(driver, &measured).map_err(DriveError::Input)?;
     if !matches!(status.state, RunState::Idle | RunState::TorqueOff) {
         return Err(DriveError::failed(format!(
             "the arm is busy ({:?}): wait, or `stop` it first; nothing was sent",

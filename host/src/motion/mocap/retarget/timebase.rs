@@ -153,7 +153,7 @@ impl Retargets {
 }
 
 /// An arm's velocity and acceleration limits (rad/s, rad/s²): its servos', else the defaults.
-fn limits_of(arm: &dyn DynArm) -> (f64, f64) {
+pub fn limits_of(arm: &dyn DynArm) -> (f64, f64) {
     let servos = crate::arm::servos::servos_of(arm.spec());
     (
         servos.as_ref().map_or(DEFAULT_MAX_VELOCITY, |s| s.max_velocity),
