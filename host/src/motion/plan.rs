@@ -19,7 +19,7 @@
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Result};
-use kinematics::collision::Shape;
+use kinematics::collision::{Part, Shape};
 use kinematics::nalgebra::SVector;
 use kinematics::nalgebra::Vector3;
 use kinematics::trajectory::JointLimits;
@@ -191,13 +191,11 @@ impl std::fmt::Display for PlanError {
 
 impl std::error::Error for PlanError {}
 
-/// A collision-free path from `start` to `goal` (both within the limits and free), shortcut.
-pub fn plan(checker: &mut Checker<'_>, start: &[f64], goal: &[f64], options: &Options) -> Result<Path, PlanError> {
-    let began = Instant::now();
-    let checks_before = checker.checks();
-    let arm = checker.arm();
+/// Refuses a start or a goal outside the limits or in collision, naming the pair: what every
+/// plan checks first.
+pub fn check_ends(checker: &mut Checker<'_>, start: &[f64], goal: &[f64]) -> Result<(), PlanError> {
     for (q, which) in [(start, "the start"), (goal, "the goal")] {
-        if !arm.admits(q) {
+        if !checker.arm().admits(q) {
             return Err(PlanError::Invalid(format!("{which} ({}) is outside the joint limits", shown(q))));
         }
         match checker.contact(q) {
@@ -206,6 +204,15 @@ pub fn plan(checker: &mut Checker<'_>, start: &[f64], goal: &[f64], options: &Op
             Ok(None) => {}
         }
     }
+    Ok(())
+}
+
+/// A collision-free path from `start` to `goal` (both within the limits and free), shortcut.
+pub fn plan(checker: &mut Checker<'_>, start: &[f64], goal: &[f64], options: &Options) -> Result<Path, PlanError> {
+    let began = Instant::now();
+    let checks_before = checker.checks();
+    let arm = checker.arm();
+    check_ends(checker, start, goal)?;
     let done = |corners: Vec<Vec<f64>>, samples: usize, checker: &mut Checker<'_>| Path {
         corners,
         samples,
@@ -312,10 +319,28 @@ fn point_at(path: &[Vec<f64>], along: f64) -> (usize, Vec<f64>) {
 
 /// The scene of the planner's property test and of `armctl bench plan`: the arm's own collision
 /// geometry, else capsules of 20 mm from its frames with the table at its base
-/// ([`CollisionSpec::from_frames`]), and a box 6 cm deep, 16 cm wide and 12 cm high standing on
+/// ([`CollisionSpec::from_frames`], the pairs that touch at the zero pose allowed), and a box 6 cm
+/// deep, 16 cm wide and 12 cm high standing on
 /// the table in front of the arm at half the reach of its middle pose.
 pub fn boxed_scene(arm: &dyn DynArm) -> Result<CollisionSpec> {
-    let mut spec = collision_of(arm.spec()).unwrap_or_else(|| CollisionSpec::from_frames(arm.spec(), 0.02));
+    let mut spec = match collision_of(arm.spec()) {
+        Some(own) => own,
+        None => {
+            // Capsules measured from the frames can touch where the real links do not (the
+            // OpenManipulator-X's first link sits 17 mm above the base plane, closer than its
+            // capsule's radius): pairs that touch at the zero pose are neighbours, as MoveIt's
+            // setup assistant decides.
+            let mut spec = CollisionSpec::from_frames(arm.spec(), 0.02);
+            let zero = vec![0.0; arm.spec().dof()];
+            for _ in 0..spec.bodies.len() * spec.bodies.len() {
+                let mut checker = Checker::new(arm, spec.clone())?;
+                let Some(contact) = checker.contact(&zero)? else { break };
+                let pair = [spec.name(Part::Body(contact.body)).to_string(), spec.name(contact.other).to_string()];
+                spec.allowed.push(pair);
+            }
+            spec
+        }
+    };
     let reach = arm.tool_pose(&arm.middle())?.translation.norm();
     let shape = Shape::aligned_box(Vector3::new(0.5 * reach, 0.0, 0.06), Vector3::new(0.06, 0.16, 0.12));
     spec.obstacles.push(ObstacleSpec { name: "box".into(), shape });
