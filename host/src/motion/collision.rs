@@ -261,7 +261,7 @@ impl<'a> Checker<'a> {
         for (end, s) in ends.iter_mut().zip([0.0, 1.0]) {
             let q = segment.at(s);
             let (clearance, closest) = self.clearance(&q)?;
-            if let Some(contact) = closest.filter(|_| !(clearance >= 0.0)) {
+            if let Some(contact) = closest.filter(|_| clearance.is_nan() || clearance < 0.0) {
                 return Ok(Some(SegmentContact { at: s, q, contact }));
             }
             *end = (s, clearance);
@@ -296,7 +296,7 @@ impl<'a> Checker<'a> {
         let q = segment.at(middle);
         let (cm, closest) = self.clearance(&q)?;
         let Some(contact) = closest else { return Ok(None) };
-        if !(cm >= 0.0) || motion <= self.step || depth >= MAX_DEPTH {
+        if cm.is_nan() || cm < 0.0 || motion <= self.step || depth >= MAX_DEPTH {
             // Inside the margin; or at the finest piece, not shown to keep it all along.
             return Ok(Some(SegmentContact { at: middle, q, contact }));
         }
