@@ -32,11 +32,11 @@ use firmware::bus::{Id, Instruction, InstructionPacket, Status, BROADCAST};
 use firmware::controller::gripper::Gripper;
 use firmware::controller::Config;
 use firmware::tracking::Tracker;
+use kinematics::collision::{Body, Capsule, Part, Scene, Shape};
 use kinematics::ik::{DampedLeastSquares, IkConfig, IkMethod, IkStatus, Residual, Target};
 use kinematics::nalgebra::{ComplexField, SVector, Vector3};
 use kinematics::trajectory::{JointLimits, Player, PlayerKeyframe};
 use kinematics::tree::{Effector, EffectorTarget, Tree, TreeProblem, TreeSolution, TreeStatus};
-use kinematics::collision::{Body, Capsule, Part, Scene, Shape};
 use kinematics::{presets, Joint, Limits, Pose};
 
 /// Guest instructions per SysTick tick: 1 instruction per ns (`-icount shift=0`) over a 25 MHz clock.
