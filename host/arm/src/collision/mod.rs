@@ -94,6 +94,15 @@ impl CollisionSpec {
         }
     }
 
+    /// The same geometry without any obstacle: the arm's own bodies only.
+    pub fn without_obstacles(mut self) -> Self {
+        let obstacles: Vec<String> = self.obstacles.iter().map(|o| o.name.clone()).collect();
+        for name in obstacles {
+            self = self.without(&name);
+        }
+        self
+    }
+
     /// The same geometry without the obstacle named `name` (`--no-table`).
     pub fn without(mut self, name: &str) -> Self {
         self.obstacles.retain(|o| o.name != name);

@@ -11,8 +11,10 @@
 use anyhow::{bail, Result};
 use kinematics::SplitMix64;
 
+use crate::arm::collision::{collision_of, CollisionSpec};
 use crate::arm::dof::DynArm;
 use crate::arm::servos::GripperSpec;
+use crate::motion::collision::Checker;
 use crate::motion::line::Line;
 
 /// One arm's demo.
@@ -59,9 +61,18 @@ fn horizontal(p: [f64; 3]) -> f64 {
     p[0].hypot(p[1])
 }
 
+/// How many times the arm's collision margin the demo's lines keep from the table and obstacles.
+const AROUND: f64 = 1.5;
+/// How many times the margin they keep between the arm's own bodies.
+const OWN: f64 = 3.0;
+
 /// The arm's workspace as the demo draws from it.
 struct Workspace<'a> {
     arm: &'a dyn DynArm,
+    /// The check of the arm against its collision geometry (the table, its own links): the demo
+    /// draws only lines that keep the margin, as the host and the firmware will require. `None`
+    /// for an arm without geometry. In a cell because following a line is a query of `&self`.
+    checker: std::cell::RefCell<Vec<Checker<'a>>>,
     /// The farthest drawn tool position from the base (m).
     reach: f64,
     /// Candidate tool positions, in the order drawn.
@@ -83,7 +94,25 @@ impl<'a> Workspace<'a> {
         if !(reach.is_finite() && reach > 0.02) {
             bail!("arm {}: its tool does not leave the base ({reach} m): no demo to draw", arm.spec().name);
         }
-        Ok(Self { arm, reach, points })
+        // Lines that keep more than the margin: the firmware looks ahead along its brake, which
+        // runs on past a turn of the path, and its IK of each keyframe may fold a redundant arm a
+        // little otherwise than the host's; a stream that grazes the margin would be stopped.
+        // Bodies on the base and the obstacles never move relative to each other: no line of the
+        // demo changes their distance, so those pairs are left to the firmware's own margin.
+        let checkers = match collision_of(arm.spec()) {
+            None => Vec::new(),
+            Some(spec) => {
+                let fixed = spec.bodies.iter().filter(|b| b.link.is_none()).map(|b| b.name.clone());
+                let pairs: Vec<[String; 2]> =
+                    fixed.flat_map(|b| spec.obstacles.iter().map(move |o| [b.clone(), o.name.clone()])).collect();
+                let allowed = spec.allowed.iter().cloned().chain(pairs).collect();
+                let around = CollisionSpec { margin: AROUND * spec.margin, allowed, ..spec.clone() };
+                let own = CollisionSpec { margin: OWN * spec.margin, ..spec }.without_obstacles();
+                vec![Checker::new(arm, around)?, Checker::new(arm, own)?]
+            }
+        };
+        let checker = std::cell::RefCell::new(checkers);
+        Ok(Self { arm, checker, reach, points })
     }
 
     /// Comfortably inside the reach: off the base axis, short of full stretch, above the base.
@@ -92,9 +121,20 @@ impl<'a> Workspace<'a> {
     }
 
     /// The joint values at `to` when the tool follows the straight line there from `from`, where
-    /// the joints are `q`; `None` unless every point of it solves, near the last.
+    /// the joints are `q`; `None` unless every point of it solves, near the last, and the arm
+    /// keeps its collision margin all the way.
     fn follow(&self, q: &[f64], from: [f64; 3], to: [f64; 3]) -> Option<Vec<f64>> {
-        Line { from, to, orientation: None }.follow(self.arm, q, LINE_POINTS).ok()?.ok()
+        let line = Line { from, to, orientation: None };
+        let mut checkers = self.checker.borrow_mut();
+        if checkers.is_empty() {
+            return line.follow(self.arm, q, LINE_POINTS).ok()?.ok();
+        }
+        // The same IK path each time (seeded alike), checked against each checker.
+        let mut end = None;
+        for checker in checkers.iter_mut() {
+            end = Some(line.follow_checked(self.arm, q, LINE_POINTS, Some(checker)).ok()?.ok()?);
+        }
+        end
     }
 
     /// Follows every line of `path` from `q`; the joints at its end, or `None`.
