@@ -50,7 +50,7 @@ mod tests {
 
     #[test]
     fn a_stop_is_named_from_the_arms_geometry_or_by_index_without_it() {
-        let mut arm = ArmSpec::load("so101", None).unwrap();
+        let mut arm = ArmSpec { collision: None, ..ArmSpec::load("so101", None).unwrap() };
         let spec = CollisionSpec::from_frames(&arm, 0.02);
         let last = CollisionStop { body: 5, other: CollisionPart::Obstacle(0), distance: 0.0032, count: 2 };
         assert_eq!(stop(&arm, &last), "body 5 and obstacle 0 are 3.2 mm apart");
