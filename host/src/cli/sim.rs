@@ -186,6 +186,13 @@ pub struct SimServosArgs {
     /// chooses its period when it connects (its `control period` line): 25 behind --burst-ms 16.
     #[arg(long, value_name = "MS", requires = "arm")]
     pub period_ms: Option<f64>,
+    /// With --arm: the simulated links stop where they run into the table, an obstacle or each
+    /// other (the arm's collision geometry), and the monitor judges every goal against it. Off by
+    /// default on this real-time simulator: a calibration's hand moves every joint stop to stop,
+    /// through the table, and with contact on the simulated bus stops answering (a known fault,
+    /// not yet found; `--sim` and the SIL tests have contact on).
+    #[arg(long, requires = "arm")]
+    pub contact: bool,
     /// An object W mm wide between the jaws of --arm's gripper: closing on it, the jaws stop there
     /// and the servo's load rises (as in `armctl --sim --object-mm`).
     #[arg(long, value_name = "W", requires = "arm", allow_negative_numbers = true)]
@@ -412,7 +419,7 @@ fn prepare(args: &SimServosArgs) -> Result<(SimConfig, ServeOptions)> {
     let registers = registers(&args.register, &ids, model)?;
     let hardware_errors = hardware_errors(&args.hardware_error, &ids)?;
     // The arm's geometry, when it has some: its links stop where they run into something.
-    let world = spec.as_ref().map(crate::sim::World::of).transpose()?.flatten();
+    let world = if args.contact { spec.as_ref().map(crate::sim::World::of).transpose()?.flatten() } else { None };
     let config = SimConfig {
         protocol,
         model,
