@@ -6,17 +6,21 @@
 //! servos, not the firmware's setpoints) is turned back into joint values by the arm's servo
 //! mapping and checked here with the f64 scene: no checked pair may come closer than the margin,
 //! less the quantisation of a goal to whole ticks (see [`TICK_TOLERANCE`]).
+//!
+//! The host checks every move first and plans around what is in the way, so the moves that must
+//! reach the firmware's check are sent through the session as they are (the link's own requests),
+//! past the host's operations; and the simulated servos have no contact of their own here
+//! (`SilOptions::contact`), so that what stops the arm is the firmware alone.
 
 use armctl::arm::collision::{collision_of, CollisionSpec, ObstacleSpec};
 use armctl::arm::servos::servos_of;
 use armctl::arm::ArmSpec;
-use armctl::commands::drive::joints::{joints, JointsRequest};
 use armctl::commands::drive::move_to::{move_to, MoveRequest};
 use armctl::commands::drive::state::status;
 use armctl::runtime::connection::open_sil;
 use armctl::runtime::driver::Driver;
 use armctl::runtime::sil::{Sil, SilOptions, TraceSample};
-use firmware::link::message::{CollisionCheck, CollisionPart, Joints, MovePath, Timing};
+use firmware::link::message::{CartesianTarget, CollisionCheck, CollisionPart, Joints, MovePath, Timing};
 use kinematics::collision::Shape;
 use kinematics::nalgebra::{SVector, Vector3};
 
@@ -48,9 +52,21 @@ fn cube() -> ObstacleSpec {
     ObstacleSpec { name: "box".into(), shape: Shape::aligned_box(centre, Vector3::repeat(0.06)) }
 }
 
+/// The simulated board of `arm`, its servos without contact of their own.
+fn no_contact(arm: &ArmSpec) -> SilOptions {
+    SilOptions { contact: None, ..SilOptions::for_arm(arm.clone()).unwrap() }
+}
+
+/// What the firmware says when it stops a move of `driver`'s sent as it is: the move is started,
+/// waited for, and its end named from the arm's geometry.
+fn firmware_stop(arm: &ArmSpec, d: &mut Driver) -> String {
+    let end = d.session().wait_idle(2000).unwrap();
+    armctl::commands::drive::collision::stopped(arm, &end).unwrap_or_else(|| format!("not stopped: {end:?}"))
+}
+
 /// A driver of `arm` on a simulated board that records every tick.
 fn driver(arm: &ArmSpec) -> Driver {
-    let sil = Sil::new(&SilOptions::for_arm(arm.clone()).unwrap()).unwrap();
+    let sil = Sil::new(&no_contact(arm)).unwrap();
     let mut driver = Driver::on(open_sil(sil, arm.clone()).unwrap()).unwrap();
     driver.sil().unwrap().record();
     driver
@@ -95,12 +111,14 @@ fn assert_goals_keep_the_margin(arm: &ArmSpec, driver: &mut Driver, what: &str) 
 fn a_move_into_the_table_is_refused_naming_the_pair_and_a_free_one_succeeds() {
     let arm = so101(&[]);
     let mut d = driver(&arm);
-    let request = MoveRequest::new([0.20, 0.0, -0.08], None, None, None, MovePath::Auto, 20.0).unwrap();
-    let err = move_to(&mut d, &request, &mut Vec::new()).unwrap_err().to_string();
+    d.session().torque_on(20).unwrap();
+    let target = CartesianTarget { position: [0.20, 0.0, -0.08], orientation: None };
+    let e = d.session().move_to(target, Timing::MaxSpeed(0.1), MovePath::Auto).unwrap_err();
+    let armctl::link::client::LinkError::Nak(reason) = &e else { panic!("{e}") };
+    let err = armctl::link::collision::refusal(&arm, reason).unwrap_or_else(|| format!("{e}"));
     println!("{err}");
     assert!(err.contains("collision check refused the target") && err.contains("table"), "{err}");
-    assert!(err.contains("nothing moved"), "{err}");
-    // Torque went on and off again: the servos held one goal throughout.
+    // The servos held one goal throughout.
     let trace = d.sil().unwrap().take_trace();
     let held: Vec<_> = trace.iter().filter(|s| !s.goals.is_empty()).map(|s| s.goals.clone()).collect();
     assert!(held.windows(2).all(|w| w[0] == w[1]), "a goal changed: {held:?}");
@@ -121,8 +139,10 @@ fn a_move_into_the_table_is_refused_naming_the_pair_and_a_free_one_succeeds() {
 fn a_joint_move_through_a_box_stops_short_of_it() {
     let arm = so101(&[cube()]);
     let mut d = driver(&arm);
-    let through = JointsRequest::new(vec![-2.0 * CUBE_PAN, 0.0, 0.0, 0.0, 0.0], None, None, 20.0).unwrap();
-    let err = joints(&mut d, &through, &mut Vec::new()).unwrap_err().to_string();
+    d.session().torque_on(20).unwrap();
+    let through = Joints::from_slice(&[-2.0 * CUBE_PAN as f32, 0.0, 0.0, 0.0, 0.0]).unwrap();
+    d.session().move_joints(through, Timing::MaxSpeed(1.0)).unwrap();
+    let err = firmware_stop(&arm, &mut d);
     println!("{err}");
     assert!(err.contains("stopped the arm short of a collision") && err.contains("and box"), "{err}");
     assert_goals_keep_the_margin(&arm, &mut d, "joint move through the box");
@@ -146,8 +166,10 @@ fn a_line_through_a_box_stops_short_of_it() {
     // The tool's circle at twice the cube's pan: the chord passes through the cube's centre.
     let (s, c) = (2.0 * CUBE_PAN).sin_cos();
     let other_side = [tool[0] * c, tool[0] * s, tool[2]];
-    let request = MoveRequest::new(other_side, None, None, None, MovePath::Line, 20.0).unwrap();
-    let err = move_to(&mut d, &request, &mut Vec::new()).unwrap_err().to_string();
+    d.session().torque_on(20).unwrap();
+    let target = CartesianTarget { position: other_side.map(|x| x as f32), orientation: None };
+    d.session().move_to(target, Timing::MaxSpeed(0.1), MovePath::Line).unwrap();
+    let err = firmware_stop(&arm, &mut d);
     println!("{err}");
     assert!(err.contains("stopped the arm short of a collision") && err.contains("and box"), "{err}");
     assert_goals_keep_the_margin(&arm, &mut d, "line through the box");
@@ -159,7 +181,7 @@ fn a_line_through_a_box_stops_short_of_it() {
 #[test]
 fn with_the_check_off_the_status_says_so_and_nothing_is_checked() {
     let arm = so101(&[cube()]);
-    let sil = Sil::new(&SilOptions::for_arm(arm.clone()).unwrap()).unwrap();
+    let sil = Sil::new(&no_contact(&arm)).unwrap();
     let mut session = armctl::link::session::Session::over(sil);
     session.set_collision_check(armctl::link::arm_config::CollisionCheck::Off);
     armctl::runtime::connection::handshake_with(&mut session, Some(arm.clone())).unwrap();
@@ -187,7 +209,7 @@ fn geometry_that_does_not_fit_is_refused_by_name_before_sending() {
     let mut arm = so101(&[]);
     let spec = arm.collision.as_mut().unwrap();
     spec.bodies[5].link = Some(7);
-    let sil = Sil::new(&SilOptions::for_arm(arm.clone()).unwrap()).unwrap();
+    let sil = Sil::new(&no_contact(&arm)).unwrap();
     let err = match open_sil(sil, arm.clone()) {
         Ok(_) => panic!("sent"),
         Err(e) => format!("{e:#}"),
@@ -195,7 +217,7 @@ fn geometry_that_does_not_fit_is_refused_by_name_before_sending() {
     assert!(err.contains("collision body wrist_roll"), "{err}");
     let mut arm = so101(&[]);
     arm.collision.as_mut().unwrap().obstacles[0].shape = Shape::HalfSpace { normal: Vector3::zeros(), offset: 0.0 };
-    let sil = Sil::new(&SilOptions::for_arm(arm.clone()).unwrap()).unwrap();
+    let sil = Sil::new(&no_contact(&arm)).unwrap();
     let err = match open_sil(sil, arm) {
         Ok(_) => panic!("sent"),
         Err(e) => format!("{e:#}"),
