@@ -228,7 +228,7 @@ fn ctrl_c_stops_the_arm() {
     }
     let file = TempFile::new("long", &long);
     let runs: [&[&str]; 2] = [
-        &["--sim", "joints", "--q", "1,1,1,1,1", "--duration", "80000", "--timeout", "86000"],
+        &["--sim", "joints", "--q", "0.5,-0.5,0.5,0.5,1", "--duration", "80000", "--timeout", "86000"],
         &["--sim", "play", file.path()],
     ];
     for args in runs {
@@ -240,8 +240,9 @@ fn ctrl_c_stops_the_arm() {
             .spawn()
             .expect("armctl starts");
         // Virtual time runs hundreds of times faster than the wall clock, but these take a day
-        // and 5.5 hours of it.
-        std::thread::sleep(std::time::Duration::from_millis(300));
+        // and 5.5 hours of it. Two seconds: `play` checks every segment of its 200 keyframes
+        // against the arm's collision geometry before anything moves.
+        std::thread::sleep(std::time::Duration::from_millis(2000));
         let kill = Command::new("kill").args(["-INT", &child.id().to_string()]).status().expect("kill runs");
         assert!(kill.success());
         let output = child.wait_with_output().unwrap();
