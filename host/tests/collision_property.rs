@@ -27,13 +27,9 @@ const TICK_ROUNDING_M: f64 = 0.002;
 
 const TARGETS: usize = 40;
 
-/// Where every simulated servo's horn is (ticks, as the simulator holds it): the servos' truth,
-/// not the firmware's reading of it.
+/// Where every simulated servo's horn is ([`armctl::runtime::sil::Sil::horns`]).
 fn horns(driver: &mut Driver) -> Vec<f64> {
-    let sil = driver.sil().unwrap();
-    let bus = sil.bus().borrow();
-    let now = bus.now_ns();
-    bus.servos().iter().map(|s| s.horn_at(now)).collect()
+    driver.sil().unwrap().horns()
 }
 
 struct Tally {

@@ -193,11 +193,7 @@ mod tests {
         let (left, right) = (vec![0.8, -0.2, 0.5, 1.0, 0.0], vec![-0.8, -0.2, 0.5, 1.0, 0.0]);
         // The simulated horns, not the firmware's reading: the first reading after the arm is
         // sent again can be the previous arm's mapping's.
-        let horns = |driver: &mut Driver| {
-            let bus = driver.sil().unwrap().bus().borrow();
-            let now = bus.now_ns();
-            bus.servos().iter().map(|s| s.horn_at(now)).collect::<Vec<f64>>()
-        };
+        let horns = |driver: &mut Driver| driver.sil().unwrap().horns();
         let before = horns(&mut driver);
         let inside = JointsRequest::new(vec![0.0, 0.5, 0.5, 0.5, 0.0], None, None, 20.0).unwrap();
         let e = joints(&mut driver, &inside, &mut std::io::sink()).unwrap_err().to_string();

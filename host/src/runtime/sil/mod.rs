@@ -286,6 +286,14 @@ impl Sil {
         &self.bus
     }
 
+    /// Where every simulated servo's horn is now (ticks, as the simulator holds it): the servos'
+    /// truth, not the firmware's reading of it, which can lag a mapping the arm was sent anew.
+    pub fn horns(&self) -> Vec<f64> {
+        let bus = self.bus.borrow();
+        let now = bus.now_ns();
+        bus.servos().iter().map(|s| s.horn_at(now)).collect()
+    }
+
     /// The host link's fault settings (host to board, board to host).
     pub fn link_faults_mut(&mut self) -> (&mut Faults, &mut Faults) {
         (self.to_board.faults_mut(), self.to_host.faults_mut())
