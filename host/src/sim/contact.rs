@@ -82,8 +82,10 @@ impl ContactModel {
         let mut start = from_ns;
         while start < to_ns {
             let end = to_ns.min(start.saturating_add(STEP_NS));
-            let free_moving =
-                |servos: &[SimServo]| index.iter().any(|&i| servos[i].stop().is_none() && servos[i].in_motion(start));
+            // Only a servo under torque is judged: a limp one goes where the hand takes it.
+            let free_moving = |servos: &[SimServo]| {
+                index.iter().any(|&i| servos[i].torque() && servos[i].stop().is_none() && servos[i].in_motion(start))
+            };
             // A stalled servo pushes on whenever another joint moves (it may clear the way), and
             // leaves its stop behind when its goal lies on the free side. Otherwise nothing has
             // changed for it: the push would find the same contact.
@@ -97,8 +99,43 @@ impl ContactModel {
                 // Nothing moves from here to the end of the advance.
                 break;
             }
-            self.step(servos, &index, &mut counted, start, end);
-            start = end;
+            let Some(distances) = self.world.pair_distances(&self.angles(servos, &index, start)) else { return };
+            match self.clear_until(servos, &index, &distances, start, to_ns) {
+                Some(clear) => start = clear,
+                None => {
+                    self.step(servos, &index, &mut counted, distances, start, end);
+                    start = end;
+                }
+            }
+        }
+    }
+
+    /// How far past `start` the motion is shown clear without looking along it (`None`: not even
+    /// a step): while no point of any body can move half a pair's clearance (`distances`, at
+    /// `start`; [`World::motion_bound`] of each servo's travel), no pair can touch. The stretch
+    /// is halved from the whole advance down to a step. Far from everything, this is what makes
+    /// the simulator keep up in real time: a step looked along costs two placements of every
+    /// body, and a debug build cannot make a thousand of those a second.
+    fn clear_until(
+        &self,
+        servos: &[SimServo],
+        index: &[usize],
+        distances: &[f64],
+        start: u64,
+        to_ns: u64,
+    ) -> Option<u64> {
+        // A pair placed overlapping may move but not deeper: no room at all.
+        let clearance = distances.iter().map(|d| d.max(0.0)).fold(f64::INFINITY, f64::min);
+        let mut span = to_ns - start;
+        loop {
+            let travel: Vec<f64> = index.iter().map(|&i| servos[i].travel_bound(start, start + span)).collect();
+            if 2.0 * self.world.motion_bound(&travel) < clearance {
+                return Some(start + span);
+            }
+            if span <= STEP_NS {
+                return None;
+            }
+            span /= 2;
         }
     }
 
@@ -121,11 +158,26 @@ impl ContactModel {
 
     /// Judges the motion from `a_ns` to `b_ns`: no checked pair may overlap, or overlap deeper
     /// than it did at `a_ns` (a configuration placed overlapping may move, but not deeper in).
-    fn step(&mut self, servos: &mut [SimServo], index: &[usize], counted: &mut [bool], a_ns: u64, b_ns: u64) {
-        let mut a_ns = a_ns;
+    /// `distances` are the pairs' at `a_ns`.
+    fn step(
+        &mut self,
+        servos: &mut [SimServo],
+        index: &[usize],
+        counted: &mut [bool],
+        distances: Vec<f64>,
+        a_ns: u64,
+        b_ns: u64,
+    ) {
+        let (mut a_ns, mut at_a) = (a_ns, Some(distances));
         // Each round stops at least one servo, or ends.
         for _ in 0..=index.len() {
-            let Some(start) = self.world.pair_distances(&self.angles(servos, index, a_ns)) else { return };
+            let start = match at_a.take() {
+                Some(d) => d,
+                None => match self.world.pair_distances(&self.angles(servos, index, a_ns)) {
+                    Some(d) => d,
+                    None => return,
+                },
+            };
             // A hair below the start's own overlap: rounding is no deeper contact.
             let floor: Vec<f64> = start.iter().map(|d| d.min(0.0) - 1e-9).collect();
             let Some(mut found) = self.worse(servos, index, &floor, b_ns) else { return };

@@ -521,6 +521,12 @@ impl SimServo {
         self.corrected(actual)
     }
 
+    /// A bound on how far (ticks) its horn travels from `t0_ns` to `t1_ns` ([`Profile::travel_bound`];
+    /// a stop only shortens that).
+    pub fn travel_bound(&self, t0_ns: u64, t1_ns: u64) -> f64 {
+        self.profile.travel_bound(t0_ns, t1_ns)
+    }
+
     /// Whether its horn moves at `t_ns` (its own profile or a hand's).
     pub fn in_motion(&self, t_ns: u64) -> bool {
         self.profile.moving(t_ns)

@@ -14,6 +14,7 @@ use firmware::bus::mapping::JointMapping;
 use kinematics::collision::{distance, Capsule, Contact, Part, Scene};
 use kinematics::Pose;
 
+use crate::arm::collision::reach::reach;
 use crate::arm::collision::{CollisionSpec, MAX_BODIES, MAX_OBSTACLES};
 use crate::arm::dof::{self, DynArm};
 use crate::arm::servos::servos_of;
@@ -36,6 +37,8 @@ pub struct World {
     near: ArmScene,
     /// The pairs checked.
     pairs: Vec<(u8, Part)>,
+    /// Per joint, how far (m) any body moves at most per radian of it ([`reach`]).
+    reach: Vec<f64>,
 }
 
 impl std::fmt::Debug for World {
@@ -73,7 +76,8 @@ impl World {
             })
             .filter(|&(i, other)| !near.allowed(i, other))
             .collect();
-        Ok(Self { arm: arm.clone(), geometry, model, mappings, touching, near, pairs })
+        let reach = reach(arm, &geometry);
+        Ok(Self { arm: arm.clone(), geometry, model, mappings, touching, near, pairs, reach })
     }
 
     /// `arm` in its own geometry ([`crate::arm::collision::collision_of`]); `None` when it has none.
@@ -104,6 +108,19 @@ impl World {
         let whole = floor.clamp(f64::from(i32::MIN), f64::from(i32::MAX - 1)) as i32;
         let (a, b) = (m.to_radians::<f64>(whole), m.to_radians::<f64>(whole + 1));
         a + (ticks - floor) * (b - a)
+    }
+
+    /// A bound on how far (m) any point of any body moves while each joint's servo travels at
+    /// most `ticks[j]` ticks: the sum of each joint's reach times its angle's change.
+    pub fn motion_bound(&self, ticks: &[f64]) -> f64 {
+        ticks
+            .iter()
+            .enumerate()
+            .map(|(j, t)| {
+                let per_tick = (self.angle(j, 1.0) - self.angle(j, 0.0)).abs();
+                self.reach.get(j).map_or(f64::INFINITY, |r| r * per_tick * t.abs())
+            })
+            .sum()
     }
 
     /// Each joint's moving frame at `q` (the frames bodies ride on); `None` for a `q` the arm

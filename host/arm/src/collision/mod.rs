@@ -7,6 +7,7 @@ pub mod allowed;
 pub mod edit;
 pub mod fit;
 pub mod obstacle;
+pub mod reach;
 pub mod stl;
 pub mod toml;
 pub mod urdf;
