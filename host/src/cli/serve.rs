@@ -64,6 +64,10 @@ pub struct ServeArgs {
     /// Without the table the arm stands on.
     #[arg(long)]
     pub no_table: bool,
+    /// With --sim: the firmware gets the collision geometry with its check off, and so does
+    /// every client's host check (see `armctl --help`'s --no-collision-check).
+    #[arg(long, requires = "sim")]
+    pub no_collision_check: bool,
     /// Print the first line as JSON, {"pty": PATH}, instead of the bare path.
     #[arg(long)]
     pub json: bool,
@@ -111,6 +115,9 @@ pub fn run(args: ServeArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
     // The arm is configured now, so that the first client finds it running.
     let link = pc.take_link().ok_or_else(|| anyhow!("the core's link was taken"))?;
     let mut session = Session::over(link);
+    if args.no_collision_check {
+        session.set_collision_check(crate::link::arm_config::CollisionCheck::Off);
+    }
     handshake_with(&mut session, Some(options.arm.clone()))?;
     let started = Instant::now();
     while !shared.ready() {

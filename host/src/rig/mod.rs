@@ -98,6 +98,9 @@ impl Rig {
             .with_context(|| format!("arm {}", arm.name))?;
             arms.push(RigArm { name: arm.name.clone(), base: arm.base, mount: arm.mount, driver: Driver::on(conn)? });
         }
+        if let Some(group) = &group {
+            group.settle_reads();
+        }
         Ok(Self { name: spec.name.clone(), arms, sim: group, hands_meet: Vec::new() })
     }
 

@@ -291,7 +291,12 @@ pub fn open(target: Target, arm: Option<&str>, err: &mut dyn std::io::Write) -> 
             Box::new(sil)
         }
     };
-    connect(transport, loaded_arm, arm, pc, check)
+    let mut conn = connect(transport, loaded_arm, arm, pc, check)?;
+    let transport: &mut dyn Transport = &mut **conn.session.transport();
+    if let Some(sil) = transport.as_any_mut().downcast_mut::<Sil>() {
+        sil.settle_reads();
+    }
+    Ok(conn)
 }
 
 /// The link to a simulated board already made (the demo's, recording its ticks), with `arm` (the
@@ -372,9 +377,20 @@ pub fn handshake_with<T: Transport>(session: &mut Session<T>, arm: Option<ArmSpe
             spec
         }
         None if info.arm_name.is_empty() => bail!("the board has no arm configured: pass --arm"),
-        None => ArmSpec::load(info.arm_name.as_str(), None).with_context(|| {
-            format!("the board runs arm {}, which this host does not know; pass --arm", info.arm_name)
-        })?,
+        None => {
+            let spec = ArmSpec::load(info.arm_name.as_str(), None).with_context(|| {
+                format!("the board runs arm {}, which this host does not know; pass --arm", info.arm_name)
+            })?;
+            // A simulated board served with `--no-collision-check` runs this arm with its check
+            // off: so does the host's, as it would on that board's own command line.
+            if let Some(servos) = servos_of(&spec) {
+                let off = crate::link::arm_config::arm_digest_checked(&spec, &servos, CollisionCheck::Off)?;
+                if off == info.arm_digest {
+                    session.set_collision_check(CollisionCheck::Off);
+                }
+            }
+            spec
+        }
     };
     if usize::from(info.joints) != spec.dof() {
         bail!("the firmware drives {} joints, arm {} has {}", info.joints, spec.name, spec.dof());

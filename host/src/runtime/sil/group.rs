@@ -64,6 +64,11 @@ impl SilGroup {
     pub fn run_for(&self, seconds: f64) {
         run_in_step(&mut self.sils.borrow_mut(), seconds);
     }
+
+    /// [`Sil::settle_reads`] on every board at once.
+    pub fn settle_reads(&self) {
+        super::settle_reads(&mut self.sils.borrow_mut());
+    }
 }
 
 /// The host end of one board's link in a [`SilGroup`].

@@ -339,6 +339,13 @@ impl Sil {
         run_in_step(std::slice::from_mut(self), seconds);
     }
 
+    /// Lets control ticks pass until the firmware has read every servo and its torque (at most
+    /// [`READ_WITHIN_S`] of virtual time), as the host waits for a core on the PC: until then a
+    /// status reports each joint at the middle of its range, not where its servo stands.
+    pub fn settle_reads(&mut self) {
+        settle_reads(std::slice::from_mut(self));
+    }
+
     /// When the board's next event is due (link input or a control tick), ns.
     fn next_event_ns(&self) -> u64 {
         self.to_board.next_arrival_ns().map_or(self.next_tick_ns, |t| t.min(self.next_tick_ns))
@@ -460,6 +467,19 @@ fn step_in_step(sils: &mut [Sil], limit_ns: u64) -> bool {
         sil.clock.advance_to(next);
     }
     true
+}
+
+/// How long a simulated board may take to read its servos after it is configured (s).
+pub const READ_WITHIN_S: f64 = 1.0;
+
+/// [`Sil::settle_reads`] for boards on one clock.
+pub(crate) fn settle_reads(sils: &mut [Sil]) {
+    let period = sils.iter().map(|s| s.period_ns).max().unwrap_or(1) as f64 * 1e-9;
+    let mut waited = 0.0;
+    while waited < READ_WITHIN_S && !sils.iter().all(|s| s.board.ready()) {
+        run_in_step(sils, period);
+        waited += period;
+    }
 }
 
 /// Lets `seconds` of virtual time pass on every board of `sils`, the host silent.
