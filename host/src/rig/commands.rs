@@ -239,6 +239,34 @@ fn torque(rig: &mut Rig, on: bool) -> Result<RigTorque> {
     Ok(RigTorque { command: "torque", on, rig: rig.name.clone(), arms: ByArm(arms) })
 }
 
+/// Seeds tried after the arms' own joints when a tree's solution collides: a free solution of a
+/// random target on the torso rig took up to 31 (its nearest solutions fold an arm into its base).
+const TREE_SEEDS: usize = 200;
+/// The seeds' generator, fixed: the same move finds the same solution.
+const TREE_SEEDS_RNG: u64 = 0x5eed;
+
+/// The tree's solution for `wanted` from `seed`, if it is free: every arm's goal clear of itself
+/// and its surroundings, and the arms clear of each other. Else why not.
+fn free_tree_solution(
+    rig: &Rig,
+    tree: &super::tree::RigTree,
+    clearance: &Clearance,
+    seed: &[Vec<f64>],
+    wanted: &[Option<[f64; 3]>],
+    names: &[&str],
+) -> Result<super::tree::TreeMove> {
+    let solved = tree.solve(seed, wanted, names)?;
+    for (a, arm) in rig.arms.iter().enumerate() {
+        avoid::check_goal(&arm.driver, &solved.q[a], &format!("arm {}'s goal", arm.name))
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+    }
+    let ends: Vec<Option<Vec<f64>>> = solved.q.iter().cloned().map(Some).collect();
+    if let Some(near) = clearance.closest(&clearance.placed(&ends)?).filter(|n| n.too_close()) {
+        bail!("the arms would end too close: {}", near.describe());
+    }
+    Ok(solved)
+}
+
 /// The move of a rig that is one tree (an arm mounted on another): every target solved at once
 /// on the host over every joint of the tree (an arm without a target keeps its tool where it is),
 /// then each arm's share sent as a joint move, all with one duration so they arrive together.
@@ -262,14 +290,40 @@ fn move_tree(
     let names: Vec<&str> = rig.arms.iter().map(|a| a.name.as_str()).collect();
     let shown: Vec<String> =
         targets.iter().map(|t| format!("{} to {} m", names[t.arm], fmt3(&t.position.map(f64::from)))).collect();
-    let solved = tree
-        .solve(&q, &wanted, &names)
-        .map_err(|e| anyhow::anyhow!("move {} (world): {e:#}; no arm moved", shown.join(", ")))?;
+    // An arm without a target keeps its tool where it is now, whatever the seed.
+    let now = tree.tools(&q);
+    let wanted: Vec<Option<[f64; 3]>> = wanted.iter().zip(&now).map(|(w, p)| Some(w.unwrap_or(*p))).collect();
     let clearance = Clearance::of(rig)?;
-    let ends: Vec<Option<Vec<f64>>> = solved.q.iter().cloned().map(Some).collect();
-    if let Some(near) = clearance.closest(&clearance.placed(&ends)?).filter(|n| n.too_close()) {
-        bail!("move {} (world): the arms would end too close: {}; no arm moved", shown.join(", "), near.describe());
+    // The solve from where the arms stand first; if its solution collides (an arm in itself or
+    // the table, two arms too close), from other seeds across the joint limits: a target has
+    // several solutions, and the nearest one is not always free. The first refusal is the one
+    // reported when none is.
+    let mut rng = kinematics::SplitMix64::new(TREE_SEEDS_RNG);
+    let mut first_error = None;
+    let mut solved = None;
+    for attempt in 0..=TREE_SEEDS {
+        let seed: Vec<Vec<f64>> = if attempt == 0 {
+            q.clone()
+        } else {
+            rig.arms
+                .iter()
+                .map(|a| a.driver.arm().joints.iter().map(|j| rng.uniform(j.lower, j.upper)).collect())
+                .collect()
+        };
+        match free_tree_solution(rig, tree, &clearance, &seed, &wanted, &names) {
+            Ok(found) => {
+                solved = Some(found);
+                break;
+            }
+            Err(e) => {
+                first_error.get_or_insert(e);
+            }
+        }
     }
+    let Some(solved) = solved else {
+        let e = first_error.map(|e| format!("{e:#}")).unwrap_or_default();
+        bail!("move {} (world): {e}; no arm moved", shown.join(", "));
+    };
     // One duration for all: the tool speed over the longest tool travel, or --duration; each
     // firmware lengthens it where its joint limits need longer, so the speed limit still holds.
     let before = tree.tools(&q);
@@ -283,11 +337,6 @@ fn move_tree(
         Timing::Duration(d) => d,
         Timing::MaxSpeed(speed) => ((travel / f64::from(speed)) as f32).max(0.5),
     };
-    // Every arm's goal checked before any arm moves.
-    for (a, arm) in rig.arms.iter().enumerate() {
-        avoid::check_goal(&arm.driver, &solved.q[a], &format!("arm {}'s goal", arm.name))
-            .map_err(|e| anyhow::anyhow!("move {} (world): {e}; no arm moved", shown.join(", ")))?;
-    }
     let mut switched = Vec::new();
     for (a, arm) in rig.arms.iter_mut().enumerate() {
         let (_, on) = arm.driver.ready_to_move().with_context(|| format!("arm {}", arm.name))?;

@@ -19,6 +19,7 @@ use super::clearance::{self, Verdict};
 use super::columns::ArmPart;
 use super::report::{ArmPlayedReport, ByArm, RigPlay, RigReport};
 use super::Rig;
+use crate::link::collision::stop;
 use crate::link::session::seconds_waited;
 use crate::link::session::Keyframe;
 use crate::support::interrupt;
@@ -33,6 +34,8 @@ struct Track {
     origin: Option<f64>,
     last: Option<Status>,
     restarts: u32,
+    /// The firmware's count of collision stops when the play began.
+    collision_stops: Option<u32>,
 }
 
 /// Pushes one keyframe to arm `arm`; fails unless it was acknowledged.
@@ -141,13 +144,20 @@ pub fn play(rig: &mut Rig, mut parts: Vec<ArmPart>, err: &mut dyn Write) -> Resu
             origin: None,
             last: None,
             restarts: 0,
+            collision_stops: None,
         });
     }
-    for t in &tracks {
+    for (t, part) in tracks.iter_mut().zip(&parts) {
         let arm = &mut rig.arms[t.arm];
         let status = arm.driver.status()?;
         if !matches!(status.state, RunState::Idle | RunState::TorqueOff) {
             bail!("arm {} is busy ({:?}): wait, or `stop` it first; nothing was sent", arm.name, status.state);
+        }
+        t.collision_stops = status.last_collision.map(|c| c.count);
+        // Each arm's own path against its own geometry, as `armctl play` checks one arm's.
+        let measured: Vec<f64> = status.measured.iter().map(|&x| f64::from(x)).collect();
+        if let Err(e) = part.plan.check_collisions(&arm.driver, &measured) {
+            bail!("arm {}: {e:#}", arm.name);
         }
     }
     // Each arm an obstacle for the others: the whole timeline checked before anything moves, and
@@ -232,6 +242,14 @@ pub fn play(rig: &mut Rig, mut parts: Vec<ArmPart>, err: &mut dyn Write) -> Resu
             }
             if status.state == RunState::Moving && status.play_time > 0.0 && t.restarts == 0 {
                 t.origin.get_or_insert(f64::from(status.time) - f64::from(status.play_time));
+            }
+            // A collision stop ends the play: the firmware braked this arm short of a contact
+            // and holds it there; the others would play on without it.
+            if status.last_collision.map(|c| c.count) != t.collision_stops {
+                let pair = status.last_collision.as_ref().map(|c| stop(arm.driver.arm(), c)).unwrap_or_default();
+                let name = arm.name.clone();
+                let stopped = stop_all(rig);
+                bail!("the firmware stopped arm {name} short of a collision: {pair} where it was going; {stopped}");
             }
             match status.state {
                 RunState::Idle if t.pushed == t.messages.len() && status.queued == 0 => {}
