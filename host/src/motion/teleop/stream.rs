@@ -394,6 +394,8 @@ pub struct Streamer {
     started: Instant,
     /// The count of the follower's last collision stop, as last seen.
     collision_count: Option<u32>,
+    /// A collision stop was seen and the follower has not yet come to rest after it.
+    braking_short: bool,
 }
 
 impl Streamer {
@@ -422,6 +424,7 @@ impl Streamer {
             underruns_before: status.errors.underruns,
             started,
             collision_count: status.last_collision.map(|c| c.count),
+            braking_short: false,
         })
     }
 
@@ -584,13 +587,17 @@ impl Streamer {
             // Stopped short of a contact: the follower holds there, and the stream goes on from
             // there (a new playback once it has run dry), held short as long as it pushes on.
             self.collision_count = count;
+            self.braking_short = true;
             self.figures.collision_stops += 1;
             self.figures.last_collision =
                 status.last_collision.as_ref().map(|c| crate::link::collision::stop(driver.arm(), c));
         }
         match status.state {
             RunState::Moving => self.clock.observe(status.play_time, sent, Instant::now()),
+            // Braking short of the contact: the follower comes to rest, then holds (Idle).
+            RunState::Stopping if self.braking_short => {}
             RunState::Idle => {
+                self.braking_short = false;
                 if status.queued > 0 {
                     // Keyframes left from the playback that ran dry are timed on its clock; the
                     // new playback starts its own at zero, so they go (the arm holds where it is).
