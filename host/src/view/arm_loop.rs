@@ -406,11 +406,8 @@ impl LoopState {
                             // The last word on the way is the firmware's refusal, if the host's
                             // solution went instead.
                             let avoided = route.avoided.as_ref().map(|sent| {
-                                let ahead =
-                                    route.blocked_ahead.as_ref().map(|b| path::where_blocked(self.driver.arm(), b));
-                                let why =
-                                    [ahead, sent.why.clone()].into_iter().flatten().collect::<Vec<_>>().join("; ");
-                                (sent.path, if why.is_empty() { "by joints".to_string() } else { why })
+                                let why = path::avoided_why(self.driver.arm(), &route, sent);
+                                (sent.path, why.unwrap_or_else(|| "by joints".to_string()))
                             });
                             let (taken, how) = match (&route.blocked_ahead, route.solved_on_host) {
                                 _ if avoided.is_some() => avoided.unwrap_or_default(),

@@ -252,6 +252,18 @@ pub struct Outcome {
     pub why: Option<String>,
 }
 
+/// Why a move that went by joints through the collision-aware send (`sent`, of `route`) went so,
+/// in words: where the straight line was blocked, and what the joint path met on its way, if
+/// anything. One wording for `armctl move`, the view's Go and Python.
+pub fn avoided_why(arm: &ArmSpec, route: &Route, sent: &super::avoid::Sent) -> Option<String> {
+    let ahead = route.blocked_ahead.as_ref().map(|b| where_blocked(arm, b));
+    match (ahead, &sent.why) {
+        (Some(ahead), Some(why)) => Some(format!("{ahead}; {why}")),
+        (Some(ahead), None) => Some(format!("{ahead}, so the arm went by joints")),
+        (None, why) => why.clone(),
+    }
+}
+
 /// How the move sent by `route` went, by the firmware's own account in the status at rest (`end`:
 /// its last move, [`firmware::link::message::MoveOutcome`]), with the tool `error_mm` from the target. A line asked for
 /// alone that the firmware stopped where it was blocked, or that ended short, is an error.
@@ -272,12 +284,7 @@ pub fn outcome(arm: &ArmSpec, route: &Route, end: &Status, error_mm: f64) -> Res
         ));
     }
     if let Some(sent) = &route.avoided {
-        let ahead = route.blocked_ahead.as_ref().map(|b| where_blocked(arm, b));
-        let why = match (ahead, &sent.why) {
-            (Some(ahead), Some(why)) => Some(format!("{ahead}; {why}")),
-            (Some(ahead), None) => Some(format!("{ahead}, so the arm went by joints")),
-            (None, why) => why.clone(),
-        };
+        let why = avoided_why(arm, route, sent);
         return Ok(Outcome { path: sent.path, blocked_at: route.blocked_ahead.as_ref().map(|b| b.along), why });
     }
     if let Some(b) = &route.blocked_ahead {
