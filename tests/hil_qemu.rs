@@ -270,7 +270,9 @@ fn any_arm_on_the_real_firmware(arm: &str) {
     let Some((mut rig, spec)) = rig_for(arm) else { return };
     let c = &mut rig.link.session;
     torque_on(c);
-    for fractions in [|j: usize| 0.3 * ((j + 1) as f64).sin(), |j: usize| -0.25 * ((j + 2) as f64).cos()] {
+    // Both clear of the table and of the arm itself on the SO-101 and the OpenManipulator-X (the
+    // second was -0.25 cos(j + 2) once: 3 mm from the table on the OpenManipulator-X).
+    for fractions in [|j: usize| 0.3 * ((j + 1) as f64).sin(), |j: usize| 0.25 * ((j + 2) as f64).cos()] {
         move_to(c, &spec, tool_at(&spec, &inside(&spec, fractions)));
     }
     // From where the arm stands, each joint swinging up to 0.3 rad and back, kept inside its range;

@@ -41,7 +41,13 @@ struct Ended {
 
 fn open(arm: &str) -> (Driver, Option<armctl::sim::PtyServer>) {
     let place = Place { sim: true, arm: Some(arm.to_string()), ..Place::default() };
-    let (target, servos) = place.target().unwrap().in_real_time().unwrap();
+    // The stream's end is the subject, not the collision check: a random ramp may run the arm
+    // into the table or itself, which the firmware would stop (collision_sil tests that).
+    let mut target = place.target().unwrap();
+    if let armctl::runtime::connection::Target::Sim(options) = &mut target {
+        (options.arm.collision, options.contact) = (None, None);
+    }
+    let (target, servos) = target.in_real_time().unwrap();
     let driver = Driver::open(target, Some(arm), &mut std::io::sink()).unwrap();
     (driver, servos)
 }

@@ -81,14 +81,40 @@ impl Drop for BusyLoops {
 struct Targets {
     state: u64,
     ranges: Vec<(f64, f64)>,
+    /// The arm's model, to keep only targets clear of its collision geometry (the table and its
+    /// own links): the others would be refused, which is not what is measured here.
+    model: Box<dyn armctl::arm::dof::DynArm>,
+    last: Option<Vec<f64>>,
 }
 
 impl Targets {
     fn of(arm: &ArmSpec) -> Self {
-        Self { state: 0x9E37_79B9_7F4A_7C15, ranges: arm.joints.iter().map(|j| (j.lower, j.upper)).collect() }
+        Self {
+            state: 0x9E37_79B9_7F4A_7C15,
+            ranges: arm.joints.iter().map(|j| (j.lower, j.upper)).collect(),
+            model: armctl::arm::dof::build(arm.clone()).unwrap(),
+            last: None,
+        }
     }
 
+    /// The next target: clear, and joined to the last (the arm's zero at first, where it starts)
+    /// by a straight joint path that is clear too, so that no move needs planning around.
     fn next(&mut self) -> Vec<f64> {
+        loop {
+            let q = self.draw();
+            let from = self.last.clone().unwrap_or_else(|| vec![0.0; q.len()]);
+            let free = match armctl::motion::collision::Checker::of(self.model.as_ref()).unwrap() {
+                Some(mut checker) => checker.is_free(&q) && checker.straight_free(&from, &q),
+                None => true,
+            };
+            if free {
+                self.last = Some(q.clone());
+                return q;
+            }
+        }
+    }
+
+    fn draw(&mut self) -> Vec<f64> {
         let ranges = self.ranges.clone();
         ranges
             .iter()

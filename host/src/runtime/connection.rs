@@ -353,6 +353,19 @@ pub fn handshake<T: Transport>(session: &mut Session<T>, arm: Option<&str>) -> R
     handshake_with(session, arm.map(|name| ArmSpec::load(name, None)).transpose()?)
 }
 
+/// A simulated board served with `--no-collision-check` runs `arm` with its check off (its
+/// digest, `board_digest`, is that of `arm` with the check off): so does the host's check, as it
+/// would on that board's own command line.
+fn adopt_check_off<T: Transport>(session: &mut Session<T>, arm: &ArmSpec, board_digest: u32) -> Result<()> {
+    if let Some(servos) = servos_of(arm) {
+        let off = crate::link::arm_config::arm_digest_checked(arm, &servos, CollisionCheck::Off)?;
+        if off == board_digest {
+            session.set_collision_check(CollisionCheck::Off);
+        }
+    }
+    Ok(())
+}
+
 /// [`handshake`] with the arm already loaded.
 pub fn handshake_with<T: Transport>(session: &mut Session<T>, arm: Option<ArmSpec>) -> Result<(Info, ArmSpec)> {
     let mut info = session.hello().context("handshake with the firmware")?;
@@ -361,6 +374,7 @@ pub fn handshake_with<T: Transport>(session: &mut Session<T>, arm: Option<ArmSpe
             if info.arm_name.as_str() != spec.name {
                 info = configure(session, &spec)?;
             } else if let Some(servos) = servos_of(&spec) {
+                adopt_check_off(session, &spec, info.arm_digest)?;
                 let check = session.collision_check();
                 let digest = crate::link::arm_config::arm_digest_checked(&spec, &servos, check)?;
                 if info.arm_digest == firmware::builtin::DIGEST && digest != info.arm_digest {
@@ -381,14 +395,7 @@ pub fn handshake_with<T: Transport>(session: &mut Session<T>, arm: Option<ArmSpe
             let spec = ArmSpec::load(info.arm_name.as_str(), None).with_context(|| {
                 format!("the board runs arm {}, which this host does not know; pass --arm", info.arm_name)
             })?;
-            // A simulated board served with `--no-collision-check` runs this arm with its check
-            // off: so does the host's, as it would on that board's own command line.
-            if let Some(servos) = servos_of(&spec) {
-                let off = crate::link::arm_config::arm_digest_checked(&spec, &servos, CollisionCheck::Off)?;
-                if off == info.arm_digest {
-                    session.set_collision_check(CollisionCheck::Off);
-                }
-            }
+            adopt_check_off(session, &spec, info.arm_digest)?;
             spec
         }
     };

@@ -96,3 +96,18 @@ pub fn serve(args: &[&str]) -> (Child, String, std::thread::JoinHandle<String>) 
     }
     (child, path, errors)
 }
+
+/// Writes the SO-101 preset without its collision geometry, as the arm file `so101-bare.toml` in
+/// `dir` (its servos written out with it), for a test whose subject is not the collision check:
+/// poses the SO-101's fitted capsules call collisions (a human motion's, a start folded over the
+/// base), which with the geometry are refused before anything moves.
+#[allow(dead_code)]
+pub fn so101_without_geometry(dir: &Path) -> PathBuf {
+    let mut so101 = armctl::arm::ArmSpec::load("so101", None).expect("the so101 preset");
+    // The preset's servos come by its name: written out, they go with the new name.
+    so101.servos = armctl::arm::servos::servos_of(&so101);
+    (so101.name, so101.collision) = ("so101-bare".into(), None);
+    let path = dir.join("so101-bare.toml");
+    std::fs::write(&path, armctl::arm::toml_writer::to_text(&so101, &[])).expect("the arm file written");
+    path
+}
