@@ -356,12 +356,16 @@ pub fn handshake<T: Transport>(session: &mut Session<T>, arm: Option<&str>) -> R
 /// A simulated board served with `--no-collision-check` runs `arm` with its check off (its
 /// digest, `board_digest`, is that of `arm` with the check off): so does the host's check, as it
 /// would on that board's own command line.
+/// An arm without geometry has no check to turn off (its digest is the same either way), and the
+/// session's own setting stands when the board runs the arm as the session would send it.
 fn adopt_check_off<T: Transport>(session: &mut Session<T>, arm: &ArmSpec, board_digest: u32) -> Result<()> {
-    if let Some(servos) = servos_of(arm) {
-        let off = crate::link::arm_config::arm_digest_checked(arm, &servos, CollisionCheck::Off)?;
-        if off == board_digest {
-            session.set_collision_check(CollisionCheck::Off);
-        }
+    let Some(servos) = servos_of(arm) else { return Ok(()) };
+    if crate::arm::collision::collision_of(arm).is_none() {
+        return Ok(());
+    }
+    let digest = |check| crate::link::arm_config::arm_digest_checked(arm, &servos, check);
+    if digest(session.collision_check())? != board_digest && digest(CollisionCheck::Off)? == board_digest {
+        session.set_collision_check(CollisionCheck::Off);
     }
     Ok(())
 }
