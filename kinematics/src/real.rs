@@ -24,6 +24,11 @@ pub trait Real: RealField + Copy + core::fmt::Debug + Default {
     /// (`m` below 2^53), read from its bits, so no other float type is involved (an `f32` widened
     /// to `f64` costs a library call on a single-precision FPU).
     fn to_binary(self) -> (bool, u64, i32);
+    /// The square root. For `f32` on a Cortex-M with a single-precision FPU, the FPU's own
+    /// instruction (`vsqrt.f32`, 14 cycles), not `libm`'s `sqrtf` (about a hundred instructions in
+    /// software): stable Rust reaches the instruction only through `std` or assembly. Elsewhere the
+    /// same as `RealField::sqrt`.
+    fn root(self) -> Self;
 }
 
 /// Splits IEEE 754 bits with `fraction` fraction bits and exponent bias `bias`.
@@ -58,6 +63,33 @@ impl Real for f32 {
     fn to_binary(self) -> (bool, u64, i32) {
         binary(u64::from(self.to_bits()), 23, 8, 127)
     }
+    #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
+    #[allow(unsafe_code)]
+    fn root(self) -> Self {
+        let root: u32;
+        // SAFETY: the FPU's square root of one register, which is saved on the stack and restored
+        // around it; no other memory is touched and the condition flags are left alone. Every
+        // `eabihf` Arm target has a VFP, and every VFP has `vsqrt.f32`. The operands go through
+        // core registers because the compiler does not count the M4F's FPU as the `vfp2` feature
+        // its floating-point register class asks for.
+        unsafe {
+            core::arch::asm!(
+                "vpush {{s0}}",
+                "vmov s0, {x}",
+                "vsqrt.f32 s0, s0",
+                "vmov {root}, s0",
+                "vpop {{s0}}",
+                x = in(reg) self.to_bits(),
+                root = lateout(reg) root,
+                options(pure, nomem, preserves_flags)
+            );
+        }
+        f32::from_bits(root)
+    }
+    #[cfg(not(all(target_arch = "arm", target_abi = "eabihf")))]
+    fn root(self) -> Self {
+        nalgebra::ComplexField::sqrt(self)
+    }
 }
 
 impl Real for f64 {
@@ -80,6 +112,9 @@ impl Real for f64 {
     }
     fn to_binary(self) -> (bool, u64, i32) {
         binary(self.to_bits(), 52, 11, 1023)
+    }
+    fn root(self) -> Self {
+        nalgebra::ComplexField::sqrt(self)
     }
 }
 

@@ -40,7 +40,7 @@ impl<T: Real> Capsule<T> {
     /// The centre and radius of a sphere that holds the whole capsule.
     pub(crate) fn bounding_sphere(&self) -> (Vector3<T>, T) {
         let half = T::of(0.5);
-        ((self.a + self.b) * half, (self.b - self.a).norm() * half + self.radius)
+        ((self.a + self.b) * half, (self.b - self.a).norm_squared().root() * half + self.radius)
     }
 }
 
