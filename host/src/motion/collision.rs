@@ -13,8 +13,9 @@
 //! where it cannot go below zero is clear all along and is not looked at again, others are
 //! halved. A segment passes only when every piece is shown clear, so every point of it, not only
 //! the samples, keeps the margin; pieces are halved down to a sixteenth of the margin of motion
-//! ([`Checker::step`]), and one still not shown clear there counts as blocked (a pair grazing the
-//! margin). Far from everything a segment costs two or three checks; near an obstacle the pieces
+//! ([`Checker::step`]; finer, down to half the clearance of the segment's closer end, when an end
+//! is a hair beyond the margin, so that it can be reached), and one still not shown clear there
+//! (or past a budget of checks per segment) counts as blocked (a pair grazing the margin). Far from everything a segment costs two or three checks; near an obstacle the pieces
 //! get as fine as the clearance needs.
 
 use anyhow::{anyhow, bail, Result};
@@ -31,6 +32,15 @@ use crate::arm::dof::DynArm;
 pub const STEP_OF_MARGIN: f64 = 1.0 / 16.0;
 /// The finest piece when the margin is small (m).
 const MIN_STEP: f64 = 0.1e-3;
+/// The finest piece of a segment one of whose ends is a hair beyond the margin (m of motion). Such
+/// an end (a goal 0.2 mm clear of it, with the finest step at 0.6 mm) can only be shown reached by
+/// pieces finer than its clearance, so a segment is cut down to half the lower clearance of its
+/// ends when that is finer than [`Checker::step`], but not below this.
+const FINEST_STEP: f64 = 1e-6;
+/// The checks one segment may take: a segment that grazes the margin all along, cut that fine,
+/// would otherwise take one per clearance's worth of motion. Past it the segment counts as
+/// blocked (too close to show clear).
+const SEGMENT_CHECKS: u64 = 2000;
 /// Halvings of a segment at most (2^30 pieces: far beyond any arm's reach over the step).
 const MAX_DEPTH: u32 = 30;
 
@@ -41,16 +51,31 @@ type ArmScene = Scene<f64, MAX_BODIES, MAX_OBSTACLES>;
 /// this crate (the arm crate's generic code is built without optimisation for tests, and a check
 /// is the planner's inner loop).
 trait Placer: Send + Sync {
-    fn check(&self, scene: &mut ArmScene, q: &[f64], closest: bool) -> Result<Option<Contact<f64>>>;
+    fn check(&self, scene: &mut ArmScene, q: &[f64], query: Query) -> Result<Option<Contact<f64>>>;
+}
+
+/// What a check of a configuration answers.
+#[derive(Clone, Copy)]
+enum Query {
+    /// The first pair closer than the margin.
+    FirstContact,
+    /// The closest pair.
+    Closest,
+    /// The closest pair whose distance changes with the joints, if closer than this (m).
+    ClosestMoving(f64),
 }
 
 impl<const N: usize> Placer for Chain<f64, N> {
-    fn check(&self, scene: &mut ArmScene, q: &[f64], closest: bool) -> Result<Option<Contact<f64>>> {
+    fn check(&self, scene: &mut ArmScene, q: &[f64], query: Query) -> Result<Option<Contact<f64>>> {
         if q.len() != N {
             bail!("the arm has {N} joints but {} joint values were given", q.len());
         }
         let frames = self.forward(&SVector::from_column_slice(q));
-        Ok(if closest { scene.closest(&frames.joints) } else { scene.first_contact(&frames.joints) })
+        Ok(match query {
+            Query::FirstContact => scene.first_contact(&frames.joints),
+            Query::Closest => scene.closest(&frames.joints),
+            Query::ClosestMoving(within) => scene.closest_moving(&frames.joints, within),
+        })
     }
 }
 
@@ -81,6 +106,9 @@ pub struct Checker<'a> {
     reach: Vec<f64>,
     step: f64,
     checks: u64,
+    /// A pair that never moves (a body of the base and an obstacle) closer than the margin: every
+    /// configuration is in contact then.
+    fixed_contact: Option<Contact<f64>>,
 }
 
 /// A contact found along a segment.
@@ -178,7 +206,9 @@ impl<'a> Checker<'a> {
         let scene = spec.scene::<f64, MAX_BODIES, MAX_OBSTACLES>(joints)?;
         let reach = reach(arm.spec(), &spec);
         let step = (spec.margin * STEP_OF_MARGIN).max(MIN_STEP);
-        Ok(Self { arm, placer: placer(arm.spec())?, spec, scene, reach, step, checks: 0 })
+        let mut scene = scene;
+        let fixed_contact = scene.closest_fixed().filter(|c| c.distance.is_nan() || c.distance < spec.margin);
+        Ok(Self { arm, placer: placer(arm.spec())?, spec, scene, reach, step, checks: 0, fixed_contact })
     }
 
     /// The arm checked.
@@ -225,7 +255,7 @@ impl<'a> Checker<'a> {
     /// The first pair closer than the margin at `q`, or `None` when every pair keeps it.
     pub fn contact(&mut self, q: &[f64]) -> Result<Option<Contact<f64>>> {
         self.checks += 1;
-        self.placer.check(&mut self.scene, q, false)
+        self.placer.check(&mut self.scene, q, Query::FirstContact)
     }
 
     /// True if `q` keeps the margin (a `q` of the wrong length is not free).
@@ -236,7 +266,7 @@ impl<'a> Checker<'a> {
     /// The closest checked pair at `q` (its distance may be below the margin).
     pub fn closest(&mut self, q: &[f64]) -> Result<Option<Contact<f64>>> {
         self.checks += 1;
-        self.placer.check(&mut self.scene, q, true)
+        self.placer.check(&mut self.scene, q, Query::Closest)
     }
 
     /// How far any point of any body moves, at most, when the joints change by `dq`.
@@ -258,23 +288,37 @@ impl<'a> Checker<'a> {
     /// A contact on `segment` (its ends included), found by halving it; `None` when every point
     /// of it keeps the margin.
     pub fn along(&mut self, segment: &dyn Segment) -> Result<Option<SegmentContact>> {
+        if let Some(contact) = self.fixed_contact {
+            return Ok(Some(SegmentContact { at: 0.0, q: segment.at(0.0), contact }));
+        }
+        // Clearances beyond the whole segment's motion are not needed: ends that clear show the
+        // whole segment clear.
+        let motion = self.motion(&segment.speed(0.0, 1.0));
         let mut ends = [(0.0, f64::INFINITY); 2];
         for (end, s) in ends.iter_mut().zip([0.0, 1.0]) {
             let q = segment.at(s);
-            let (clearance, closest) = self.clearance(&q)?;
+            let (clearance, closest) = self.clearance(&q, motion)?;
             if let Some(contact) = closest.filter(|_| clearance.is_nan() || clearance < 0.0) {
                 return Ok(Some(SegmentContact { at: s, q, contact }));
             }
             *end = (s, clearance);
         }
-        self.piece(segment, ends[0], ends[1], 0)
+        let cut = Cut {
+            finest: (0.5 * ends[0].1.min(ends[1].1)).clamp(FINEST_STEP, self.step),
+            last_check: self.checks + SEGMENT_CHECKS,
+        };
+        self.piece(segment, &cut, ends[0], ends[1], 0)
     }
 
-    /// How far beyond the margin the closest pair at `q` is (m; infinite with no pair checked),
-    /// and that pair.
-    fn clearance(&mut self, q: &[f64]) -> Result<(f64, Option<Contact<f64>>)> {
-        let closest = self.closest(q)?;
-        Ok((closest.map_or(f64::INFINITY, |c| c.distance - self.spec.margin), closest))
+    /// How far beyond the margin the closest pair at `q` that moves with the joints is (m), and
+    /// that pair; `needed` (and no pair) when every such pair is at least that far beyond it, which
+    /// is all a piece needs to know (its lower bound). The pairs that never move are not bounded
+    /// by the motion: they keep whatever distance they have (`fixed_contact` when too close).
+    fn clearance(&mut self, q: &[f64], needed: f64) -> Result<(f64, Option<Contact<f64>>)> {
+        self.checks += 1;
+        let margin = self.spec.margin;
+        let closest = self.placer.check(&mut self.scene, q, Query::ClosestMoving(margin + needed))?;
+        Ok((closest.map_or(needed, |c| c.distance - margin), closest))
     }
 
     /// The piece between `(s0, c0)` and `(s1, c1)` (where, and the clearance there; both keep the
@@ -282,6 +326,7 @@ impl<'a> Checker<'a> {
     fn piece(
         &mut self,
         segment: &dyn Segment,
+        cut: &Cut,
         (s0, c0): (f64, f64),
         (s1, c1): (f64, f64),
         depth: u32,
@@ -295,17 +340,27 @@ impl<'a> Checker<'a> {
         }
         let middle = 0.5 * (s0 + s1);
         let q = segment.at(middle);
-        let (cm, closest) = self.clearance(&q)?;
+        // Each half moves at most half as far: a clearance of `motion` there shows both clear.
+        let (cm, closest) = self.clearance(&q, motion)?;
         let Some(contact) = closest else { return Ok(None) };
-        if cm.is_nan() || cm < 0.0 || motion <= self.step || depth >= MAX_DEPTH {
+        let finest = motion <= cut.finest || depth >= MAX_DEPTH || self.checks >= cut.last_check;
+        if cm.is_nan() || cm < 0.0 || finest {
             // Inside the margin; or at the finest piece, not shown to keep it all along.
             return Ok(Some(SegmentContact { at: middle, q, contact }));
         }
-        if let Some(found) = self.piece(segment, (s0, c0), (middle, cm), depth + 1)? {
+        if let Some(found) = self.piece(segment, cut, (s0, c0), (middle, cm), depth + 1)? {
             return Ok(Some(found));
         }
-        self.piece(segment, (middle, cm), (s1, c1), depth + 1)
+        self.piece(segment, cut, (middle, cm), (s1, c1), depth + 1)
     }
+}
+
+/// How finely one segment is cut.
+struct Cut {
+    /// The finest piece (m of motion).
+    finest: f64,
+    /// The check count past which the segment counts as blocked.
+    last_check: u64,
 }
 
 /// `q` as the message names it: "joints 0.100, -0.200, ...".

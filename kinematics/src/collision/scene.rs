@@ -333,11 +333,48 @@ impl<T: Real, const B: usize, const O: usize> Scene<T, B, O> {
     /// is checked.
     pub fn closest(&mut self, frames: &[Pose<T>]) -> Option<Contact<T>> {
         self.place(frames);
+        self.closest_of(|_| true, T::of(f64::INFINITY))
+    }
+
+    /// The closest checked pair whose distance can change with the joints (every pair but a body
+    /// of the base against an obstacle), at `frames`, if it is closer than `within`: what a check
+    /// along a motion bounds, since a pair that never moves never comes closer. `None` when no
+    /// such pair is closer than `within` (pairs farther apart are not measured exactly: their
+    /// bounding spheres tell).
+    pub fn closest_moving(&mut self, frames: &[Pose<T>], within: T) -> Option<Contact<T>> {
+        self.place(frames);
+        self.closest_of(|moves| moves, within)
+    }
+
+    /// The closest checked pair whose distance never changes (a body of the base against an
+    /// obstacle), wherever the joints are; `None` when there is none.
+    pub fn closest_fixed(&mut self) -> Option<Contact<T>> {
+        // The base's bodies are placed the same for any frames; the others are not looked at.
+        self.place(&[]);
+        self.closest_of(|moves| !moves, T::of(f64::INFINITY))
+    }
+
+    /// True if the pair's distance can change with the joints.
+    fn moves(&self, body: u8, other: Part) -> bool {
+        match other {
+            Part::Obstacle(_) => self.bodies.get(usize::from(body)).is_some_and(|b| b.frame.is_some()),
+            // Bodies of one frame are never checked; a pair of frames moves.
+            Part::Body(_) => true,
+        }
+    }
+
+    /// The closest of the checked pairs `wanted` keeps (given whether the pair moves), as placed,
+    /// if closer than `within` (a NaN distance always is).
+    fn closest_of(&self, wanted: impl Fn(bool) -> bool, within: T) -> Option<Contact<T>> {
         let mut best: Option<Contact<T>> = None;
-        for (body, other) in self.pairs() {
-            let beyond = best.map_or(T::of(f64::INFINITY), |b| b.distance);
+        for (body, other) in self.pairs().filter(|(body, other)| wanted(self.moves(*body, *other))) {
+            let beyond = best.map_or(within, |b| b.distance);
             if let Some(distance) = self.measured(usize::from(body), other, beyond) {
-                if best.is_none_or(|b| distance < b.distance) {
+                let closer = match best {
+                    None => distance < within || distance.partial_cmp(&within).is_none(),
+                    Some(b) => distance < b.distance,
+                };
+                if closer {
                     best = Some(Contact { body, other, distance });
                 }
             }
@@ -385,7 +422,9 @@ mod tests {
             };
             for k in 0..6u8 {
                 let capsule = Capsule { a: point(&mut rng), b: point(&mut rng), radius: rng.uniform(0.0, 0.05) };
-                scene.add_body(Body { frame: Some(k % 3), capsule }, 3).unwrap();
+                // Body 3 is the base's: it never moves.
+                let frame = if k == 3 { None } else { Some(k % 3) };
+                scene.add_body(Body { frame, capsule }, 3).unwrap();
             }
             let rotation = crate::axis_angle_matrix(&Vector3::new(0.3, -0.5, 0.8).normalize(), rng.uniform(-3.0, 3.0));
             let half = Vector3::new(rng.uniform(0.01, 0.1), rng.uniform(0.01, 0.1), rng.uniform(0.01, 0.1));
@@ -414,6 +453,15 @@ mod tests {
             assert_eq!(scene.first_contact(&frames), first);
             let closest = exact.iter().copied().reduce(|a, b| if b.distance < a.distance { b } else { a });
             assert_eq!(scene.closest(&frames).map(|c| c.distance), closest.map(|c| c.distance));
+            // The moving and the fixed pairs part the same pairs: the closer of the two closest is
+            // the closest.
+            let (moving, fixed) = (scene.closest_moving(&frames, f64::INFINITY), scene.closest_fixed());
+            let either = [moving, fixed].into_iter().flatten().map(|c| c.distance).reduce(f64::min);
+            assert_eq!(either, closest.map(|c| c.distance));
+            // Within a bound: the same pair when it is closer than the bound, else none.
+            let within = rng.uniform(0.0, 0.2);
+            let expected = moving.filter(|c| c.distance < within);
+            assert_eq!(scene.closest_moving(&frames, within).map(|c| c.distance), expected.map(|c| c.distance));
         }
     }
 }
