@@ -3,9 +3,11 @@
 //! pair must keep. Fixed capacity, no heap, no panics: what a firmware checks every goal against.
 //!
 //! Bodies are placed from the frames forward kinematics gives (a chain's [`crate::Frames`] or a
-//! tree's [`crate::tree::TreeFrames`]), so chains and trees share it. A pair is first compared by
-//! bounding spheres, and only a pair whose spheres come within the margin is measured exactly:
-//! most pairs of an arm are far apart most of the time.
+//! tree's [`crate::tree::TreeFrames`]), so chains and trees share it. The bodies of one frame
+//! form a group. Groups are first compared by bounding spheres (a group against another and
+//! against each obstacle), then the pairs of groups that come within the margin body by body, and
+//! only a pair whose spheres come within it is measured exactly: most pairs of an arm are far
+//! apart most of the time, and a link cut into several capsules costs one comparison while it is.
 
 use heapless::Vec;
 
@@ -82,10 +84,57 @@ pub struct Scene<T: Real, const B: usize, const O: usize> {
     /// The bounding sphere of each placed body (centre, radius): computed once a check, not once
     /// a pair (a square root each, in software on a Cortex-M4F).
     spheres: [(nalgebra::Vector3<T>, T); B],
+    /// Each body's group: the bodies of one frame (they never move apart, and are not checked
+    /// against each other).
+    group: [u8; B],
+    /// Each group's bodies (bit masks, by body index); groups are numbered from 0 as they appear.
+    members: [u32; B],
+    /// The groups there are.
+    groups: u8,
+    /// Each group's bounding sphere, as placed by the last check.
+    group_spheres: [(nalgebra::Vector3<T>, T); B],
+    /// Per group, the bodies of the groups whose spheres come within the last check's distance
+    /// of its own (its own included), and the obstacles that do.
+    near_bodies: [u32; B],
+    near_obstacles: [u32; B],
 }
 
 fn bit(i: usize) -> u32 {
     1u32.checked_shl(i as u32).unwrap_or(0)
+}
+
+/// The set bits of `mask`, lowest first.
+fn bits(mut mask: u32) -> impl Iterator<Item = u8> {
+    core::iter::from_fn(move || {
+        let i = mask.trailing_zeros();
+        mask &= mask.wrapping_sub(1);
+        (i < 32).then_some(i as u8)
+    })
+}
+
+/// True if spheres whose centres are `gap_squared` apart (squared) are farther apart than `reach`
+/// (their radii and the distance asked for); `reach` is negative where an overlap is asked for,
+/// and then any non-negative gap is far. A NaN gap (a frame not given) is never far, so it is
+/// measured and reads as a contact.
+fn far<T: Real>(gap_squared: T, reach: T) -> bool {
+    gap_squared > reach * reach && reach >= T::zero() || reach < T::zero() && gap_squared >= T::zero()
+}
+
+/// True if the sphere at `centre` of `radius` is farther than `beyond` from `shape`, so nothing
+/// within it can come closer.
+fn sphere_far_from<T: Real>(centre: &nalgebra::Vector3<T>, radius: T, shape: &Shape<T>, beyond: T) -> bool {
+    match shape {
+        // The squared distance from the sphere's centre to the box, outside it.
+        Shape::Box { centre: c, rotation, half } => {
+            let local = rotation.tr_mul(&(centre - c));
+            far((local.abs() - half).map(|x| x.max(T::zero())).norm_squared(), radius + beyond)
+        }
+        Shape::Capsule(c) => {
+            let (c2, r2) = c.bounding_sphere();
+            far((centre - c2).norm_squared(), radius + r2 + beyond)
+        }
+        Shape::HalfSpace { .. } => distance(&Capsule::sphere(*centre, radius), shape) > beyond,
+    }
 }
 
 impl<T: Real, const B: usize, const O: usize> Scene<T, B, O> {
@@ -102,6 +151,12 @@ impl<T: Real, const B: usize, const O: usize> Scene<T, B, O> {
             margin: if margin.finite() && margin > T::zero() { margin } else { T::zero() },
             placed: [nowhere; B],
             spheres: [(nalgebra::Vector3::zeros(), T::zero()); B],
+            group: [0; B],
+            members: [0; B],
+            groups: 0,
+            group_spheres: [(nalgebra::Vector3::zeros(), T::zero()); B],
+            near_bodies: [0; B],
+            near_obstacles: [0; B],
         }
     }
 
@@ -120,6 +175,9 @@ impl<T: Real, const B: usize, const O: usize> Scene<T, B, O> {
         self.allowed_bodies = other.allowed_bodies;
         self.allowed_obstacles = other.allowed_obstacles;
         self.margin = other.margin;
+        self.group = other.group;
+        self.members = other.members;
+        self.groups = other.groups;
     }
 
     /// Whether there is any pair to check: at least one body, and another body or an obstacle.
@@ -134,6 +192,9 @@ impl<T: Real, const B: usize, const O: usize> Scene<T, B, O> {
         self.obstacles.clear();
         self.allowed_bodies = [0; B];
         self.allowed_obstacles = [0; B];
+        self.group = [0; B];
+        self.members = [0; B];
+        self.groups = 0;
     }
 
     /// Sets the distance every checked pair must keep (m); negative or not finite: zero.
@@ -168,7 +229,20 @@ impl<T: Real, const B: usize, const O: usize> Scene<T, B, O> {
         if index >= B.min(32) {
             return Err(SceneError::Full);
         }
+        // Its frame's group, or a new one.
+        let group = match self.bodies.iter().position(|b| b.frame == body.frame) {
+            Some(k) => self.group.get(k).copied().ok_or(SceneError::Full)?,
+            None => self.groups,
+        };
         self.bodies.push(body).map_err(|_| SceneError::Full)?;
+        if group == self.groups {
+            self.groups += 1;
+        }
+        // Within `B` (the index is), so neither fails.
+        if let (Some(g), Some(m)) = (self.group.get_mut(index), self.members.get_mut(usize::from(group))) {
+            *g = group;
+            *m |= bit(index);
+        }
         Ok(index as u8)
     }
 
@@ -250,6 +324,85 @@ impl<T: Real, const B: usize, const O: usize> Scene<T, B, O> {
         for (sphere, placed) in self.spheres.iter_mut().zip(self.placed.iter()).take(self.bodies.len()) {
             *sphere = placed.bounding_sphere();
         }
+        // Each group's sphere: about the middle of its bodies' spheres' bounding box, wide enough
+        // for the farthest of them.
+        for (g, sphere) in self.group_spheres.iter_mut().enumerate().take(usize::from(self.groups)) {
+            let mask = self.members.get(g).copied().unwrap_or(0);
+            let of_group = || bits(mask).filter_map(|i| self.spheres.get(usize::from(i)));
+            // A group of one body: its own sphere.
+            if mask.count_ones() == 1 {
+                if let Some(only) = of_group().next() {
+                    *sphere = *only;
+                }
+                continue;
+            }
+            let infinite = nalgebra::Vector3::repeat(T::of(f64::INFINITY));
+            let (mut low, mut high) = (infinite, -infinite);
+            for (c, r) in of_group() {
+                low = low.inf(&(c - nalgebra::Vector3::repeat(*r)));
+                high = high.sup(&(c + nalgebra::Vector3::repeat(*r)));
+            }
+            let centre = (low + high) * T::of(0.5);
+            let radius = of_group().fold(T::zero(), |top, (c, r)| top.max((c - centre).norm_squared().root() + *r));
+            // A NaN anywhere (a frame not given) makes the whole sphere NaN: never far.
+            let nan = of_group().any(|(c, r)| !(c.iter().all(|x| x.finite()) && r.finite()));
+            *sphere =
+                if nan { (nalgebra::Vector3::repeat(T::of(f64::NAN)), T::of(f64::NAN)) } else { (centre, radius) };
+        }
+    }
+
+    /// Which groups and obstacles come within `beyond` of each group, by their spheres.
+    fn near_groups(&mut self, beyond: T) {
+        let groups = usize::from(self.groups);
+        for g in 0..groups {
+            let own = self.members.get(g).copied().unwrap_or(0);
+            if let Some(b) = self.near_bodies.get_mut(g) {
+                *b = own;
+            }
+        }
+        for g in 0..groups {
+            let Some(&(centre, radius)) = self.group_spheres.get(g) else { continue };
+            let own = self.members.get(g).copied().unwrap_or(0);
+            // Each pair of groups once: the later group's bodies to this one's mask, and back.
+            for h in (g + 1)..groups {
+                let Some(&(c2, r2)) = self.group_spheres.get(h) else { continue };
+                if !far((centre - c2).norm_squared(), radius + r2 + beyond) {
+                    let theirs = self.members.get(h).copied().unwrap_or(0);
+                    if let Some(b) = self.near_bodies.get_mut(g) {
+                        *b |= theirs;
+                    }
+                    if let Some(b) = self.near_bodies.get_mut(h) {
+                        *b |= own;
+                    }
+                }
+            }
+            let mut obstacles = 0;
+            for (o, shape) in self.obstacles.iter().enumerate() {
+                if !sphere_far_from(&centre, radius, shape, beyond) {
+                    obstacles |= bit(o);
+                }
+            }
+            if let Some(o) = self.near_obstacles.get_mut(g) {
+                *o = obstacles;
+            }
+        }
+    }
+
+    /// The checked pairs whose groups came within the last [`Scene::near_groups`]' distance, in
+    /// the order of [`Scene::pairs`]: bodies against later bodies, then against obstacles.
+    fn near_pairs(&self) -> impl Iterator<Item = (u8, Part)> + '_ {
+        let (n, m) = (self.bodies.len(), self.obstacles.len());
+        (0..n).flat_map(move |i| {
+            let g = usize::from(self.group.get(i).copied().unwrap_or(0));
+            let at = |masks: &[u32; B], k: usize| masks.get(k).copied().unwrap_or(0);
+            // Later bodies of other groups near this one, not allowed to touch it.
+            let later = !bit(i + 1).wrapping_sub(1) & bit(n).wrapping_sub(1);
+            let bodies = later & at(&self.near_bodies, g) & !at(&self.members, g) & !at(&self.allowed_bodies, i);
+            let obstacles = bit(m).wrapping_sub(1) & at(&self.near_obstacles, g) & !at(&self.allowed_obstacles, i);
+            bits(bodies)
+                .map(move |j| (i as u8, Part::Body(j)))
+                .chain(bits(obstacles).map(move |o| (i as u8, Part::Obstacle(o))))
+        })
     }
 
     /// The signed distance between placed body `i` and `other`, or `None` when their bounding
@@ -258,12 +411,6 @@ impl<T: Real, const B: usize, const O: usize> Scene<T, B, O> {
     fn measured(&self, i: usize, other: Part, beyond: T) -> Option<T> {
         let capsule = self.placed.get(i)?;
         let (centre, radius) = *self.spheres.get(i)?;
-        // Farther apart than `reach` (which is negative where `beyond` is an overlap already
-        // found): a NaN gap (a frame not given) is never far, so it is measured and reads as a
-        // contact.
-        let far = |gap_squared: T, reach: T| {
-            gap_squared > reach * reach && reach >= T::zero() || reach < T::zero() && gap_squared >= T::zero()
-        };
         match other {
             Part::Body(j) => {
                 let q = self.placed.get(usize::from(j))?;
@@ -275,31 +422,8 @@ impl<T: Real, const B: usize, const O: usize> Scene<T, B, O> {
             }
             Part::Obstacle(o) => {
                 let shape = self.obstacles.get(usize::from(o))?;
-                let outside = match shape {
-                    // The squared distance from the sphere's centre to the box, outside it.
-                    Shape::Box { centre: c, rotation, half } => {
-                        let local = rotation.tr_mul(&(centre - c));
-                        Some((local.abs() - half).map(|x| x.max(T::zero())).norm_squared())
-                    }
-                    Shape::Capsule(c) => {
-                        let (c2, r2) = c.bounding_sphere();
-                        let reach = radius + r2 + beyond;
-                        if far((centre - c2).norm_squared(), reach) {
-                            return None;
-                        }
-                        None
-                    }
-                    Shape::HalfSpace { .. } => None,
-                };
-                match outside {
-                    Some(gap_squared) if far(gap_squared, radius + beyond) => return None,
-                    Some(_) => {}
-                    None if matches!(shape, Shape::HalfSpace { .. })
-                        && distance(&Capsule::sphere(centre, radius), shape) > beyond =>
-                    {
-                        return None
-                    }
-                    None => {}
+                if sphere_far_from(&centre, radius, shape, beyond) {
+                    return None;
                 }
                 Some(distance(capsule, shape))
             }
@@ -307,6 +431,7 @@ impl<T: Real, const B: usize, const O: usize> Scene<T, B, O> {
     }
 
     /// Every pair that is checked, bodies against later bodies then against obstacles.
+    #[cfg(test)]
     fn pairs(&self) -> impl Iterator<Item = (u8, Part)> + '_ {
         let (n, m) = (self.bodies.len() as u8, self.obstacles.len() as u8);
         (0..n)
@@ -321,7 +446,8 @@ impl<T: Real, const B: usize, const O: usize> Scene<T, B, O> {
     pub fn first_contact(&mut self, frames: &[Pose<T>]) -> Option<Contact<T>> {
         self.place(frames);
         let margin = self.margin;
-        self.pairs().find_map(|(body, other)| {
+        self.near_groups(margin);
+        self.near_pairs().find_map(|(body, other)| {
             let distance = self.measured(usize::from(body), other, margin)?;
             // A NaN distance (a frame not given, a non-finite pose) is a contact, never free.
             let keeps_margin = distance >= margin;
@@ -365,9 +491,10 @@ impl<T: Real, const B: usize, const O: usize> Scene<T, B, O> {
 
     /// The closest of the checked pairs `wanted` keeps (given whether the pair moves), as placed,
     /// if closer than `within` (a NaN distance always is).
-    fn closest_of(&self, wanted: impl Fn(bool) -> bool, within: T) -> Option<Contact<T>> {
+    fn closest_of(&mut self, wanted: impl Fn(bool) -> bool, within: T) -> Option<Contact<T>> {
+        self.near_groups(within);
         let mut best: Option<Contact<T>> = None;
-        for (body, other) in self.pairs().filter(|(body, other)| wanted(self.moves(*body, *other))) {
+        for (body, other) in self.near_pairs().filter(|(body, other)| wanted(self.moves(*body, *other))) {
             let beyond = best.map_or(within, |b| b.distance);
             if let Some(distance) = self.measured(usize::from(body), other, beyond) {
                 let closer = match best {
@@ -409,22 +536,36 @@ mod tests {
         assert!(scene.first_contact(&[]).is_some());
     }
 
-    /// The bounding-sphere filter never changes an answer: the first contact and the closest pair
-    /// are those of every pair measured exactly, over random placements of capsules, boxes, a
-    /// capsule obstacle and a table.
+    /// The bounding-sphere filters (of groups, then of bodies) never change an answer: the first
+    /// contact and the closest pair are those of every pair measured exactly, over random
+    /// placements of capsules, boxes, a capsule obstacle and a table.
     #[test]
     fn the_filter_changes_no_answer() {
         let mut rng = crate::SplitMix64::new(7);
-        for _ in 0..300 {
+        for round in 0..600 {
             let mut scene: Scene<f64, 8, 4> = Scene::new(rng.uniform(0.0, 0.05));
-            let point = |rng: &mut crate::SplitMix64| {
-                Vector3::new(rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), rng.uniform(-0.1, 0.4))
+            // Every other round short capsules spread wide, so that whole groups are far apart; in
+            // every fourth, spheres, each on a frame of its own (below), so that a group's
+            // bounding sphere is its body, and a filter that cuts it close shows.
+            let (spread, length) = match round % 4 {
+                0 | 2 => (1.0, 1.0),
+                1 => (3.0, 0.0),
+                _ => (3.0, 0.1),
+            };
+            let point = move |rng: &mut crate::SplitMix64| {
+                Vector3::new(rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), rng.uniform(-0.1, 0.4)) * spread
             };
             for k in 0..6u8 {
-                let capsule = Capsule { a: point(&mut rng), b: point(&mut rng), radius: rng.uniform(0.0, 0.05) };
-                // Body 3 is the base's: it never moves.
-                let frame = if k == 3 { None } else { Some(k % 3) };
-                scene.add_body(Body { frame, capsule }, 3).unwrap();
+                let a = point(&mut rng);
+                let capsule = Capsule { a, b: a + (point(&mut rng) - a) * length, radius: rng.uniform(0.0, 0.05) };
+                // Body 3 is the base's: it never moves. Every fourth round each body has a frame
+                // of its own, so each group's sphere is its body's.
+                let frame = match (k, round % 4) {
+                    (3, _) => None,
+                    (_, 1) => Some(k),
+                    _ => Some(k % 3),
+                };
+                scene.add_body(Body { frame, capsule }, 6).unwrap();
             }
             let rotation = crate::axis_angle_matrix(&Vector3::new(0.3, -0.5, 0.8).normalize(), rng.uniform(-3.0, 3.0));
             let half = Vector3::new(rng.uniform(0.01, 0.1), rng.uniform(0.01, 0.1), rng.uniform(0.01, 0.1));
@@ -432,7 +573,7 @@ mod tests {
             let capsule = Capsule { a: point(&mut rng), b: point(&mut rng), radius: 0.02 };
             scene.add_obstacle(Shape::Capsule(capsule)).unwrap();
             scene.add_obstacle(Shape::table(rng.uniform(-0.1, 0.1))).unwrap();
-            let frames: std::vec::Vec<Pose<f64>> = (0..3)
+            let frames: std::vec::Vec<Pose<f64>> = (0..6)
                 .map(|_| Pose::from_xyz_rpy([rng.uniform(-0.1, 0.1), 0.0, 0.1], [rng.uniform(-1.0, 1.0), 0.0, 0.3]))
                 .collect();
             // Every pair measured exactly, in the order `pairs` visits them.
@@ -462,6 +603,15 @@ mod tests {
             let within = rng.uniform(0.0, 0.2);
             let expected = moving.filter(|c| c.distance < within);
             assert_eq!(scene.closest_moving(&frames, within).map(|c| c.distance), expected.map(|c| c.distance));
+            // A margin right at one pair's distance, and a hair beyond it: the filters are exact
+            // at their edge too.
+            if let Some(edge) = exact.get(round % exact.len().max(1)).filter(|c| c.distance > 0.0) {
+                for margin in [edge.distance, edge.distance * (1.0 + 1e-12)] {
+                    scene.set_margin(margin);
+                    let first = exact.iter().find(|c| c.distance < margin).copied();
+                    assert_eq!(scene.first_contact(&frames), first);
+                }
+            }
         }
     }
 }
