@@ -161,6 +161,10 @@ pub struct PlanBenchArgs {
     /// Seed of the move sampler.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Random shortcuts tried on each path before its corners are skipped (the planner's own
+    /// setting by default): fewer plan faster, more give shorter paths.
+    #[arg(long, default_value_t = crate::motion::plan::DEFAULT_SHORTCUTS)]
+    pub shortcuts: usize,
     /// One JSON object (indented) instead of the summary line.
     #[arg(long)]
     pub json: bool,
@@ -169,6 +173,11 @@ pub struct PlanBenchArgs {
 impl PlanBenchArgs {
     /// The request.
     pub fn request(&self) -> crate::commands::bench::plan::PlanBenchRequest {
-        crate::commands::bench::plan::PlanBenchRequest { arm: self.arm.clone(), moves: self.moves, seed: self.seed }
+        crate::commands::bench::plan::PlanBenchRequest {
+            arm: self.arm.clone(),
+            moves: self.moves,
+            seed: self.seed,
+            shortcuts: self.shortcuts,
+        }
     }
 }

@@ -16,6 +16,8 @@ use super::ik::SolveTimes;
 use crate::arm::dof::build;
 use crate::arm::ArmSpec;
 use crate::motion::collision::Checker;
+#[cfg(test)]
+use crate::motion::plan::DEFAULT_SHORTCUTS;
 use crate::motion::plan::{boxed_scene, length, plan, Options};
 
 /// A `bench plan` run.
@@ -27,6 +29,8 @@ pub struct PlanBenchRequest {
     pub moves: usize,
     /// Seed of the move sampler.
     pub seed: u64,
+    /// Random shortcuts tried on each path.
+    pub shortcuts: usize,
 }
 
 /// Its figures.
@@ -122,7 +126,8 @@ pub fn measure(request: &PlanBenchRequest) -> Result<PlanBenchReport> {
         }
         tried += 1;
         let began = Instant::now();
-        let planned = plan(&mut checker, &start, &goal, &Options::default());
+        let options = Options { shortcuts: request.shortcuts, ..Options::default() };
+        let planned = plan(&mut checker, &start, &goal, &options);
         let took = began.elapsed();
         if let Ok(path) = planned {
             times.push(took);
@@ -158,7 +163,9 @@ mod tests {
     /// with the SO-101's fitted geometry costs seconds in the test profile.)
     #[test]
     fn a_short_run_plans_blocked_moves() {
-        let report = measure(&PlanBenchRequest { arm: "so101".into(), moves: 3, seed: 3 }).unwrap();
+        let report =
+            measure(&PlanBenchRequest { arm: "so101".into(), moves: 3, seed: 3, shortcuts: DEFAULT_SHORTCUTS })
+                .unwrap();
         assert_eq!(report.moves, 3, "{report:?}");
         assert!((1..=3).contains(&report.planned), "{report:?}");
         assert!(report.median_us > 0.0 && report.p99_us >= report.median_us && report.check_ns_median > 0.0);
