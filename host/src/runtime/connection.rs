@@ -233,6 +233,12 @@ pub struct Connection {
 }
 
 impl Connection {
+    /// The simulated board at the other end, when the link is one (SIL, `--sim`).
+    pub fn sil(&mut self) -> Option<&mut Sil> {
+        let transport: &mut dyn Transport = &mut **self.session.transport();
+        transport.as_any_mut().downcast_mut()
+    }
+
     /// Ends the link (for `--bus`, after the core has written what the last request asked for)
     /// and says on `err` what the core's control loop did.
     pub fn close(self, err: &mut dyn std::io::Write) -> Result<()> {
@@ -292,8 +298,7 @@ pub fn open(target: Target, arm: Option<&str>, err: &mut dyn std::io::Write) -> 
         }
     };
     let mut conn = connect(transport, loaded_arm, arm, pc, check)?;
-    let transport: &mut dyn Transport = &mut **conn.session.transport();
-    if let Some(sil) = transport.as_any_mut().downcast_mut::<Sil>() {
+    if let Some(sil) = conn.sil() {
         sil.settle_reads();
     }
     Ok(conn)

@@ -49,8 +49,7 @@ impl Driver {
     /// The simulated board, when the firmware core runs in SIL on this process (`--sim`): its
     /// virtual clock, trace and scene.
     pub fn sil(&mut self) -> Option<&mut crate::runtime::sil::Sil> {
-        let transport: &mut dyn Transport = &mut **self.conn.session.transport();
-        transport.as_any_mut().downcast_mut()
+        self.conn.sil()
     }
 
     /// The host's kinematics of the arm the firmware runs (forward kinematics, IK).

@@ -69,6 +69,20 @@ impl Refused {
         Self { reason: reason.to_string(), hint: "", by: RefusedBy::Host }
     }
 
+    /// The host's own failure (its check, its IK), with its causes.
+    fn host(e: anyhow::Error) -> Self {
+        Self::because(format!("{e:#}"))
+    }
+
+    /// `--path line` with the line blocked: refused before anything is sent.
+    fn line_blocked(arm: &ArmSpec, blocked: &Blocked) -> Self {
+        Self {
+            reason: where_blocked(arm, blocked),
+            hint: "; --path auto or joint goes there by joints",
+            by: RefusedBy::Host,
+        }
+    }
+
     /// A request the link did not carry out; a collision refusal names the pair from `arm`'s
     /// geometry.
     fn link(arm: &ArmSpec, e: LinkError) -> Self {
@@ -90,20 +104,14 @@ pub fn take(
     timing: Timing,
     asked: MovePath,
 ) -> Result<Route, Refused> {
-    if avoid::host_checker(driver).map_err(|e| Refused::because(format!("{e:#}")))?.is_some() {
+    if avoid::host_checker(driver).map_err(Refused::host)?.is_some() {
         return take_checked(driver, start, target, timing, asked);
     }
     let mut route = Route { sent: asked, blocked_ahead: None, solved_on_host: false, avoided: None };
     if asked != MovePath::Joint {
-        match check_line(driver, start, &target).map_err(|e| Refused::because(format!("{e:#}")))? {
+        match check_line(driver, start, &target).map_err(Refused::host)? {
             Ok(_) => {}
-            Err(blocked) if asked == MovePath::Line => {
-                return Err(Refused {
-                    reason: where_blocked(driver.arm(), &blocked),
-                    hint: "; --path auto or joint goes there by joints",
-                    by: RefusedBy::Host,
-                })
-            }
+            Err(blocked) if asked == MovePath::Line => return Err(Refused::line_blocked(driver.arm(), &blocked)),
             Err(blocked) => (route.sent, route.blocked_ahead) = (MovePath::Joint, Some(blocked)),
         }
     }
@@ -111,20 +119,13 @@ pub fn take(
         Ok(()) => Ok(route),
         Err(LinkError::Nak(NakReason::Unreachable)) if route.sent != MovePath::Line => {
             let unreachable = LinkError::Nak(NakReason::Unreachable);
-            let solved = host_solution(driver, start, &target).map_err(|e| Refused::because(format!("{e:#}")))?;
+            let solved = host_solution(driver, start, &target).map_err(Refused::host)?;
             let Some(q) = solved else {
                 let reason = format!("{unreachable}, and the host's IK finds no solution either");
                 return Err(Refused { reason, hint: "", by: RefusedBy::Firmware });
             };
-            let positions =
-                check_joints(driver, &q, "the host's solution").map_err(|e| Refused::because(format!("{e:#}")))?;
-            // A tool speed means nothing to a joint move: as fast as the limits allow, as
-            // `armctl joints` goes by default; a duration is kept.
-            let timing = match timing {
-                Timing::MaxSpeed(_) => Timing::MaxSpeed(MAX_SPEED),
-                other => other,
-            };
-            let sent = driver.session().move_joints(positions, timing);
+            let positions = check_joints(driver, &q, "the host's solution").map_err(Refused::host)?;
+            let sent = driver.session().move_joints(positions, by_joints(timing));
             sent.map_err(|e| Refused::link(driver.arm(), e))?;
             route.solved_on_host = true;
             Ok(route)
@@ -142,42 +143,40 @@ fn take_checked(
     timing: Timing,
     asked: MovePath,
 ) -> Result<Route, Refused> {
-    let host = |e: anyhow::Error| Refused::because(format!("{e:#}"));
     let goal = free_solution(driver, start, &target)?;
     let mut route = Route { sent: asked, blocked_ahead: None, solved_on_host: false, avoided: None };
     if asked != MovePath::Joint {
-        let mut checker = avoid::host_checker(driver).map_err(host)?;
-        match check_line_with(driver, start, &target, checker.as_mut()).map_err(host)? {
+        let mut checker = avoid::host_checker(driver).map_err(Refused::host)?;
+        match check_line_with(driver, start, &target, checker.as_mut()).map_err(Refused::host)? {
             Ok(_) => {
                 drop(checker);
                 let sent = driver.session().move_to(target, timing, asked);
                 sent.map_err(|e| Refused::link(driver.arm(), e))?;
                 return Ok(route);
             }
-            Err(blocked) if asked == MovePath::Line => {
-                return Err(Refused {
-                    reason: where_blocked(driver.arm(), &blocked),
-                    hint: "; --path auto or joint goes there by joints",
-                    by: RefusedBy::Host,
-                })
-            }
+            Err(blocked) if asked == MovePath::Line => return Err(Refused::line_blocked(driver.arm(), &blocked)),
             Err(blocked) => route.blocked_ahead = Some(blocked),
         }
     }
-    // A tool speed means nothing to a joint move: as fast as the limits allow; a duration is kept.
-    let timing = match timing {
-        Timing::MaxSpeed(_) => Timing::MaxSpeed(MAX_SPEED),
-        other => other,
-    };
     let from: Vec<f64> = start.measured.iter().map(|&x| f64::from(x)).collect();
-    let sent = avoid::send(driver, &from, &goal, timing);
+    let sent = avoid::send(driver, &from, &goal, by_joints(timing));
     let sent = sent.map_err(|e| match e {
-        NotSent::Host(e) => Refused::because(format!("{e:#}")),
+        NotSent::Host(e) => Refused::host(e),
         NotSent::Link(e) => Refused::link(driver.arm(), e),
     })?;
     route.sent = MovePath::Joint;
     route.avoided = Some(sent);
     Ok(route)
+}
+
+/// A Cartesian move's timing for the same move by joints: a tool speed means nothing to a joint
+/// move, which goes as fast as the limits allow (as `armctl joints` does by default); a duration
+/// is kept.
+fn by_joints(timing: Timing) -> Timing {
+    match timing {
+        Timing::MaxSpeed(_) => Timing::MaxSpeed(MAX_SPEED),
+        other => other,
+    }
 }
 
 /// Seeds tried for a free IK solution beyond the one from where the arm is.
@@ -188,7 +187,7 @@ const SEEDS: usize = 12;
 /// (fixed seeds, so a move repeats). Refused naming the pair when every solution found is in
 /// collision, or when none is found.
 fn free_solution(driver: &Driver, start: &Status, target: &CartesianTarget) -> Result<Vec<f64>, Refused> {
-    let host = |e: anyhow::Error| Refused::because(format!("{e:#}"));
+    let host = Refused::host;
     let arm = driver.model();
     let from: Vec<f64> = start.measured.iter().map(|&x| f64::from(x)).collect();
     let position = target.position.map(f64::from);
