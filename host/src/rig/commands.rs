@@ -305,10 +305,7 @@ fn move_tree(
         let seed: Vec<Vec<f64>> = if attempt == 0 {
             q.clone()
         } else {
-            rig.arms
-                .iter()
-                .map(|a| a.driver.arm().joints.iter().map(|j| rng.uniform(j.lower, j.upper)).collect())
-                .collect()
+            rig.arms.iter().map(|a| a.driver.model().random_configuration(&mut rng)).collect()
         };
         match free_tree_solution(rig, tree, &clearance, &seed, &wanted, &names) {
             Ok(found) => {
