@@ -15,8 +15,11 @@
 //! the samples, keeps the margin; pieces are halved down to a sixteenth of the margin of motion
 //! ([`Checker::step`]; finer, down to half the clearance of the segment's closer end, when an end
 //! is a hair beyond the margin, so that it can be reached), and one still not shown clear there
-//! (or past a budget of checks per segment) counts as blocked (a pair grazing the margin). Far from everything a segment costs two or three checks; near an obstacle the pieces
-//! get as fine as the clearance needs.
+//! (or past a budget of checks per segment) counts as blocked (a pair grazing the margin). Far
+//! from everything a segment costs two or three checks; near an obstacle the pieces get as fine
+//! as the clearance needs. The pairs that never move (the base's bodies against obstacles) are
+//! checked once, not bounded by the motion, and a clearance is measured only as far as a piece
+//! needs it.
 
 use anyhow::{anyhow, bail, Result};
 use kinematics::collision::{Contact, Scene};
@@ -203,10 +206,9 @@ impl<'a> Checker<'a> {
     /// The check of `arm` against `spec`; fails naming what the scene cannot hold.
     pub fn new(arm: &'a dyn DynArm, spec: CollisionSpec) -> Result<Self> {
         let joints = arm.spec().dof();
-        let scene = spec.scene::<f64, MAX_BODIES, MAX_OBSTACLES>(joints)?;
+        let mut scene = spec.scene::<f64, MAX_BODIES, MAX_OBSTACLES>(joints)?;
         let reach = reach(arm.spec(), &spec);
         let step = (spec.margin * STEP_OF_MARGIN).max(MIN_STEP);
-        let mut scene = scene;
         let fixed_contact = scene.closest_fixed().filter(|c| c.distance.is_nan() || c.distance < spec.margin);
         Ok(Self { arm, placer: placer(arm.spec())?, spec, scene, reach, step, checks: 0, fixed_contact })
     }
