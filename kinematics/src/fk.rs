@@ -39,7 +39,7 @@ impl<T: Real, const N: usize> Chain<T, N> {
 
     /// Joint `k`'s frame relative to its parent at joint value `q`.
     #[inline]
-    fn local_pose(&self, k: usize, q: T) -> Pose<T> {
+    pub(crate) fn local_pose(&self, k: usize, q: T) -> Pose<T> {
         let (Some(joint), Some(m)) = (self.joints().get(k), self.motion.get(k)) else { return Pose::identity() };
         match joint.kind {
             JointKind::Prismatic => {

@@ -24,6 +24,7 @@
 mod angle;
 mod chain;
 pub mod collision;
+pub mod dynamics;
 mod fk;
 pub mod ik;
 mod joint;

@@ -3,6 +3,7 @@
 //! tests a fifth of the test build.
 
 mod collision;
+mod dynamics;
 mod fk;
 mod ik;
 mod interpolation;
