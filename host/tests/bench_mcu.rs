@@ -8,9 +8,10 @@
 use serde_json::Value;
 
 /// Every operation the issues ask for (the `tree_` ones: issue 30, kinematic trees; the
-/// `collision_` ones: issue 45, one full collision check).
-const OPERATIONS: [&str; 14] = [
+/// `collision_` ones: issue 45, one full collision check; `rnea6`: issue 39, inverse dynamics).
+const OPERATIONS: [&str; 15] = [
     "fk6",
+    "rnea6",
     "dls_iter",
     "ik_track_1cm",
     "hermite6",

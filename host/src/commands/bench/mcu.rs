@@ -42,8 +42,9 @@ pub const GOALS: [(&str, u64); 5] = [
 ];
 
 /// What each operation is, for the table's readers.
-const DESCRIPTIONS: [(&str, &str); 17] = [
+const DESCRIPTIONS: [(&str, &str); 18] = [
     ("fk6", "forward kinematics of the 6-joint UR5e, every frame, f32"),
+    ("rnea6", "inverse dynamics of the 6-joint UR5e (recursive Newton-Euler, gravity), f32"),
     ("sincos", "one f32 sin and cos (kinematics::trig, in f32)"),
     ("sincos_libm", "the same with libm's sincosf (f64 inside, software)"),
     ("dls_iter", "one damped-least-squares iteration, full pose"),

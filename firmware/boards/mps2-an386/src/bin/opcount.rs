@@ -33,8 +33,9 @@ use firmware::controller::gripper::Gripper;
 use firmware::controller::Config;
 use firmware::tracking::Tracker;
 use kinematics::collision::{Body, Capsule, Part, Scene, Shape};
+use kinematics::dynamics::{Dynamics, Inertia};
 use kinematics::ik::{DampedLeastSquares, IkConfig, IkMethod, IkStatus, Residual, Target};
-use kinematics::nalgebra::{ComplexField, SVector, Vector3};
+use kinematics::nalgebra::{ComplexField, Matrix3, SVector, Vector3};
 use kinematics::trajectory::{JointLimits, Player, PlayerKeyframe};
 use kinematics::tree::{Effector, EffectorTarget, Tree, TreeProblem, TreeSolution, TreeStatus};
 use kinematics::{presets, Joint, Limits, Pose};
@@ -109,6 +110,18 @@ fn kinematics_ops(syst: &mut SYST) {
     let q = SVector::<f32, J>::from(SEED);
     // `forward`, every joint frame and the tool: the one FK the firmware links.
     report("fk6", REPS, measure(syst, REPS, || chain.forward(black_box(&q))));
+    // Inverse dynamics of the same arm (recursive Newton-Euler, gravity included), each link a
+    // kilogram 10 cm along its frame's z: what gravity compensation and a servo model run.
+    let link = Inertia {
+        mass: 1.0,
+        com: Vector3::new(0.0, 0.0, 0.1),
+        tensor: Matrix3::from_diagonal(&Vector3::new(2e-3, 3e-3, 4e-3)),
+    };
+    let Ok(dynamics) = Dynamics::<f32, J>::new([link; J]) else { halt() };
+    let (qd, qdd) = (SVector::<f32, J>::repeat(0.5), SVector::<f32, J>::repeat(1.0));
+    let ticks =
+        measure(syst, REPS, || dynamics.inverse(black_box(&chain), black_box(&q), black_box(&qd), black_box(&qdd)));
+    report("rnea6", REPS, ticks);
     // FK's sine and cosine of each joint, apart: the kinematics' own f32 version, and libm's
     // `sincosf` for comparison, which computes in f64 (software on the M4F's single-precision FPU).
     let angle = SEED[3];
