@@ -16,6 +16,7 @@ pub mod toml_update;
 pub mod toml_writer;
 pub mod tree;
 pub mod urdf;
+pub mod urdf_inertials;
 pub mod urdf_visuals;
 
 use anyhow::{bail, Context, Result};

@@ -330,7 +330,7 @@ pub(crate) fn child<'a, 'input>(node: Node<'a, 'input>, tag: &str) -> Option<Nod
 }
 
 /// `owner` names the element's joint or link (`joint j1`) in errors.
-fn number(text: &str, element: Node, attribute: &str, owner: &str, line: u32) -> Result<f64> {
+pub(crate) fn number(text: &str, element: Node, attribute: &str, owner: &str, line: u32) -> Result<f64> {
     let tag = element.tag_name().name();
     match text.parse::<f64>() {
         Ok(v) if v.is_finite() => Ok(v),
