@@ -152,7 +152,9 @@ mod tests {
 
     // Recorded from Pinocchio: host/tests/data/so101_dynamics_values.py.
     // Pinocchio 4.1.0, host/tests/data/so101_dynamics_values.py
-    const PINOCCHIO_RNEA: [([f64; 5], [f64; 5], [f64; 5], [f64; 5]); 8] = [
+    /// Joint positions, velocities, accelerations, and the torques they take.
+    type State = ([f64; 5], [f64; 5], [f64; 5], [f64; 5]);
+    const PINOCCHIO_RNEA: [State; 8] = [
         (
             [0.006573436113404885, 0.1373065290287414, -1.230745197391125, -0.6420453727255682, 0.4909311821884086],
             [1.1651465579862461, -1.3957040692022318, -1.0833445332029354, 1.7614000259399467, 0.6646699834618017],

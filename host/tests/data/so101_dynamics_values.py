@@ -36,7 +36,9 @@ def vec(x):
     return "[" + ", ".join(repr(float(e)) for e in x) + "]"
 
 print(f"// Pinocchio {pin.__version__}, host/tests/data/so101_dynamics_values.py")
-print("const PINOCCHIO_RNEA: [([f64; 5], [f64; 5], [f64; 5], [f64; 5]); 8] = [")
+print("/// Joint positions, velocities, accelerations, and the torques they take.")
+print("type State = ([f64; 5], [f64; 5], [f64; 5], [f64; 5]);")
+print("const PINOCCHIO_RNEA: [State; 8] = [")
 for q, v, a, tau in rows:
     print(f"    ({vec(q)}, {vec(v)}, {vec(a)}, {vec(tau)}),")
 print("];")
