@@ -7,4 +7,4 @@ mod inertia;
 mod rnea;
 
 pub use inertia::{Inertia, InertiaError};
-pub use rnea::{Dynamics, STANDARD_GRAVITY};
+pub use rnea::{Dynamics, Linkage, STANDARD_GRAVITY};

@@ -3,11 +3,53 @@
 //! gradient of the potential energy; the mass matrix's quadratic form is twice the kinetic
 //! energy (each link's centre-of-mass velocity and angular velocity by central differences of
 //! its placed pose); the velocity terms are Lagrange's equation, d/dt(M q̇) - ∂T/∂q, from the mass
-//! matrix so checked. Tolerances are stated where each is asserted.
+//! matrix so checked. Chains (the SO-101, the PUMA 560, the iiwa 14) and a tree (two SO-101 arms
+//! on a turning torso). Tolerances are stated where each is asserted.
 
-use kinematics::dynamics::{Dynamics, Inertia, InertiaError};
+use kinematics::dynamics::{Dynamics, Inertia, InertiaError, Linkage};
 use kinematics::nalgebra::{Matrix3, SVector, Vector3};
-use kinematics::{presets, Chain, SplitMix64};
+use kinematics::tree::{Effector, Tree};
+use kinematics::{presets, Chain, Joint, Limits, Pose, SplitMix64};
+
+/// An arm the dynamics takes, with forward kinematics to check it by: every joint's moving frame.
+trait Placed<const N: usize>: Linkage<f64, N> {
+    fn frames(&self, q: &SVector<f64, N>) -> [Pose<f64>; N];
+}
+
+impl<const N: usize> Placed<N> for Chain<f64, N> {
+    fn frames(&self, q: &SVector<f64, N>) -> [Pose<f64>; N] {
+        self.forward(q).joints
+    }
+}
+
+impl<const N: usize, const E: usize> Placed<N> for Tree<f64, N, E> {
+    fn frames(&self, q: &SVector<f64, N>) -> [Pose<f64>; N] {
+        self.forward(q).joints
+    }
+}
+
+/// Two SO-101 arms on a torso that turns (11 joints; each arm's first joint hangs from the
+/// torso's), as the tree suite builds it.
+fn torso() -> Tree<f64, 11, 2> {
+    let arm = presets::so101::<f64>().unwrap();
+    let torso = Joint::revolute(Pose::from_xyz_rpy([0.0, 0.0, 0.3], [0.0; 3]), [0.0, 0.0, 1.0], Limits::new(-1.5, 1.5));
+    let mut joints = [torso; 11];
+    let mut parents = [None; 11];
+    for (a, y) in [(0usize, 0.2), (1, -0.2)] {
+        for k in 0..5 {
+            let mut j = arm.joints()[k];
+            if k == 0 {
+                j.origin = Pose::from_xyz_rpy([0.0, y, 0.0], [0.0; 3]).compose(&j.origin);
+            }
+            let index = 1 + 5 * a + k;
+            joints[index] = j;
+            parents[index] = Some(if k == 0 { 0 } else { index - 1 });
+        }
+    }
+    let effectors =
+        [Effector { joint: Some(5), offset: *arm.tool() }, Effector { joint: Some(10), offset: *arm.tool() }];
+    Tree::new(joints, parents, effectors).unwrap()
+}
 
 /// A random body: 0.05 to 2 kg, its centre within 0.2 m of the frame, a tensor with random
 /// principal moments (that satisfy the triangle inequality) along random axes.
@@ -21,7 +63,7 @@ fn random_link(rng: &mut SplitMix64) -> Inertia<f64> {
     Inertia { mass, com, tensor: r * Matrix3::from_diagonal(&Vector3::new(a, b, c)) * r.transpose() }
 }
 
-fn random_q<const N: usize>(chain: &Chain<f64, N>, rng: &mut SplitMix64) -> SVector<f64, N> {
+fn random_q<const N: usize>(chain: &impl Linkage<f64, N>, rng: &mut SplitMix64) -> SVector<f64, N> {
     SVector::from_fn(|k, _| {
         let l = chain.joints()[k].limits;
         rng.uniform(l.lower, l.upper)
@@ -29,11 +71,11 @@ fn random_q<const N: usize>(chain: &Chain<f64, N>, rng: &mut SplitMix64) -> SVec
 }
 
 /// The potential energy of the links at `q` (J), gravity `g` in the base frame.
-fn potential<const N: usize>(chain: &Chain<f64, N>, d: &Dynamics<f64, N>, q: &SVector<f64, N>) -> f64 {
-    let frames = chain.forward(q);
+fn potential<const N: usize>(chain: &impl Placed<N>, d: &Dynamics<f64, N>, q: &SVector<f64, N>) -> f64 {
+    let frames = chain.frames(q);
     d.links()
         .iter()
-        .zip(&frames.joints)
+        .zip(&frames)
         .map(|(link, pose)| -link.mass * d.gravity().dot(&(pose.rotation * link.com + pose.translation)))
         .sum()
 }
@@ -41,21 +83,21 @@ fn potential<const N: usize>(chain: &Chain<f64, N>, d: &Dynamics<f64, N>, q: &SV
 /// The kinetic energy at `q` moving at `qd` (J), from forward kinematics alone: each link's
 /// centre-of-mass velocity and angular velocity by central differences along `q + s qd`.
 fn kinetic<const N: usize>(
-    chain: &Chain<f64, N>,
+    chain: &impl Placed<N>,
     d: &Dynamics<f64, N>,
     q: &SVector<f64, N>,
     qd: &SVector<f64, N>,
 ) -> f64 {
     let h = 1e-6;
-    let (ahead, behind, here) = (chain.forward(&(q + qd * h)), chain.forward(&(q - qd * h)), chain.forward(q));
+    let (ahead, behind, here) = (chain.frames(&(q + qd * h)), chain.frames(&(q - qd * h)), chain.frames(q));
     let mut energy = 0.0;
     for k in 0..N {
         let link = &d.links()[k];
-        let at = |f: &kinematics::Frames<f64, N>| f.joints[k].rotation * link.com + f.joints[k].translation;
+        let at = |f: &[Pose<f64>; N]| f[k].rotation * link.com + f[k].translation;
         let v = (at(&ahead) - at(&behind)) / (2.0 * h);
         // Ṙ Rᵀ is the skew matrix of the angular velocity (in the base frame).
-        let r = here.joints[k].rotation;
-        let spin = (ahead.joints[k].rotation - behind.joints[k].rotation) / (2.0 * h) * r.transpose();
+        let r = here[k].rotation;
+        let spin = (ahead[k].rotation - behind[k].rotation) / (2.0 * h) * r.transpose();
         let w =
             Vector3::new(spin[(2, 1)] - spin[(1, 2)], spin[(0, 2)] - spin[(2, 0)], spin[(1, 0)] - spin[(0, 1)]) * 0.5;
         let tensor = r * link.tensor * r.transpose();
@@ -72,7 +114,7 @@ fn chains() -> (Chain<f64, 5>, Chain<f64, 6>, Chain<f64, 7>) {
     (presets::so101().unwrap(), presets::puma560().unwrap(), presets::iiwa14().unwrap())
 }
 
-fn gravity_is_the_gradient_of_the_potential<const N: usize>(chain: &Chain<f64, N>, seed: u64) {
+fn gravity_is_the_gradient_of_the_potential<const N: usize>(chain: &impl Placed<N>, seed: u64) {
     let mut rng = SplitMix64::new(seed);
     for _ in 0..50 {
         let d = random_dynamics::<N>(&mut rng);
@@ -99,9 +141,10 @@ fn gravity_torques_are_the_gradient_of_the_potential_energy() {
     gravity_is_the_gradient_of_the_potential(&so101, 1);
     gravity_is_the_gradient_of_the_potential(&puma, 2);
     gravity_is_the_gradient_of_the_potential(&iiwa, 3);
+    gravity_is_the_gradient_of_the_potential(&torso(), 11);
 }
 
-fn mass_matrix_is_the_kinetic_energy<const N: usize>(chain: &Chain<f64, N>, seed: u64) {
+fn mass_matrix_is_the_kinetic_energy<const N: usize>(chain: &impl Placed<N>, seed: u64) {
     let mut rng = SplitMix64::new(seed);
     for _ in 0..50 {
         let d = random_dynamics::<N>(&mut rng);
@@ -127,9 +170,10 @@ fn the_mass_matrix_is_twice_the_kinetic_energy_and_symmetric_positive_definite()
     mass_matrix_is_the_kinetic_energy(&so101, 4);
     mass_matrix_is_the_kinetic_energy(&puma, 5);
     mass_matrix_is_the_kinetic_energy(&iiwa, 6);
+    mass_matrix_is_the_kinetic_energy(&torso(), 12);
 }
 
-fn lagrange<const N: usize>(chain: &Chain<f64, N>, seed: u64) {
+fn lagrange<const N: usize>(chain: &impl Placed<N>, seed: u64) {
     let mut rng = SplitMix64::new(seed);
     for _ in 0..30 {
         let d = random_dynamics::<N>(&mut rng);
@@ -163,6 +207,7 @@ fn inverse_dynamics_is_lagranges_equation() {
     lagrange(&so101, 7);
     lagrange(&puma, 8);
     lagrange(&iiwa, 9);
+    lagrange(&torso(), 13);
 }
 
 /// f32 follows f64 to its precision.
