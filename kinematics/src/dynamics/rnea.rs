@@ -1,10 +1,10 @@
 //! The recursive Newton-Euler algorithm (Luh, Walker and Paul, 1980), in each joint's own frame:
 //! velocities and accelerations outward from the base, forces and moments inward from the tips,
 //! for a chain or a tree alike (each joint's parent is looked up, and a link passes its forces to
-//! its parent's).
-//! Gravity enters as an upward acceleration of the base, so one pass gives the whole torque. The
-//! mass matrix is built a column at a time from the same pass (Walker and Orin's first method:
-//! no velocity, no gravity, a unit acceleration of one joint), O(N²) for the chains here.
+//! its parent's). Gravity enters as an upward acceleration of the base, so one pass gives the
+//! whole torque. The mass matrix is built a column at a time from the same pass (Walker and
+//! Orin's first method: no velocity, no gravity, a unit acceleration of one joint), O(N²) for the
+//! arms here.
 
 use nalgebra::{SMatrix, SVector, Vector3};
 
@@ -51,7 +51,7 @@ impl<T: Real, const N: usize, const E: usize> Linkage<T, N> for Tree<T, N, E> {
 /// Standard gravity (m/s²), as ISO 80000-3 defines it.
 pub const STANDARD_GRAVITY: f64 = 9.806_65;
 
-/// A chain's mass properties: each joint's link (in that joint's moving frame, as URDF's child
+/// An arm's mass properties: each joint's link (in that joint's moving frame, as URDF's child
 /// link) and gravity (in the base frame).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Dynamics<T: Real, const N: usize> {
@@ -70,10 +70,13 @@ impl<T: Real, const N: usize> Dynamics<T, N> {
     }
 
     /// The same with gravity `g` (m/s², in the base frame): an arm mounted on a wall or upside
-    /// down, or none.
-    pub fn with_gravity(mut self, g: Vector3<T>) -> Self {
+    /// down, or none. Refused when a component is not finite.
+    pub fn with_gravity(mut self, g: Vector3<T>) -> Result<Self, InertiaError> {
+        if !g.iter().all(|x| x.finite()) {
+            return Err(InertiaError::NotFinite);
+        }
         self.gravity = g;
-        self
+        Ok(self)
     }
 
     /// The same carrying `payload` (in a chain's tool frame) rigidly with the last link.

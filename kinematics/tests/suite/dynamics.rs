@@ -159,7 +159,7 @@ fn mass_matrix_is_the_kinetic_energy<const N: usize>(chain: &impl Placed<N>, see
         assert!((quadratic - t).abs() < 1e-9, "½ q̇ᵀ M q̇ = {quadratic} against the kinetic energy {t}");
         // With no velocity and no gravity, the torque is M q̈.
         let qdd = SVector::<f64, N>::from_fn(|_, _| rng.uniform(-5.0, 5.0));
-        let still = d.with_gravity(Vector3::zeros()).inverse(chain, &q, &SVector::zeros(), &qdd);
+        let still = d.with_gravity(Vector3::zeros()).unwrap().inverse(chain, &q, &SVector::zeros(), &qdd);
         assert!((still - m * qdd).abs().max() < 1e-12);
     }
 }
@@ -264,4 +264,5 @@ fn bodies_combine_by_the_parallel_axis_theorem_and_bad_numbers_are_refused() {
     let flat =
         Inertia { mass: 1.0, com: Vector3::zeros(), tensor: Matrix3::from_diagonal(&Vector3::new(1.0, 0.1, 0.1)) };
     assert_eq!(Dynamics::<f64, 1>::new([flat]).unwrap_err(), InertiaError::NotPhysical);
+    assert_eq!(light.with_gravity(Vector3::new(0.0, f64::NAN, -9.8)).unwrap_err(), InertiaError::NotFinite);
 }
