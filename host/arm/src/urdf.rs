@@ -319,6 +319,23 @@ pub(crate) fn origin(element: Option<Node>, owner: &str) -> Result<Pose<f64>> {
     Ok(Pose::from_xyz_rpy(xyz, rpy))
 }
 
+/// A URDF's `<link>` elements by name and each link's parent joint, read as [`read_joint`] reads
+/// them: what the readers that walk the chain after [`parse`] (visuals, masses) start from.
+pub(crate) type LinksAndJoints<'a, 'input> = (BTreeMap<&'a str, Node<'a, 'input>>, BTreeMap<&'a str, UrdfJoint<'a>>);
+
+/// The links and parent joints of the `<robot>` in `doc`.
+pub(crate) fn links_and_joints<'a>(doc: &'a Document<'a>) -> Result<LinksAndJoints<'a, 'a>> {
+    let robot = doc.root_element();
+    let links =
+        robot.children().filter(|n| n.has_tag_name("link")).filter_map(|n| Some((n.attribute("name")?, n))).collect();
+    let mut parent_joint = BTreeMap::new();
+    for node in robot.children().filter(|n| n.has_tag_name("joint")) {
+        let joint = read_joint(node, line_of(node))?;
+        parent_joint.insert(joint.child, joint);
+    }
+    Ok((links, parent_joint))
+}
+
 /// The line of the file where `node` starts.
 pub(crate) fn line_of(node: Node) -> u32 {
     node.document().text_pos_at(node.range().start).row

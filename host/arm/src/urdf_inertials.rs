@@ -4,7 +4,7 @@
 //! the chain through other joints (the SO-101's moving jaw) carried rigidly at those joints' zero.
 //! Read from the file on demand, not kept in the arm file.
 
-use crate::urdf::{self, child, UrdfJoint, UrdfKind};
+use crate::urdf::{self, child, UrdfKind};
 use anyhow::{anyhow, bail, Result};
 use kinematics::dynamics::Inertia;
 use kinematics::nalgebra::{Matrix3, Vector3};
@@ -34,14 +34,7 @@ pub fn masses(text: &str, tip: Option<&str>) -> Result<Masses> {
     // `parse` checks the tree, the joints and the tip, with its errors; the walk below relies on it.
     let spec = urdf::parse(text, tip)?;
     let doc = Document::parse(text)?;
-    let robot = doc.root_element();
-    let links: BTreeMap<&str, Node> =
-        robot.children().filter(|n| n.has_tag_name("link")).filter_map(|n| Some((n.attribute("name")?, n))).collect();
-    let mut parent_joint: BTreeMap<&str, UrdfJoint> = BTreeMap::new();
-    for node in robot.children().filter(|n| n.has_tag_name("joint")) {
-        let joint = urdf::read_joint(node, urdf::line_of(node))?;
-        parent_joint.insert(joint.child, joint);
-    }
+    let (links, parent_joint) = urdf::links_and_joints(&doc)?;
     // The chain's moving joints, by name, and the frame each moves (1 for the first).
     let frames: BTreeMap<&str, usize> = spec.joints.iter().enumerate().map(|(k, j)| (j.name.as_str(), k + 1)).collect();
 

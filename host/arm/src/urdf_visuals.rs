@@ -5,8 +5,8 @@
 use crate::urdf::{self, child, UrdfJoint, UrdfKind};
 use anyhow::{anyhow, bail, Result};
 use kinematics::Pose;
-use roxmltree::{Document, Node};
-use std::collections::{BTreeMap, BTreeSet};
+use roxmltree::Document;
+use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
 /// A visual mesh of a link of the chain, placed in one of the chain's frames.
@@ -37,16 +37,8 @@ pub fn visuals(text: &str, tip: Option<&str>, base_dir: &Path) -> Result<(Vec<Vi
     // `parse` checks the tree, the joints and the tip, with its errors; the walk below relies on it.
     let spec = urdf::parse(text, tip)?;
     let doc = Document::parse(text)?;
-    let robot = doc.root_element();
-    let links: BTreeMap<&str, Node> =
-        robot.children().filter(|n| n.has_tag_name("link")).filter_map(|n| Some((n.attribute("name")?, n))).collect();
-    let mut parent_joint: BTreeMap<&str, UrdfJoint> = BTreeMap::new();
-    let mut parents = BTreeSet::new();
-    for node in robot.children().filter(|n| n.has_tag_name("joint")) {
-        let joint = urdf::read_joint(node, urdf::line_of(node))?;
-        parents.insert(joint.parent);
-        parent_joint.insert(joint.child, joint);
-    }
+    let (links, parent_joint) = urdf::links_and_joints(&doc)?;
+    let parents: BTreeSet<&str> = parent_joint.values().map(|j| j.parent).collect();
     let tip = match tip {
         Some(tip) => tip,
         None => *links.keys().find(|l| !parents.contains(*l)).ok_or_else(|| anyhow!("the robot has no leaf link"))?,
