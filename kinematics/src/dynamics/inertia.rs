@@ -24,8 +24,8 @@ pub enum InertiaError {
     NotFinite,
     /// The mass is negative.
     NegativeMass,
-    /// The tensor is not symmetric, or not one a body can have (a principal moment negative, or
-    /// larger than the other two together).
+    /// The tensor is not one a body can have: not symmetric, not positive semi-definite, or a
+    /// moment larger than the other two together.
     NotPhysical,
 }
 
@@ -35,7 +35,7 @@ impl core::fmt::Display for InertiaError {
             InertiaError::NotFinite => "a mass, centre of mass or inertia is not a finite number",
             InertiaError::NegativeMass => "a mass is negative",
             InertiaError::NotPhysical => {
-                "an inertia tensor is not symmetric, or its moments break the triangle inequality"
+                "an inertia tensor is not symmetric or not positive semi-definite, or its moments break the triangle inequality"
             }
         })
     }
@@ -52,9 +52,9 @@ impl<T: Real> Inertia<T> {
         Self { mass, com, tensor: Matrix3::zeros() }
     }
 
-    /// Checks the numbers: finite, a mass not negative, a symmetric tensor whose diagonal moments
-    /// are not negative and each at most the sum of the other two (within rounding), as every
-    /// body's are. The principal moments obey the same; the diagonal of any frame's tensor does.
+    /// Checks the numbers: finite, a mass not negative, a symmetric tensor that is positive
+    /// semi-definite (no principal minor negative) and whose diagonal moments are each at most the
+    /// sum of the other two, all within rounding, as every body's tensor is in any frame.
     pub fn validated(self) -> Result<Self, InertiaError> {
         let finite = self.mass.finite() && self.com.iter().chain(self.tensor.iter()).all(|x| x.finite());
         if !finite {
@@ -69,9 +69,15 @@ impl<T: Real> Inertia<T> {
         let symmetric =
             (t.m12 - t.m21).abs() <= slack && (t.m13 - t.m31).abs() <= slack && (t.m23 - t.m32).abs() <= slack;
         let (a, b, c) = (t.m11, t.m22, t.m33);
+        // Positive semi-definite: every principal minor (the moments, the three 2 x 2 ones, the
+        // determinant) not negative.
+        let minor = |p: T, q: T, r: T| p * q - r * r;
         let moments = a >= -slack && b >= -slack && c >= -slack;
+        let slack2 = slack * scale;
+        let minors = minor(a, b, t.m12) >= -slack2 && minor(a, c, t.m13) >= -slack2 && minor(b, c, t.m23) >= -slack2;
+        let determinant = t.determinant() >= -slack2 * scale;
         let triangle = a <= b + c + slack && b <= a + c + slack && c <= a + b + slack;
-        if symmetric && moments && triangle {
+        if symmetric && moments && minors && determinant && triangle {
             Ok(self)
         } else {
             Err(InertiaError::NotPhysical)

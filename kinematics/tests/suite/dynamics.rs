@@ -264,5 +264,9 @@ fn bodies_combine_by_the_parallel_axis_theorem_and_bad_numbers_are_refused() {
     let flat =
         Inertia { mass: 1.0, com: Vector3::zeros(), tensor: Matrix3::from_diagonal(&Vector3::new(1.0, 0.1, 0.1)) };
     assert_eq!(Dynamics::<f64, 1>::new([flat]).unwrap_err(), InertiaError::NotPhysical);
+    // Moments that pass the triangle inequality, but a product of inertia no body has.
+    let skew =
+        Inertia { mass: 1.0, com: Vector3::zeros(), tensor: Matrix3::new(1.0, 2.0, 0.0, 2.0, 1.0, 0.0, 0.0, 0.0, 1.0) };
+    assert_eq!(Dynamics::<f64, 1>::new([skew]).unwrap_err(), InertiaError::NotPhysical);
     assert_eq!(light.with_gravity(Vector3::new(0.0, f64::NAN, -9.8)).unwrap_err(), InertiaError::NotFinite);
 }
