@@ -89,7 +89,7 @@ pub fn point_box<T: Real>(p: &Vector3<T>, centre: &Vector3<T>, rotation: &Matrix
 /// A strictly increasing function of the signed distance from a point to a box, which costs no
 /// square root: the squared distance outside, minus the distance to the nearest face inside.
 /// `local` is the point in the box's frame, from its centre.
-fn box_measure<T: Real>(local: &Vector3<T>, half: &Vector3<T>) -> T {
+pub(super) fn box_measure<T: Real>(local: &Vector3<T>, half: &Vector3<T>) -> T {
     let d = local.abs() - half;
     let inside = d.x.max(d.y).max(d.z);
     if inside > T::zero() {

@@ -11,7 +11,7 @@
 
 use heapless::Vec;
 
-use super::distance::{capsule_capsule, distance};
+use super::distance::{box_measure, capsule_capsule, distance};
 use super::shape::{Capsule, Shape};
 use crate::{Pose, Real};
 
@@ -124,10 +124,15 @@ fn far<T: Real>(gap_squared: T, reach: T) -> bool {
 /// within it can come closer.
 fn sphere_far_from<T: Real>(centre: &nalgebra::Vector3<T>, radius: T, shape: &Shape<T>, beyond: T) -> bool {
     match shape {
-        // The squared distance from the sphere's centre to the box, outside it.
+        // The centre's signed distance to the box, as its measure: squared outside, minus the
+        // depth inside (a centre deep inside can be deeper than an overlap already found).
         Shape::Box { centre: c, rotation, half } => {
-            let local = rotation.tr_mul(&(centre - c));
-            far((local.abs() - half).map(|x| x.max(T::zero())).norm_squared(), radius + beyond)
+            let measure = box_measure(&rotation.tr_mul(&(centre - c)), half);
+            if measure > T::zero() {
+                far(measure, radius + beyond)
+            } else {
+                measure > radius + beyond
+            }
         }
         Shape::Capsule(c) => {
             let (c2, r2) = c.bounding_sphere();
@@ -534,6 +539,22 @@ mod tests {
         scene.add_body(Body { frame: Some(0), capsule }, 1).unwrap();
         scene.add_obstacle(Shape::table(0.0)).unwrap();
         assert!(scene.first_contact(&[]).is_some());
+    }
+
+    /// A body whose centre is deep in a box, checked after a shallower overlap was found, is
+    /// still the closest pair (its sphere's centre is inside the box: no gap, but a depth).
+    #[test]
+    fn a_deeper_overlap_in_a_box_found_after_a_shallow_one_is_the_closest() {
+        let mut scene: Scene<f64, 4, 2> = Scene::new(0.01);
+        let shallow = Capsule::sphere(Vector3::new(0.0, 0.0, 0.095), 0.05);
+        let deep = Capsule::sphere(Vector3::zeros(), 0.01);
+        scene.add_body(Body { frame: Some(0), capsule: shallow }, 2).unwrap();
+        scene.add_body(Body { frame: Some(1), capsule: deep }, 2).unwrap();
+        scene.allow(0, Part::Body(1)).unwrap();
+        scene.add_obstacle(Shape::aligned_box(Vector3::zeros(), Vector3::repeat(0.2))).unwrap();
+        let closest = scene.closest(&[Pose::identity(), Pose::identity()]).unwrap();
+        assert_eq!(closest.body, 1);
+        assert!((closest.distance + 0.11).abs() < 1e-12, "{}", closest.distance);
     }
 
     /// The bounding-sphere filters (of groups, then of bodies) never change an answer: the first
