@@ -28,8 +28,13 @@ use super::Transport;
 pub const STOP_TIMEOUT: f64 = 30.0;
 /// A joint this close to its setpoint (rad or m) has arrived.
 pub const SETTLED: f32 = 1e-3;
-/// A joint that moved less than this between two polls (rad or m) stands still.
+/// A joint that moved less than this (rad or m) over [`STILL_SPAN`] stands still.
 const STILL: f32 = 1e-4;
+/// How long (controller seconds) the joints must stand still to be taken as held back: several
+/// control periods, not two polls. The core run on a loaded PC can go without its CPU between two
+/// polls and read no servo meanwhile; a teleop rig's follower was taken as at rest 0.2 rad short
+/// of its setpoint that way.
+const STILL_SPAN: f32 = 0.2;
 /// Longest wait for the servos to catch up with a resting setpoint (controller seconds).
 const SETTLE_TIMEOUT: f32 = 2.0;
 /// Read timeouts a torque-on waits through `NotReady` (0.5 s at 20 ms): right after the board
@@ -312,21 +317,23 @@ impl<T: Transport> Session<T> {
     }
 
     /// Once the setpoint rests: waits until the servos have caught up with it (every measured
-    /// joint within [`SETTLED`] of its setpoint) or stand still (a servo held back by a load), at
-    /// most [`SETTLE_TIMEOUT`]. Returns the last status.
+    /// joint within [`SETTLED`] of its setpoint) or stand still (a servo held back by a load) for
+    /// [`STILL_SPAN`], at most [`SETTLE_TIMEOUT`]. Returns the last status.
     pub fn settle(&mut self, mut status: Status) -> Result<Status, LinkError> {
         let t0 = status.time;
+        // Where the joints stood when they last moved, and when.
+        let mut still_since = (status.time, status.measured.clone());
         loop {
             let lag = status.measured.iter().zip(&status.setpoints).map(|(m, s)| (m - s).abs()).fold(0.0, f32::max);
             if lag <= SETTLED || status.state != RunState::Idle || status.time - t0 > SETTLE_TIMEOUT {
                 return Ok(status);
             }
             self.pause()?;
-            let next = self.status()?;
-            let moved = next.measured.iter().zip(&status.measured).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
-            let still = moved <= STILL;
-            status = next;
-            if still {
+            status = self.status()?;
+            let moved = status.measured.iter().zip(&still_since.1).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
+            if moved > STILL {
+                still_since = (status.time, status.measured.clone());
+            } else if status.time - still_since.0 >= STILL_SPAN {
                 return Ok(status);
             }
         }
