@@ -30,7 +30,7 @@ use super::record::Recorder;
 use crate::arm::servos::servos_of;
 use crate::link::client::LinkError;
 use crate::link::session::Keyframe;
-use crate::runtime::driver::Driver;
+use crate::runtime::driver::{Driver, Waited};
 
 /// Statuses whose offsets are kept for the playback clock (about 1.6 s at one per 5 periods).
 const OFFSET_WINDOW: usize = 32;
@@ -381,6 +381,10 @@ pub struct Streamer {
     playing: bool,
     /// The last keyframe's joints (before the first: the follower's setpoint).
     previous: Vec<f64>,
+    /// The last joint keyframe sent, which the stream ends on (even if a restart dropped it).
+    last_sent: Option<Vec<f64>>,
+    /// The last keyframe sent was at rest (every velocity zero: the reading had not changed).
+    previous_at_rest: bool,
     last_time: f64,
     /// Recent readings with their host times, for the tracking figure.
     history: VecDeque<(f64, Vec<f64>)>,
@@ -416,6 +420,8 @@ impl Streamer {
             clock: PlayClock::new(started),
             playing: false,
             previous: status.setpoints.iter().map(|&x| f64::from(x)).collect(),
+            last_sent: None,
+            previous_at_rest: false,
             last_time: 0.0,
             history: VecDeque::new(),
             statuses_left: 0,
@@ -499,6 +505,8 @@ impl Streamer {
         };
         let recorded = self.pushed(driver, time, &at, read_at, Some(&q))?;
         self.previous = q.clone();
+        self.last_sent = Some(q.clone());
+        self.previous_at_rest = v.iter().all(|&x| x == 0.0);
         Ok(Sent { time: recorded, joints: q, gripper: gripper.map(f64::from) })
     }
 
@@ -519,6 +527,10 @@ impl Streamer {
         let gripper = gripper.filter(|_| self.settings.gripper).map(|g| g.clamp(0.0, 100.0) as f32);
         let at = |time: f32| Keyframe::Pose(CartesianKeyframe { time, target, gripper });
         let recorded = self.pushed(driver, time, &at, read_at, None)?;
+        // A pose stream ends where the firmware's solve of its last pose is, not on joints; the
+        // firmware chooses the pose's velocity.
+        self.last_sent = None;
+        self.previous_at_rest = false;
         Ok(Sent { time: recorded, joints: Vec::new(), gripper: gripper.map(f64::from) })
     }
 
@@ -551,14 +563,27 @@ impl Streamer {
             self.clock = PlayClock::new(Instant::now());
             self.statuses_left = 20;
         }
+        // The player heads for a keyframe from the one before it, so it needs this one queued by
+        // the time the previous one is due; otherwise it runs out (an underrun) and brakes.
+        let previous_due = self.clock.instant_of(self.last_time);
+        if self.last_time > 0.0 && queued_at > previous_due {
+            self.figures.late_keyframes += 1;
+        }
+        if self.previous_at_rest && self.last_time > 0.0 && queued_at + REST_RACE > previous_due {
+            // The previous keyframe was at rest: a player that reached it before this one was
+            // queued ended there and holds, and this one waits for a start. A status now tells
+            // (after this push the player cannot come to rest there any more); if so this one
+            // goes again, the first of a new playback. Else a stream that stops here would
+            // leave the arm on the previous keyframe, not on the last one sent.
+            self.look(driver)?;
+            if !self.playing {
+                let period = self.settings.period.as_secs_f64();
+                return self.pushed(driver, period, at, read_at, joints);
+            }
+        }
         let due = self.clock.instant_of(time);
         self.figures.queued_ms.push(queued_at.duration_since(read_at).as_secs_f64() * 1e3);
         self.figures.goal_ms.push(due.max(queued_at).saturating_duration_since(read_at).as_secs_f64() * 1e3);
-        // The player heads for a keyframe from the one before it, so it needs this one queued by
-        // the time the previous one is due; otherwise it runs out (an underrun) and brakes.
-        if self.last_time > 0.0 && queued_at > self.clock.instant_of(self.last_time) {
-            self.figures.late_keyframes += 1;
-        }
         self.figures.keyframes += 1;
         if let Some(q) = joints {
             self.history.push_back((self.clock.host(read_at), q.to_vec()));
@@ -623,27 +648,61 @@ impl Streamer {
     }
 
     /// Ends the stream: a last keyframe at rest on the last joints sent, so that the player ends
-    /// there without braking (after joint keyframes). Returns the figures and that keyframe.
+    /// there without braking (after joint keyframes), and the follower brought to rest on it.
+    /// Returns the figures and that keyframe.
+    ///
+    /// A player that came to rest on a keyframe at rest (the leader held still for a reading)
+    /// before the next one was queued holds there, and what was queued after it waits for a
+    /// start: mid-stream a status finds that and the stream starts anew, but after the last
+    /// status nothing would. So the last keyframe goes again, as a playback of its own from where
+    /// the follower holds.
     pub fn finish(mut self, driver: &mut Driver) -> Result<(Figures, Option<Sent>)> {
         self.figures.seconds = self.started.elapsed().as_secs_f64();
         let mut last = None;
-        if self.playing && !self.history.is_empty() {
+        if let Some(q) = self.last_sent.clone() {
             let period = self.settings.period.as_secs_f64();
-            let time = self.clock.at(Instant::now()).max(self.last_time) + self.settings.lead.as_secs_f64().max(period);
-            let keyframe = JointKeyframe {
-                time: time as f32,
-                positions: joints(&self.previous)?,
-                velocities: Some(joints(&vec![0.0; self.previous.len()])?),
-                gripper: None,
+            let at_rest = |time: f64| -> Result<Keyframe> {
+                Ok(Keyframe::Joints(JointKeyframe {
+                    time: time as f32,
+                    positions: joints(&q)?,
+                    velocities: Some(joints(&vec![0.0; q.len()])?),
+                    gripper: None,
+                }))
             };
-            driver.session().push(&Keyframe::Joints(keyframe))?;
-            last = Some(Sent { time: self.recorded_time(time), joints: self.previous.clone(), gripper: None });
+            // After a restart the last keyframe was dropped with the queue: a playback of its own.
+            let time = if self.playing {
+                self.clock.at(Instant::now()).max(self.last_time) + self.settings.lead.as_secs_f64().max(period)
+            } else {
+                period
+            };
+            driver.session().push(&at_rest(time)?)?;
+            if !self.playing {
+                driver.session().start()?;
+            }
+            last = Some(Sent { time: self.recorded_time(time), joints: q.clone(), gripper: None });
+            if let Waited::Done(status) = driver.wait_until_rest(FINISH_TIMEOUT)? {
+                if status.queued > 0 {
+                    // At rest short of it, the rest of the stream queued: that goes, this plays.
+                    driver.stop()?;
+                    driver.session().push(&at_rest(period)?)?;
+                    driver.session().start()?;
+                    self.figures.restarts += 1;
+                }
+            }
         }
         let status = driver.status()?;
         self.figures.underruns = status.errors.underruns.wrapping_sub(self.underruns_before);
         Ok((self.figures, last))
     }
 }
+
+/// How far ahead of a keyframe at rest being due (by the host's estimate of the playback clock)
+/// the next one is taken as possibly too late for it: the estimate's error, with room.
+const REST_RACE: Duration = Duration::from_millis(10);
+
+/// How long [`Streamer::finish`] waits for the follower to come to rest (controller time, s):
+/// the queue's worth of keyframes and the brake, with room.
+const FINISH_TIMEOUT: f64 = 10.0;
 
 /// Runs the loop until `done` says so; the follower is then brought to rest on the last reading.
 /// `read` reads the leader.
