@@ -430,6 +430,10 @@ macro_rules! dispatch_f32 {
     };
 }
 
+// For the crate's other run-time counts (`arm_dynamics`); the caller has `MAX_JOINTS` and
+// `anyhow!` in scope, which the fallback arm names.
+pub(crate) use {dispatch, dispatch_f32};
+
 /// The arm of `spec` as a [`DynArm`]; fails for an invalid description or too many joints.
 pub fn build(spec: ArmSpec) -> Result<Box<dyn DynArm>> {
     match spec.dof() {

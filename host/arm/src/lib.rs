@@ -4,6 +4,7 @@
 
 #![warn(missing_docs)]
 
+pub mod arm_dynamics;
 pub mod body;
 pub mod calibration;
 pub mod collision;
@@ -55,6 +56,10 @@ pub struct ArmSpec {
     /// Its collision geometry, when the description has some (the arm file's `[collision]`, or
     /// a preset's); see [`collision::collision_of`].
     pub collision: Option<collision::CollisionSpec>,
+    /// The mass properties of what each joint moves, base first, in the frame it moves, when the
+    /// description gives them (the arm file's `mass`, `com` and `inertia` per joint); the
+    /// presets' are in [`arm_dynamics::masses_of`].
+    pub masses: Option<Vec<kinematics::dynamics::Inertia<f64>>>,
 }
 
 impl ArmSpec {
@@ -121,7 +126,7 @@ impl ArmSpec {
                 upper: j.limits.upper,
             })
             .collect();
-        Self { name: name.to_string(), joints, tool: *chain.tool(), servos: None, collision: None }
+        Self { name: name.to_string(), joints, tool: *chain.tool(), servos: None, collision: None, masses: None }
     }
 
     /// Loads `arm`: a preset name (`ur5e`, `planar:4`, ...), a `.urdf` file (needs `tip`), or a

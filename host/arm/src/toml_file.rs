@@ -12,6 +12,10 @@
 //! rpy = [0, 0, 0]          # fixed-axis roll, pitch, yaw as in URDF, optional (default zero)
 //! axis = [0, 0, 1]         # motion axis in the joint frame
 //! limits = [-170, 170]     # [lower, upper]; required except for continuous joints
+//! mass = 0.147             # optional, every joint or none: kg of what the joint moves (its link
+//! com = [0, 0.02, 0.03]    #   and all fixed to it), its centre of mass in the joint's frame (m),
+//! inertia = [2e-4, 0, 0, 1e-4, 0, 1e-4] # and, optional, its inertia about the centre of mass
+//!                          #   (kg m², URDF's order ixx ixy ixz iyy iyz izz; default a point mass)
 //!
 //! [tool]                   # optional: tool frame after the last joint
 //! xyz = [0.1, 0, 0]
@@ -58,10 +62,16 @@
 //! [`STOP_MARGIN_DEG`](super::calibration::record::STOP_MARGIN_DEG) a side
 //! ([`joint_limits`](super::calibration::record::joint_limits)). [`super::toml_writer`] writes such
 //! a file, and [`super::toml_update`] writes a calibration into an existing one.
+//!
+//! The masses (`mass`, `com`, `inertia`, every joint's or none, convention `urdf` only) are in the
+//! joint's own frame, as a URDF's `<inertial>` is in its child link's; they are what the
+//! simulator's physical servos carry ([`super::arm_dynamics::masses_of`]).
 
 use super::calibration::MotorCalibration;
 use super::{ArmSpec, JointSpec};
 use anyhow::{anyhow, bail, Result};
+use kinematics::dynamics::Inertia;
+use kinematics::nalgebra::{Matrix3, Vector3};
 use kinematics::{Chain, DhRow, JointKind, Limits, Pose};
 use serde::Deserialize;
 use toml::Spanned;
@@ -163,6 +173,10 @@ struct JointEntry {
     alpha: Option<f64>,
     d: Option<f64>,
     theta: Option<f64>,
+    // What the joint moves (all joints or none): kg, m, kg m² as a URDF's <inertia> lists them.
+    mass: Option<f64>,
+    com: Option<[f64; 3]>,
+    inertia: Option<[f64; 6]>,
 }
 
 #[derive(Deserialize)]
@@ -188,6 +202,7 @@ pub fn parse(text: &str) -> Result<ArmSpec> {
     let convention = file.convention;
 
     let mut joints = Vec::with_capacity(file.joints.len());
+    let mut masses = Vec::with_capacity(file.joints.len());
     // Standard DH: the constant part of row i is the origin of joint i + 1 (and of the tool).
     let mut previous_link = Pose::identity();
     for (i, entry) in file.joints.iter().enumerate() {
@@ -256,8 +271,10 @@ pub fn parse(text: &str) -> Result<ArmSpec> {
                 JointSpec { name, kind, origin, axis: [0.0, 0.0, 1.0], lower, upper }
             }
         };
+        masses.push(body(&at, j, convention)?);
         joints.push(spec);
     }
+    let masses = all_or_none(text, &file.joints, masses)?;
 
     let tool = match &file.tool {
         None => Pose::identity(),
@@ -297,9 +314,57 @@ pub fn parse(text: &str) -> Result<ArmSpec> {
             Some(servos)
         }
     };
-    let mut arm = ArmSpec { name: file.name, joints, tool, servos, collision: None };
+    let mut arm = ArmSpec { name: file.name, joints, tool, servos, collision: None, masses };
     arm.collision = super::collision::toml::read(text, file.collision.as_ref(), &file.obstacles, angle, &arm)?;
     Ok(arm)
+}
+
+/// What joint `j` moves, from its `mass`, `com` and `inertia` keys, if it has them.
+fn body(at: &str, j: &JointEntry, convention: Convention) -> Result<Option<Inertia<f64>>> {
+    let Some(mass) = j.mass else {
+        if let Some(key) = [("com", j.com.is_some()), ("inertia", j.inertia.is_some())].iter().find(|k| k.1) {
+            bail!("{at}: `{}` needs `mass`", key.0);
+        }
+        return Ok(None);
+    };
+    if convention != Convention::Urdf {
+        bail!(
+            "{at}: `mass` needs convention = \"urdf\": the centre of mass is given in the joint's own frame, which \
+             a {} row does not place",
+            convention.name()
+        );
+    }
+    let com =
+        j.com.ok_or_else(|| anyhow!("{at}: `com = [x, y, z]` (m, in the joint's frame) is required with `mass`"))?;
+    // URDF's order: ixx, ixy, ixz, iyy, iyz, izz; none is a point mass.
+    let [xx, xy, xz, yy, yz, zz] = j.inertia.unwrap_or([0.0; 6]);
+    let tensor = Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz);
+    Inertia { mass, com: Vector3::from(com), tensor }
+        .validated()
+        .map_err(|e| {
+            anyhow!("{at}: mass {mass} kg, com {com:?}, inertia {:?} is not a body's: {e}", [xx, xy, xz, yy, yz, zz])
+        })
+        .map(Some)
+}
+
+/// Every joint's body, or none: an arm with some masses missing would be simulated as if those
+/// links weighed nothing.
+fn all_or_none(
+    text: &str,
+    entries: &[Spanned<JointEntry>],
+    masses: Vec<Option<Inertia<f64>>>,
+) -> Result<Option<Vec<Inertia<f64>>>> {
+    if masses.iter().all(Option::is_none) {
+        return Ok(None);
+    }
+    if let Some(k) = masses.iter().position(Option::is_none) {
+        let name = entries[k].get_ref().name.clone().unwrap_or_else(|| format!("joint{}", k + 1));
+        bail!(
+            "{}: joint {name} has no `mass`, where others have: give every joint's mass and com, or none",
+            position(text, entries[k].span().start)
+        );
+    }
+    Ok(Some(masses.into_iter().flatten().collect()))
 }
 
 /// The `[gripper]` table, checked against the servos.
@@ -623,6 +688,37 @@ mod tests {
         let chain = parse(text).unwrap().chain::<f64, 1>().unwrap();
         let p = chain.tool_pose(&SVector::from([0.25])).translation;
         assert!((p - Vector3::new(0.1, 0.0, 0.45)).amax() < 1e-12, "{p}");
+    }
+
+    /// Masses per joint, all or none, each a body: one line naming the joint for each mistake,
+    /// and the numbers as written (the tensor in URDF's order).
+    #[test]
+    fn masses_are_every_joints_or_none() {
+        let joint = |name: &str, extra: &str| {
+            format!("[[joint]]\nname = \"{name}\"\ntype = \"revolute\"\naxis = [0, 0, 1]\nlimits = [-1, 1]\n{extra}\n")
+        };
+        let body = "mass = 0.2\ncom = [0.01, 0, 0.05]\ninertia = [3e-4, 1e-5, 0, 2e-4, 0, 1e-4]";
+        let two = |a: &str, b: &str| format!("name = \"x\"\n{}{}", joint("lift", a), joint("elbow", b));
+        let arm = parse(&two(body, "mass = 0.1\ncom = [0, 0, 0.1]")).unwrap();
+        let masses = arm.masses.unwrap();
+        assert_eq!((masses[0].mass, masses[0].com), (0.2, Vector3::new(0.01, 0.0, 0.05)));
+        assert_eq!((masses[0].tensor.m12, masses[0].tensor.m21, masses[0].tensor.m22), (1e-5, 1e-5, 2e-4));
+        assert_eq!((masses[1].mass, masses[1].tensor), (0.1, kinematics::nalgebra::Matrix3::zeros()));
+        assert_eq!(parse(&two("", "")).unwrap().masses, None);
+        for (text, needle) in [
+            (two(body, ""), "line 10, column 1: joint elbow has no `mass`, where others have"),
+            (two("mass = nan\ncom = [0, 0, 0]", "mass = 0.1\ncom = [0, 0, 0]"), "joint lift: mass NaN kg"),
+            (two("mass = -1\ncom = [0, 0, 0]", "mass = 0.1\ncom = [0, 0, 0]"), "is not a body's"),
+            (two("mass = 1\ncom = [0, 0, 0]\ninertia = [1, 0, 0, 0.1, 0, 0.1]", ""), "is not a body's"),
+            (two("mass = 1", ""), "joint lift: `com = [x, y, z]` (m, in the joint's frame) is required"),
+            (two("com = [0, 0, 0]", ""), "joint lift: `com` needs `mass`"),
+            (two("mass = 1\ncom = [0, 0]", ""), "invalid length 2"),
+        ] {
+            let message = error(&text);
+            assert!(message.contains(needle), "{message:?} does not say {needle:?}");
+        }
+        let dh = "name = \"x\"\nconvention = \"dh\"\n[[joint]]\ntype = \"revolute\"\na = 0\nalpha = 0\nd = 0.1\nlimits = [-1, 1]\nmass = 1\ncom = [0, 0, 0]\n";
+        assert!(error(dh).contains("`mass` needs convention = \"urdf\""), "{}", error(dh));
     }
 
     #[test]

@@ -21,7 +21,7 @@ pub fn to_text(arm: &ArmSpec, header: &[String]) -> String {
         let _ = writeln!(out, "# {line}");
     }
     let _ = writeln!(out, "name = {}", quoted(&arm.name));
-    for joint in &arm.joints {
+    for (k, joint) in arm.joints.iter().enumerate() {
         let _ = writeln!(out, "\n[[joint]]");
         let _ = writeln!(out, "name = {}", quoted(&joint.name));
         let kind = match joint.kind {
@@ -49,6 +49,16 @@ pub fn to_text(arm: &ArmSpec, header: &[String]) -> String {
                     joint.upper.to_degrees()
                 );
             }
+        }
+        if let Some(body) = arm.masses.as_ref().and_then(|m| m.get(k)) {
+            let t = &body.tensor;
+            let _ = writeln!(out, "mass = {:?}  # kg", body.mass);
+            let _ = writeln!(out, "com = {}", list(&[body.com.x, body.com.y, body.com.z]));
+            let _ = writeln!(
+                out,
+                "inertia = {}  # kg m², ixx ixy ixz iyy iyz izz",
+                list(&[t.m11, t.m12, t.m13, t.m22, t.m23, t.m33])
+            );
         }
     }
     let (xyz, rpy) = xyz_rpy(&arm.tool);
@@ -162,6 +172,12 @@ mod tests {
         assert_eq!(a.servos, b.servos);
         // The collision geometry too (the presets carry theirs), number for number.
         assert_eq!(a.collision, b.collision);
+        // The masses: numbers as written, the tensor's upper triangle read back symmetric.
+        assert_eq!(a.masses.is_some(), b.masses.is_some());
+        for (x, y) in a.masses.iter().flatten().zip(b.masses.iter().flatten()) {
+            assert_eq!((x.mass, x.com), (y.mass, y.com));
+            assert!((x.tensor - y.tensor).amax() < 1e-18, "{:?} {:?}", x.tensor, y.tensor);
+        }
         let (ca, cb) = (a.chain::<f64, N>().unwrap(), b.chain::<f64, N>().unwrap());
         let mut rng = SplitMix64::new(3);
         for _ in 0..50 {
@@ -188,6 +204,8 @@ mod tests {
         );
         servos.reversed = Some(vec![false, false, true, false, false]);
         arm.servos = Some(servos);
+        // Its URDF's masses written out: the file carries them for an arm of another name.
+        arm.masses = Some(crate::arm_dynamics::masses_of(&arm).unwrap().unwrap());
         arm.joints[1].lower = -1.2345678901234567;
         // Loading tightens a calibrated arm's limits to its ranges: written tightened, they read
         // back as written.

@@ -208,7 +208,14 @@ pub fn parse(text: &str, tip: Option<&str>) -> Result<ArmSpec> {
             None => pending = pending.compose(&j.origin),
         }
     }
-    Ok(ArmSpec { name: robot.name.to_string(), joints: specs, tool: pending, servos: None, collision: None })
+    Ok(ArmSpec {
+        name: robot.name.to_string(),
+        joints: specs,
+        tool: pending,
+        servos: None,
+        collision: None,
+        masses: None,
+    })
 }
 
 /// The leaf links of URDF `text` (no joint starts from them), by name: one for an arm, several
