@@ -47,12 +47,15 @@ class SimServos:
     """`armctl sim servos --pty --arm so101` in a process of its own: `port` is its pty."""
 
     def __init__(self, armctl: str, calibration: Path | None = None, record: Path | None = None,
-                 burst_ms: float | None = 1.0, arm: str = "so101", period_ms: float | None = None):
+                 burst_ms: float | None = 1.0, arm: str = "so101", period_ms: float | None = None,
+                 servos: str | None = None):
         """`period_ms`: the control period of whatever drives the servos, which the safety monitor
         judges each goal step over (a tick is a read of the positions followed by goal writes):
         the firmware core's 10 ms by default; LeRobot's so101_follower reads and writes once a
-        frame, 1000 / fps."""
+        frame, 1000 / fps. `servos`: `ideal` (the default) or `physical` (docs/servo-model.md)."""
         args = [armctl, "sim", "servos", "--pty", "--arm", arm]
+        if servos is not None:
+            args += ["--servos", servos]
         if period_ms is not None:
             args += ["--period-ms", f"{period_ms:.3f}"]
         if calibration is not None:

@@ -25,7 +25,7 @@ the stream's seconds 1 to 19:
 Goals (issue 29): RMS jerk at least 5x lower than LeRobot's, 0 violations on armctl_follower's
 side, lag within one action period plus 20 ms.
 
-    python host/scripts/smoothness.py [--armctl target/release/armctl] [--json]
+    python host/scripts/smoothness.py [--armctl target/release/armctl] [--servos physical] [--json]
 
 Needs lerobot, armctl and lerobot_robot_armctl installed (see docs/python.md). The clocks: the path's
 time zero is the moment the first action is sent; the recording's clock starts when the servos
@@ -131,7 +131,7 @@ def analyse(record: Path, t0: float, cal: dict) -> dict:
     }
 
 
-def one(kind: str, armctl_bin: str, work: Path, t: np.ndarray, a: np.ndarray) -> dict:
+def one(kind: str, armctl_bin: str, work: Path, t: np.ndarray, a: np.ndarray, servos: str) -> dict:
     cal = lerobot_sim.so101_calibration()
     cal_dir = work / kind
     cal_file = lerobot_sim.write_calibration_file(cal_dir / "bench.json", cal)
@@ -139,7 +139,8 @@ def one(kind: str, armctl_bin: str, work: Path, t: np.ndarray, a: np.ndarray) ->
     # so101_follower reads the positions and writes the goals once an action: its control period
     # is the actions', which the monitor judges its steps over (armctl's core: its own 10 ms).
     period_ms = 1000.0 / RATE if kind == "lerobot" else None
-    servos = lerobot_sim.SimServos(armctl_bin, calibration=cal_file, record=record, period_ms=period_ms)
+    servos = lerobot_sim.SimServos(armctl_bin, calibration=cal_file, record=record, period_ms=period_ms,
+                                   servos=servos)
     announced = time.monotonic()
     try:
         lerobot_sim.calibrate_bus(servos.port, "bench", cal_dir)
@@ -179,13 +180,15 @@ def main() -> int:
     parser.add_argument("--armctl", default=None, help="the armctl binary (default: target/release, else debug)")
     parser.add_argument("--json", action="store_true", help="print one line of JSON")
     parser.add_argument("--keep", type=Path, default=None, help="keep the recordings in this folder")
+    parser.add_argument("--servos", choices=("ideal", "physical"), default="ideal",
+                        help="the simulated servos: ideal, or physical ones that carry the arm (docs/servo-model.md)")
     args = parser.parse_args()
     armctl_bin = args.armctl or lerobot_sim.default_armctl()
     t, a = actions()
     with tempfile.TemporaryDirectory() as tmp:
         work = args.keep or Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
-        results = {kind: one(kind, armctl_bin, work, t, a) for kind in ("lerobot", "armctl")}
+        results = {kind: one(kind, armctl_bin, work, t, a, args.servos) for kind in ("lerobot", "armctl")}
     ratio = results["lerobot"]["rms_jerk_deg_s3"] / results["armctl"]["rms_jerk_deg_s3"]
     budget = 1000.0 / RATE + 20.0
     goals = {
@@ -194,10 +197,10 @@ def main() -> int:
         "lag_budget_ms": budget, "lag_met": results["armctl"]["lag_ms"] <= budget,
     }
     if args.json:
-        print(json.dumps({"rate_hz": RATE, "seconds": SECONDS, **results, "goals": goals}))
+        print(json.dumps({"rate_hz": RATE, "seconds": SECONDS, "servos": args.servos, **results, "goals": goals}))
         return 0
-    print(f"{RATE:.0f} Hz for {SECONDS:.0f} s, noise {NOISE_DEG} deg, a {JUMP_DEG} deg jump every {CHUNK} actions; "
-          f"figures over seconds {WINDOW[0]:.0f}-{WINDOW[1]:.0f}, five body joints, {GRID * 1e3:.0f} ms grid")
+    print(f"{args.servos} servos, {RATE:.0f} Hz for {SECONDS:.0f} s, noise {NOISE_DEG} deg, a {JUMP_DEG} deg jump every "
+          f"{CHUNK} actions; figures over seconds {WINDOW[0]:.0f}-{WINDOW[1]:.0f}, five body joints, {GRID * 1e3:.0f} ms grid")
     print(f"{'':22} {'RMS jerk':>14} {'peak accel':>12} {'lag':>8} {'RMS err':>8} {'goals':>7} {'violations':>10}")
     for kind, name in (("lerobot", "SO101Follower"), ("armctl", "armctl_follower")):
         r = results[kind]

@@ -104,6 +104,7 @@ fn bus_with_a_lerobot_calibration_drives_the_servos_to_lerobots_ticks() {
         burst: None,
         limits: Some(armctl::sim::monitor::limits_of(&spec).unwrap()),
         world: None,
+        physics: None,
     })
     .unwrap();
     // The arm stands in the middle of its calibrated ranges: each horn where the servo, once it

@@ -6,21 +6,7 @@ use serde_json::Value;
 mod support;
 
 use std::process::{Command, Stdio};
-use support::armctl;
-
-/// Asserts a failed run: exit code 1 (2 for clap's own usage errors), nothing on stdout, one
-/// stderr line starting `error:` that contains every one of `needles`.
-fn assert_fails(args: &[&str], needles: &[&str]) {
-    let run = armctl(args);
-    assert!(run.code == 1 || run.code == 2, "{args:?} should fail; code {}, stdout: {}", run.code, run.stdout);
-    assert!(run.stdout.is_empty(), "{args:?}: stdout should be empty, got {:?}", run.stdout);
-    let lines: Vec<&str> = run.stderr.lines().collect();
-    assert_eq!(lines.len(), 1, "{args:?}: expected one stderr line, got {:?}", run.stderr);
-    assert!(lines[0].starts_with("error:"), "{args:?}: {}", lines[0]);
-    for needle in needles {
-        assert!(lines[0].contains(needle), "{args:?}: {:?} does not mention {needle:?}", lines[0]);
-    }
-}
+use support::{armctl, assert_fails};
 
 fn numbers(v: &Value) -> Vec<f64> {
     v.as_array().unwrap_or_else(|| panic!("not an array: {v}")).iter().map(|x| x.as_f64().unwrap()).collect()

@@ -46,6 +46,7 @@ fn servos(arm: &str, faults: Faults, burst: Option<Duration>) -> PtyServer {
         burst,
         limits: Some(armctl::sim::monitor::limits_of(&spec).unwrap()),
         world: None,
+        physics: None,
     })
     .expect("pty server starts")
 }

@@ -59,6 +59,7 @@ fn sim(model: &'static Model, ids: &[u8], faults: Faults, duplicates: &[u8]) -> 
         burst: None,
         limits: None,
         world: None,
+        physics: None,
     })
     .expect("pty server starts")
 }

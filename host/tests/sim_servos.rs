@@ -5,6 +5,8 @@
 //! Everything runs on the virtual clock and seeded faults, so results are exact and repeatable;
 //! only the pty tests touch real time, and they assert bytes, not durations.
 
+mod support;
+
 use std::time::{Duration, Instant};
 
 use armctl::link::serial::{SerialTransport, StdClock};
@@ -558,6 +560,7 @@ fn the_pty_server_answers_a_ping() {
         burst: None,
         limits: None,
         world: None,
+        physics: None,
     })
     .unwrap();
     armctl_test_support::assert_private(server.path());
@@ -583,6 +586,7 @@ fn a_ping_behind_a_false_header_in_noise_is_answered() {
         burst: None,
         limits: None,
         world: None,
+        physics: None,
     })
     .unwrap();
     let noisy_ping = [0xFF, 0xFF, 0x00, 0x20, 0xFF, 0xFF, 0x01, 0x02, 0x01, 0xFB];
@@ -625,6 +629,7 @@ fn sts_on_pty(ids: &[u8], burst: Option<Duration>, limits: Option<Vec<GoalLimit>
         burst,
         limits,
         world: None,
+        physics: None,
     })
     .expect("pty server starts")
 }
@@ -756,25 +761,10 @@ fn limits_of_maps_an_arm_as_the_firmware_does() {
     }
 }
 
-/// `armctl sim servos ARGS` as a process, its stderr to `stderr`; returns it and the pty's path
-/// (its first line).
-fn serve_sim(args: &[&str], stderr: std::process::Stdio) -> (std::process::Child, String) {
-    use std::io::BufRead;
-    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_armctl"))
-        .args(["sim", "servos"])
-        .args(args)
-        .stdout(std::process::Stdio::piped())
-        .stderr(stderr)
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    std::io::BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
-    (child, line.trim().to_string())
-}
-
 #[test]
 fn armctl_sim_servos_serves_a_pty_and_refuses_bad_input() {
-    let (mut child, path) = serve_sim(&["--protocol", "sts", "--ids", "1-3,7", "--pty"], std::process::Stdio::null());
+    let (mut child, path) =
+        support::sim_servos(&["--protocol", "sts", "--ids", "1-3,7", "--pty"], std::process::Stdio::null());
     let private = std::panic::catch_unwind(|| armctl_test_support::assert_private(&path));
     let reply = std::panic::catch_unwind(|| exchange(&path, &[0xFF, 0xFF, 0x07, 0x02, 0x01, 0xF5], 6));
     child.kill().unwrap();
@@ -928,7 +918,7 @@ fn armctl_sim_servos_prints_the_violations_it_finds() {
     let _one = one_at_a_time();
     use std::io::BufRead;
     let args = ["--protocol", "sts", "--ids", "1-6", "--pty", "--arm", "so101", "--burst-ms", "1"];
-    let (mut child, path) = serve_sim(&args, std::process::Stdio::piped());
+    let (mut child, path) = support::sim_servos(&args, std::process::Stdio::piped());
     let (tx, rx) = std::sync::mpsc::channel();
     let stderr = child.stderr.take().unwrap();
     std::thread::spawn(move || {
@@ -996,7 +986,7 @@ fn armctl_sim_servos_puts_an_object_between_the_jaws() {
     let _one = one_at_a_time();
     use std::io::Read;
     let args = ["--pty", "--arm", "so101", "--object-mm", "30"];
-    let (mut child, path) = serve_sim(&args, std::process::Stdio::piped());
+    let (mut child, path) = support::sim_servos(&args, std::process::Stdio::piped());
     let gripper = |action: &str| {
         std::process::Command::new(env!("CARGO_BIN_EXE_armctl"))
             .args(["--bus", &path, "--protocol", "sts", "--arm", "so101", "--json", "gripper", action])
@@ -1059,7 +1049,7 @@ fn read_on(path: &str, protocol: &str, id: u8, item: &str) -> Result<String, Str
 /// `check` panics).
 fn with_sim_servos(args: &[&str], check: impl FnOnce(&str)) {
     let args: Vec<&str> = ["--pty"].iter().chain(args).copied().collect();
-    let (mut child, path) = serve_sim(&args, std::process::Stdio::null());
+    let (mut child, path) = support::sim_servos(&args, std::process::Stdio::null());
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| check(&path)));
     child.kill().unwrap();
     child.wait().unwrap();

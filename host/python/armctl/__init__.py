@@ -409,14 +409,16 @@ class Arm:
 
     def __init__(self, *, sim: str | bool | None = None, port: str | None = None, bus: str | None = None,
                  protocol: str | None = None, arm: str | None = None, calibration: str | None = None,
-                 baud: int | None = None, obstacles: Iterable[Any] | None = None, table: bool = True):
+                 baud: int | None = None, obstacles: Iterable[Any] | None = None, table: bool = True,
+                 servos: str | None = None, payload_kg: float | None = None):
         if isinstance(sim, str):
             if arm is not None and arm != sim:
                 raise ArmctlError(f"sim={sim!r} and arm={arm!r}: name the simulated arm once")
             arm, sim = sim, True
         self._native = _armctl.Arm(sim=bool(sim), port=port, bus=bus, protocol=protocol, arm=arm,
                                    calibration=None if calibration is None else str(calibration), baud=baud,
-                                   obstacles=None if obstacles is None else list(obstacles), table=bool(table))
+                                   obstacles=None if obstacles is None else list(obstacles), table=bool(table),
+                                   servos=servos, payload_kg=None if payload_kg is None else float(payload_kg))
         self._owner = threading.current_thread()
 
     @property

@@ -79,6 +79,8 @@ class Arm:
         baud: Optional[int] = None,
         obstacles: Optional[list[Any]] = None,
         table: bool = True,
+        servos: Optional[str] = None,
+        payload_kg: Optional[float] = None,
     ) -> None: ...
     @property
     def obstacles(self) -> list[dict[str, Any]]: ...

@@ -189,7 +189,7 @@ impl Arm {
 #[pymethods]
 impl Arm {
     #[new]
-    #[pyo3(signature = (*, sim = false, port = None, bus = None, protocol = None, arm = None, calibration = None, baud = None, obstacles = None, table = true))]
+    #[pyo3(signature = (*, sim = false, port = None, bus = None, protocol = None, arm = None, calibration = None, baud = None, obstacles = None, table = true, servos = None, payload_kg = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -202,6 +202,8 @@ impl Arm {
         baud: Option<u32>,
         obstacles: Option<Vec<Bound<'_, PyAny>>>,
         table: bool,
+        servos: Option<&str>,
+        payload_kg: Option<f64>,
     ) -> PyResult<Self> {
         let protocol = protocol.map(protocol_named).transpose().or_raise()?;
         // Every obstacle read before anything opens: a bad one moves nothing.
@@ -215,6 +217,11 @@ impl Arm {
             arm,
             calibration,
             object_mm: None,
+            // Given only with the simulated arm (the place refuses them otherwise).
+            servos: (servos.is_some() || payload_kg.is_some())
+                .then(|| armctl::sim::physics::servo_kind(servos, payload_kg))
+                .transpose()
+                .or_raise()?,
             surroundings: Default::default(),
             no_collision_check: false,
         };

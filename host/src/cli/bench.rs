@@ -181,3 +181,24 @@ impl PlanBenchArgs {
         }
     }
 }
+
+/// Arguments of `armctl bench servos`.
+#[derive(Args, Debug)]
+pub struct ServosBenchArgs {
+    /// Arm: a preset or an arm file with servos.
+    #[arg(long, default_value = "so101")]
+    pub arm: String,
+    /// Virtual seconds simulated, each timed (1 to 600).
+    #[arg(long, default_value_t = 20)]
+    pub seconds: usize,
+    /// One JSON object (indented) instead of the summary line.
+    #[arg(long)]
+    pub json: bool,
+}
+
+impl ServosBenchArgs {
+    /// The request.
+    pub fn request(&self) -> crate::commands::bench::servos::ServosBenchRequest {
+        crate::commands::bench::servos::ServosBenchRequest { arm: self.arm.clone(), seconds: self.seconds }
+    }
+}

@@ -73,5 +73,5 @@ pub fn run(before: &LinkArgs, args: DoctorArgs, out: &mut dyn Write, err: &mut d
         bail!("doctor looks at servos on a USB adapter (--bus PORT): {} is not for it", refused.join(", "));
     }
     let request = DoctorRequest { fix: args.fix, yes: args.yes, reads: args.reads };
-    crate::commands::doctor::run(&link.place(), link.json, &request, out, err)
+    crate::commands::doctor::run(&link.place()?, link.json, &request, out, err)
 }

@@ -2,6 +2,7 @@
 //! `--calibration`, `--object-mm`, `--obstacle`, `--no-table`, `--rig`, `--json`), accepted before the command or after it,
 //! and what the command line makes of them: one arm's [`Place`], or a rig file.
 
+use crate::sim::physics::{servo_kind, ServoKind};
 use std::path::PathBuf;
 
 use anyhow::{bail, Result};
@@ -47,6 +48,16 @@ pub struct LinkArgs {
     /// With --sim: an object this wide (mm) between the gripper's jaws, which stop on it.
     #[arg(long, value_name = "MM", allow_negative_numbers = true)]
     pub object_mm: Option<f64>,
+    /// With --sim: the simulated servos. `ideal` (the default) reach every goal exactly along
+    /// their profiles; `physical` have a motor through a gearbox under their own position loop and
+    /// carry the arm's links under gravity, so they sag, lag, draw current, warm up and can stall
+    /// (docs/servo-model.md).
+    #[arg(long, value_name = "KIND", value_parser = ["ideal", "physical"])]
+    pub servos: Option<String>,
+    /// With --sim --servos physical: a payload of KG kilograms at the tool frame's origin. Refused
+    /// when it asks a joint for more than its servo's stall torque somewhere in its range.
+    #[arg(long, value_name = "KG", allow_negative_numbers = true)]
+    pub payload_kg: Option<f64>,
     /// Drive every arm of a rig together (a rig file, or the built-in bimanual-so101): status,
     /// stop, torque, move (--to ARM=x,y,z in the world frame, once per arm) and play (a keyframe
     /// file with each arm's columns, ARM.q1,...); `view --rig` shows and drives every arm in one
@@ -91,6 +102,8 @@ impl LinkArgs {
             arm: one("--arm", &self.arm, &after.arm)?,
             calibration: one("--calibration", &self.calibration, &after.calibration)?,
             object_mm: one("--object-mm", &self.object_mm, &after.object_mm)?,
+            servos: one("--servos", &self.servos, &after.servos)?,
+            payload_kg: one("--payload-kg", &self.payload_kg, &after.payload_kg)?,
             rig: one("--rig", &self.rig, &after.rig)?,
             obstacles: self.obstacles.iter().chain(&after.obstacles).cloned().collect(),
             no_table: self.no_table || after.no_table,
@@ -110,6 +123,8 @@ impl LinkArgs {
             (self.arm.is_some(), "--arm"),
             (self.calibration.is_some(), "--calibration"),
             (self.object_mm.is_some(), "--object-mm"),
+            (self.servos.is_some(), "--servos"),
+            (self.payload_kg.is_some(), "--payload-kg"),
             (!self.obstacles.is_empty(), "--obstacle"),
             (self.no_table, "--no-table"),
             (self.no_collision_check, "--no-collision-check"),
@@ -148,12 +163,12 @@ impl LinkArgs {
         if self.rig.is_some() {
             bail!("--rig drives status, stop, torque, move and play so far; this command drives one arm");
         }
-        Ok(self.place())
+        self.place()
     }
 
     /// Where the arm is, as typed.
-    pub fn place(&self) -> Place {
-        Place {
+    pub fn place(&self) -> Result<Place> {
+        Ok(Place {
             port: self.port.clone(),
             bus: self.bus.clone(),
             protocol: self.protocol.map(Into::into),
@@ -162,9 +177,18 @@ impl LinkArgs {
             arm: self.arm.clone(),
             calibration: self.calibration.clone(),
             object_mm: self.object_mm,
+            servos: self.servo_kind()?,
             surroundings: self.surroundings(),
             no_collision_check: self.no_collision_check,
+        })
+    }
+
+    /// The simulated servos `--servos` and `--payload-kg` ask for (`None`: neither given).
+    pub fn servo_kind(&self) -> Result<Option<ServoKind>> {
+        if self.servos.is_none() && self.payload_kg.is_none() {
+            return Ok(None);
         }
+        servo_kind(self.servos.as_deref(), self.payload_kg).map(Some)
     }
 
     /// What `--obstacle` and `--no-table` change around the arm.

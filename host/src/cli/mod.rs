@@ -230,6 +230,9 @@ enum BenchCommand {
     /// free configurations, with the arm on its table and a box in front of it, and one full
     /// collision check's time.
     Plan(bench::PlanBenchArgs),
+    /// The simulator's physical servos (docs/servo-model.md): wall time per servo per step with
+    /// physics against ideal servos, on an arm moving between random configurations.
+    Servos(bench::ServosBenchArgs),
 }
 
 #[derive(Args, Debug)]
@@ -418,6 +421,7 @@ fn take_globals(link: &LinkArgs, mut command: Command, name: &str) -> Result<Com
         Command::Bench { what: BenchCommand::LoopPass(args) } => args.json |= json,
         Command::Bench { what: BenchCommand::Pc(args) } => args.json |= json,
         Command::Bench { what: BenchCommand::Plan(args) } => args.json |= json,
+        Command::Bench { what: BenchCommand::Servos(args) } => args.json |= json,
         Command::Footprint(args) => args.json |= json,
         Command::Sim(args) => match &mut args.what {
             Some(sim::SimCommand::Servos(servos)) => servos.json |= json,
@@ -498,6 +502,9 @@ fn run(link: &LinkArgs, command: Command, name: &str, out: &mut dyn Write, err: 
         }
         Command::Bench { what: BenchCommand::Plan(args) } => {
             return crate::commands::bench::plan::run(&args.request(), args.json, out)
+        }
+        Command::Bench { what: BenchCommand::Servos(args) } => {
+            return crate::commands::bench::servos::run(&args.request(), args.json, out)
         }
         Command::Servo(args) => return crate::cli::servo::run(args, out, err),
         Command::Doctor(args) => return doctor::run(link, args, out, err),

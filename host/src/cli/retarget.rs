@@ -88,7 +88,7 @@ pub fn run(global: &LinkArgs, args: RetargetArgs, out: &mut dyn Write, err: &mut
         bail!(ARM_REQUIRED);
     }
     let options = Options { chain: one_chain(&args.chain)?, ..options(&args)? };
-    crate::commands::retarget::run(&link.place(), &request(&args, options), out, err)
+    crate::commands::retarget::run(&link.place()?, &request(&args, options), out, err)
 }
 
 /// The request of `args` with the retarget's settings `options`.

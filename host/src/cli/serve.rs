@@ -55,6 +55,12 @@ pub struct ServeArgs {
     /// adapter's latency timer does (16 on FTDI by default, 1 when tuned).
     #[arg(long, value_name = "MS", requires = "sim")]
     pub burst_ms: Option<f64>,
+    /// With --sim: the servos, `ideal` (the default) or `physical` (docs/servo-model.md).
+    #[arg(long, value_name = "KIND", requires = "sim", value_parser = ["ideal", "physical"])]
+    pub servos: Option<String>,
+    /// With --sim --servos physical: a payload of KG kilograms at the tool frame's origin.
+    #[arg(long, value_name = "KG", requires = "sim", allow_negative_numbers = true)]
+    pub payload_kg: Option<f64>,
     /// A LeRobot calibration file (JSON) of the arm's servos (see `armctl --help`'s --calibration).
     #[arg(long, value_name = "FILE")]
     pub calibration: Option<std::path::PathBuf>,
@@ -101,7 +107,8 @@ pub fn run(args: ServeArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
     let burst = args.burst_ms.map(burst).transpose()?;
     // With --sim the servos are served on a pty of their own, and the core drives them there
     // exactly as it drives an adapter's port.
-    let simulated = args.sim.then(|| crate::sim::serve_arm(&arm, baud, burst)).transpose()?;
+    let kind = crate::sim::physics::servo_kind(args.servos.as_deref(), args.payload_kg)?;
+    let simulated = args.sim.then(|| crate::sim::serve_arm(&arm, baud, burst, kind)).transpose()?;
     let path = match (&simulated, &args.bus) {
         (Some(server), _) => server.path().to_string(),
         (None, Some(path)) => path.clone(),

@@ -189,10 +189,19 @@ pub struct SimServosArgs {
     /// With --arm: the simulated links stop where they run into the table, an obstacle or each
     /// other (the arm's collision geometry), and the monitor judges every goal against it. Off by
     /// default on this real-time simulator: a calibration's hand moves every joint stop to stop,
-    /// through the table, and with contact on the simulated bus stops answering (a known fault,
-    /// not yet found; `--sim` and the SIL tests have contact on).
+    /// through the table (`--sim` and the SIL tests have contact on).
     #[arg(long, requires = "arm")]
     pub contact: bool,
+    /// The servos: `ideal` (the default) reach every goal exactly along their profiles;
+    /// `physical` have a motor through a gearbox under their own position loop
+    /// (docs/servo-model.md) and carry --arm's links under gravity (the SO-101's masses; other
+    /// arms' servos carry none), so they sag, lag, draw current, warm up and can stall.
+    #[arg(long, value_name = "KIND", value_parser = ["ideal", "physical"])]
+    pub servos: Option<String>,
+    /// With --servos physical: a payload of KG kilograms at --arm's tool frame origin. Refused when
+    /// it asks a joint for more than its servo's stall torque somewhere in its range.
+    #[arg(long, value_name = "KG", requires = "arm", allow_negative_numbers = true)]
+    pub payload_kg: Option<f64>,
     /// An object W mm wide between the jaws of --arm's gripper: closing on it, the jaws stop there
     /// and the servo's load rises (as in `armctl --sim --object-mm`).
     #[arg(long, value_name = "W", requires = "arm", allow_negative_numbers = true)]
@@ -431,6 +440,7 @@ fn prepare(args: &SimServosArgs) -> Result<(SimConfig, ServeOptions)> {
         burst,
         limits,
         world,
+        physics: crate::sim::physics::servo_kind(args.servos.as_deref(), args.payload_kg)?.physics(spec.as_ref())?,
     };
     let options = ServeOptions { place, objects, record: None, registers, hardware_errors, echo: args.echo };
     // What a servo refuses (`moving`), before anything is served.

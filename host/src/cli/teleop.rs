@@ -111,5 +111,5 @@ pub fn run(before: &LinkArgs, args: TeleopArgs, out: &mut dyn Write, err: &mut d
         return crate::rig::teleop::run(rig, link.json, &args.settings()?, out, err);
     }
     let request = TeleopRequest { settings: args.settings()?, leader: args.leader()?, record: args.record.clone() };
-    crate::commands::teleop::run(&link.place(), link.json, &request, out, err)
+    crate::commands::teleop::run(&link.place()?, link.json, &request, out, err)
 }

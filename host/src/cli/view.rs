@@ -48,7 +48,7 @@ pub fn run(global: &LinkArgs, args: ViewArgs, out: &mut dyn Write, err: &mut dyn
     if link.object_mm.is_some() {
         bail!("--object-mm: the view's simulated arm has no object between its jaws");
     }
-    crate::view::run(&link.place(), link.json, &request, out, err)
+    crate::view::run(&link.place()?, link.json, &request, out, err)
 }
 
 /// Refuses the options that name one arm's place or drawing beside `--rig`: a rig's arms are in

@@ -207,6 +207,7 @@ impl ArmEntry {
             arm: Some(arm),
             calibration: self.calibration.as_deref().map(|c| relative(dir, c)),
             object_mm: None,
+            servos: None,
             surroundings: Default::default(),
             no_collision_check: false,
         };

@@ -2,6 +2,7 @@
 //! run on this PC against the servos of a USB adapter (`--bus`), with the handshake and, when
 //! asked, the arm configuration.
 
+use crate::sim::physics::ServoKind;
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -74,6 +75,8 @@ pub struct Place {
     pub calibration: Option<PathBuf>,
     /// With `sim`: an object this wide (mm) between the jaws.
     pub object_mm: Option<f64>,
+    /// With `sim`: the servos asked for (`None`: the default, ideal).
+    pub servos: Option<ServoKind>,
     /// Obstacles added to the arm's collision geometry, the table taken away.
     pub surroundings: Surroundings,
     /// With `sim`: the firmware is sent the geometry with its check off (`--no-collision-check`),
@@ -112,6 +115,9 @@ impl Place {
     pub fn target(&self) -> Result<Target> {
         if self.no_collision_check && !self.sim {
             bail!("--no-collision-check is for the simulated arm only (--sim): a real arm is always checked");
+        }
+        if self.servos.is_some() && !self.sim {
+            bail!("--servos and --payload-kg choose the simulated servos: they need --sim");
         }
         if self.object_mm.is_some() && !self.sim {
             bail!("--object-mm puts an object between the simulated gripper's jaws: it needs --sim");
@@ -161,8 +167,12 @@ impl Place {
             (None, true) => {
                 let arm = self.arm.as_deref().unwrap_or(DEFAULT_SIM_ARM);
                 let collision_check = if self.no_collision_check { CollisionCheck::Off } else { CollisionCheck::On };
-                let options =
-                    SilOptions { object_mm: self.object_mm, collision_check, ..SilOptions::for_arm(self.load(arm)?)? };
+                let options = SilOptions {
+                    object_mm: self.object_mm,
+                    collision_check,
+                    servos: self.servos.unwrap_or_default(),
+                    ..SilOptions::for_arm(self.load(arm)?)?
+                };
                 Ok(Target::Sim(Box::new(options)))
             }
             (Some(_), true) => bail!("--port and --sim exclude each other: give one"),
@@ -212,7 +222,7 @@ impl Target {
     pub fn in_real_time(self) -> Result<(Target, Option<crate::sim::PtyServer>)> {
         match self {
             Target::Sim(options) => {
-                let (options, servos) = PcOptions::simulated(options.arm, Some(SIM_ADAPTER_LATENCY))?;
+                let (options, servos) = PcOptions::simulated(options.arm, Some(SIM_ADAPTER_LATENCY), options.servos)?;
                 Ok((Target::Bus(Box::new(options)), Some(servos)))
             }
             other => Ok((other, None)),

@@ -19,7 +19,9 @@ use firmware::bus::timing::wire_time_ns;
 use firmware::bus::{Instruction, InstructionPacket, ParseError, Protocol, Status, BROADCAST};
 
 use super::contact::ContactModel;
+use super::drive_models::drive_model;
 use super::faults::{FaultState, Faults};
+use super::physics::Physics;
 use super::servo::{error, SimServo};
 
 /// The longest gap between the bytes of one instruction packet (e-manual: 1.5 ms); after it a
@@ -88,6 +90,9 @@ pub struct SimBus {
     reads_position: bool,
     /// The arm's geometry, when its links can run into something.
     contact: Option<ContactModel>,
+    /// The servos' drives and the arm's load on them ([`super::physics`]); `None`: ideal servos
+    /// that follow their profiles exactly.
+    physics: Option<Physics>,
 }
 
 impl SimBus {
@@ -115,6 +120,7 @@ impl SimBus {
             stats: BusStats::default(),
             reads_position: false,
             contact: None,
+            physics: None,
         }
     }
 
@@ -188,8 +194,33 @@ impl SimBus {
     }
 
     /// Adds a servo (e.g. a second one with an id already on the bus).
-    pub fn add_servo(&mut self, servo: SimServo) {
+    pub fn add_servo(&mut self, mut servo: SimServo) {
+        if self.physics.is_some() {
+            enable_drive(&mut servo, self.now_ns);
+        }
         self.servos.push(servo);
+    }
+
+    /// Gives every servo its drive and the arm's load ([`super::physics`]); `None`: ideal servos.
+    pub fn set_physics(&mut self, physics: Option<Physics>) {
+        for servo in &mut self.servos {
+            match physics {
+                Some(_) => enable_drive(servo, self.now_ns),
+                None => servo.disable_drive(),
+            }
+        }
+        self.physics = physics;
+    }
+
+    /// The same bus with `physics` ([`SimBus::set_physics`]).
+    pub fn with_physics(mut self, physics: Option<Physics>) -> Self {
+        self.set_physics(physics);
+        self
+    }
+
+    /// The physics, if the bus has it.
+    pub fn physics(&self) -> Option<&Physics> {
+        self.physics.as_ref()
     }
 
     /// A fresh servo of the bus's model and baud, for [`SimBus::add_servo`].
@@ -220,6 +251,9 @@ impl SimBus {
         self.now_ns = self.now_ns.max(t_ns);
         if let Some(contact) = &mut self.contact {
             contact.advance(&mut self.servos, from, self.now_ns);
+        }
+        if let Some(physics) = &mut self.physics {
+            physics.advance(&mut self.servos, self.now_ns);
         }
         for s in &mut self.servos {
             s.update(self.now_ns);
@@ -553,5 +587,13 @@ impl SimBus {
             }
         }
         merged.into_iter().filter_map(|(t, b)| self.faults.on_byte(b).map(|b| (t, b))).collect()
+    }
+}
+
+/// Gives `servo` the drive of its model at the supply it reads (no drive for a model without one).
+fn enable_drive(servo: &mut SimServo, t_ns: u64) {
+    let volts = servo.get(super::drive_models::DriveRegisters::of(servo.model()).voltage()) as f64 / 10.0;
+    if let Some(model) = drive_model(servo.model(), volts) {
+        servo.enable_drive(model, t_ns);
     }
 }

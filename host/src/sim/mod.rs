@@ -2,7 +2,11 @@
 //! process and, on a pseudo-terminal, for any program that opens a serial port.
 //!
 //! - [`clock`]: the virtual clock (nanoseconds, shared), a [`firmware::bus::master::Clock`].
-//! - [`motion`]: the servos' trapezoidal motion profile.
+//! - [`motion`]: the servos' trapezoidal motion profile (their reference).
+//! - [`drive`]: a servo's motor, gearbox, friction, heat and position loop; [`drive_table`] the
+//!   published figures of each model, [`drive_models`] which model gets which, through which
+//!   registers.
+//! - [`physics`]: the drives stepped against the arm's gravity and inertia.
 //! - [`servo`]: one servo: control table, instructions, status return level, hardware errors.
 //! - [`faults`]: silent servos, corrupted replies, lost bytes and flipped bits, seeded.
 //! - [`bus`]: the line: instruction decoding, reply timing, collisions.
@@ -22,10 +26,14 @@
 pub mod bus;
 pub mod clock;
 pub mod contact;
+pub mod drive;
+pub mod drive_models;
+pub mod drive_table;
 pub mod faults;
 pub mod latency;
 pub mod monitor;
 pub mod motion;
+pub mod physics;
 pub mod port;
 pub mod pty;
 pub mod recording;
@@ -39,6 +47,7 @@ pub use clock::VirtualClock;
 pub use contact::ContactModel;
 pub use faults::{FaultStats, Faults};
 pub use monitor::{limits_of, GoalLimit, MonitorReport, RealTimeMonitor, DEFAULT_PERIOD};
+pub use physics::Physics;
 pub use port::{PortStats, SharedBus, SimPort};
 pub use pty::{arm_bus, serve_arm, so101_bus, HandHandle, MonitorHandle, PtyServer, Register, ServeOptions, SimConfig};
 pub use recording::Recorder;

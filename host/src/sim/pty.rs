@@ -87,6 +87,8 @@ pub struct SimConfig {
     /// or each other ([`super::contact`]), and the monitor, if there is one, records every goal
     /// within its margin ([`super::monitor::collision`]). `None`: nothing is in the way.
     pub world: Option<World>,
+    /// The servos' drives and what they carry ([`super::physics`]); `None`: ideal servos.
+    pub physics: Option<super::Physics>,
 }
 
 impl SimConfig {
@@ -94,7 +96,8 @@ impl SimConfig {
     pub fn build(&self) -> SimBus {
         let mut bus = SimBus::new(self.protocol, self.model, &self.ids, self.baud)
             .with_faults(self.faults.clone())
-            .with_contact(self.world.clone().map(ContactModel::new));
+            .with_contact(self.world.clone().map(ContactModel::new))
+            .with_physics(self.physics.clone());
         for &id in &self.duplicates {
             let mut twin = bus.new_servo(id);
             let at = twin.get(self.model.items.present_position) + TWIN_OFFSET_TICKS;
@@ -602,6 +605,12 @@ fn serve(
                 // (A shorter wait, for a release, is no sign of a quiet line.)
                 let now_ns = elapsed_ns(start);
                 control.record(&bus, now_ns)?;
+                if bus.physics().is_some() {
+                    // Physical servos are integrated step by step: kept up to date while the line
+                    // is quiet, so that the next request finds them there, not a catch-up of the
+                    // whole quiet time that would make it wait past its timeout.
+                    bus.advance_to(now_ns);
+                }
                 if now_ns.saturating_sub(last_rx_ns) >= IDLE_READ.as_nanos() as u64 {
                     let replies = control.line_idle(&mut bus);
                     outbox.send(master, &replies, now_ns)?;
@@ -652,15 +661,22 @@ pub fn arm_bus(arm: &crate::arm::ArmSpec, faults: super::Faults) -> anyhow::Resu
         burst: None,
         limits: Some(super::monitor::limits_of(arm)?),
         world: World::of(arm)?,
+        physics: super::physics::ServoKind::default().physics(Some(arm))?,
     })
 }
 
 /// `arm`'s servos served on a pty at `baud` for a firmware core on this PC to drive as it drives a
 /// USB adapter (`armctl serve --sim`, `armctl teleop --sim`): the servos follow the rate the
 /// core sets, replies come in `burst`s as through an adapter's latency timer, and the safety
-/// monitor checks every goal.
-pub fn serve_arm(arm: &crate::arm::ArmSpec, baud: u32, burst: Option<Duration>) -> anyhow::Result<PtyServer> {
-    let config = SimConfig { baud, fixed_baud: false, burst, ..arm_bus(arm, super::Faults::default())? };
+/// monitor checks every goal; `servos` physical or ideal.
+pub fn serve_arm(
+    arm: &crate::arm::ArmSpec,
+    baud: u32,
+    burst: Option<Duration>,
+    servos: super::physics::ServoKind,
+) -> anyhow::Result<PtyServer> {
+    let physics = servos.physics(Some(arm))?;
+    let config = SimConfig { baud, fixed_baud: false, burst, physics, ..arm_bus(arm, super::Faults::default())? };
     PtyServer::spawn(config).map_err(|e| anyhow::anyhow!("cannot serve the simulated servos on a pseudo-terminal: {e}"))
 }
 
@@ -679,6 +695,10 @@ pub fn so101_bus(faults: super::Faults) -> SimConfig {
         burst: None,
         limits: None,
         world: None,
+        // The preset's physics: the built-in arm is the SO-101 preset.
+        physics: crate::arm::presets::by_name("so101")
+            .ok()
+            .and_then(|arm| super::physics::ServoKind::default().physics(Some(&arm)).ok().flatten()),
     }
 }
 
@@ -702,6 +722,7 @@ mod tests {
             burst: None,
             limits: None,
             world: None,
+            physics: None,
         }
     }
 

@@ -15,7 +15,11 @@
 //!   torque off the servo moves nothing (a hand may). A hardware error turns torque off and keeps it off until a reboot
 //!   (Dynamixel) or [`SimServo::clear_hardware_error`].
 //! - Goals are clamped to the position limits; the horn then follows the servo's own trapezoidal
-//!   profile ([`super::motion`]) and the present position is quantised to whole ticks.
+//!   profile ([`super::motion`]) and the present position is quantised to whole ticks. With
+//!   physics on the bus ([`super::physics`]), the profile is the reference of the servo's drive
+//!   ([`super::drive`]), and the horn is where the drive has it: behind the profile by what its
+//!   load asks, with its speed, load or current and temperature reported, and its overload and
+//!   overheat protections.
 //! - The homing offset shifts what the servo reports, not where the horn is. The horn's own
 //!   position (the encoder's, "actual") is what the profile moves; the present position, the goal
 //!   and the position limits are in the offset-corrected frame:
@@ -60,6 +64,8 @@
 use firmware::bus::table::{xseries, Access, Item, Model};
 use firmware::bus::{Instruction, Protocol};
 
+use super::drive::{radians_per_tick, Drive, DriveModel, STEP_NS};
+use super::drive_models::DriveRegisters;
 use super::motion::Profile;
 use super::stall::{self, Stop, OVERLOAD, OVERLOAD_TORQUE, PROTECTION_TIME_NS};
 use crate::arm::calibration::homing_offset_item;
@@ -83,6 +89,14 @@ pub mod error {
 
 /// The Dynamixel alert bit of the status error byte.
 pub const ALERT: u8 = 0x80;
+
+/// The overheating bit: Feetech's status error bit 2 and Dynamixel's hardware error status bit 2
+/// (e-manual, Hardware Error Status(70)) are the same.
+const OVERHEAT: u8 = firmware::bus::feetech::StatusError::OVERHEAT;
+
+/// The horn speed (rad/s) above which a servo under torque reports itself moving though its
+/// profile has ended (its drive still settling): a tick every 10 ms.
+const MOVING_SPEED: f64 = 2.0 * std::f64::consts::PI / 4096.0 / 0.01;
 
 /// Dynamixel X's operating mode 3, position control (single turn).
 const DXL_POSITION_MODE: i64 = 3;
@@ -120,6 +134,9 @@ pub struct SimServo {
     stop: Option<Stop>,
     /// Since when its load has stood at or above its overload torque, virtual ns.
     overloaded_since: Option<u64>,
+    /// Its motor, gearbox and loop ([`super::drive`]), when the bus has physics: the horn is
+    /// then where the drive has it, behind the profile (its reference) by what the load asks.
+    drive: Option<Drive>,
 }
 
 /// An object between a gripper's jaws: the horn cannot pass `contact` going toward `closed`, and
@@ -183,6 +200,7 @@ impl SimServo {
             pinned: Vec::new(),
             stop: None,
             overloaded_since: None,
+            drive: None,
         };
         servo.set(model.items.id, i64::from(id));
         if let Some(index) = model.baud_index(baud) {
@@ -228,6 +246,10 @@ impl SimServo {
     /// position reads `ticks`.
     pub fn set_position(&mut self, ticks: i64, t_ns: u64) {
         self.profile = Profile::hold(ticks as f64, t_ns);
+        let per_tick = self.radians_per_tick();
+        if let Some(drive) = &mut self.drive {
+            drive.place(ticks as f64 * per_tick, 0.0);
+        }
         let present = self.present_of(ticks as f64);
         self.set(self.model.items.present_position, present);
         self.set(self.model.items.goal_position, present);
@@ -270,7 +292,61 @@ impl SimServo {
 
     /// Where the horn is at `t_ns`: its own position, before the homing offset, in ticks.
     pub fn actual_position(&self, t_ns: u64) -> f64 {
-        self.profile.at(t_ns).0
+        match &self.drive {
+            Some(drive) => drive.angle() / self.radians_per_tick(),
+            None => self.profile.at(t_ns).0,
+        }
+    }
+
+    fn radians_per_tick(&self) -> f64 {
+        radians_per_tick(self.model.ticks_per_revolution)
+    }
+
+    /// Gives the servo a drive of `model` ([`super::drive`]), its horn where it stands at `t_ns`.
+    pub fn enable_drive(&mut self, model: DriveModel, t_ns: u64) {
+        let angle = self.actual_position(t_ns) * self.radians_per_tick();
+        let celsius = self.get(DriveRegisters::of(self.model).temperature()) as f64;
+        self.drive = Some(Drive::new(model, angle, t_ns - t_ns % STEP_NS).at_temperature(celsius));
+    }
+
+    /// Takes its drive away: an ideal servo again, its horn where the drive left it.
+    pub fn disable_drive(&mut self) {
+        if let Some(drive) = self.drive.take() {
+            let at = drive.angle() / self.radians_per_tick();
+            self.profile = Profile::hold(at, drive.stepped_ns());
+        }
+    }
+
+    /// Whether `item` is a reading pinned by [`SimServo::set_register`] (the simulation leaves it).
+    pub fn is_pinned(&self, item: Item) -> bool {
+        self.pinned.iter().any(|(i, _)| *i == item)
+    }
+
+    /// Its drive, when the bus has physics.
+    pub fn drive(&self) -> Option<&Drive> {
+        self.drive.as_ref()
+    }
+
+    /// One step of its drive ([`Drive::step`]) with its links' `load` (N m, in the horn's
+    /// direction) and `inertia` (kg m²): toward its profile, or, torque off, where a hand holds the
+    /// horn (the profile a hand moves). A stop holds the horn at the contact.
+    pub fn drive_step(&mut self, load: f64, inertia: f64) {
+        let per_tick = self.radians_per_tick();
+        let registers = DriveRegisters::of(self.model);
+        let control = registers.control(|item| self.get(item), self.torque());
+        let stop = self.stop.filter(|_| self.torque());
+        let Some(drive) = self.drive.as_mut() else { return };
+        let t = drive.stepped_ns() + STEP_NS;
+        let (reference, speed) = self.profile.at(t);
+        if control.torque {
+            let reference = stop.map_or(reference, |s| s.clamp(reference));
+            drive.step(reference * per_tick, control, load, inertia);
+            if let Some(stop) = stop.filter(|s| s.blocks(drive.angle() / per_tick)) {
+                drive.hold_at(stop.at * per_tick);
+            }
+        } else {
+            drive.follow(reference * per_tick, speed * per_tick);
+        }
     }
 
     /// A hand turns the horn (torque off): to `from` at once, then at a steady speed to `to` in
@@ -356,6 +432,14 @@ impl SimServo {
         }
     }
 
+    /// The hardware error bits it holds (Dynamixel's status item, Feetech's error bits).
+    fn hardware_error_bits(&self) -> u8 {
+        match self.model.items.hardware_error {
+            Some(item) => self.get(item) as u8,
+            None => self.fault_bits,
+        }
+    }
+
     /// Clears the hardware error (Dynamixel: what a reboot does).
     pub fn clear_hardware_error(&mut self) {
         match self.model.items.hardware_error {
@@ -400,7 +484,10 @@ impl SimServo {
     pub fn update(&mut self, t_ns: u64) {
         let (mut p, _) = self.profile.at(t_ns);
         let mut moving = self.torque() && self.profile.moving(t_ns);
+        // Whether the stall model reports the load (a stop or an object): else the drive does.
+        let mut stalled = false;
         if let Some(jaw) = self.jaw.filter(|_| self.torque()) {
+            stalled = true;
             // The jaw's ticks are the reported ones; the profile moves the horn's own.
             let present = self.corrected(p);
             let mut load = 0;
@@ -433,9 +520,39 @@ impl SimServo {
                     self.profile = Profile::hold(p, t_ns);
                     moving = false;
                 }
+                stalled = true;
                 self.push_against(stop, t_ns);
             }
-            None => self.overloaded_since = None,
+            None if self.drive.is_none() => self.overloaded_since = None,
+            None => {}
+        }
+        if let Some(drive) = self.drive {
+            // The horn is where the drive has it, behind the profile by what its load asks.
+            p = drive.angle() / self.radians_per_tick();
+            moving = self.torque() && (moving || drive.speed().abs() > MOVING_SPEED);
+            let registers = DriveRegisters::of(self.model);
+            for (item, value) in registers.readings(&drive, self.radians_per_tick(), !stalled) {
+                // A reading a fault pinned stays as it was set (`--register`).
+                if !self.is_pinned(item) {
+                    self.set(item, value);
+                }
+            }
+            match (stalled, self.torque()) {
+                (false, true) => self.protect(drive.duty().abs() * 1000.0, t_ns),
+                (_, false) => self.overloaded_since = None,
+                (true, true) => {}
+            }
+            if self.torque() && drive.temperature() >= registers.temperature_limit(|item| self.get(item)) {
+                // Its overheat protection: the bit set, torque off (not through
+                // `set_hardware_error`, which brings the servo up to date first: this is that).
+                let bits = self.hardware_error_bits() | OVERHEAT;
+                match self.model.items.hardware_error {
+                    Some(item) => self.set(item, i64::from(bits)),
+                    None => self.fault_bits = bits,
+                }
+                self.torque_off(t_ns);
+                return;
+            }
         }
         self.set(self.model.items.present_position, self.present_of(p));
         self.set(self.model.items.moving, i64::from(moving));
@@ -450,12 +567,18 @@ impl SimServo {
         let load = stall::load(stop.push(goal - self.corrected(stop.at))).min(cap);
         let value = load * i64::from(force.present_full) / 1000;
         self.set(force.present, stop.toward.signum() as i64 * value);
+        self.protect(load as f64, t_ns);
+    }
+
+    /// A Feetech servo's overload protection with its load at `load` thousandths of full effort:
+    /// at or above its overload torque for [`PROTECTION_TIME_NS`], it sets its overload bit and
+    /// lets go. A Dynamixel's overload is not modelled (see the module doc of `stall`).
+    fn protect(&mut self, load: f64, t_ns: u64) {
         if self.model.items.hardware_error.is_some() {
-            // A Dynamixel's overload is not modelled (see the module doc of `stall`).
             return;
         }
         let threshold = self.get(OVERLOAD_TORQUE) * 10;
-        if threshold <= 0 || load < threshold {
+        if threshold <= 0 || load < threshold as f64 {
             self.overloaded_since = None;
             return;
         }
@@ -533,7 +656,7 @@ impl SimServo {
     }
 
     fn torque_off(&mut self, t_ns: u64) {
-        let (p, _) = self.profile.at(t_ns);
+        let p = self.actual_position(t_ns);
         self.set(self.model.items.torque_enable, 0);
         // Torque off: the horn stops where it is (no coasting modelled).
         self.profile = Profile::hold(p.round(), t_ns);

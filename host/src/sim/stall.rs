@@ -12,9 +12,9 @@
 //!   falls back to its protective torque (`Protective_Torque`, 20 %) and keeps pushing softly; the
 //!   simulator's hardware errors switch the torque off instead, as for every other fault.
 //!
-//! Not modelled: the current (no `Present_Current`), heat from the stall, gravity (a limp or
-//! overloaded arm stays where it is), a Dynamixel's overload (its current is not sensed here), and
-//! any give in the link or the obstacle (the stop is rigid).
+//! Not modelled here: the current, heat from the stall and gravity, which physical servos have
+//! ([`super::drive`]) and ideal ones do not (a limp or overloaded arm stays where it is in
+//! either); a Dynamixel's overload; and any give in the link or the obstacle (the stop is rigid).
 
 use firmware::bus::feetech::StatusError;
 

@@ -53,6 +53,15 @@ impl PartialEq for World {
     }
 }
 
+/// The joint angle of `mapping`'s servo reporting `ticks` (fractional: between two whole ticks
+/// the angle is interpolated, as the horn stands between them).
+pub fn angle_of(mapping: &JointMapping, ticks: f64) -> f64 {
+    let floor = ticks.floor();
+    let whole = floor.clamp(f64::from(i32::MIN), f64::from(i32::MAX - 1)) as i32;
+    let (a, b) = (mapping.to_radians::<f64>(whole), mapping.to_radians::<f64>(whole + 1));
+    a + (ticks - floor) * (b - a)
+}
+
 impl World {
     /// `arm` (its servos from its `[servos]` table or its preset's) in `geometry`; fails naming
     /// what does not fit a firmware's scene, or an arm without servos.
@@ -103,11 +112,7 @@ impl World {
     /// Joint `j`'s angle with its servo reporting `ticks` (fractional: between two whole ticks
     /// the angle is interpolated, as the horn stands between them).
     pub fn angle(&self, j: usize, ticks: f64) -> f64 {
-        let Some(m) = self.mappings.get(j) else { return f64::NAN };
-        let floor = ticks.floor();
-        let whole = floor.clamp(f64::from(i32::MIN), f64::from(i32::MAX - 1)) as i32;
-        let (a, b) = (m.to_radians::<f64>(whole), m.to_radians::<f64>(whole + 1));
-        a + (ticks - floor) * (b - a)
+        self.mappings.get(j).map_or(f64::NAN, |m| angle_of(m, ticks))
     }
 
     /// A bound on how far (m) any point of any body moves while each joint's servo travels at

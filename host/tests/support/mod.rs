@@ -40,6 +40,20 @@ pub fn armctl(args: &[&str]) -> Run {
     }
 }
 
+/// Asserts a failed run: exit code 1 (2 for clap's own usage errors), nothing on stdout, one
+/// stderr line starting `error:` that contains every one of `needles`.
+pub fn assert_fails(args: &[&str], needles: &[&str]) {
+    let run = armctl(args);
+    assert!(run.code == 1 || run.code == 2, "{args:?} should fail; code {}, stdout: {}", run.code, run.stdout);
+    assert!(run.stdout.is_empty(), "{args:?}: stdout should be empty, got {:?}", run.stdout);
+    let lines: Vec<&str> = run.stderr.lines().collect();
+    assert_eq!(lines.len(), 1, "{args:?}: expected one stderr line, got {:?}", run.stderr);
+    assert!(lines[0].starts_with("error:"), "{args:?}: {}", lines[0]);
+    for needle in needles {
+        assert!(lines[0].contains(needle), "{args:?}: {:?} does not mention {needle:?}", lines[0]);
+    }
+}
+
 /// A file path in a folder of its own, made by `tempfile`: the folder and whatever the test wrote
 /// in it are removed when this is dropped, also when the test fails. Reads as a [`Path`].
 pub struct TempPath {
@@ -95,6 +109,22 @@ pub fn serve(args: &[&str]) -> (Child, String, std::thread::JoinHandle<String>) 
         std::panic::resume_unwind(e);
     }
     (child, path, errors)
+}
+
+/// Runs `armctl sim servos` with `args` (stdin closed, stderr to `stderr`); returns the child and
+/// the first line it printed (the pty's path with `--pty`).
+pub fn sim_servos(args: &[&str], stderr: Stdio) -> (Child, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_armctl"))
+        .args(["sim", "servos"])
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(stderr)
+        .spawn()
+        .expect("armctl sim servos starts");
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+    (child, line.trim().to_string())
 }
 
 /// Writes the SO-101 preset without its collision geometry, as the arm file `so101-bare.toml` in

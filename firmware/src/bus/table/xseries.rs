@@ -33,6 +33,8 @@ pub const MIN_VOLTAGE_LIMIT: Item = Item::new("min_voltage_limit", 34, 2, ReadWr
 /// Current limit in the model's current unit (XM430-W350 2.69 mA, factory 1193; XL330-M288 1 mA,
 /// factory 1750); the XL430-W250 has no current sensing and no such item.
 pub const CURRENT_LIMIT: Item = Item::new("current_limit", 38, 2, ReadWrite, Unsigned);
+/// The motor's duty limit, in 0.113 % (885 = 100 %).
+pub const PWM_LIMIT: Item = Item::new("pwm_limit", 36, 2, ReadWrite, Unsigned);
 /// Velocity limit in 0.229 rev/min.
 pub const VELOCITY_LIMIT: Item = Item::new("velocity_limit", 44, 4, ReadWrite, Unsigned);
 /// Upper position limit in ticks.
@@ -50,6 +52,10 @@ pub const REGISTERED_INSTRUCTION: Item = Item::new("registered_instruction", 69,
 /// Hardware error status: bit 0 input voltage, 2 overheating, 3 motor encoder, 4 electrical
 /// shock, 5 overload. Any bit sets the alert bit of every status packet.
 pub const HARDWARE_ERROR_STATUS: Item = Item::new("hardware_error_status", 70, 1, Read, Unsigned);
+/// The position loop's D gain (KPD = value / 16).
+pub const POSITION_D_GAIN: Item = Item::new("position_d_gain", 80, 2, ReadWrite, Unsigned);
+/// The position loop's P gain (KPP = value / 128).
+pub const POSITION_P_GAIN: Item = Item::new("position_p_gain", 84, 2, ReadWrite, Unsigned);
 /// Goal current (current-based position mode 5 caps the motor current at it), in the current
 /// unit, up to the current limit.
 pub const GOAL_CURRENT: Item = Item::new("goal_current", 102, 2, ReadWrite, Signed);
@@ -113,8 +119,9 @@ const ACCELERATION_UNIT: f32 = 214.577 * 4096.0 / 3600.0;
 /// 3 (position), homing offset 0, the temperature and voltage limits of each model (above), position limits 0 and 4095, torque off, LED off, status return
 /// level 2 (all), profile acceleration and velocity 0 (unlimited), and per model the velocity
 /// limit (XL430-W250 265, XM430-W350 200, XL330-M288 445) and the current limit (XM430-W350 1193,
-/// XL330-M288 1750; the XL430-W250 has none). The position gains, which the project neither
-/// reads nor writes on Dynamixel, are not held here.
+/// XL330-M288 1750; the XL430-W250 has none), the PWM limit 885 (100 %), and the position loop's
+/// P and D gains (XL430-W250 640 and 4000, XM430-W350 800 and 0, XL330-M288 400 and 0) (the
+/// simulator's servos act with them).
 ///
 /// Not factory values:
 /// - goal current: the e-manual gives none ("-"); it starts at the current limit here, so that a
@@ -128,7 +135,8 @@ const fn defaults(
     current_limit: i64,
     volts_x10: i64,
     (temperature_limit, max_volts_x10, min_volts_x10): (i64, i64, i64),
-) -> [(Item, i64); 21] {
+    (p_gain, d_gain): (i64, i64),
+) -> [(Item, i64); 24] {
     [
         (ID, 1),
         (BAUD_RATE, 1),
@@ -139,6 +147,7 @@ const fn defaults(
         (TEMPERATURE_LIMIT, temperature_limit),
         (MAX_VOLTAGE_LIMIT, max_volts_x10),
         (MIN_VOLTAGE_LIMIT, min_volts_x10),
+        (PWM_LIMIT, 885),
         (CURRENT_LIMIT, current_limit),
         (VELOCITY_LIMIT, velocity_limit),
         (MAX_POSITION_LIMIT, 4095),
@@ -146,6 +155,8 @@ const fn defaults(
         (TORQUE_ENABLE, 0),
         (LED, 0),
         (STATUS_RETURN_LEVEL, 2),
+        (POSITION_D_GAIN, d_gain),
+        (POSITION_P_GAIN, p_gain),
         (GOAL_CURRENT, current_limit),
         (PROFILE_ACCELERATION, 0),
         (PROFILE_VELOCITY, 0),
@@ -155,11 +166,11 @@ const fn defaults(
 }
 
 #[cfg(feature = "factory-defaults")]
-const XL430_DEFAULTS: &[(Item, i64)] = &defaults(265, 0, 120, (72, 140, 60));
+const XL430_DEFAULTS: &[(Item, i64)] = &defaults(265, 0, 120, (72, 140, 60), (640, 4000));
 #[cfg(feature = "factory-defaults")]
-const XM430_DEFAULTS: &[(Item, i64)] = &defaults(200, 1193, 120, (80, 160, 95));
+const XM430_DEFAULTS: &[(Item, i64)] = &defaults(200, 1193, 120, (80, 160, 95), (800, 0));
 #[cfg(feature = "factory-defaults")]
-const XL330_DEFAULTS: &[(Item, i64)] = &defaults(445, 1750, 50, (70, 70, 35));
+const XL330_DEFAULTS: &[(Item, i64)] = &defaults(445, 1750, 50, (70, 70, 35), (400, 0));
 // Boards hold no factory values: only the simulator writes them into a table (see
 // [`Model::defaults`]).
 #[cfg(not(feature = "factory-defaults"))]

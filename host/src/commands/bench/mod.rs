@@ -15,3 +15,4 @@ pub mod mcu;
 pub mod pc;
 pub mod plan;
 pub mod rate;
+pub mod servos;

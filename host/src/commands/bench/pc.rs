@@ -97,6 +97,7 @@ pub fn run(args: &PcBenchRequest, out: &mut dyn Write, err: &mut dyn Write) -> R
         burst: args.burst_ms.map(Duration::from_millis),
         limits: Some(crate::sim::monitor::limits_of(&spec)?),
         world: crate::sim::World::of(&spec)?,
+        physics: crate::sim::physics::ServoKind::default().physics(Some(&spec))?,
     })
     .context("cannot open a pseudo-terminal")?;
     let options = PcOptions {

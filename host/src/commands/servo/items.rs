@@ -9,7 +9,7 @@ use firmware::bus::table::{sts3215, xseries, Item, Model};
 use firmware::bus::Protocol;
 
 /// The X-series items (the three models share their addresses).
-const XSERIES: [Item; 27] = [
+const XSERIES: [Item; 30] = [
     xseries::MODEL_NUMBER,
     xseries::FIRMWARE_VERSION,
     xseries::ID,
@@ -21,6 +21,7 @@ const XSERIES: [Item; 27] = [
     xseries::TEMPERATURE_LIMIT,
     xseries::MAX_VOLTAGE_LIMIT,
     xseries::MIN_VOLTAGE_LIMIT,
+    xseries::PWM_LIMIT,
     xseries::VELOCITY_LIMIT,
     xseries::MAX_POSITION_LIMIT,
     xseries::MIN_POSITION_LIMIT,
@@ -29,6 +30,8 @@ const XSERIES: [Item; 27] = [
     xseries::STATUS_RETURN_LEVEL,
     xseries::REGISTERED_INSTRUCTION,
     xseries::HARDWARE_ERROR_STATUS,
+    xseries::POSITION_D_GAIN,
+    xseries::POSITION_P_GAIN,
     xseries::PROFILE_ACCELERATION,
     xseries::PROFILE_VELOCITY,
     xseries::GOAL_POSITION,

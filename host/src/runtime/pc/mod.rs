@@ -70,11 +70,15 @@ impl PcOptions {
     /// `latency` and the simulator's safety monitor, and the options that run the core on this PC
     /// against them, as `armctl serve --sim` does. For the commands whose loop runs in real time
     /// (teleop, view), which the virtual clock of the drive commands' `--sim` would not pace.
-    pub fn simulated(arm: ArmSpec, latency: Option<std::time::Duration>) -> Result<(Self, crate::sim::PtyServer)> {
+    pub fn simulated(
+        arm: ArmSpec,
+        latency: Option<std::time::Duration>,
+        kind: crate::sim::physics::ServoKind,
+    ) -> Result<(Self, crate::sim::PtyServer)> {
         let protocol =
             servos_of(&arm).map(|s| s.model.protocol).ok_or_else(|| anyhow!("arm {} has no servos", arm.name))?;
         let baud = arm.bus_baud().unwrap_or(1_000_000);
-        let servos = crate::sim::serve_arm(&arm, baud, latency)?;
+        let servos = crate::sim::serve_arm(&arm, baud, latency, kind)?;
         let options = PcOptions {
             path: servos.path().to_string(),
             protocol,

@@ -102,6 +102,9 @@ pub struct SilOptions {
     /// Whether the firmware checks the goals against the geometry it is sent (`Off`:
     /// `--no-collision-check`, for a test that must see the simulated arm reach a contact).
     pub collision_check: crate::link::arm_config::CollisionCheck,
+    /// The servos: ideal (the default) or physical (they carry the arm under gravity, sag, lag,
+    /// heat: [`crate::sim::physics::ServoKind`]).
+    pub servos: crate::sim::physics::ServoKind,
 }
 
 impl SilOptions {
@@ -124,6 +127,7 @@ impl SilOptions {
             object_mm: None,
             contact: crate::arm::collision::collision_of(&arm),
             collision_check: Default::default(),
+            servos: Default::default(),
             arm,
         })
     }
@@ -192,7 +196,8 @@ impl Sil {
         let world = options.contact.clone().map(|geometry| World::new(&arm, geometry)).transpose()?;
         let bus = SimBus::new(model.protocol, model, &servos.bus_ids(), options.bus_baud)
             .with_faults(options.bus_faults.clone())
-            .with_contact(world.clone().map(ContactModel::new));
+            .with_contact(world.clone().map(ContactModel::new))
+            .with_physics(options.servos.physics(Some(&arm))?);
         let (bus, port, clock) = connect(bus);
         if options.object_mm.is_some() {
             put_object(&bus, &gripper_of(&arm.name, &servos)?, options.object_mm)?;
