@@ -313,6 +313,10 @@ impl PlayReport {
 /// at rest. Notes (keyframes left from before dropped, torque switched on, the progress bar,
 /// warnings) go to `notes`.
 pub fn play(driver: &mut Driver, plan: &Plan, notes: &mut dyn Write) -> DriveResult<PlayReport> {
+    // Caught from the start: checking a long file against the arm's geometry takes seconds on a
+    // busy machine, and a Ctrl-C then would otherwise end the process unhandled (CI once saw it).
+    // One pressed before anything moves is seen as the first keyframe is about to go.
+    interrupt::catch();
     let keyframes = plan.keyframes(driver).map_err(DriveError::Input)?;
     let total = keyframes.len();
     let status = driver.status()?;
@@ -330,7 +334,6 @@ pub fn play(driver: &mut Driver, plan: &Plan, notes: &mut dyn Write) -> DriveRes
         driver.session().stop()?;
         writeln!(notes, "dropped {} keyframes left in the queue from before", status.queued)?;
     }
-    interrupt::catch();
     let underruns_before = status.errors.underruns;
     let mut progress = Progress::new(total, plan.seconds(), std::io::stderr().is_terminal());
     let mut pushed = 0usize;
