@@ -48,7 +48,8 @@ fn rig_on(servos: SimConfig, arm: Option<&str>) -> Option<Rig> {
     // The pty QEMU opened for UART0 (the one `armctl sim --qemu` prints) and the servos' pty.
     armctl_test_support::assert_private(&path);
     armctl_test_support::assert_private(bus.path());
-    let link = open(Target::Port { path, baud: 1_000_000, arm: None }, arm, &mut std::io::sink()).unwrap();
+    let link =
+        open(Target::Port { path, baud: 1_000_000, arm: None, gravity: None }, arm, &mut std::io::sink()).unwrap();
     assert_eq!(link.info.queue_capacity, 32);
     Some(Rig { link, bus, board })
 }
@@ -317,7 +318,9 @@ fn any_arm_on_the_real_firmware(arm: &str) {
     let held = opened.measured.clone();
     drop(rig.link);
     let path = rig.board.link_path().to_string();
-    let mut link = open(Target::Port { path, baud: 1_000_000, arm: None }, Some(arm), &mut std::io::sink()).unwrap();
+    let mut link =
+        open(Target::Port { path, baud: 1_000_000, arm: None, gravity: None }, Some(arm), &mut std::io::sink())
+            .unwrap();
     assert_eq!(link.info.arm_name.as_str(), spec.name);
     let c = &mut link.session;
     let status = c.status().unwrap();
@@ -408,7 +411,7 @@ fn servo_torque_becomes(bus: &PtyServer, id: u8, expected: bool) -> bool {
 
 /// The host link opened again (after the board reset: a new session).
 fn reopen(board: &Qemu) -> Connection {
-    let target = Target::Port { path: board.link_path().to_string(), baud: 1_000_000, arm: None };
+    let target = Target::Port { path: board.link_path().to_string(), baud: 1_000_000, arm: None, gravity: None };
     open(target, None, &mut std::io::sink()).unwrap()
 }
 

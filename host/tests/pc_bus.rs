@@ -424,6 +424,7 @@ fn connect(server: &PtyServer, arm: &str, protocol: Protocol) -> connection::Con
         arm: ArmSpec::load(arm, None).unwrap(),
         calibration_file: None,
         monitor: server.monitor_handle(),
+        gravity: None,
     };
     let mut log = Vec::new();
     let conn = connection::open(Target::Bus(Box::new(options)), Some(arm), &mut log)

@@ -253,6 +253,7 @@ fn bus_on_simulator(arm: &ArmSpec) -> Part {
         arm: arm.clone(),
         calibration_file: None,
         monitor: server.monitor_handle(),
+        gravity: None,
     };
     let mut log = Vec::new();
     let mut driver = Driver::open(Target::Bus(Box::new(options)), Some("so101"), &mut log)

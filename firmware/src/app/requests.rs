@@ -7,6 +7,7 @@ use kinematics::trajectory::PlayerKeyframe;
 use super::report::{free_slots, LinkCounts};
 use super::Core;
 use crate::bus::master::BusConfig;
+use crate::controller::gravity::GravityJoint;
 use crate::controller::{minimum_period_us, Command, Pace, Refusal, ToolPath};
 use crate::link::message::{
     EStopMode, Field, FirmwareMessage, HostMessage, Info, Joints, MovePath, NakReason, Problem, Timing, ValueError,
@@ -225,6 +226,13 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
         }
         let controller = self.running_mut().ok_or(NakReason::NotReady)?;
         let joints = controller.joints();
+        if let HostMessage::SetGravity { joint, mass, com, compliance } = *message {
+            let part = GravityJoint { mass, com, compliance };
+            if !controller.set_gravity(usize::from(joint), part) {
+                return Err(bad(Field::JointIndex, Problem::OutOfRange));
+            }
+            return Ok(self.ack());
+        }
         let command = match message {
             HostMessage::Torque { on: true } => Command::TorqueOn,
             HostMessage::Torque { on: false } => Command::TorqueOff,
@@ -288,6 +296,7 @@ impl<const N: usize, const Q: usize> Core<N, Q> {
             | HostMessage::ConfigureBody { .. }
             | HostMessage::ConfigureObstacle { .. }
             | HostMessage::ConfigureAllowed { .. }
+            | HostMessage::SetGravity { .. }
             | HostMessage::UseBuiltinArm => return Err(NakReason::UnknownMessage),
         };
         controller.command(command, now_us).map_err(nak)?;

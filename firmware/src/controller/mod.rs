@@ -13,6 +13,8 @@
 //! # Safety properties
 //! - Every goal sent lies inside the joint's limits and the servo's tick range, and differs from
 //!   the previous one by at most `max_velocity * period`: the limiter runs on every mode's output.
+//!   With gravity compensation ([`gravity`]) the goal is the setpoint plus an offset that changes
+//!   by at most `gravity::MAX_SLEW * period` more, within the same limits.
 //! - When the host falls silent for [`Config::watchdog_ms`] while the arm moves on its own, the
 //!   arm decelerates within the acceleration limits and holds.
 //!
@@ -22,6 +24,7 @@
 pub mod collision;
 mod command;
 mod config;
+pub mod gravity;
 pub mod gripper;
 mod health;
 pub mod limiter;
@@ -214,6 +217,9 @@ pub struct Controller<const N: usize, const Q: usize> {
     move_active: bool,
     /// The collision scene every goal is checked against, and the last stop.
     guard: Guard,
+    /// Gravity compensation: what the links weigh, how far each servo gives, and the offsets the
+    /// goals carry ([`gravity`]).
+    gravity: gravity::Gravity<N>,
 }
 
 impl<const N: usize, const Q: usize> Controller<N, Q> {
@@ -287,6 +293,7 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
             gripper: None,
             last_move: None,
             move_active: false,
+            gravity: gravity::Gravity::none(),
         } in place {
             guard: Guard::empty() => |guard| Guard::empty_at(guard),
         });
@@ -362,6 +369,8 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         self.last_move = None;
         self.move_active = false;
         self.guard.clear();
+        // A new arm's links are not the old one's: the host sends them again.
+        self.gravity = gravity::Gravity::none();
         Ok(())
     }
 
@@ -380,6 +389,13 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
     /// The gripper's state, if the arm has one.
     pub fn gripper(&self) -> Option<GripperState> {
         self.gripper.as_ref().map(|g| g.state())
+    }
+
+    /// Joint `joint`'s link and servo for gravity compensation ([`gravity`]); `false` for a joint
+    /// beyond the arm's. Taken while the arm moves or holds: the goals' offsets move to it at
+    /// [`gravity::MAX_SLEW`].
+    pub fn set_gravity(&mut self, joint: usize, part: gravity::GravityJoint) -> bool {
+        joint < self.joints() && self.gravity.set(joint, part)
     }
 
     /// The mode.

@@ -290,15 +290,21 @@ impl<const N: usize, const Q: usize> Controller<N, Q> {
         ok
     }
 
-    /// Maps the setpoint to ticks and sends every goal; true when sent.
+    /// Maps the setpoint (with gravity compensation's offsets) to ticks and sends every goal; true
+    /// when sent.
     fn write_goals<P, D, C, const BUF: usize>(&mut self, master: &mut Master<P, D, C, BUF>) -> bool
     where
         P: Read + Write + ReadReady,
         D: OutputPin,
         C: Clock,
     {
+        // The setpoint plus the sag the servo will leave under gravity (none without
+        // compensation), within the joint's limits. With the torque on, the offsets move at a
+        // bounded pace; coming on, the goal is where the servo will hold the joint.
+        self.gravity.update(&self.chain, &self.setpoint.position, self.config.period_us as f32 * 1e-6, self.torque);
+        let goals = self.clamped(&(self.setpoint.position + self.gravity.applied()));
         for j in 0..N {
-            match self.mappings[j].to_ticks(self.setpoint.position[j]) {
+            match self.mappings[j].to_ticks(goals[j]) {
                 Ok(t) => self.goal_ticks[j] = t,
                 // The limits keep setpoints inside every servo's range; should one fall outside
                 // anyway, the servo keeps its last goal rather than get a wrong one.

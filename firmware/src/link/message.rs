@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 use super::frame::{FrameError, MAX_FRAME};
 
 /// The protocol version carried by the handshake; bumped on any change to the wire format.
-pub const PROTOCOL_VERSION: u16 = 9;
+pub const PROTOCOL_VERSION: u16 = 10;
 /// The most joints a message carries.
 pub const MAX_JOINTS: usize = 8;
 /// The longest arm name, in bytes of UTF-8.
@@ -342,7 +342,31 @@ pub enum HostMessage {
         /// The other part.
         other: CollisionPart,
     },
+    // Added in protocol version 10.
+    /// What one joint's link weighs and how far its servo's own loop gives under a torque: the
+    /// firmware offsets the goal it writes to each servo by the deflection the arm's gravity
+    /// torque will leave ([`crate::controller::gravity`]). Sent to the running arm, joint by
+    /// joint, after it is committed; a new arm starts without.
+    SetGravity {
+        /// The joint (0-based, below the arm's joint count).
+        joint: u8,
+        /// The mass its motion carries (kg, 0..=[`MAX_LINK_MASS`]): its link, and for the last
+        /// joint a payload in the tool.
+        mass: f32,
+        /// That mass's centre, in the joint's moving frame (m, each within [`MAX_COM`]).
+        com: [f32; 3],
+        /// The servo's deflection per unit of torque at rest (rad per N m, or m per N for a
+        /// prismatic joint; 0..=[`MAX_COMPLIANCE`]): the inverse of its loop's stiffness.
+        compliance: f32,
+    },
 }
+
+/// The heaviest link [`HostMessage::SetGravity`] carries (kg).
+pub const MAX_LINK_MASS: f32 = 50.0;
+/// How far from its joint a link's centre of mass may lie (m, each coordinate).
+pub const MAX_COM: f32 = 5.0;
+/// The softest servo loop [`HostMessage::SetGravity`] carries (rad per N m).
+pub const MAX_COMPLIANCE: f32 = 2.0;
 
 /// A collision body as the link carries it: a capsule in the frame of a joint after its motion,
 /// or of the base (protocol version 9).
@@ -698,6 +722,9 @@ pub enum Field {
     /// An allowed pair: an index that names nothing, or bodies or obstacles that are not valid
     /// together.
     Allowed,
+    // Added in protocol version 10.
+    /// A link's mass or centre of mass, or its servo's compliance.
+    Gravity,
 }
 
 /// What is wrong with a field.
@@ -1033,6 +1060,12 @@ impl HostMessage {
             Self::ConfigureAllowed { body, other } => {
                 check(Field::Allowed, usize::from(*body) < MAX_BODIES, Problem::OutOfRange)?;
                 other.validate()
+            }
+            Self::SetGravity { joint, mass, com, compliance } => {
+                check(Field::JointIndex, usize::from(*joint) < MAX_JOINTS, Problem::OutOfRange)?;
+                range(Field::Gravity, *mass, 0.0, MAX_LINK_MASS)?;
+                all_range(Field::Gravity, com, MAX_COM)?;
+                range(Field::Gravity, *compliance, 0.0, MAX_COMPLIANCE)
             }
         }
     }

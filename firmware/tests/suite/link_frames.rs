@@ -199,6 +199,7 @@ fn host_messages() -> std::vec::Vec<HostMessage> {
             shape: ObstacleShape::HalfSpace { normal: [0.0, 0.0, 1.0], offset: 0.0 },
         },
         HostMessage::ConfigureAllowed { body: 0, other: CollisionPart::Obstacle(0) },
+        HostMessage::SetGravity { joint: 1, mass: 0.15, com: [0.0, 0.1, 0.02], compliance: 0.11 },
         HostMessage::PushKeyframe(JointKeyframe {
             time: 0.0,
             positions: joints(1, 0.0),
@@ -405,6 +406,33 @@ fn the_collision_configure_bytes() {
     assert_eq!(encoded[..3], [23, 0, 1]);
     assert_eq!(encoded[15..19], [0x00, 0x00, 0x80, 0x3F]);
     assert_eq!(encoded[31..], [0x00, 0x00, 0x80, 0x3E, 0x00, 0x00, 0x80, 0x3E, 0x00, 0x00, 0x80, 0x3E]);
+}
+
+/// Protocol 10's gravity message, byte for byte: variant index 25, the joint as one byte, then
+/// the mass, the centre's three coordinates and the compliance as little-endian f32s; and each of
+/// its values refused on its own.
+#[test]
+fn the_gravity_bytes() {
+    // 0.5 is 00 00 00 3F; 0.25 00 00 80 3E; -1.0 00 00 80 BF; 0.125 00 00 00 3E.
+    let message = HostMessage::SetGravity { joint: 2, mass: 0.5, com: [0.25, 0.0, -1.0], compliance: 0.125 };
+    let bytes: &[u8] = &[
+        25, 2, 0x00, 0x00, 0x00, 0x3F, 0x00, 0x00, 0x80, 0x3E, 0, 0, 0, 0, 0x00, 0x00, 0x80, 0xBF, 0x00, 0x00, 0x00,
+        0x3E,
+    ];
+    let mut out = [0u8; 64];
+    assert_eq!(postcard::to_slice(&message, &mut out).unwrap(), bytes);
+    assert_eq!(postcard::from_bytes::<HostMessage>(bytes), Ok(message.clone()));
+    assert_eq!(message.validate(), Ok(()));
+    round_trip(10, FrameKind::Request, &message);
+    let err = |field, problem| Err(ValueError { field, problem });
+    let with = |joint, mass, com, compliance| HostMessage::SetGravity { joint, mass, com, compliance };
+    assert_eq!(with(8, 0.5, [0.0; 3], 0.1).validate(), err(Field::JointIndex, Problem::OutOfRange));
+    assert_eq!(with(0, f32::NAN, [0.0; 3], 0.1).validate(), err(Field::Gravity, Problem::NotFinite));
+    assert_eq!(with(0, -0.1, [0.0; 3], 0.1).validate(), err(Field::Gravity, Problem::OutOfRange));
+    assert_eq!(with(0, 0.5, [0.0, 9.0, 0.0], 0.1).validate(), err(Field::Gravity, Problem::OutOfRange));
+    assert_eq!(with(0, 0.5, [0.0; 3], f32::INFINITY).validate(), err(Field::Gravity, Problem::NotFinite));
+    assert_eq!(with(0, 0.5, [0.0; 3], -0.1).validate(), err(Field::Gravity, Problem::OutOfRange));
+    assert_eq!(with(0, 0.5, [0.0; 3], 3.0).validate(), err(Field::Gravity, Problem::OutOfRange));
 }
 
 /// Every collision value is checked on its own, the nak naming the field.

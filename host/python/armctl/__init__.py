@@ -390,6 +390,11 @@ class Arm:
     - ``bus="/dev/ttyUSB0", protocol="sts"|"dxl2"``: the core on this PC (its own thread) against
       the servos on a USB adapter, with ``arm`` and a LeRobot ``calibration`` file.
 
+    ``servos="physical"`` gives the simulated arm servos that sag, lag and heat (``payload_kg`` at
+    the tool); the firmware compensates their sag under gravity unless
+    ``gravity_compensation=False``. ``gravity_compensation=True`` asks for it on a real arm (it has
+    not run on one yet); ideal servos refuse it (docs/servo-model.md).
+
     Each method is its command's request and returns the command's JSON answer as a dict.
 
     The surroundings: a preset stands on a table at its base plane (``table=False`` leaves it
@@ -410,7 +415,8 @@ class Arm:
     def __init__(self, *, sim: str | bool | None = None, port: str | None = None, bus: str | None = None,
                  protocol: str | None = None, arm: str | None = None, calibration: str | None = None,
                  baud: int | None = None, obstacles: Iterable[Any] | None = None, table: bool = True,
-                 servos: str | None = None, payload_kg: float | None = None):
+                 servos: str | None = None, payload_kg: float | None = None,
+                 gravity_compensation: bool | None = None):
         if isinstance(sim, str):
             if arm is not None and arm != sim:
                 raise ArmctlError(f"sim={sim!r} and arm={arm!r}: name the simulated arm once")
@@ -418,7 +424,9 @@ class Arm:
         self._native = _armctl.Arm(sim=bool(sim), port=port, bus=bus, protocol=protocol, arm=arm,
                                    calibration=None if calibration is None else str(calibration), baud=baud,
                                    obstacles=None if obstacles is None else list(obstacles), table=bool(table),
-                                   servos=servos, payload_kg=None if payload_kg is None else float(payload_kg))
+                                   servos=servos, payload_kg=None if payload_kg is None else float(payload_kg),
+                                   gravity_compensation=None if gravity_compensation is None
+                                   else bool(gravity_compensation))
         self._owner = threading.current_thread()
 
     @property

@@ -81,6 +81,7 @@ class Arm:
         table: bool = True,
         servos: Optional[str] = None,
         payload_kg: Optional[float] = None,
+        gravity_compensation: Optional[bool] = None,
     ) -> None: ...
     @property
     def obstacles(self) -> list[dict[str, Any]]: ...

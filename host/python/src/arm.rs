@@ -189,7 +189,7 @@ impl Arm {
 #[pymethods]
 impl Arm {
     #[new]
-    #[pyo3(signature = (*, sim = false, port = None, bus = None, protocol = None, arm = None, calibration = None, baud = None, obstacles = None, table = true, servos = None, payload_kg = None))]
+    #[pyo3(signature = (*, sim = false, port = None, bus = None, protocol = None, arm = None, calibration = None, baud = None, obstacles = None, table = true, servos = None, payload_kg = None, gravity_compensation = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -204,6 +204,7 @@ impl Arm {
         table: bool,
         servos: Option<&str>,
         payload_kg: Option<f64>,
+        gravity_compensation: Option<bool>,
     ) -> PyResult<Self> {
         let protocol = protocol.map(protocol_named).transpose().or_raise()?;
         // Every obstacle read before anything opens: a bad one moves nothing.
@@ -224,6 +225,7 @@ impl Arm {
                 .or_raise()?,
             surroundings: Default::default(),
             no_collision_check: false,
+            gravity: gravity_compensation,
         };
         let mut said = Vec::new();
         let (mut driver, servos) = released(py, || -> Result<(Driver, Option<PtyServer>)> {

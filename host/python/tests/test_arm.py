@@ -341,11 +341,17 @@ def test_an_arm_used_from_another_thread_refuses_in_one_line_and_works_in_its_ow
 
 def test_physical_servos_sag_and_bad_choices_raise():
     """`servos="physical"` gives the simulated arm servos that carry its links (docs/servo-model.md):
-    the tool ends below its target; a payload needs them, and one beyond their stall torque is
-    refused before anything opens."""
-    with armctl.Arm(sim="so101", servos="physical") as a:
+    without gravity compensation the tool ends below its target, with it (the default on them)
+    within 2 mm, 200 g at the tool too; a payload needs them, and one beyond their stall torque is
+    refused before anything opens, as is compensation asked of ideal servos."""
+    with armctl.Arm(sim="so101", servos="physical", gravity_compensation=False) as a:
         r = a.move_to([0.25, 0.05, 0.15], speed=0.2)
         assert r["error_mm"] > 2.0 and r["reached"][2] < 0.15, r
+    with armctl.Arm(sim="so101", servos="physical", payload_kg=0.2) as a:
+        r = a.move_to([0.25, 0.05, 0.15], speed=0.2)
+        assert r["error_mm"] < 2.0, r
+    with pytest.raises(armctl.ArmctlError, match="servos physical"):
+        armctl.Arm(sim="so101", gravity_compensation=True)
     with pytest.raises(armctl.ArmctlError, match="physical servos only"):
         armctl.Arm(sim="so101", payload_kg=0.2)
     with pytest.raises(armctl.ArmctlError, match="stall torque"):

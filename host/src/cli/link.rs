@@ -58,6 +58,13 @@ pub struct LinkArgs {
     /// when it asks a joint for more than its servo's stall torque somewhere in its range.
     #[arg(long, value_name = "KG", allow_negative_numbers = true)]
     pub payload_kg: Option<f64>,
+    /// Offset each servo's goal by the sag its own loop will leave under the arm's gravity (and
+    /// --payload-kg), so the tool arrives where the IK put it (docs/servo-model.md). On by
+    /// default with --sim --servos physical; off by default elsewhere (ideal servos do not sag;
+    /// on a real arm it has not run yet: `on` asks for it, for an arm with masses whose servos
+    /// hold the P gain `armctl servo setup` writes).
+    #[arg(long, value_name = "ON|OFF", value_parser = ["on", "off"])]
+    pub gravity_compensation: Option<String>,
     /// Drive every arm of a rig together (a rig file, or the built-in bimanual-so101): status,
     /// stop, torque, move (--to ARM=x,y,z in the world frame, once per arm) and play (a keyframe
     /// file with each arm's columns, ARM.q1,...); `view --rig` shows and drives every arm in one
@@ -104,6 +111,11 @@ impl LinkArgs {
             object_mm: one("--object-mm", &self.object_mm, &after.object_mm)?,
             servos: one("--servos", &self.servos, &after.servos)?,
             payload_kg: one("--payload-kg", &self.payload_kg, &after.payload_kg)?,
+            gravity_compensation: one(
+                "--gravity-compensation",
+                &self.gravity_compensation,
+                &after.gravity_compensation,
+            )?,
             rig: one("--rig", &self.rig, &after.rig)?,
             obstacles: self.obstacles.iter().chain(&after.obstacles).cloned().collect(),
             no_table: self.no_table || after.no_table,
@@ -125,6 +137,7 @@ impl LinkArgs {
             (self.object_mm.is_some(), "--object-mm"),
             (self.servos.is_some(), "--servos"),
             (self.payload_kg.is_some(), "--payload-kg"),
+            (self.gravity_compensation.is_some(), "--gravity-compensation"),
             (!self.obstacles.is_empty(), "--obstacle"),
             (self.no_table, "--no-table"),
             (self.no_collision_check, "--no-collision-check"),
@@ -180,6 +193,7 @@ impl LinkArgs {
             servos: self.servo_kind()?,
             surroundings: self.surroundings(),
             no_collision_check: self.no_collision_check,
+            gravity: self.gravity_compensation.as_deref().map(|v| v == "on"),
         })
     }
 

@@ -7,6 +7,7 @@
 //! (Ctrl-C or SIGTERM) stops the arm within its limits and exits 0 once it holds; a second one
 //! switches the torque off and exits 130.
 
+use crate::runtime::gravity::{gravity_messages, Compensation, Gains};
 use std::io::Write;
 use std::time::{Duration, Instant};
 
@@ -116,7 +117,7 @@ pub fn run(args: ServeArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
     };
     let calibration_file = args.calibration.as_ref().map(|f| f.display().to_string());
     let monitor = simulated.as_ref().and_then(PtyServer::monitor_handle);
-    let options = PcOptions { path, protocol, baud, arm, calibration_file, monitor };
+    let options = PcOptions { path, protocol, baud, arm, calibration_file, monitor, gravity: None };
     let mut pc = Pc::start(&options, false, err)?;
     let shared = pc.shared();
     // The arm is configured now, so that the first client finds it running.
@@ -126,6 +127,11 @@ pub fn run(args: ServeArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
         session.set_collision_check(crate::link::arm_config::CollisionCheck::Off);
     }
     handshake_with(&mut session, Some(options.arm.clone()))?;
+    // Physical simulated servos sag: the core compensates (the set-up's gains), for every client.
+    if let (true, crate::sim::physics::ServoKind::Physical(payload)) = (args.sim, kind) {
+        let compensation = Compensation::by_default(Gains::SetUp, payload.map(|p| p.kg));
+        session.gravity(&gravity_messages(&options.arm, &compensation)?)?;
+    }
     let started = Instant::now();
     while !shared.ready() {
         if started.elapsed() > READY_TIMEOUT || pc.is_finished() {

@@ -182,6 +182,7 @@ impl std::fmt::Display for Value<'_> {
             Field::Margin => "collision margin",
             Field::Body => "collision body (its index, joint, ends or radius)",
             Field::Obstacle => "obstacle (its index, place, rotation or size)",
+            Field::Gravity => "gravity compensation (a link's mass or centre, or its servo's compliance)",
             Field::Allowed => "allowed collision pair",
         };
         let problem = match self.0.problem {

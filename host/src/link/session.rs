@@ -227,6 +227,12 @@ impl<T: Transport> Session<T> {
         Ok(())
     }
 
+    /// Gives the firmware gravity compensation: one [`HostMessage::SetGravity`] per joint
+    /// (`crate::runtime::gravity::gravity_messages`), each acked.
+    pub fn gravity(&mut self, messages: &[HostMessage]) -> Result<(), LinkError> {
+        messages.iter().try_for_each(|m| self.ack(m))
+    }
+
     /// The controller's status.
     pub fn status(&mut self) -> Result<Status, LinkError> {
         self.client.status()

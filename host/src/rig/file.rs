@@ -210,6 +210,7 @@ impl ArmEntry {
             servos: None,
             surroundings: Default::default(),
             no_collision_check: false,
+            gravity: None,
         };
         // The same checks as the drive options of one arm, and the arm loaded once to prove it.
         place.target()?;

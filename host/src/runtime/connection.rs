@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use anyhow::{anyhow, bail, Context, Result};
 use firmware::bus::Protocol;
-use firmware::link::message::Info;
+use firmware::link::message::{HostMessage, Info};
 
 use crate::arm::collision::obstacle::Surroundings;
 use crate::arm::servos::servos_of;
@@ -17,6 +17,7 @@ use crate::link::arm_config::CollisionCheck;
 use crate::link::serial::open_error;
 use crate::link::session::Session;
 use crate::link::Transport;
+use crate::runtime::gravity::{gravity_messages, Compensation, Gains};
 use crate::runtime::pc::{Pc, PcOptions};
 use crate::runtime::sil::{Sil, SilOptions};
 
@@ -82,6 +83,9 @@ pub struct Place {
     /// With `sim`: the firmware is sent the geometry with its check off (`--no-collision-check`),
     /// so that the simulated arm can be seen to run into what is in the way.
     pub no_collision_check: bool,
+    /// Gravity compensation (`--gravity-compensation on|off`; `None`: on with physical simulated
+    /// servos, off elsewhere: ideal servos do not sag, and it has not run on a real arm yet).
+    pub gravity: Option<bool>,
 }
 
 impl Place {
@@ -109,6 +113,25 @@ impl Place {
     /// The arm `name` (a preset or an arm file) with the surroundings applied.
     pub fn load(&self, name: &str) -> Result<ArmSpec> {
         ArmSpec::load(name, None)?.with_surroundings(&self.surroundings)
+    }
+
+    /// The gravity compensation this place asks for, the servos holding P gains as `gains` says.
+    fn compensation(&self, gains: Gains) -> Result<Option<Compensation>> {
+        let physical = match self.servos {
+            Some(ServoKind::Physical(payload)) => Some(payload.map(|p| p.kg)),
+            _ => None,
+        };
+        Ok(match (self.gravity, physical) {
+            (Some(false), _) => None,
+            (None, Some(payload_kg)) => Some(Compensation::by_default(gains, payload_kg)),
+            (Some(true), Some(payload_kg)) => Some(Compensation { gains, payload_kg, asked: true }),
+            (Some(true), None) if self.sim => bail!(
+                "--gravity-compensation on needs servos that sag (--servos physical): ideal ones reach their goals \
+                 exactly, and the offsets would lift the arm off them"
+            ),
+            (Some(true), None) => Some(Compensation { gains, payload_kg: None, asked: true }),
+            (None, None) => None,
+        })
     }
 
     /// The board or simulation to connect to; every option checked against the others.
@@ -141,6 +164,8 @@ impl Place {
                 arm: spec,
                 calibration_file: self.calibration.as_ref().map(|f| f.display().to_string()),
                 monitor: None,
+                // The core sets the servos up as it connects.
+                gravity: self.compensation(Gains::SetUp)?,
             };
             return Ok(Target::Bus(Box::new(options)));
         }
@@ -161,7 +186,9 @@ impl Place {
                         bail!("--obstacle and --no-table change the arm sent to the board: name it with --arm")
                     }
                 };
-                Ok(Target::Port { path: path.clone(), baud: self.baud.unwrap_or(DEFAULT_BAUD), arm })
+                // A real arm's servos hold what `armctl servo setup` wrote.
+                let gravity = self.compensation(Gains::SetUp)?;
+                Ok(Target::Port { path: path.clone(), baud: self.baud.unwrap_or(DEFAULT_BAUD), arm, gravity })
             }
             (None, true) if self.baud.is_some() => bail!("--baud is the baud rate of --port; --sim has none"),
             (None, true) => {
@@ -171,6 +198,8 @@ impl Place {
                     object_mm: self.object_mm,
                     collision_check,
                     servos: self.servos.unwrap_or_default(),
+                    // Nothing sets the simulated board's servos up: they hold the factory's gains.
+                    gravity: self.compensation(Gains::Factory)?,
                     ..SilOptions::for_arm(self.load(arm)?)?
                 };
                 Ok(Target::Sim(Box::new(options)))
@@ -200,6 +229,8 @@ pub enum Target {
         path: String,
         /// Baud rate (ignored by USB CDC boards).
         baud: u32,
+        /// Gravity compensation given to the firmware once connected.
+        gravity: Option<Compensation>,
         /// The arm to send, loaded (`--obstacle` and `--no-table` applied); `None`: the one named
         /// at the handshake, or the board's.
         arm: Option<Box<ArmSpec>>,
@@ -222,8 +253,10 @@ impl Target {
     pub fn in_real_time(self) -> Result<(Target, Option<crate::sim::PtyServer>)> {
         match self {
             Target::Sim(options) => {
-                let (options, servos) = PcOptions::simulated(options.arm, Some(SIM_ADAPTER_LATENCY), options.servos)?;
-                Ok((Target::Bus(Box::new(options)), Some(servos)))
+                let (mut pc, servos) = PcOptions::simulated(options.arm, Some(SIM_ADAPTER_LATENCY), options.servos)?;
+                // Asked for as for the simulated board, the gains the core sets up.
+                pc.gravity = options.gravity.map(|c| Compensation { gains: Gains::SetUp, ..c });
+                Ok((Target::Bus(Box::new(pc)), Some(servos)))
             }
             other => Ok((other, None)),
         }
@@ -285,8 +318,9 @@ pub fn open(target: Target, arm: Option<&str>, err: &mut dyn std::io::Write) -> 
     // with its surroundings: sent as it is.
     let loaded_arm;
     let mut check = CollisionCheck::On;
+    let gravity = gravity_asked(&target)?;
     let transport: Box<dyn Transport> = match target {
-        Target::Port { path, baud, arm: loaded } => {
+        Target::Port { path, baud, arm: loaded, .. } => {
             let port = serialport::new(&path, baud).timeout(READ_TIMEOUT).open().map_err(|e| open_error(&path, e))?;
             loaded_arm = loaded.map(|arm| *arm);
             Box::new(port)
@@ -308,10 +342,31 @@ pub fn open(target: Target, arm: Option<&str>, err: &mut dyn std::io::Write) -> 
         }
     };
     let mut conn = connect(transport, loaded_arm, arm, pc, check)?;
+    if let Some((compensation, early)) = gravity {
+        let messages = match early {
+            Some(messages) => messages,
+            None => gravity_messages(&conn.arm, &compensation)?,
+        };
+        conn.session.gravity(&messages).context("giving the firmware gravity compensation")?;
+    }
     if let Some(sil) = conn.sil() {
         sil.settle_reads();
     }
     Ok(conn)
+}
+
+/// The gravity compensation `target` asks for, and its messages where the arm is known before
+/// connecting: compensation asked of an arm that cannot have it (no masses) is refused before
+/// anything starts. A board's arm is known once connected.
+fn gravity_asked(target: &Target) -> Result<Option<(Compensation, Option<Vec<HostMessage>>)>> {
+    let (compensation, arm) = match target {
+        Target::Port { gravity, .. } => (*gravity, None),
+        Target::Bus(options) => (options.gravity, Some(&options.arm)),
+        Target::Sim(options) => (options.gravity, Some(&options.arm)),
+    };
+    let Some(compensation) = compensation else { return Ok(None) };
+    let messages = arm.map(|arm| gravity_messages(arm, &compensation)).transpose()?;
+    Ok(Some((compensation, messages)))
 }
 
 /// The link to a simulated board already made (the demo's, recording its ticks), with `arm` (the

@@ -11,6 +11,7 @@
 pub mod board;
 pub mod connection;
 pub mod driver;
+pub mod gravity;
 pub mod pc;
 #[cfg(feature = "board-tools")]
 pub mod qemu;

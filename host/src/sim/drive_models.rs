@@ -111,6 +111,11 @@ impl DriveRegisters {
         readings
     }
 
+    /// The item of the loop's P gain.
+    pub fn p_gain(&self) -> Item {
+        self.p_gain
+    }
+
     /// The item that reads the supply, in 0.1 V.
     pub fn voltage(&self) -> Item {
         self.voltage

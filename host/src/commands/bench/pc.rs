@@ -107,6 +107,7 @@ pub fn run(args: &PcBenchRequest, out: &mut dyn Write, err: &mut dyn Write) -> R
         arm: spec,
         calibration_file: None,
         monitor: server.monitor_handle(),
+        gravity: None,
     };
     let mut conn = connection::open(Target::Bus(Box::new(options)), None, err)?;
     let pc = conn.pc.as_ref().context("a --bus connection has its core")?;

@@ -43,7 +43,7 @@ pub fn measure(elf: &Path) -> Result<MeasuredStack> {
     let board = Qemu::start(&QemuConfig::new(elf.to_path_buf(), Some(bus.path().to_string())))?;
     board.wait_started(crate::runtime::qemu::START_TIMEOUT)?;
     let mut link = open(
-        Target::Port { path: board.link_path().to_string(), baud: 1_000_000, arm: None },
+        Target::Port { path: board.link_path().to_string(), baud: 1_000_000, arm: None, gravity: None },
         None,
         &mut std::io::sink(),
     )?;
@@ -63,6 +63,14 @@ pub fn measure(elf: &Path) -> Result<MeasuredStack> {
     checked.collision = Some(geometry);
     checked.name = "so101-checked".into();
     c.configure_arm(&checked, &servos, NOT_READY_WAITS).context("sending the so101 with collision geometry")?;
+    // Gravity compensation on, so that every tick below computes its offsets as well.
+    let compensation = crate::runtime::gravity::Compensation {
+        asked: true,
+        ..crate::runtime::gravity::Compensation::by_default(crate::runtime::gravity::Gains::SetUp, Some(0.2))
+    };
+    // (The SO-101's masses: the renamed arm is the same arm.)
+    c.gravity(&crate::runtime::gravity::gravity_messages(&ArmSpec::load("so101", None)?, &compensation)?)
+        .context("giving the firmware gravity compensation")?;
     c.torque_on(NOT_READY_WAITS).context("torque on")?;
     c.move_to(
         CartesianTarget { position: [0.2, 0.05, 0.15], orientation: None },

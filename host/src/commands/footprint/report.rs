@@ -245,7 +245,7 @@ fn print_report(out: &mut dyn Write, r: &BoardReport) -> Result<()> {
             writeln!(
                 out,
                 "  measured stack by painting under QEMU (SO-101 on simulated servos: a Cartesian move, 40 \
-                 streamed keyframes, the arm sent over the link)"
+                 streamed keyframes, the arm sent over the link; gravity compensation on)"
             )?;
             writeln!(out, "    start-up     {}", against_goal(&m.startup))?;
             writeln!(out, "    control loop {}", against_goal(&m.control_loop))?;

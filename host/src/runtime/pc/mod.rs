@@ -63,6 +63,8 @@ pub struct PcOptions {
     /// The safety monitor of simulated servos, told the control period once it is chosen (it
     /// allows each goal write the velocity limit times the period per control tick).
     pub monitor: Option<crate::sim::MonitorHandle>,
+    /// Gravity compensation given to the firmware once connected (`None`: none).
+    pub gravity: Option<crate::runtime::gravity::Compensation>,
 }
 
 impl PcOptions {
@@ -86,6 +88,16 @@ impl PcOptions {
             arm,
             calibration_file: None,
             monitor: servos.monitor_handle(),
+            // The core sets its servos up (P 16 on the STS3215): physical ones sag by that.
+            gravity: match kind {
+                crate::sim::physics::ServoKind::Physical(payload) => {
+                    Some(crate::runtime::gravity::Compensation::by_default(
+                        crate::runtime::gravity::Gains::SetUp,
+                        payload.map(|p| p.kg),
+                    ))
+                }
+                crate::sim::physics::ServoKind::Ideal => None,
+            },
         };
         Ok((options, servos))
     }

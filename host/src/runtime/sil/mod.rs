@@ -105,6 +105,8 @@ pub struct SilOptions {
     /// The servos: ideal (the default) or physical (they carry the arm under gravity, sag, lag,
     /// heat: [`crate::sim::physics::ServoKind`]).
     pub servos: crate::sim::physics::ServoKind,
+    /// Gravity compensation given to the firmware once connected (`None`: none).
+    pub gravity: Option<crate::runtime::gravity::Compensation>,
 }
 
 impl SilOptions {
@@ -128,6 +130,7 @@ impl SilOptions {
             contact: crate::arm::collision::collision_of(&arm),
             collision_check: Default::default(),
             servos: Default::default(),
+            gravity: None,
             arm,
         })
     }
