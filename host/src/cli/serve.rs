@@ -7,7 +7,7 @@
 //! (Ctrl-C or SIGTERM) stops the arm within its limits and exits 0 once it holds; a second one
 //! switches the torque off and exits 130.
 
-use crate::runtime::gravity::{gravity_messages, Compensation, Gains};
+use crate::runtime::gravity::{gravity_parts, Compensation, Gains};
 use std::io::Write;
 use std::time::{Duration, Instant};
 
@@ -130,7 +130,7 @@ pub fn run(args: ServeArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
     // Physical simulated servos sag: the core compensates (the set-up's gains), for every client.
     if let (true, crate::sim::physics::ServoKind::Physical(payload)) = (args.sim, kind) {
         let compensation = Compensation::by_default(Gains::SetUp, payload.map(|p| p.kg));
-        session.gravity(&gravity_messages(&options.arm, &compensation)?)?;
+        session.gravity(&gravity_parts(&options.arm, &compensation)?)?;
     }
     let started = Instant::now();
     while !shared.ready() {

@@ -227,10 +227,13 @@ impl<T: Transport> Session<T> {
         Ok(())
     }
 
-    /// Gives the firmware gravity compensation: one [`HostMessage::SetGravity`] per joint
-    /// (`crate::runtime::gravity::gravity_messages`), each acked.
-    pub fn gravity(&mut self, messages: &[HostMessage]) -> Result<(), LinkError> {
-        messages.iter().try_for_each(|m| self.ack(m))
+    /// Gives the firmware gravity compensation: one [`HostMessage::SetGravity`] per joint, base
+    /// first (`crate::runtime::gravity::gravity_parts`), each acked.
+    pub fn gravity(&mut self, parts: &[firmware::controller::gravity::GravityJoint]) -> Result<(), LinkError> {
+        parts.iter().enumerate().try_for_each(|(j, p)| {
+            let joint = u8::try_from(j).unwrap_or(u8::MAX);
+            self.ack(&HostMessage::SetGravity { joint, mass: p.mass, com: p.com, compliance: p.compliance })
+        })
     }
 
     /// The controller's status.

@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use anyhow::{anyhow, bail, Context, Result};
 use firmware::bus::Protocol;
-use firmware::link::message::{HostMessage, Info};
+use firmware::link::message::Info;
 
 use crate::arm::collision::obstacle::Surroundings;
 use crate::arm::servos::servos_of;
@@ -17,7 +17,7 @@ use crate::link::arm_config::CollisionCheck;
 use crate::link::serial::open_error;
 use crate::link::session::Session;
 use crate::link::Transport;
-use crate::runtime::gravity::{gravity_messages, Compensation, Gains};
+use crate::runtime::gravity::{gravity_parts, Compensation, Gains};
 use crate::runtime::pc::{Pc, PcOptions};
 use crate::runtime::sil::{Sil, SilOptions};
 
@@ -343,11 +343,11 @@ pub fn open(target: Target, arm: Option<&str>, err: &mut dyn std::io::Write) -> 
     };
     let mut conn = connect(transport, loaded_arm, arm, pc, check)?;
     if let Some((compensation, early)) = gravity {
-        let messages = match early {
-            Some(messages) => messages,
-            None => gravity_messages(&conn.arm, &compensation)?,
+        let parts = match early {
+            Some(parts) => parts,
+            None => gravity_parts(&conn.arm, &compensation)?,
         };
-        conn.session.gravity(&messages).context("giving the firmware gravity compensation")?;
+        conn.session.gravity(&parts).context("giving the firmware gravity compensation")?;
     }
     if let Some(sil) = conn.sil() {
         sil.settle_reads();
@@ -355,18 +355,20 @@ pub fn open(target: Target, arm: Option<&str>, err: &mut dyn std::io::Write) -> 
     Ok(conn)
 }
 
-/// The gravity compensation `target` asks for, and its messages where the arm is known before
+/// The gravity compensation `target` asks for, and its parts where the arm is known before
 /// connecting: compensation asked of an arm that cannot have it (no masses) is refused before
 /// anything starts. A board's arm is known once connected.
-fn gravity_asked(target: &Target) -> Result<Option<(Compensation, Option<Vec<HostMessage>>)>> {
+fn gravity_asked(
+    target: &Target,
+) -> Result<Option<(Compensation, Option<Vec<firmware::controller::gravity::GravityJoint>>)>> {
     let (compensation, arm) = match target {
         Target::Port { gravity, .. } => (*gravity, None),
         Target::Bus(options) => (options.gravity, Some(&options.arm)),
         Target::Sim(options) => (options.gravity, Some(&options.arm)),
     };
     let Some(compensation) = compensation else { return Ok(None) };
-    let messages = arm.map(|arm| gravity_messages(arm, &compensation)).transpose()?;
-    Ok(Some((compensation, messages)))
+    let parts = arm.map(|arm| gravity_parts(arm, &compensation)).transpose()?;
+    Ok(Some((compensation, parts)))
 }
 
 /// The link to a simulated board already made (the demo's, recording its ticks), with `arm` (the

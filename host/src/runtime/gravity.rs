@@ -10,7 +10,7 @@
 //! of the drive commands' `--sim`, which nothing sets up).
 
 use anyhow::{anyhow, bail, Result};
-use firmware::link::message::HostMessage;
+use firmware::controller::gravity::GravityJoint;
 use kinematics::dynamics::Inertia;
 
 use crate::arm::arm_dynamics::{masses_of, point_payload};
@@ -68,10 +68,11 @@ pub fn compliance(arm: &ArmSpec, gains: Gains) -> Result<f64> {
     Ok(1.0 / stiffness)
 }
 
-/// The messages that give the firmware `arm`'s gravity compensation, one per joint. For an arm
+/// What gives the firmware `arm`'s gravity compensation, one part per joint (the session sends
+/// each as a `SetGravity`: [`crate::link::session::Session::gravity`]). For an arm
 /// without masses (a preset other than the SO-101, an arm file without `mass`): none, or when
 /// compensation was asked for, an error in one line; so too for servos without a drive model.
-pub fn gravity_messages(arm: &ArmSpec, compensation: &Compensation) -> Result<Vec<HostMessage>> {
+pub fn gravity_parts(arm: &ArmSpec, compensation: &Compensation) -> Result<Vec<GravityJoint>> {
     let Some(masses) = masses_of(arm) else {
         if !compensation.asked {
             return Ok(Vec::new());
@@ -93,9 +94,7 @@ pub fn gravity_messages(arm: &ArmSpec, compensation: &Compensation) -> Result<Ve
     let compliance = compliance(arm, compensation.gains)? as f32;
     Ok(links
         .iter()
-        .enumerate()
-        .map(|(j, link)| HostMessage::SetGravity {
-            joint: j as u8,
+        .map(|link| GravityJoint {
             mass: link.mass as f32,
             com: [link.com.x as f32, link.com.y as f32, link.com.z as f32],
             compliance,
@@ -119,24 +118,21 @@ mod tests {
         assert!((set_up / factory - 2.0).abs() < 1e-9);
     }
 
-    /// One message per joint, the payload in the last joint's mass; an arm without masses refused.
+    /// One part per joint, the payload in the last joint's mass; an arm without masses refused
+    /// when compensation is asked for, left without otherwise.
     #[test]
-    fn one_message_per_joint_and_the_payload_in_the_last() {
+    fn one_part_per_joint_and_the_payload_in_the_last() {
         let arm = ArmSpec::load("so101", None).unwrap();
-        let bare = gravity_messages(&arm, &Compensation::by_default(Gains::SetUp, None)).unwrap();
-        let heavy = gravity_messages(&arm, &Compensation::by_default(Gains::SetUp, Some(0.2))).unwrap();
+        let bare = gravity_parts(&arm, &Compensation::by_default(Gains::SetUp, None)).unwrap();
+        let heavy = gravity_parts(&arm, &Compensation::by_default(Gains::SetUp, Some(0.2))).unwrap();
         assert_eq!(bare.len(), arm.dof());
-        let mass = |m: &HostMessage| match m {
-            HostMessage::SetGravity { mass, .. } => *mass,
-            _ => panic!("{m:?}"),
-        };
-        assert!((mass(&heavy[4]) - mass(&bare[4]) - 0.2).abs() < 1e-6);
-        assert_eq!(mass(&heavy[0]), mass(&bare[0]));
-        assert!(bare.iter().all(|m| m.validate().is_ok()));
+        assert!((heavy[4].mass - bare[4].mass - 0.2).abs() < 1e-6);
+        assert_eq!(heavy[0], bare[0]);
+        assert!(bare.iter().all(|p| p.mass >= 0.0 && p.compliance > 0.0));
         let omx = ArmSpec::load("open-manipulator-x", None).unwrap();
-        assert_eq!(gravity_messages(&omx, &Compensation::by_default(Gains::SetUp, None)).unwrap(), vec![]);
+        assert_eq!(gravity_parts(&omx, &Compensation::by_default(Gains::SetUp, None)).unwrap(), vec![]);
         let asked = Compensation { asked: true, ..Compensation::by_default(Gains::SetUp, None) };
-        let err = gravity_messages(&omx, &asked).unwrap_err();
+        let err = gravity_parts(&omx, &asked).unwrap_err();
         assert!(err.to_string().contains("has no masses"), "{err}");
     }
 }

@@ -69,7 +69,7 @@ pub fn measure(elf: &Path) -> Result<MeasuredStack> {
         ..crate::runtime::gravity::Compensation::by_default(crate::runtime::gravity::Gains::SetUp, Some(0.2))
     };
     // (The SO-101's masses: the renamed arm is the same arm.)
-    c.gravity(&crate::runtime::gravity::gravity_messages(&ArmSpec::load("so101", None)?, &compensation)?)
+    c.gravity(&crate::runtime::gravity::gravity_parts(&ArmSpec::load("so101", None)?, &compensation)?)
         .context("giving the firmware gravity compensation")?;
     c.torque_on(NOT_READY_WAITS).context("torque on")?;
     c.move_to(
