@@ -139,6 +139,7 @@ def one(kind: str, armctl_bin: str, work: Path, t: np.ndarray, a: np.ndarray, se
     # so101_follower reads the positions and writes the goals once an action: its control period
     # is the actions', which the monitor judges its steps over (armctl's core: its own 10 ms).
     period_ms = 1000.0 / RATE if kind == "lerobot" else None
+    physical = servos == "physical"
     servos = lerobot_sim.SimServos(armctl_bin, calibration=cal_file, record=record, period_ms=period_ms,
                                    servos=servos)
     announced = time.monotonic()
@@ -151,8 +152,11 @@ def one(kind: str, armctl_bin: str, work: Path, t: np.ndarray, a: np.ndarray, se
         else:
             from lerobot_robot_armctl import ArmctlFollower, ArmctlFollowerConfig
 
+            # On physical servos the firmware compensates their sag (the core sets them up with
+            # LeRobot's P of 16, as it does real ones); so101_follower has nothing of the kind.
             robot = ArmctlFollower(ArmctlFollowerConfig(bus=servos.port, protocol="sts", id="bench",
-                                                        calibration_dir=cal_dir, fps=RATE))
+                                                        calibration_dir=cal_dir, fps=RATE,
+                                                        gravity_compensation=physical or None))
         robot.connect(calibrate=False)
         underruns = None
         try:

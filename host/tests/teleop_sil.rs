@@ -115,8 +115,12 @@ fn a_recording_at_the_limits_reads_back_as_sent() {
         let (min, max) = values.iter().fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
         assert_eq!((min, max), (lo, hi), "joint {}: held at each end, written exactly", j + 1);
     }
+    // The replay is taken (no value refused as out of range) and played into the same contacts:
+    // the simulated servos stall there, so it ends with a joint held short of its setpoint, which
+    // `play` names (commands::drive::blocked). Nothing else may fail it.
     let replay = armctl(&[sim, unchecked, "play", s(&record)]);
-    assert_eq!(replay.code, 0, "replay: {}", replay.stderr);
+    let blocked = replay.code == 1 && replay.stderr.contains("short of its setpoint");
+    assert!(replay.code == 0 || blocked, "replay: {}", replay.stderr);
 }
 
 /// Bad input is one line on stderr and nothing starts: no script for a simulated leader, a

@@ -101,6 +101,7 @@ class ArmctlFollower(Robot):
         return armctl.Arm(
             sim=c.sim, port=c.port, bus=c.bus, protocol=c.protocol, arm=c.arm, baud=c.baud,
             calibration=str(self._calibration_path) if c.bus else None,
+            gravity_compensation=c.gravity_compensation,
         )
 
     @check_if_already_connected

@@ -38,6 +38,9 @@ class ArmctlFollowerConfig(RobotConfig):
     # (one value, or one per motor name); None leaves the speed limit over one period.
     max_relative_target: float | dict[str, float] | None = None
     disable_torque_on_disconnect: bool = True
+    # The firmware's gravity compensation (docs/servo-model.md): None is armctl.Arm's default (on
+    # with physical simulated servos, off elsewhere); True asks for it on a real arm's servos.
+    gravity_compensation: bool | None = None
     cameras: dict[str, CameraConfig] = field(default_factory=dict)
     # "joint": `shoulder_pan.pos` ... in degrees and `gripper.pos` 0-100, as so101_follower;
     # "ee": `ee.x, ee.y, ee.z` (m) and `ee.wx, ee.wy, ee.wz` (rotation vector, rad) with

@@ -72,10 +72,11 @@ pub(crate) fn interrupted(driver: &mut Driver, before: &str) -> DriveError {
 }
 
 /// Waits until the arm is at rest ([`Driver::wait_until_rest`]); after Ctrl-C, stops it and
-/// fails with where it stopped.
+/// fails with where it stopped; a joint resting far from its setpoint fails the move by name
+/// ([`super::blocked::check_at_rest`]).
 pub(crate) fn rest(driver: &mut Driver, timeout: f64) -> DriveResult<Status> {
     match driver.wait_until_rest(timeout)? {
-        Waited::Done(status) => Ok(*status),
+        Waited::Done(status) => super::blocked::check_at_rest(driver, *status).map_err(DriveError::Failed),
         Waited::Interrupted => Err(interrupted(driver, "")),
     }
 }

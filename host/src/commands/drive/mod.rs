@@ -16,6 +16,7 @@
 //! [`Driver`]: crate::runtime::driver::Driver
 
 pub mod avoid;
+pub mod blocked;
 pub mod collision;
 pub mod error;
 pub mod gripper;

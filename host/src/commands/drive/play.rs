@@ -408,7 +408,10 @@ pub fn play(driver: &mut Driver, plan: &Plan, notes: &mut dyn Write) -> DriveRes
             )));
         }
         match status.state {
-            RunState::Idle if pushed == total && status.queued == 0 => break driver.settle(status)?,
+            RunState::Idle if pushed == total && status.queued == 0 => {
+                let settled = driver.settle(status)?;
+                break super::blocked::check_at_rest(driver, settled).map_err(DriveError::Failed)?;
+            }
             RunState::Idle if status.queued > 0 => {
                 // The player ran dry (an underrun) and the controller went to hold: go on.
                 restarts += 1;
