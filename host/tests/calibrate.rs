@@ -94,8 +94,11 @@ impl Process {
 
     fn send(&mut self, text: &str) {
         let stdin = self.stdin.as_mut().expect("stdin is open");
-        writeln!(stdin, "{text}").unwrap();
-        stdin.flush().unwrap();
+        if let Err(e) = writeln!(stdin, "{text}").and_then(|()| stdin.flush()) {
+            // The process ended before reading it: what it said is the failure, not the pipe.
+            let (code, stderr) = self.finish();
+            panic!("sending {text:?}: {e}; it had ended with {code}: {:?}; stderr {stderr}", self.seen);
+        }
     }
 
     fn close_stdin(&mut self) {

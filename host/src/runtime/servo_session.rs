@@ -30,6 +30,27 @@ impl<E> From<MasterError<E>> for BusFailure<E> {
     }
 }
 
+/// Servos that did not answer a sync read in all its attempts: a loose cable, or a reply late on
+/// a busy PC; a caller sampling over time may take it as one missed sample.
+#[derive(Debug, Clone)]
+pub struct NoAnswer {
+    /// The servos whose data did not arrive.
+    pub missing: Vec<Id>,
+    /// The item read.
+    pub item: &'static str,
+    /// The attempts made.
+    pub attempts: u8,
+}
+
+impl std::fmt::Display for NoAnswer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let ids: Vec<String> = self.missing.iter().map(Id::to_string).collect();
+        write!(f, "servo {} did not answer a sync read of {} ({} attempts)", ids.join(", "), self.item, self.attempts)
+    }
+}
+
+impl std::error::Error for NoAnswer {}
+
 /// What a servo says about itself.
 #[derive(Clone, Copy, Debug)]
 pub struct Servo {
@@ -186,14 +207,9 @@ impl<P: Port, C: Clock> Session<P, C> {
         let len = item.len();
         let mut bytes = vec![0u8; ids.len() * len];
         let report = self.master.sync_read(item.address, len as u16, ids, &mut bytes).map_err(BusFailure)?;
-        let missing: Vec<String> = report.missing(ids).map(|id| id.to_string()).collect();
+        let missing: Vec<Id> = report.missing(ids).collect();
         if !missing.is_empty() {
-            anyhow::bail!(
-                "servo {} did not answer a sync read of {} ({} attempts)",
-                missing.join(", "),
-                item.name,
-                report.attempts
-            );
+            return Err(NoAnswer { missing, item: item.name, attempts: report.attempts }.into());
         }
         bytes.chunks(len).map(|b| item.decode(b, model.endian).map_err(value_error)).collect()
     }

@@ -38,13 +38,17 @@ use super::commands::eeprom_write;
 use crate::arm::calibration::{homing_offset_item, lerobot, record, MotorCalibration};
 use crate::arm::servos::{servos_of, ServoSetup};
 use crate::arm::{toml_update, ArmSpec};
-use crate::runtime::servo_session::{Port, Session};
+use crate::runtime::servo_session::{NoAnswer, Port, Session};
 
 /// The baud rate when `--baud` is not given: `--bus`'s, the STS3215's factory rate.
 const DEFAULT_BAUD: u32 = 1_000_000;
 
 /// How often the positions are read while the joints are moved (LeRobot's `time.sleep(0.02)`).
 pub const SAMPLE_PERIOD: Duration = Duration::from_millis(20);
+
+/// Consecutive samples in step 2 that may go unanswered (with their retries, about two seconds)
+/// before the bus is taken for lost.
+const MAX_SILENT_SAMPLES: u32 = 40;
 
 /// Dynamixel X's position control mode (operating mode 3), in which it ignores homing offsets
 /// beyond [`record::DXL_POSITION_MODE_MAX_OFFSET`].
@@ -491,11 +495,24 @@ fn record_ranges<P: Port, C: Clock>(
         return Ok((Vec::new(), Vec::new()));
     }
     let item = model.items.present_position;
-    let first = session.sync_read_item(ids, model, item)?;
-    let (mut mins, mut maxes) = (first.clone(), first);
-    let mut shown = false;
+    let (mut mins, mut maxes) = (vec![i64::MAX; ids.len()], vec![i64::MIN; ids.len()]);
+    let (mut shown, mut silent) = (false, 0);
     loop {
-        let now = session.sync_read_item(ids, model, item)?;
+        let now = match session.sync_read_item(ids, model, item) {
+            Ok(now) => now,
+            // A reply late on a busy PC loses one sample of a person's slow sweep; a bus silent
+            // for seconds is a fault.
+            Err(e) if e.downcast_ref::<NoAnswer>().is_some() && silent + 1 < MAX_SILENT_SAMPLES => {
+                silent += 1;
+                std::thread::sleep(SAMPLE_PERIOD);
+                continue;
+            }
+            Err(e) if e.downcast_ref::<NoAnswer>().is_some() => {
+                bail!("{e}: {MAX_SILENT_SAMPLES} samples in a row unanswered during step 2: {state}")
+            }
+            Err(e) => bail!("{e} during step 2: {state}"),
+        };
+        silent = 0;
         for (k, &p) in now.iter().enumerate() {
             mins[k] = mins[k].min(p);
             maxes[k] = maxes[k].max(p);
@@ -511,9 +528,94 @@ fn record_ranges<P: Port, C: Clock>(
             out.flush()?;
             shown = true;
         }
+        // Enter ends the recording after a sample (a silent sample does not get here).
         if steps.pressed("during step 2", state)? {
             return Ok((mins, maxes));
         }
         std::thread::sleep(SAMPLE_PERIOD);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::convert::Infallible;
+
+    use embedded_io::{ErrorType, Read, ReadReady, Write as IoWrite};
+    use firmware::bus::table::sts3215::STS3215;
+
+    use super::*;
+    use crate::sim::{connect, SimBus, SimPort, VirtualClock};
+
+    /// A line whose first `deaf` transmissions never reach the servos: a bus that misses replies
+    /// for a while (a busy PC, a loose cable).
+    struct DeafFor {
+        port: SimPort,
+        deaf: usize,
+    }
+
+    impl ErrorType for DeafFor {
+        type Error = Infallible;
+    }
+
+    impl IoWrite for DeafFor {
+        fn write(&mut self, buf: &[u8]) -> Result<usize, Infallible> {
+            if self.deaf > 0 {
+                return Ok(buf.len());
+            }
+            self.port.write(buf)
+        }
+
+        fn flush(&mut self) -> Result<(), Infallible> {
+            if self.deaf > 0 {
+                self.deaf -= 1;
+                return Ok(());
+            }
+            self.port.flush()
+        }
+    }
+
+    impl Read for DeafFor {
+        fn read(&mut self, buf: &mut [u8]) -> Result<usize, Infallible> {
+            self.port.read(buf)
+        }
+    }
+
+    impl ReadReady for DeafFor {
+        fn read_ready(&mut self) -> Result<bool, Infallible> {
+            self.port.read_ready()
+        }
+    }
+
+    /// Step 2's recording on servos 1 and 2 (at 1000 and 3000) behind a line deaf for its first
+    /// `deaf` transmissions, Enter already pressed.
+    fn record(deaf: usize) -> Result<(Vec<i64>, Vec<i64>)> {
+        let (bus, port, clock): (_, SimPort, VirtualClock) =
+            connect(SimBus::new(Protocol::Feetech, &STS3215, &[1, 2], DEFAULT_BAUD));
+        for (id, ticks) in [(1, 1000), (2, 3000)] {
+            bus.borrow_mut().servo_mut(id).unwrap().set_position(ticks, 0);
+        }
+        let config = BusConfig::new(Protocol::Feetech, DEFAULT_BAUD);
+        let mut session = Session::new("sim", DeafFor { port, deaf }, clock, config);
+        let steps = Steps::from(std::io::Cursor::new("\n"))?;
+        record_ranges(&mut session, &STS3215, &[], &[1, 2], &steps, "the state", false, &mut Vec::new())
+    }
+
+    /// A few samples unanswered (here ten, three attempts each) are samples lost, not the
+    /// calibration: the recording goes on and ends at the next answered sample.
+    #[test]
+    fn a_few_unanswered_samples_do_not_end_the_recording() {
+        assert_eq!(record(30).unwrap(), (vec![1000, 3000], vec![1000, 3000]));
+    }
+
+    /// A bus silent for [`MAX_SILENT_SAMPLES`] samples in a row is lost: one line naming the
+    /// servos, the count and what state the servos were left in.
+    #[test]
+    fn a_bus_silent_for_seconds_ends_the_recording_in_one_line() {
+        let e = record(usize::MAX).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "servo 1, 2 did not answer a sync read of present_position (3 attempts): 40 samples in a row unanswered \
+             during step 2: the state"
+        );
     }
 }
