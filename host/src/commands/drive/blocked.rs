@@ -18,13 +18,19 @@ pub const BLOCKED_RAD: f32 = 0.2;
 /// The same for a prismatic joint (m).
 pub const BLOCKED_M: f32 = 0.02;
 
+/// Joint `j`'s bound at rest and its unit: [`BLOCKED_M`] m for a prismatic joint, else
+/// [`BLOCKED_RAD`] rad.
+fn bound(driver: &Driver, j: usize) -> (f32, &'static str) {
+    match driver.arm().joints.get(j) {
+        Some(x) if x.kind == JointKind::Prismatic => (BLOCKED_M, "m"),
+        _ => (BLOCKED_RAD, "rad"),
+    }
+}
+
 /// The joint furthest beyond its bound at rest in `status`, with its name: `(index, name)`.
 pub fn blocked_joint(driver: &Driver, status: &Status) -> Option<(usize, String)> {
     let joints = &driver.arm().joints;
-    let over = |j: usize| {
-        let bound = if joints.get(j).is_some_and(|x| x.kind == JointKind::Prismatic) { BLOCKED_M } else { BLOCKED_RAD };
-        (status.measured[j] - status.setpoints[j]).abs() / bound
-    };
+    let over = |j: usize| (status.measured[j] - status.setpoints[j]).abs() / bound(driver, j).0;
     (0..status.measured.len().min(status.setpoints.len()))
         .filter(|&j| over(j) > 1.0)
         .max_by(|&a, &b| over(a).total_cmp(&over(b)))
@@ -36,7 +42,7 @@ pub fn blocked_joint(driver: &Driver, status: &Status) -> Option<(usize, String)
 pub fn check_at_rest(driver: &mut Driver, status: Status) -> anyhow::Result<Status> {
     let Some((j, name)) = blocked_joint(driver, &status) else { return Ok(status) };
     let (at, sent) = (status.measured[j], status.setpoints[j]);
-    let unit = if driver.arm().joints.get(j).is_some_and(|x| x.kind == JointKind::Prismatic) { "m" } else { "rad" };
+    let unit = bound(driver, j).1;
     let held = Joints::from_slice(&status.measured)
         .ok()
         .and_then(|here| driver.session().move_joints(here, Timing::Duration(0.1)).ok())
