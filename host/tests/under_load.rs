@@ -245,7 +245,9 @@ fn end(child: &mut Child) {
 /// `--bus` on simulated servos: the core of a `--bus` connection in this process.
 fn bus_on_simulator(arm: &ArmSpec) -> Part {
     let servos = servos_of(arm).unwrap();
-    let server = armctl::sim::serve_arm(arm, servos.baud, None, Default::default()).unwrap();
+    let server =
+        armctl::sim::serve_arm(arm, servos.baud, None, Default::default(), armctl::arm::collision::collision_of(arm))
+            .unwrap();
     let options = PcOptions {
         path: server.path().to_string(),
         protocol: servos.model.protocol,

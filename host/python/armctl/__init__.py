@@ -405,7 +405,10 @@ class Arm:
     one (a NaN, a size not above zero) raises ``ValueError`` before anything opens. Every later
     command is checked against them (:attr:`obstacles`, :meth:`add_obstacle`,
     :meth:`remove_obstacle`, :meth:`clear_obstacles`); the firmware gets them with the arm, which
-    it takes only with the torque off.
+    it takes only with the torque off. ``hidden_obstacles`` (simulated arm only), in the same
+    forms, are in the simulated world but not told to the firmware (something nobody declared): the
+    simulated links stop at them, and a move one blocks raises :class:`ArmctlError` naming the
+    joint that stopped short.
 
     An ``Arm`` is driven from the thread that opened it: its connection (the simulated board's
     virtual clock among it) is not made to cross threads, and a call from another thread raises
@@ -416,7 +419,7 @@ class Arm:
                  protocol: str | None = None, arm: str | None = None, calibration: str | None = None,
                  baud: int | None = None, obstacles: Iterable[Any] | None = None, table: bool = True,
                  servos: str | None = None, payload_kg: float | None = None,
-                 gravity_compensation: bool | None = None):
+                 gravity_compensation: bool | None = None, hidden_obstacles: Iterable[Any] | None = None):
         if isinstance(sim, str):
             if arm is not None and arm != sim:
                 raise ArmctlError(f"sim={sim!r} and arm={arm!r}: name the simulated arm once")
@@ -426,7 +429,8 @@ class Arm:
                                    obstacles=None if obstacles is None else list(obstacles), table=bool(table),
                                    servos=servos, payload_kg=None if payload_kg is None else float(payload_kg),
                                    gravity_compensation=None if gravity_compensation is None
-                                   else bool(gravity_compensation))
+                                   else bool(gravity_compensation),
+                                   hidden_obstacles=None if hidden_obstacles is None else list(hidden_obstacles))
         self._owner = threading.current_thread()
 
     @property

@@ -82,6 +82,7 @@ class Arm:
         servos: Optional[str] = None,
         payload_kg: Optional[float] = None,
         gravity_compensation: Optional[bool] = None,
+        hidden_obstacles: Optional[list[Any]] = None,
     ) -> None: ...
     @property
     def obstacles(self) -> list[dict[str, Any]]: ...

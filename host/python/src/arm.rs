@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, Result};
 use armctl::arm::collision::edit::{geometry_json, geometry_of, obstacle_json, source_of};
-use armctl::arm::collision::{CollisionSpec, TABLE};
+use armctl::arm::collision::{CollisionSpec, ObstacleSpec, TABLE};
 use armctl::commands::drive::gripper::{GripperGoal, GripperRequest};
 use armctl::commands::drive::joints::JointsRequest;
 use armctl::commands::drive::move_to::MoveRequest;
@@ -189,7 +189,7 @@ impl Arm {
 #[pymethods]
 impl Arm {
     #[new]
-    #[pyo3(signature = (*, sim = false, port = None, bus = None, protocol = None, arm = None, calibration = None, baud = None, obstacles = None, table = true, servos = None, payload_kg = None, gravity_compensation = None))]
+    #[pyo3(signature = (*, sim = false, port = None, bus = None, protocol = None, arm = None, calibration = None, baud = None, obstacles = None, table = true, servos = None, payload_kg = None, gravity_compensation = None, hidden_obstacles = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -205,10 +205,19 @@ impl Arm {
         servos: Option<&str>,
         payload_kg: Option<f64>,
         gravity_compensation: Option<bool>,
+        hidden_obstacles: Option<Vec<Bound<'_, PyAny>>>,
     ) -> PyResult<Self> {
         let protocol = protocol.map(protocol_named).transpose().or_raise()?;
         // Every obstacle read before anything opens: a bad one moves nothing.
         let given = obstacles.unwrap_or_default().iter().map(obstacles::obstacle).collect::<PyResult<Vec<_>>>()?;
+        let hidden = hidden_obstacles
+            .unwrap_or_default()
+            .iter()
+            .map(|o| {
+                let (name, shape) = obstacles::obstacle(o)?;
+                Ok(ObstacleSpec { name: name.unwrap_or_else(|| "hidden".into()), shape })
+            })
+            .collect::<PyResult<Vec<_>>>()?;
         let place = Place {
             port,
             bus,
@@ -224,6 +233,7 @@ impl Arm {
                 .transpose()
                 .or_raise()?,
             surroundings: Default::default(),
+            hidden_obstacles: hidden,
             no_collision_check: false,
             gravity: gravity_compensation,
         };

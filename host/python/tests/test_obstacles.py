@@ -81,3 +81,17 @@ def test_obstacles_added_and_removed_for_the_commands_that_follow():
         assert names(arm) == []
         r = arm.move_joints([0.0, 0.2, 0.0, 0.0, 0.0], duration=1.0)
         assert r["max_error"] < 2e-3
+
+
+def test_an_obstacle_hidden_from_the_firmware_stops_the_move_naming_the_joint():
+    # In the tool's path as the pan turns to 0.5 rad; the firmware's check knows nothing of it.
+    hidden = ("sphere", [0.38, -0.095, 0.226], 0.03)
+    for servos in ["ideal", "physical"]:
+        with armctl.Arm(sim="so101", servos=servos, hidden_obstacles=[hidden]) as arm:
+            assert names(arm) == ["table"], "the firmware is not told of it"
+            with pytest.raises(armctl.ArmctlError) as e:
+                arm.move_joints([0.5, 0.0, 0.0, 0.0, 0.0], duration=1.0)
+            assert str(e.value).startswith("shoulder_pan stopped"), str(e.value)
+    with pytest.raises(armctl.ArmctlError) as e:
+        armctl.Arm(bus="/dev/null", protocol="sts", hidden_obstacles=[hidden])
+    assert "--hidden-obstacle puts an obstacle in the simulated world only" in str(e.value), str(e.value)

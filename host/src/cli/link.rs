@@ -78,6 +78,11 @@ pub struct LinkArgs {
     /// geometry, which every goal is checked against.
     #[arg(long = "obstacle", value_name = "SPEC")]
     pub obstacles: Vec<crate::arm::collision::ObstacleSpec>,
+    /// With --sim only: an obstacle in the simulated world that the firmware is not told of (an
+    /// object nobody declared): the simulated links stop at it, as at a real one. SPEC as for
+    /// --obstacle. Repeatable. A move it blocks fails naming the joint (docs/collisions.md).
+    #[arg(long = "hidden-obstacle", value_name = "SPEC")]
+    pub hidden_obstacles: Vec<crate::arm::collision::ObstacleSpec>,
     /// Without the table the arm stands on (a preset stands on one at its base plane, an arm file
     /// where its [collision] table says).
     #[arg(long)]
@@ -118,6 +123,7 @@ impl LinkArgs {
             )?,
             rig: one("--rig", &self.rig, &after.rig)?,
             obstacles: self.obstacles.iter().chain(&after.obstacles).cloned().collect(),
+            hidden_obstacles: self.hidden_obstacles.iter().chain(&after.hidden_obstacles).cloned().collect(),
             no_table: self.no_table || after.no_table,
             no_collision_check: self.no_collision_check || after.no_collision_check,
             json: self.json || after.json,
@@ -139,6 +145,7 @@ impl LinkArgs {
             (self.payload_kg.is_some(), "--payload-kg"),
             (self.gravity_compensation.is_some(), "--gravity-compensation"),
             (!self.obstacles.is_empty(), "--obstacle"),
+            (!self.hidden_obstacles.is_empty(), "--hidden-obstacle"),
             (self.no_table, "--no-table"),
             (self.no_collision_check, "--no-collision-check"),
         ]
@@ -192,6 +199,7 @@ impl LinkArgs {
             object_mm: self.object_mm,
             servos: self.servo_kind()?,
             surroundings: self.surroundings(),
+            hidden_obstacles: self.hidden_obstacles.clone(),
             no_collision_check: self.no_collision_check,
             gravity: self.gravity_compensation.as_deref().map(|v| v == "on"),
         })

@@ -109,7 +109,8 @@ pub fn run(args: ServeArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
     // With --sim the servos are served on a pty of their own, and the core drives them there
     // exactly as it drives an adapter's port.
     let kind = crate::sim::physics::servo_kind(args.servos.as_deref(), args.payload_kg)?;
-    let simulated = args.sim.then(|| crate::sim::serve_arm(&arm, baud, burst, kind)).transpose()?;
+    let contact = crate::arm::collision::collision_of(&arm);
+    let simulated = args.sim.then(|| crate::sim::serve_arm(&arm, baud, burst, kind, contact)).transpose()?;
     let path = match (&simulated, &args.bus) {
         (Some(server), _) => server.path().to_string(),
         (None, Some(path)) => path.clone(),

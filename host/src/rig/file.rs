@@ -209,6 +209,7 @@ impl ArmEntry {
             object_mm: None,
             servos: None,
             surroundings: Default::default(),
+            hidden_obstacles: Vec::new(),
             no_collision_check: false,
             gravity: None,
         };

@@ -11,6 +11,7 @@ use firmware::bus::Protocol;
 use firmware::link::message::Info;
 
 use crate::arm::collision::obstacle::Surroundings;
+use crate::arm::collision::ObstacleSpec;
 use crate::arm::servos::servos_of;
 use crate::arm::ArmSpec;
 use crate::link::arm_config::CollisionCheck;
@@ -83,6 +84,9 @@ pub struct Place {
     /// With `sim`: the firmware is sent the geometry with its check off (`--no-collision-check`),
     /// so that the simulated arm can be seen to run into what is in the way.
     pub no_collision_check: bool,
+    /// With `sim`: obstacles only the simulator knows (`--hidden-obstacle`): the simulated links
+    /// stop at them, the firmware is not told (something nobody declared on the table).
+    pub hidden_obstacles: Vec<ObstacleSpec>,
     /// Gravity compensation (`--gravity-compensation on|off`; `None`: on with physical simulated
     /// servos, off elsewhere: ideal servos do not sag, and it has not run on a real arm yet).
     pub gravity: Option<bool>,
@@ -142,6 +146,9 @@ impl Place {
         if self.servos.is_some() && !self.sim {
             bail!("--servos and --payload-kg choose the simulated servos: they need --sim");
         }
+        if !self.hidden_obstacles.is_empty() && !self.sim {
+            bail!("--hidden-obstacle puts an obstacle in the simulated world only: it needs --sim");
+        }
         if self.object_mm.is_some() && !self.sim {
             bail!("--object-mm puts an object between the simulated gripper's jaws: it needs --sim");
         }
@@ -192,15 +199,19 @@ impl Place {
             }
             (None, true) if self.baud.is_some() => bail!("--baud is the baud rate of --port; --sim has none"),
             (None, true) => {
-                let arm = self.arm.as_deref().unwrap_or(DEFAULT_SIM_ARM);
+                let arm = self.load(self.arm.as_deref().unwrap_or(DEFAULT_SIM_ARM))?;
                 let collision_check = if self.no_collision_check { CollisionCheck::Off } else { CollisionCheck::On };
+                // The simulated world: what the firmware is sent, and what is hidden from it.
+                let hidden = Surroundings { obstacles: self.hidden_obstacles.clone(), no_table: false };
+                let world = arm.clone().with_surroundings(&hidden).map_err(|e| hidden_error(&e))?;
                 let options = SilOptions {
+                    contact: crate::arm::collision::collision_of(&world),
                     object_mm: self.object_mm,
                     collision_check,
                     servos: self.servos.unwrap_or_default(),
                     // Nothing sets the simulated board's servos up: they hold the factory's gains.
                     gravity: self.compensation(Gains::Factory)?,
-                    ..SilOptions::for_arm(self.load(arm)?)?
+                    ..SilOptions::for_arm(arm)?
                 };
                 Ok(Target::Sim(Box::new(options)))
             }
@@ -214,6 +225,11 @@ impl Place {
             ),
         }
     }
+}
+
+/// `--hidden-obstacle`'s error in its own words (the geometry's speak of `--obstacle`).
+fn hidden_error(e: &anyhow::Error) -> anyhow::Error {
+    anyhow!("--hidden-obstacle: {}", e.to_string().replace("--obstacle", "--obstacle and --hidden-obstacle"))
 }
 
 /// How long the PC-hosted core may take, once it has its arm, to read every servo and its torque.
@@ -253,7 +269,8 @@ impl Target {
     pub fn in_real_time(self) -> Result<(Target, Option<crate::sim::PtyServer>)> {
         match self {
             Target::Sim(options) => {
-                let (mut pc, servos) = PcOptions::simulated(options.arm, Some(SIM_ADAPTER_LATENCY), options.servos)?;
+                let (mut pc, servos) =
+                    PcOptions::simulated(options.arm, Some(SIM_ADAPTER_LATENCY), options.servos, options.contact)?;
                 // Asked for as for the simulated board, the gains the core sets up.
                 pc.gravity = options.gravity.map(|c| Compensation { gains: Gains::SetUp, ..c });
                 Ok((Target::Bus(Box::new(pc)), Some(servos)))

@@ -668,15 +668,20 @@ pub fn arm_bus(arm: &crate::arm::ArmSpec, faults: super::Faults) -> anyhow::Resu
 /// `arm`'s servos served on a pty at `baud` for a firmware core on this PC to drive as it drives a
 /// USB adapter (`armctl serve --sim`, `armctl teleop --sim`): the servos follow the rate the
 /// core sets, replies come in `burst`s as through an adapter's latency timer, and the safety
-/// monitor checks every goal; `servos` physical or ideal.
+/// monitor checks every goal; `servos` physical or ideal; the links stop where they run into
+/// `contact`'s bodies (the arm's own geometry, [`crate::arm::collision::collision_of`], or with
+/// obstacles only the simulator knows; `None`: nothing is in the way).
 pub fn serve_arm(
     arm: &crate::arm::ArmSpec,
     baud: u32,
     burst: Option<Duration>,
     servos: super::physics::ServoKind,
+    contact: Option<crate::arm::collision::CollisionSpec>,
 ) -> anyhow::Result<PtyServer> {
     let physics = servos.physics(Some(arm))?;
-    let config = SimConfig { baud, fixed_baud: false, burst, physics, ..arm_bus(arm, super::Faults::default())? };
+    let world = contact.map(|geometry| World::new(arm, geometry)).transpose()?;
+    let config =
+        SimConfig { baud, fixed_baud: false, burst, physics, world, ..arm_bus(arm, super::Faults::default())? };
     PtyServer::spawn(config).map_err(|e| anyhow::anyhow!("cannot serve the simulated servos on a pseudo-terminal: {e}"))
 }
 

@@ -76,11 +76,12 @@ impl PcOptions {
         arm: ArmSpec,
         latency: Option<std::time::Duration>,
         kind: crate::sim::physics::ServoKind,
+        contact: Option<crate::arm::collision::CollisionSpec>,
     ) -> Result<(Self, crate::sim::PtyServer)> {
         let protocol =
             servos_of(&arm).map(|s| s.model.protocol).ok_or_else(|| anyhow!("arm {} has no servos", arm.name))?;
         let baud = arm.bus_baud().unwrap_or(1_000_000);
-        let servos = crate::sim::serve_arm(&arm, baud, latency, kind)?;
+        let servos = crate::sim::serve_arm(&arm, baud, latency, kind, contact)?;
         let options = PcOptions {
             path: servos.path().to_string(),
             protocol,
@@ -88,16 +89,8 @@ impl PcOptions {
             arm,
             calibration_file: None,
             monitor: servos.monitor_handle(),
-            // The core sets its servos up (P 16 on the STS3215): physical ones sag by that.
-            gravity: match kind {
-                crate::sim::physics::ServoKind::Physical(payload) => {
-                    Some(crate::runtime::gravity::Compensation::by_default(
-                        crate::runtime::gravity::Gains::SetUp,
-                        payload.map(|p| p.kg),
-                    ))
-                }
-                crate::sim::physics::ServoKind::Ideal => None,
-            },
+            // Asked for by the caller, whose options say whether the servos' sag is compensated.
+            gravity: None,
         };
         Ok((options, servos))
     }
