@@ -2,7 +2,7 @@
 """LeRobot's own command-line tools against simulated SO-101 arms: CI's end-to-end check that
 `armctl_follower` is a LeRobot robot like any other.
 
-    python host/scripts/lerobot_ci.py --armctl target/debug/armctl [--keep DIR]
+    python host/scripts/lerobot_ci.py --armctl target/debug/armctl [--keep DIR] [--servos physical]
 
 Runs `lerobot-teleoperate`, `lerobot-record` and `lerobot-replay` (the ones installed next to this
 Python, as subprocesses, with stdin closed, no network, no upload, no sounds, no display, and
@@ -41,6 +41,10 @@ announced); the replay's first action is sent right after lerobot-replay logs "R
 whose arrival here is timed (Python's stderr is line-buffered, PYTHONUNBUFFERED is set); action i
 is due 1/fps * i later. The tracking error at a shift s compares action i with the recorded
 position at (first action + i/fps + s).
+
+With `--servos physical` the followers' servos carry the arm under gravity, sag and lag
+(docs/servo-model.md; the leader's stay ideal: a hand holds them) and armctl_follower asks for
+gravity compensation; the bounds stay those of the ideal servos.
 
 Exit code 0 only if every check passes.
 """
@@ -234,9 +238,11 @@ class Follower:
     """Fresh simulated follower servos, calibrated with the follower's file, the monitor judging
     the calibrated arm, recording their positions."""
 
-    def __init__(self, armctl: str, cal_file: Path, record: Path, period_ms: float | None = None):
+    def __init__(self, armctl: str, cal_file: Path, record: Path, period_ms: float | None = None,
+                 servos: str | None = None):
         self.record = record
-        self.servos = lerobot_sim.SimServos(armctl, calibration=cal_file, record=record, period_ms=period_ms)
+        self.servos = lerobot_sim.SimServos(armctl, calibration=cal_file, record=record, period_ms=period_ms,
+                                            servos=servos)
         self.announced = time.monotonic()
         self.monitor: dict | None = None
         try:
@@ -277,10 +283,13 @@ def tool_path(name: str) -> str:
     return str(path)
 
 
-def robot_args(kind: str, port: str, cal_dir: Path) -> list[str]:
+def robot_args(kind: str, port: str, cal_dir: Path, physical: bool = False) -> list[str]:
     if kind == "armctl_follower":
+        # On physical servos the firmware compensates their sag (as smoothness.py asks).
+        compensation = ["--robot.gravity_compensation=true"] if physical else []
         return ["--robot.type=armctl_follower", f"--robot.bus={port}", "--robot.protocol=sts",
-                f"--robot.id={FOLLOWER_ID}", f"--robot.calibration_dir={cal_dir}", f"--robot.fps={FPS}"]
+                f"--robot.id={FOLLOWER_ID}", f"--robot.calibration_dir={cal_dir}", f"--robot.fps={FPS}",
+                *compensation]
     return [f"--robot.type={kind}", f"--robot.port={port}", f"--robot.id={FOLLOWER_ID}",
             f"--robot.calibration_dir={cal_dir}"]
 
@@ -349,7 +358,10 @@ def main() -> int:
     parser.add_argument("--armctl", default=None, help="the armctl binary (default: target/release, else debug)")
     parser.add_argument("--keep", type=Path, default=None,
                         help="work in this folder and keep it (logs, recordings, dataset) instead of a temporary one")
+    parser.add_argument("--servos", choices=("ideal", "physical"), default="ideal",
+                        help="the followers' simulated servos: ideal, or physical ones that carry the arm")
     args = parser.parse_args()
+    physical = args.servos == "physical"
     armctl_bin = str(Path(args.armctl).resolve()) if args.armctl else lerobot_sim.default_armctl()
     if not os.access(armctl_bin, os.X_OK):
         log(f"summary: no armctl binary at {armctl_bin} (cargo build -p armctl) -> FAILED")
@@ -399,7 +411,7 @@ def main() -> int:
     dataset_root = work / "dataset"
 
     def follower(name: str, period_ms: float | None = None) -> Follower:
-        f = Follower(armctl_bin, follower_cal, work / f"{name}.csv", period_ms)
+        f = Follower(armctl_bin, follower_cal, work / f"{name}.csv", period_ms, args.servos)
         followers.append(f)
         return f
 
@@ -428,7 +440,7 @@ def main() -> int:
 
         # ---- 2. teleoperate ---------------------------------------------------------------------
         f = follower("teleoperate")
-        cmd = [tool_path("lerobot-teleoperate"), *robot_args("armctl_follower", f.port, robot_cal_dir),
+        cmd = [tool_path("lerobot-teleoperate"), *robot_args("armctl_follower", f.port, robot_cal_dir, physical),
                *teleop_args(leader.port, teleop_cal_dir), f"--fps={FPS}", f"--teleop_time_s={TELEOP_S}",
                "--display_data=false"]
         hand.start_continuous()
@@ -456,7 +468,7 @@ def main() -> int:
 
         # ---- 3. record --------------------------------------------------------------------------
         f = follower("record")
-        cmd = [tool_path("lerobot-record"), *robot_args("armctl_follower", f.port, robot_cal_dir),
+        cmd = [tool_path("lerobot-record"), *robot_args("armctl_follower", f.port, robot_cal_dir, physical),
                *teleop_args(leader.port, teleop_cal_dir),
                f"--dataset.repo_id={REPO_ID}", f"--dataset.root={dataset_root}",
                f"--dataset.num_episodes={EPISODES}", f"--dataset.episode_time_s={EPISODE_S}",
@@ -529,7 +541,7 @@ def main() -> int:
                 # so101_follower writes each action as the goals, once a frame: the monitor judges
                 # its steps over a frame; armctl's core steps them at its own 10 ms.
                 f = follower(f"replay_{kind}", 1000.0 / FPS if kind == "so101_follower" else None)
-                cmd = [tool_path("lerobot-replay"), *robot_args(kind, f.port, robot_cal_dir),
+                cmd = [tool_path("lerobot-replay"), *robot_args(kind, f.port, robot_cal_dir, physical),
                        f"--dataset.repo_id={REPO_ID}", f"--dataset.root={dataset_root}", "--dataset.episode=0",
                        "--play_sounds=false"]
                 tool, rc = run(f"replay_{kind}", cmd)

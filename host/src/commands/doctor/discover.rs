@@ -130,7 +130,14 @@ pub fn scan(
             return Ok(Some(Found { protocol, baud, servos, garbled, tried }));
         }
     }
-    Ok(None)
+    // Nothing anywhere. One reply late by more than the scan's latency allowance (a busy PC, a
+    // slow adapter) loses a whole rate, as the scan asks each id once: the likeliest rate gets a
+    // second look with retries before the bus is called silent.
+    let Some(&(protocol, baud)) = pairs.first() else { return Ok(None) };
+    writeln!(progress, "looking for servos again, more patiently: {} at {baud} baud", protocol.name())?;
+    let mut session = Session::open(path, BusConfig { retries: AGAIN_RETRIES, ..scan_config(protocol, baud, echo) })?;
+    let (servos, garbled) = ping(&mut session, ids, path, baud)?;
+    Ok((!servos.is_empty() || !garbled.is_empty()).then_some(Found { protocol, baud, servos, garbled, tried }))
 }
 
 /// Pings each of `ids` once per attempt of the session's configuration: the servos that answer,
