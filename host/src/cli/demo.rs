@@ -27,6 +27,14 @@ pub struct DemoArgs {
     /// Do not write a plot.
     #[arg(long, conflicts_with = "plot")]
     no_plot: bool,
+    /// The simulated servos: ideal (the default) reach every goal along their profiles; physical
+    /// ones carry the arm under gravity, sag and lag (docs/servo-model.md), and the firmware then
+    /// compensates their sag.
+    #[arg(long, value_name = "KIND", value_parser = ["ideal", "physical"], conflicts_with = "rig")]
+    pub servos: Option<String>,
+    /// With --servos physical: a payload at the tool (kg).
+    #[arg(long, value_name = "KG", allow_negative_numbers = true, conflicts_with = "rig")]
+    pub payload_kg: Option<f64>,
     /// Print the results as one line of JSON instead of the text report.
     #[arg(long)]
     pub json: bool,
@@ -49,5 +57,6 @@ pub fn run(args: &DemoArgs, out: &mut dyn Write) -> Result<i32> {
         (Some(path), false) => PlotTo::File(path.clone()),
         (None, false) => PlotTo::Default,
     };
-    crate::commands::demo::run(&DemoRequest { arm: args.arm.clone(), plot }, args.json, out)
+    let servos = crate::sim::physics::servo_kind(args.servos.as_deref(), args.payload_kg)?;
+    crate::commands::demo::run(&DemoRequest { arm: args.arm.clone(), plot, servos }, args.json, out)
 }

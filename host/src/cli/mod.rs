@@ -403,6 +403,8 @@ fn take_globals(link: &LinkArgs, mut command: Command, name: &str) -> Result<Com
             args.json |= json;
             args.arm = either("--arm", rest.arm.take(), args.arm.take())?;
             args.rig = either("--rig", rest.rig.take(), args.rig.take())?;
+            args.servos = either("--servos", rest.servos.take(), args.servos.take())?;
+            args.payload_kg = either("--payload-kg", rest.payload_kg.take(), args.payload_kg.take())?;
         }
         Command::Serve(args) => {
             args.json |= json;

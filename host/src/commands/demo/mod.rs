@@ -33,6 +33,7 @@ use crate::commands::drive::path;
 use crate::link::session::Keyframe;
 use crate::runtime::connection::open_sil;
 use crate::runtime::driver::Driver;
+use crate::runtime::gravity::{gravity_parts, Compensation, Gains};
 use crate::runtime::sil::{Sil, SilOptions, TraceSample};
 use scenario::Scenario;
 
@@ -59,6 +60,8 @@ pub struct DemoRequest {
     pub arm: Option<String>,
     /// Where the plot goes.
     pub plot: PlotTo,
+    /// The simulated servos; physical ones get the firmware's gravity compensation.
+    pub servos: crate::sim::physics::ServoKind,
 }
 
 /// One point-to-point move's outcome.
@@ -271,10 +274,18 @@ fn fmt3(p: [f64; 3]) -> String {
 /// Runs `armctl demo`: the report on `out`, as one line of JSON with `json`; returns the exit code.
 pub fn run(request: &DemoRequest, json: bool, out: &mut dyn Write) -> Result<i32> {
     let wall = Instant::now();
-    let options = SilOptions::new(request.arm.as_deref().unwrap_or(DEFAULT_ARM))?;
+    let options =
+        SilOptions { servos: request.servos, ..SilOptions::new(request.arm.as_deref().unwrap_or(DEFAULT_ARM))? };
     let mut board = Sil::new(&options)?;
     board.record();
     let mut d = Driver::on(open_sil(board, options.arm.clone())?)?;
+    // Physical servos sag: the firmware compensates (nothing sets the simulated board's servos
+    // up, so they hold the factory's gains).
+    if let crate::sim::physics::ServoKind::Physical(payload) = request.servos {
+        let compensation = Compensation::by_default(Gains::Factory, payload.map(|p| p.kg));
+        let parts = gravity_parts(&options.arm, &compensation)?;
+        d.session().gravity(&parts).context("giving the firmware gravity compensation")?;
+    }
     let info = d.info().clone();
     let gripper = d.gripper();
     let arm = crate::arm::dof::build(d.arm().clone())?;
