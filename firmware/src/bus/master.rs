@@ -525,6 +525,8 @@ where
         let timeout_us = self.reply_timeout_us(1, reply_len);
         let checksums_before = self.stats.bad_checksums;
         let protocol = self.config.protocol;
+        // A reply of the wrong size: (expected, received) data bytes.
+        let mut wrong_size = None;
         for attempt in 0..=self.config.retries {
             if attempt > 0 {
                 self.stats.retries = self.stats.retries.wrapping_add(1);
@@ -536,20 +538,31 @@ where
                     return Flow::More;
                 }
                 let (refused, alert) = classify(protocol, status.error);
-                outcome = Some(if refused {
+                if refused {
                     let text =
                         protocol.describe_error(status.error).unwrap_or(ErrorText { what: "error", alert: false });
-                    Err(MasterError::Refused { id, error: status.error, text })
-                } else {
-                    on_data(status.params)
-                        .map(|()| Answer { replied: true, alert })
-                        .map_err(|(expected, received)| MasterError::BadReply { id, expected, received })
-                });
-                Flow::Done
+                    outcome = Some(Err(MasterError::Refused { id, error: status.error, text }));
+                    return Flow::Done;
+                }
+                match on_data(status.params) {
+                    Ok(()) => {
+                        outcome = Some(Ok(Answer { replied: true, alert }));
+                        Flow::Done
+                    }
+                    // Most likely a late reply to an earlier instruction (a retried ping's, on
+                    // a busy line): this one's may still come, else the next attempt's.
+                    Err(sizes) => {
+                        wrong_size = Some(sizes);
+                        Flow::More
+                    }
+                }
             })?;
             if let (true, Some(outcome)) = (replied, outcome) {
                 return outcome;
             }
+        }
+        if let Some((expected, received)) = wrong_size {
+            return Err(MasterError::BadReply { id, expected, received });
         }
         Err(MasterError::NoReply {
             id,
