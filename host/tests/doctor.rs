@@ -82,8 +82,15 @@ fn expect(report: &Value, check: &str, level: &str, text: &str) {
     );
 }
 
-fn counts(report: &Value) -> (u64, u64) {
-    (report["counts"]["warn"].as_u64().unwrap(), report["counts"]["fail"].as_u64().unwrap())
+/// The warnings and failures of every check but `cycle`, which times this machine: under CI's
+/// load the cycle of a clean arm has measured 9.8 ms at the 99th percentile and been warned about
+/// (the 10 ms period will not hold), which is the check working, not a fault of the arm.
+fn counts_but_cycle(report: &Value) -> (u64, u64) {
+    let of = |level: &str| {
+        report["findings"].as_array().unwrap().iter().filter(|f| f["check"] != "cycle" && f["level"] == level).count()
+            as u64
+    };
+    (of("warn"), of("fail"))
 }
 
 /// The set-up `armctl --bus` makes on first connect, given to the simulator's servos.
@@ -93,7 +100,7 @@ const SET_UP: [&str; 2] = ["--register", "all:return_delay_time=0"];
 fn a_clean_arm_gives_only_ok_lines_and_exit_0() {
     let sim = Sim::start(&["--arm", "so101", SET_UP[0], SET_UP[1]]);
     let (report, code) = sim.doctor(&["--arm", "so101"]);
-    assert_eq!(counts(&report), (0, 0), "{report}");
+    assert_eq!(counts_but_cycle(&report), (0, 0), "{report}");
     assert_eq!(code, 0);
     for check in ["bus", "ids", "models", "firmware", "power", "settings", "goals", "adapter", "line", "cycle"] {
         assert_eq!(findings(&report, check).len(), 1, "{check}: {report}");
@@ -105,7 +112,9 @@ fn a_clean_arm_gives_only_ok_lines_and_exit_0() {
     let run = armctl(&["doctor", "--bus", &sim.path, "--arm", "so101", "--reads", "20"]);
     assert_eq!(run.code, 0, "{}", run.stderr);
     assert!(run.stdout.lines().next().unwrap().starts_with("OK    bus"), "{}", run.stdout);
-    assert!(run.stdout.trim_end().ends_with("OK, 0 WARN, 0 FAIL"), "{}", run.stdout);
+    // The counts last (a warning, if any, the cycle's timing of this machine: see counts_but_cycle).
+    assert!(run.stdout.trim_end().ends_with(" WARN, 0 FAIL"), "{}", run.stdout);
+    assert!(run.stdout.lines().filter(|l| l.starts_with("WARN")).all(|l| l.contains(" cycle ")), "{}", run.stdout);
 }
 
 #[test]
@@ -126,7 +135,7 @@ fn a_factory_fresh_arm_warns_of_its_return_delay_and_fix_sets_it_up() {
     assert!(written.contains(&"servo 1: return_delay_time 250 -> 0 (EEPROM)"), "{written:?}");
     assert!(written.contains(&"servo 2: goal_position 3000 -> 2048"), "{written:?}");
     assert_eq!(written.len(), 7, "six return delays and one goal: {written:?}");
-    assert_eq!(counts(&fixed), (0, 0), "looked at again after the fixes: {fixed}");
+    assert_eq!(counts_but_cycle(&fixed), (0, 0), "looked at again after the fixes: {fixed}");
     assert!(fixed["servos"].as_array().unwrap().iter().all(|s| s["return_delay_us"] == 0));
 }
 
